@@ -1,0 +1,1 @@
+"""The ``phid`` command; entry point ``phid_ros.cli.main:main``."""

@@ -1,0 +1,1 @@
+"""Input/output: message schemas, bags (rosbag2 + MCAP), CSV import, JSON results."""

@@ -1,0 +1,61 @@
+"""One entry point for recordings on disk: a rosbag2 folder or a single .mcap file."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from phid_ros.errors import BagError
+from phid_ros.io.mcap_file import read_mcap, write_mcap
+from phid_ros.io.recording import Recording
+from phid_ros.io.rosbag2 import read_rosbag2, write_rosbag2
+
+
+def is_mcap_file(path: Path) -> bool:
+    return path.suffix == ".mcap" and not path.is_dir()
+
+
+def read_recording(path: str | Path) -> Recording:
+    p = Path(path)
+    if not p.exists():
+        raise BagError(f"{p}: no such bag or MCAP file")
+    if p.is_dir():
+        return read_rosbag2(p)
+    if is_mcap_file(p):
+        return read_mcap(p)
+    raise BagError(f"{p}: not a rosbag2 folder or .mcap file")
+
+
+def write_recording(path: str | Path, rec: Recording, **kwargs: object) -> Path:
+    """``*.mcap`` -> single MCAP file; anything else -> rosbag2 folder (MCAP storage)."""
+    p = Path(path)
+    if p.suffix == ".mcap":
+        return write_mcap(p, rec, **kwargs)  # type: ignore[arg-type]
+    return write_rosbag2(p, rec, **kwargs)  # type: ignore[arg-type]
+
+
+def topic_table(path: str | Path) -> list[tuple[str, str, int]]:
+    """(topic, message type, message count) from the file's index, without decoding messages."""
+    p = Path(path)
+    if not p.exists():
+        raise BagError(f"{p}: no such bag or MCAP file")
+    try:
+        if p.is_dir():
+            from rosbags.rosbag2 import Reader
+
+            with Reader(p) as reader:
+                return sorted((t, info.msgtype or "?", info.msgcount) for t, info in reader.topics.items())
+        from mcap.reader import make_reader
+
+        with p.open("rb") as fh:
+            summary = make_reader(fh).get_summary()
+            if summary is None:
+                raise BagError(f"{p}: MCAP file has no summary section (truncated?)")
+            counts = summary.statistics.channel_message_counts if summary.statistics else {}
+            return sorted(
+                (ch.topic, summary.schemas[ch.schema_id].name if ch.schema_id in summary.schemas else "?",
+                 counts.get(cid, 0))
+                for cid, ch in summary.channels.items())
+    except BagError:
+        raise
+    except Exception as exc:  # both readers raise assorted errors on damaged files
+        raise BagError(f"{p}: cannot read index: {type(exc).__name__}: {exc}") from exc

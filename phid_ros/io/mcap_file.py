@@ -1,0 +1,86 @@
+"""Single ``.mcap`` files (ROS 2 profile, cdr encoding, zstd chunks), through ``mcap``."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator
+from pathlib import Path
+
+from mcap.exceptions import McapError
+from mcap.reader import make_reader
+from mcap.writer import CompressionType, Writer
+
+from phid_ros.errors import BagError
+from phid_ros.io.msg_schemas import typestore
+from phid_ros.io.recording import (
+    DEFAULT_BLOCK_SIZE,
+    Recording,
+    is_phid_topic,
+    recording_from_messages,
+    recording_messages,
+)
+from phid_ros.io.topics import DEFAULT_NAMESPACE
+
+METADATA_NAME = "phid"
+
+
+def write_mcap(path: str | Path, rec: Recording, *, block_size: int = DEFAULT_BLOCK_SIZE,
+               namespace: str = DEFAULT_NAMESPACE) -> Path:
+    path = Path(path)
+    if path.exists():
+        raise BagError(f"{path}: already exists, not overwriting")
+    store = typestore()
+    with path.open("wb") as fh:
+        writer = Writer(fh, compression=CompressionType.ZSTD)
+        writer.start(profile="ros2", library="phid_ros")
+        schemas: dict[str, int] = {}
+        channels: dict[str, int] = {}
+        for log_ns, topic, msgtype, msg in recording_messages(rec, block_size=block_size, namespace=namespace):
+            if msgtype not in schemas:
+                msgdef, _ = store.generate_msgdef(msgtype, ros_version=2)
+                schemas[msgtype] = writer.register_schema(msgtype, "ros2msg", msgdef.encode())
+            if topic not in channels:
+                channels[topic] = writer.register_channel(topic, "cdr", schemas[msgtype])
+            data = bytes(store.serialize_cdr(msg, msgtype))
+            writer.add_message(channels[topic], log_time=log_ns, data=data, publish_time=log_ns)
+        if rec.metadata:
+            writer.add_metadata(METADATA_NAME, {k: str(v) for k, v in rec.metadata.items()})
+        writer.finish()
+    return path
+
+
+def read_mcap(path: str | Path) -> Recording:
+    path = Path(path)
+    source = str(path)
+    if not path.is_file():
+        raise BagError(f"{source}: no such MCAP file")
+    store = typestore()
+    try:
+        with path.open("rb") as fh:
+            reader = make_reader(fh)
+            metadata: dict[str, str] = {}
+            for record in reader.iter_metadata():
+                if record.name == METADATA_NAME:
+                    metadata.update(record.metadata)
+
+            def items() -> Iterator[tuple[str, str, object]]:
+                for schema, channel, message in reader.iter_messages(log_time_order=False):
+                    if not is_phid_topic(channel.topic):
+                        continue
+                    if schema is None or channel.message_encoding != "cdr":
+                        raise BagError(f"{source}: channel {channel.topic} is not cdr-encoded ROS 2 data")
+                    if schema.name not in store.types:
+                        raise BagError(f"{source}: topic {channel.topic} has unknown message type {schema.name}")
+                    try:
+                        msg = store.deserialize_cdr(message.data, schema.name)
+                    except Exception as exc:  # bad bytes raise struct/index/value errors
+                        raise BagError(f"{source}: corrupt message on {channel.topic}: {exc}") from exc
+                    yield channel.topic, schema.name, msg
+
+            return recording_from_messages(items(), source=source, metadata=metadata)
+    except BagError:
+        raise
+    except (McapError, EOFError, OSError, ValueError, json.JSONDecodeError) as exc:
+        raise BagError(f"{source}: truncated or corrupt MCAP file: {exc}") from exc
+    except Exception as exc:  # the mcap reader raises assorted errors on damaged records
+        raise BagError(f"{source}: truncated or corrupt MCAP file: {type(exc).__name__}: {exc}") from exc

@@ -1,0 +1,66 @@
+"""Conventions shared by every layer, stated once.
+
+- Per unit on the machine base; angles in radians (degrees only in reports).
+- Generator convention: stator current flowing out of the machine is positive.
+- ``delta`` is the rotor angle and ``theta_t`` the terminal-voltage phasor angle,
+  both in the synchronous reference frame (the infinite bus / grid reference).
+  The internal angle is ``delta - theta_t``, so
+
+      V_d = V_t sin(delta - theta_t),   V_q = V_t cos(delta - theta_t).
+
+  The paper writes (9)-(10) with ``delta`` alone, which only holds when the
+  terminal voltage itself is the angle reference; we always use the difference.
+- A network-frame phasor ``z`` maps to rotor d/q components by
+  ``d + j q = j z exp(-j delta)`` (Sauer & Pai), the same map for voltages and
+  currents.
+- Nominal frequency is a parameter (paper: 50 Hz).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+DEFAULT_F_NOMINAL_HZ = 50.0
+
+
+def omega_s(f_nominal_hz: float = DEFAULT_F_NOMINAL_HZ) -> float:
+    """Synchronous electrical speed in rad/s, ``2 pi f0``."""
+    return 2.0 * np.pi * float(f_nominal_hz)
+
+
+def terminal_to_dq(
+    v_t: ArrayLike, delta: ArrayLike, theta_t: ArrayLike
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(V_d, V_q) from the terminal magnitude and the two angles, eqs. (9)-(10) corrected."""
+    v = np.asarray(v_t, dtype=float)
+    internal = np.asarray(delta, dtype=float) - np.asarray(theta_t, dtype=float)
+    return v * np.sin(internal), v * np.cos(internal)
+
+
+def dq_to_terminal(
+    v_d: ArrayLike, v_q: ArrayLike, delta: ArrayLike
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(V_t, theta_t) from d/q components and the rotor angle; inverse of :func:`terminal_to_dq`."""
+    vd = np.asarray(v_d, dtype=float)
+    vq = np.asarray(v_q, dtype=float)
+    return np.hypot(vd, vq), np.asarray(delta, dtype=float) - np.arctan2(vd, vq)
+
+
+def network_to_dq(phasor: ArrayLike, delta: ArrayLike) -> NDArray[np.complex128]:
+    """Network-frame complex phasor -> ``d + j q`` in the rotor frame."""
+    return 1j * np.asarray(phasor, dtype=complex) * np.exp(-1j * np.asarray(delta, dtype=float))
+
+
+def dq_to_network(dq: ArrayLike, delta: ArrayLike) -> NDArray[np.complex128]:
+    """``d + j q`` in the rotor frame -> network-frame complex phasor."""
+    return -1j * np.asarray(dq, dtype=complex) * np.exp(1j * np.asarray(delta, dtype=float))
+
+
+def electrical_power(
+    v_d: ArrayLike, v_q: ArrayLike, i_d: ArrayLike, i_q: ArrayLike
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(P_e, Q_e) at the terminals: eq. (13) and ``Q = V_q I_d - V_d I_q``."""
+    vd, vq = np.asarray(v_d, float), np.asarray(v_q, float)
+    id_, iq = np.asarray(i_d, float), np.asarray(i_q, float)
+    return vd * id_ + vq * iq, vq * id_ - vd * iq

@@ -1,0 +1,1 @@
+"""Plant simulator: network, generator plant, sensors, scenario catalogue."""

@@ -1,0 +1,253 @@
+"""The plant: fourth-order generator (5)-(8) behind the network of :mod:`network`.
+
+Integration is fixed-step RK4 (dt <= 1 ms) vectorised over scenarios: every
+array carries one column per scenario, so a whole catalogue costs one Python
+loop over time. Inputs (P_m, V_f, the network's Thevenin pair) are held
+constant over each step, so a disturbance at a sample instant is exact.
+
+Extending the plant (saturation, damper windings, shaft torsion, ...) means
+adding states after the four base states and terms in :meth:`Plant._rhs`; the
+stator resistance ``r_a`` is already carried through the algebraic solve.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from phid_ros.errors import SimulationError
+from phid_ros.model.conventions import DEFAULT_F_NOMINAL_HZ, electrical_power, omega_s
+from phid_ros.model.parameters import GeneratorParameters
+from phid_ros.sim.network import Network
+
+Array = NDArray[np.float64]
+MAX_DT = 1e-3
+
+
+@dataclass(frozen=True)
+class OperatingPoint:
+    """Pre-disturbance terminal condition (paper: 0.8 pu active power at 1.0 pu voltage)."""
+
+    p_e: float = 0.8
+    v_t: float = 1.0
+    q_e: float = 0.4  # pf 0.89 lagging: keeps the +0.15 pu torque step and 200 ms fault stable
+
+
+@dataclass(frozen=True)
+class SteadyState:
+    delta: float
+    e_q: float
+    e_d: float
+    v_f: float
+    p_m: float
+    i_d: float
+    i_q: float
+    v_d: float
+    v_q: float
+    theta_t: float
+    v_inf: float  # infinite-bus magnitude; its angle is the reference, 0
+
+    @property
+    def x(self) -> Array:
+        return np.array([self.delta, 1.0, self.e_q, self.e_d])
+
+
+@dataclass(frozen=True)
+class Inputs:
+    """Per-step inputs, shape (n_steps, n_scenarios); ``damping`` is D per scenario."""
+
+    p_m: Array
+    v_f: Array
+    v_th_abs: Array
+    v_th_angle: Array
+    r_th: Array
+    x_th: Array
+    damping: Array
+
+    @property
+    def n_steps(self) -> int:
+        return int(self.p_m.shape[0])
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """States and terminal quantities at every step, shape (n_steps + 1, n_scenarios)."""
+
+    t: Array
+    delta: Array
+    omega: Array
+    e_q: Array
+    e_d: Array
+    i_d: Array
+    i_q: Array
+    v_d: Array
+    v_q: Array
+    v_t: Array
+    theta_t: Array
+    p_e: Array
+    q_e: Array
+    p_m: Array
+    v_f: Array
+
+    def channels(self) -> dict[str, Array]:
+        """The ten sensor channels (true values)."""
+        return {name: getattr(self, name) for name in
+                ("v_t", "theta_t", "i_d", "i_q", "omega", "delta", "v_f", "p_m", "p_e", "q_e")}
+
+
+class Plant:
+    def __init__(
+        self,
+        params: GeneratorParameters,
+        network: Network | None = None,
+        *,
+        f_nominal_hz: float = DEFAULT_F_NOMINAL_HZ,
+        r_a: float = 0.0,
+    ) -> None:
+        if f_nominal_hz <= 0:
+            raise SimulationError(f"nominal frequency must be positive, got {f_nominal_hz}")
+        self.params = params
+        self.network = network or Network()
+        self.f_nominal_hz = float(f_nominal_hz)
+        self.r_a = float(r_a)
+
+    # -- steady state ---------------------------------------------------
+    def steady_state(self, op: OperatingPoint) -> SteadyState:
+        """Equilibrium with ω = 1 that delivers ``op`` at the terminals; dx/dt = 0 there."""
+        p = self.params
+        if op.v_t <= 0:
+            raise SimulationError(f"operating point voltage must be positive, got {op.v_t}")
+        v = complex(op.v_t, 0.0)
+        i = complex(op.p_e, -op.q_e) / op.v_t
+        e_qaxis = v + complex(self.r_a, p.X_q) * i
+        delta_t = float(np.angle(e_qaxis))  # rotor angle relative to the terminal phasor
+        i_dq = 1j * i * np.exp(-1j * delta_t)
+        v_dq = 1j * v * np.exp(-1j * delta_t)
+        i_d, i_q, v_d, v_q = i_dq.real, i_dq.imag, v_dq.real, v_dq.imag
+        e_d = v_d + self.r_a * i_d - p.X_q_prime * i_q
+        e_q = v_q + self.r_a * i_q + p.X_d_prime * i_d
+        v_inf = v - self.network.z_e * i
+        ref = float(np.angle(v_inf))
+        p_airgap = e_d * i_d + e_q * i_q + (p.X_q_prime - p.X_d_prime) * i_d * i_q
+        return SteadyState(
+            delta=delta_t - ref,
+            e_q=float(e_q),
+            e_d=float(e_d),
+            v_f=float(e_q + (p.X_d - p.X_d_prime) * i_d),
+            p_m=float(p_airgap),
+            i_d=float(i_d),
+            i_q=float(i_q),
+            v_d=float(v_d),
+            v_q=float(v_q),
+            theta_t=-ref,
+            v_inf=float(abs(v_inf)),
+        )
+
+    # -- equations --------------------------------------------------------
+    def _currents(self, delta: Array, e_q: Array, e_d: Array, v_abs: Array, v_ang: Array,
+                  r_th: Array, x_th: Array) -> tuple[Array, Array, Array, Array]:
+        """Solve the stator (11)-(12) and network equations together for I_d, I_q."""
+        p = self.params
+        ang = delta - v_ang
+        vth_d = v_abs * np.sin(ang)
+        vth_q = v_abs * np.cos(ang)
+        r = r_th + self.r_a
+        a12 = p.X_q_prime + x_th
+        a21 = p.X_d_prime + x_th
+        det = -(r * r + a12 * a21)
+        b1 = vth_d - e_d
+        b2 = e_q - vth_q
+        i_d = (b1 * r - a12 * b2) / det
+        i_q = (-r * b2 - a21 * b1) / det
+        return i_d, i_q, vth_d, vth_q
+
+    def _rhs(self, x: Array, p_m: Array, v_f: Array, v_abs: Array, v_ang: Array,
+             r_th: Array, x_th: Array, damping: Array) -> Array:
+        p = self.params
+        delta, omega, e_q, e_d = x
+        i_d, i_q, _, _ = self._currents(delta, e_q, e_d, v_abs, v_ang, r_th, x_th)
+        # air-gap power; equals terminal P_e (13) when R_a = 0
+        p_airgap = e_d * i_d + e_q * i_q + (p.X_q_prime - p.X_d_prime) * i_d * i_q
+        slip = omega - 1.0
+        return np.stack((
+            self._ws * slip,
+            (p_m - p_airgap - damping * slip) * self._inv_2h,
+            (v_f - e_q - self._xd_diff * i_d) * self._inv_td0,
+            (self._xq_diff * i_q - e_d) * self._inv_tq0,
+        ))
+
+    @property
+    def _ws(self) -> float:
+        return omega_s(self.f_nominal_hz)
+
+    @property
+    def _inv_2h(self) -> float:
+        return 1.0 / (2.0 * self.params.H)
+
+    @property
+    def _xd_diff(self) -> float:
+        return self.params.X_d - self.params.X_d_prime
+
+    @property
+    def _xq_diff(self) -> float:
+        return self.params.X_q - self.params.X_q_prime
+
+    @property
+    def _inv_td0(self) -> float:
+        return 1.0 / self.params.T_d0_prime
+
+    @property
+    def _inv_tq0(self) -> float:
+        return 1.0 / self.params.T_q0_prime
+
+    def derivatives(self, x: Array, inputs: Inputs, step: int = 0) -> Array:
+        """dx/dt for states ``x`` (4, n) under the inputs of one step."""
+        k = step
+        return self._rhs(np.asarray(x, float), inputs.p_m[k], inputs.v_f[k], inputs.v_th_abs[k],
+                         inputs.v_th_angle[k], inputs.r_th[k], inputs.x_th[k], inputs.damping)
+
+    # -- integration ------------------------------------------------------
+    def simulate(self, x0: Array, inputs: Inputs, dt: float) -> Trajectory:
+        """RK4 from ``x0`` (4, n) over ``inputs``; returns states and terminal quantities."""
+        if not 0.0 < dt <= MAX_DT + 1e-15:
+            raise SimulationError(f"time step must be in (0, {MAX_DT}] s, got {dt}")
+        n_steps = inputs.n_steps
+        x = np.array(x0, dtype=float)
+        states = np.empty((n_steps + 1,) + x.shape)
+        states[0] = x
+        rhs = self._rhs
+        h2, h6 = 0.5 * dt, dt / 6.0
+        d = inputs.damping
+        for k in range(n_steps):
+            a = (inputs.p_m[k], inputs.v_f[k], inputs.v_th_abs[k], inputs.v_th_angle[k],
+                 inputs.r_th[k], inputs.x_th[k], d)
+            k1 = rhs(x, *a)
+            k2 = rhs(x + h2 * k1, *a)
+            k3 = rhs(x + h2 * k2, *a)
+            k4 = rhs(x + dt * k3, *a)
+            x = x + h6 * (k1 + 2.0 * (k2 + k3) + k4)
+            states[k + 1] = x
+        if not np.all(np.isfinite(states)):
+            raise SimulationError("simulation diverged (non-finite state); the scenario is unstable or dt too large")
+        return self._terminal_quantities(states, inputs, dt)
+
+    def _terminal_quantities(self, states: Array, inputs: Inputs, dt: float) -> Trajectory:
+        n = states.shape[0]
+        # the sample at step k sees the inputs of step k; the last sample keeps the last inputs
+        def at_samples(a: Array) -> Array:
+            return np.concatenate((a, a[-1:]), axis=0)[:n]
+        v_abs, v_ang = at_samples(inputs.v_th_abs), at_samples(inputs.v_th_angle)
+        r_th, x_th = at_samples(inputs.r_th), at_samples(inputs.x_th)
+        delta, omega, e_q, e_d = (states[:, i] for i in range(4))
+        i_d, i_q, vth_d, vth_q = self._currents(delta, e_q, e_d, v_abs, v_ang, r_th, x_th)
+        v_d = vth_d + r_th * i_d - x_th * i_q
+        v_q = vth_q + r_th * i_q + x_th * i_d
+        p_e, q_e = electrical_power(v_d, v_q, i_d, i_q)
+        return Trajectory(
+            t=np.arange(n) * dt,
+            delta=delta, omega=omega, e_q=e_q, e_d=e_d, i_d=i_d, i_q=i_q, v_d=v_d, v_q=v_q,
+            v_t=np.hypot(v_d, v_q), theta_t=delta - np.arctan2(v_d, v_q),
+            p_e=p_e, q_e=q_e, p_m=at_samples(inputs.p_m), v_f=at_samples(inputs.v_f),
+        )

@@ -1,0 +1,52 @@
+"""ament_python package phid_ros; also a plain pip-installable package (no ROS needed)."""
+
+from glob import glob
+
+from setuptools import find_packages, setup
+
+package_name = "phid_ros"
+
+
+def data(folder: str, pattern: str = "*") -> list[str]:
+    return [f for f in glob(f"{folder}/{pattern}")]
+
+
+setup(
+    name=package_name,
+    version="0.1.0",
+    packages=find_packages(include=["phid_ros", "phid_ros.*"]) + ["phid_ros.msg_schemas_data"],
+    # The .msg files live once, in msg_schemas/ (the phid_msgs interface package).
+    # They ship inside the wheel as phid_ros/msg_schemas_data/ so the rosbags
+    # typestore finds them on a machine without ROS.
+    package_dir={"phid_ros.msg_schemas_data": "msg_schemas"},
+    package_data={"phid_ros.msg_schemas_data": ["msg/*.msg"]},
+    data_files=[
+        ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
+        ("share/" + package_name, ["package.xml"]),
+        ("share/" + package_name + "/launch", data("launch", "*.py")),
+        ("share/" + package_name + "/config", data("config", "*.yaml")),
+        ("share/" + package_name + "/msg_schemas/msg", data("msg_schemas/msg", "*.msg")),
+    ],
+    python_requires=">=3.11",
+    install_requires=[
+        "numpy>=1.26",
+        "scipy>=1.11",
+        "rosbags>=0.10",
+        "mcap>=1.1",
+        "zstandard>=0.21",
+        "rich>=13.0",
+        "matplotlib>=3.6",
+    ],
+    extras_require={"test": ["pytest>=7.4"]},
+    zip_safe=True,
+    maintainer="phid_ros maintainers",
+    maintainer_email="phid@example.org",
+    description="Port-Hamiltonian identification of synchronous generators from sensor streams (ROS 2 Jazzy).",
+    license="Apache-2.0",
+    tests_require=["pytest"],
+    entry_points={
+        "console_scripts": [
+            "phid = phid_ros.cli.main:main",
+        ],
+    },
+)

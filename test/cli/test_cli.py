@@ -1,0 +1,76 @@
+"""The phid command end to end; user errors are one line, exit status 2, no traceback."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from phid_ros.cli.main import main
+from phid_ros.io.bags import read_recording
+from phid_ros.model.parameters import TABLE1
+
+
+def run_phid(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "phid_ros.cli.main", *args], capture_output=True, text=True)
+
+
+def test_simulate_one_scenario_then_info(tmp_path, capsys):
+    out = tmp_path / "s13.mcap"
+    assert main(["simulate", "--scenario", "S13", "--duration", "3", "--out", str(out)]) == 0
+    rec = read_recording(out)
+    assert [s.name for s in rec.scenarios] == ["S13_fault_100ms"]
+    assert len(rec.streams["pt_ct"]) == 13_000  # 3 s window + 10 s restore at 1 kHz
+    truth = json.loads((tmp_path / "s13.mcap.truth.json").read_text())
+    assert truth["parameters"] == TABLE1.as_dict()
+    v = rec.streams["pt_ct"].channels["v_t"]
+    assert v[1000:1100].max() < 0.3 * v[:1000].mean()
+    capsys.readouterr()
+    assert main(["info", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "/generator/pt_ct" in text and "260" in text and "S13_fault_100ms" in text
+
+
+def test_simulation_is_deterministic(tmp_path):
+    a, b = tmp_path / "a.mcap", tmp_path / "b.mcap"
+    for p in (a, b):
+        assert main(["simulate", "--scenario", "V1", "--duration", "2", "--seed", "4", "--out", str(p)]) == 0
+    ra, rb = read_recording(a), read_recording(b)
+    assert np.array_equal(ra.streams["encoder"].channels["omega"], rb.streams["encoder"].channels["omega"])
+
+
+def test_import_csv_command(tmp_path, short_runs):
+    from test.io.test_csv_import import write_set
+
+    manifest = write_set(tmp_path, short_runs[:2], extra={"comment": 1.0})
+    out = tmp_path / "imported"
+    r = run_phid("import-csv", str(manifest), "--out", str(out))
+    assert r.returncode == 0, r.stderr
+    assert "ignored extra column(s) ['comment']" in r.stdout
+    assert len(read_recording(out).scenarios) == 2
+
+
+@pytest.mark.parametrize("make, args, message", [
+    (None, ["info", "{tmp}/missing"], "phid: error: {tmp}/missing: no such bag or MCAP file"),
+    ("truncated", ["info", "{tmp}/t.mcap"], "phid: error: {tmp}/t.mcap:"),
+    ("badcol", ["import-csv", "{tmp}/manifest.json", "--out", "{tmp}/o"], "phid: error: {tmp}/s0.csv: missing column(s) 'v_t'"),
+    (None, ["simulate", "--scenario", "S99", "--out", "{tmp}/x"], "phid: error: unknown scenario 'S99'"),
+])
+def test_user_errors_are_one_line_without_traceback(tmp_path, short_runs, short_recording, make, args, message):
+    if make == "truncated":
+        from phid_ros.io.bags import write_recording
+
+        p = write_recording(tmp_path / "t.mcap", short_recording)
+        p.write_bytes(p.read_bytes()[:5000])
+    elif make == "badcol":
+        from test.io.test_csv_import import write_set
+
+        write_set(tmp_path, short_runs[:1], mutate=lambda k, lines: [lines[0].replace("v_t", "vt")] + lines[1:])
+    r = run_phid(*[a.format(tmp=tmp_path) for a in args])
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in r.stderr
+    assert lines[0].startswith(message.format(tmp=tmp_path))

@@ -1,0 +1,110 @@
+"""Every bad bag gives a BagError naming the file and the problem."""
+
+from __future__ import annotations
+
+import shutil
+
+import pytest
+from rosbags.rosbag2 import Writer
+from rosbags.rosbag2.enums import StoragePlugin
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+from phid_ros.errors import BagError
+from phid_ros.io.bags import read_recording, write_recording
+from phid_ros.io.recording import Recording
+
+
+def test_missing_path(tmp_path):
+    with pytest.raises(BagError, match="nope.*no such"):
+        read_recording(tmp_path / "nope")
+
+
+def test_folder_without_metadata(tmp_path):
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(BagError, match="metadata.yaml missing"):
+        read_recording(tmp_path / "empty")
+
+
+def test_not_a_bag_file(tmp_path):
+    p = tmp_path / "data.txt"
+    p.write_text("hello")
+    with pytest.raises(BagError, match="not a rosbag2 folder or .mcap"):
+        read_recording(p)
+
+
+@pytest.mark.parametrize("cut", [0.5, 0.9])
+def test_truncated_mcap(tmp_path, short_recording, cut):
+    path = write_recording(tmp_path / "r.mcap", short_recording)
+    data = path.read_bytes()
+    path.write_bytes(data[: int(len(data) * cut)])
+    with pytest.raises(BagError, match=r"r\.mcap.*(truncated|corrupt)"):
+        read_recording(path)
+
+
+def test_truncated_rosbag2(tmp_path, short_recording):
+    path = write_recording(tmp_path / "bag", short_recording)
+    inner = path / "bag.mcap"
+    inner.write_bytes(inner.read_bytes()[: inner.stat().st_size // 2])
+    with pytest.raises(BagError, match="bag"):
+        read_recording(path)
+
+
+def test_corrupt_bytes_in_mcap(tmp_path, short_recording):
+    path = write_recording(tmp_path / "c.mcap", short_recording)
+    data = bytearray(path.read_bytes())
+    mid = len(data) // 2
+    data[mid:mid + 64] = b"\xff" * 64
+    path.write_bytes(bytes(data))
+    with pytest.raises(BagError, match=r"c\.mcap"):
+        read_recording(path)
+
+
+def _foreign_bag(path, topic: str, msgtype: str, msgdef: str | None = None):
+    store = get_typestore(Stores.ROS2_JAZZY)
+    if msgdef:
+        store.register(get_types_from_msg(msgdef, msgtype))
+    with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        conn = writer.add_connection(topic, msgtype, typestore=store)
+        if msgtype == "std_msgs/msg/String":
+            msg = store.types[msgtype](data="x")
+        else:
+            msg = store.types[msgtype](value=1.0)
+        writer.write(conn, 1, store.serialize_cdr(msg, msgtype))
+
+
+def test_bag_without_the_expected_topics(tmp_path):
+    _foreign_bag(tmp_path / "other", "/chatter", "std_msgs/msg/String")
+    with pytest.raises(BagError, match=r"none of the phid sensor topics found \(topics present: /chatter\)"):
+        read_recording(tmp_path / "other")
+
+
+def test_wrong_type_on_a_sensor_topic(tmp_path):
+    _foreign_bag(tmp_path / "wrong", "/generator/pt_ct", "std_msgs/msg/String")
+    with pytest.raises(BagError, match="/generator/pt_ct has type std_msgs/msg/String, expected phid_msgs/msg/PtCtBlock"):
+        read_recording(tmp_path / "wrong")
+
+
+def test_unknown_message_type_on_a_sensor_topic(tmp_path):
+    _foreign_bag(tmp_path / "unknown", "/generator/pmu", "vendor_msgs/msg/Angle", "float64 value")
+    with pytest.raises(BagError, match="/generator/pmu has unknown message type vendor_msgs/msg/Angle"):
+        read_recording(tmp_path / "unknown")
+
+
+def test_some_streams_missing(tmp_path, short_recording):
+    partial = Recording(streams={k: v for k, v in short_recording.streams.items() if k != "pmu"},
+                        scenarios=short_recording.scenarios, metadata=short_recording.metadata)
+    path = write_recording(tmp_path / "partial.mcap", partial)
+    with pytest.raises(BagError, match=r"partial\.mcap: no messages on the sensor stream\(s\) \['pmu'\]"):
+        read_recording(path)
+
+
+def test_existing_output_is_not_overwritten(tmp_path, short_recording):
+    path = write_recording(tmp_path / "keep.mcap", short_recording)
+    before = path.read_bytes()
+    with pytest.raises(BagError, match="already exists"):
+        write_recording(path, short_recording)
+    assert path.read_bytes() == before
+    folder = write_recording(tmp_path / "keepdir", short_recording)
+    with pytest.raises(BagError, match="already exists"):
+        write_recording(folder, short_recording)
+    shutil.rmtree(folder)

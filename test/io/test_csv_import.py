@@ -1,0 +1,135 @@
+from __future__ import annotations
+
+import gzip
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from phid_ros.errors import CsvImportError
+from phid_ros.io.bags import read_recording, write_recording
+from phid_ros.io.csv_import import CSV_COLUMNS, import_csv_set
+from phid_ros.io.recording import NS
+
+
+def write_set(folder: Path, runs, *, gz: bool = False, extra: dict | None = None, mutate=None) -> Path:
+    """A CSV scenario set in the DESIGN.md format from simulated runs."""
+    entries = []
+    for k, run in enumerate(runs):
+        cols = {"t": run.t, **run.measured}
+        if extra:
+            cols.update({name: np.full(run.t.size, v) for name, v in extra.items()})
+        header = list(cols)
+        rows = np.column_stack([cols[h] for h in header])
+        lines = [",".join(header)] + [",".join(repr(float(v)) for v in row) for row in rows]
+        if mutate:
+            lines = mutate(k, lines)
+        name = f"s{k}.csv" + (".gz" if gz else "")
+        text = "\n".join(lines) + "\n"
+        if gz:
+            with gzip.open(folder / name, "wt") as fh:
+                fh.write(text)
+        else:
+            (folder / name).write_text(text)
+        entries.append({"file": name, "kind": run.scenario.kind, "role": run.scenario.role,
+                        "generator_damping": run.scenario.generator_damping})
+    manifest = folder / "manifest.json"
+    manifest.write_text(json.dumps({"f_nominal_hz": 50, "base_mva": 1000, "scenarios": entries}))
+    return manifest
+
+
+@pytest.mark.parametrize("gz", [False, True])
+def test_import_keeps_every_value_and_places_scenarios_in_order(tmp_path, short_runs, gz):
+    manifest = write_set(tmp_path, short_runs, gz=gz, extra={"id_ref": 0.0})
+    rec, warnings = import_csv_set(manifest)
+    assert len(warnings) == 3 and "ignored extra column(s) ['id_ref']" in warnings[0]
+    n = len(short_runs[0].t)
+    for c, values in short_runs[0].measured.items():
+        stream = next(s for s in rec.streams.values() if c in s.channels)
+        assert np.array_equal(stream.channels[c][:n], values)
+    assert [s.kind for s in rec.scenarios] == ["torque_step", "voltage_step", "fault"]
+    gaps = [b.start_ns - a.end_ns for a, b in zip(rec.scenarios, rec.scenarios[1:])]
+    assert all(g == 5 * NS for g in gaps)
+    assert rec.streams["pt_ct"].period_ns == 1_000_000
+    # and it survives a bag round trip
+    back = read_recording(write_recording(tmp_path / "imported.mcap", rec))
+    assert np.array_equal(back.streams["pmu"].channels["delta"], rec.streams["pmu"].channels["delta"])
+
+
+def _set_field(file_line: int, column: str, value: str):
+    """Mutator: in the second CSV, put ``value`` into ``column`` on 1-based ``file_line``."""
+    def mutate(k, lines):
+        if k == 1:
+            j = lines[0].split(",").index(column)
+            fields = lines[file_line - 1].split(",")
+            fields[j] = value
+            lines[file_line - 1] = ",".join(fields)
+        return lines
+    return mutate
+
+
+def _append_field(file_line: int):
+    def mutate(k, lines):
+        if k == 1:
+            lines[file_line - 1] += ",1"
+        return lines
+    return mutate
+
+
+@pytest.mark.parametrize("mutate, message", [
+    (lambda k, lines: [lines[0].replace("omega", "omegaa")] + lines[1:],
+     r"s0\.csv: missing column\(s\) 'omega' \(found 'omegaa'\)"),
+    (lambda k, lines: [lines[0].replace(",q_e", "")] + [ln.rsplit(",", 1)[0] for ln in lines[1:]],
+     r"s0\.csv: missing column\(s\) 'q_e'"),
+    (_set_field(11, "i_d", "nan"), r"s1\.csv: line 11, column 'i_d' is nan"),
+    (_set_field(13, "v_t", "inf"), r"s1\.csv: line 13, column 'v_t' is inf"),
+    (_set_field(21, "i_q", "abc"), r"s1\.csv: line 21, column 'i_q': not a number \('abc'\)"),
+    (_append_field(31), r"s1\.csv: line 31 has 12 fields, header has 11"),
+    (_set_field(41, "t", "0.0"), r"s1\.csv: time is not strictly increasing at line 41 \(t=0\.0 after 0\.038\)"),
+])
+def test_bad_csv_files_are_named_with_the_problem(tmp_path, short_runs, mutate, message):
+    manifest = write_set(tmp_path, short_runs, mutate=mutate)
+    with pytest.raises(CsvImportError, match=message):
+        import_csv_set(manifest)
+
+
+def test_strict_refuses_extra_columns(tmp_path, short_runs):
+    manifest = write_set(tmp_path, short_runs[:1], extra={"speed_rpm": 3000.0})
+    with pytest.raises(CsvImportError, match=r"s0\.csv: unknown column\(s\) \['speed_rpm'\]"):
+        import_csv_set(manifest, strict=True)
+
+
+def test_non_uniform_sampling_is_refused(tmp_path, short_runs):
+    def mutate(k, lines):
+        head, *rows = lines
+        rows = [r for i, r in enumerate(rows) if i % 3 != 1]  # drop every third sample
+        return [head, *rows]
+    with pytest.raises(CsvImportError, match=r"non-uniform sampling"):
+        import_csv_set(write_set(tmp_path, short_runs[:1], mutate=mutate))
+
+
+@pytest.mark.parametrize("manifest, message", [
+    ({"scenarios": []}, "'scenarios' must be a non-empty list"),
+    ({"scenarios": [{"kind": "fault"}]}, r"scenarios\[0\]: each scenario needs a 'file'"),
+    ({"scenarios": [{"file": "a.csv", "kind": "storm"}]}, r"kind 'storm' not one of"),
+    ({"scenarios": [{"file": "a.csv", "role": "train"}]}, r"role 'train' not one of"),
+    ({"f_nominal_hz": -50, "scenarios": [{"file": "a.csv"}]}, "f_nominal_hz must be a positive number"),
+    ({"scenarios": [{"file": "missing.csv"}]}, r"missing\.csv: no such CSV file"),
+])
+def test_bad_manifests(tmp_path, manifest, message):
+    path = tmp_path / "manifest.json"
+    path.write_text(json.dumps(manifest))
+    with pytest.raises(CsvImportError, match=message):
+        import_csv_set(path)
+
+
+def test_manifest_not_json(tmp_path):
+    path = tmp_path / "manifest.json"
+    path.write_text("{oops")
+    with pytest.raises(CsvImportError, match=r"manifest\.json: not valid JSON"):
+        import_csv_set(path)
+
+
+def test_required_columns_are_the_design_contract():
+    assert CSV_COLUMNS == ("t", "v_t", "theta_t", "i_d", "i_q", "omega", "delta", "v_f", "p_m", "p_e", "q_e")
