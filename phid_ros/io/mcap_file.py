@@ -16,7 +16,7 @@ from phid_ros.io.recording import (
     DEFAULT_BLOCK_SIZE,
     Recording,
     is_phid_topic,
-    recording_from_messages,
+    recording_from_raw,
     recording_messages,
 )
 from phid_ros.io.topics import DEFAULT_NAMESPACE
@@ -63,7 +63,7 @@ def read_mcap(path: str | Path) -> Recording:
                 if record.name == METADATA_NAME:
                     metadata.update(record.metadata)
 
-            def items() -> Iterator[tuple[str, str, object]]:
+            def items() -> Iterator[tuple[str, str, bytes]]:
                 for schema, channel, message in reader.iter_messages(log_time_order=False):
                     if not is_phid_topic(channel.topic):
                         continue
@@ -71,13 +71,9 @@ def read_mcap(path: str | Path) -> Recording:
                         raise BagError(f"{source}: channel {channel.topic} is not cdr-encoded ROS 2 data")
                     if schema.name not in store.types:
                         raise BagError(f"{source}: topic {channel.topic} has unknown message type {schema.name}")
-                    try:
-                        msg = store.deserialize_cdr(message.data, schema.name)
-                    except Exception as exc:  # bad bytes raise struct/index/value errors
-                        raise BagError(f"{source}: corrupt message on {channel.topic}: {exc}") from exc
-                    yield channel.topic, schema.name, msg
+                    yield channel.topic, schema.name, message.data
 
-            return recording_from_messages(items(), source=source, metadata=metadata)
+            return recording_from_raw(items(), source=source, metadata=metadata)
     except BagError:
         raise
     except (McapError, EOFError, OSError, ValueError, json.JSONDecodeError) as exc:

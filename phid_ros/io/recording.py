@@ -153,6 +153,88 @@ def stream_of_topic(topic: str) -> str | None:
     return last if last in STREAMS_BY_NAME else None
 
 
+@dataclass
+class _Group:
+    order: NDArray[np.int64]  # message index within its stream, one per row
+    t0_ns: NDArray[np.int64]
+    period_ns: NDArray[np.int64]
+    values: list[NDArray[np.float64]]  # per channel, (rows, n)
+
+
+class _Assembler:
+    """Collects decoded blocks per stream and checks them; shared by the object and raw paths.
+
+    Blocks arrive in groups of equal length (one row per message) so that a whole
+    bag assembles with a few vectorised operations, not one per message.
+    """
+
+    def __init__(self, source: str) -> None:
+        self.source = source
+        self.groups: dict[str, list[_Group]] = {}
+        self.topics: dict[str, str] = {}
+        self.scenarios: list[ScenarioInfo] = []
+
+    def add_group(self, stream: str, topic: str, order: NDArray[np.int64], t0_ns: NDArray[np.int64],
+                  period_s: NDArray[np.float64], values: list[NDArray[np.float64]]) -> None:
+        self.topics.setdefault(stream, topic)
+        period_ns = np.rint(np.asarray(period_s, dtype=np.float64) * NS)
+        bad = ~(period_ns > 0)
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise BagError(f"{self.source}: {topic} message {int(order[i])} has sample_period {period_s[i]}, must be > 0")
+        self.groups.setdefault(stream, []).append(
+            _Group(np.asarray(order, np.int64), np.asarray(t0_ns, np.int64), period_ns.astype(np.int64), values))
+
+    def add_message(self, stream: str, topic: str, index: int, t0_ns: int, period_s: float,
+                    arrays: list[NDArray[np.float64]]) -> None:
+        lengths = {len(a) for a in arrays}
+        if len(lengths) != 1:
+            raise BagError(f"{self.source}: {topic} message {index} has arrays of unequal length {sorted(lengths)}")
+        self.add_group(stream, topic, np.array([index]), np.array([t0_ns]), np.array([period_s]),
+                       [np.asarray(a, np.float64)[None, :] for a in arrays])
+
+    def _stream(self, name: str) -> StreamSamples:
+        groups = self.groups[name]
+        spec = STREAMS_BY_NAME[name]
+        order = np.concatenate([g.order for g in groups])
+        periods = np.concatenate([g.period_ns for g in groups])
+        lengths = np.concatenate([np.full(len(g.order), g.values[0].shape[1]) for g in groups])
+        rank = np.argsort(order, kind="stable")
+        first = int(periods[rank[0]])
+        changed = np.flatnonzero(periods[rank] != first)
+        if changed.size:
+            k = rank[changed[0]]
+            raise BagError(f"{self.source}: {self.topics[name]} changes sample period from {first} ns "
+                           f"to {int(periods[k])} ns at message {int(order[k])}")
+        starts = np.empty_like(lengths)
+        starts[rank] = np.concatenate(([0], np.cumsum(lengths[rank])[:-1]))
+        total = int(lengths.sum())
+        t_ns = np.empty(total, dtype=np.int64)
+        channels = {c: np.empty(total, dtype=np.float64) for c in spec.channels}
+        row0 = 0
+        for g in groups:
+            m, n = g.values[0].shape
+            pos = starts[row0:row0 + m, None] + np.arange(n)
+            t_ns[pos] = g.t0_ns[:, None] + np.arange(n, dtype=np.int64) * first
+            for c, v in zip(spec.channels, g.values):
+                channels[c][pos] = v
+            row0 += m
+        return StreamSamples(t_ns, first, channels)
+
+    def finish(self, required: Iterable[str], metadata: dict[str, str] | None) -> Recording:
+        missing = [s for s in required if not self.groups.get(s)]
+        if missing:
+            present = ", ".join(sorted(self.groups)) or "none"
+            raise BagError(f"{self.source}: no messages on the sensor stream(s) {missing} (streams present: {present})")
+        streams = {name: self._stream(name) for name in self.groups}
+        return Recording(streams=streams, scenarios=self.scenarios, metadata=dict(metadata or {}))
+
+
+def _check_type(source: str, topic: str, msgtype: str, expected: str) -> None:
+    if msgtype != expected:
+        raise BagError(f"{source}: topic {topic} has type {msgtype}, expected {expected}")
+
+
 def is_phid_topic(topic: str) -> bool:
     """True for the topics this package reads (sensor streams and scenario markers)."""
     return topic == SCENARIO_TOPIC or stream_of_topic(topic) is not None
@@ -162,50 +244,70 @@ def recording_from_messages(
     items: Iterable[tuple[str, str, object]], *, source: str, metadata: dict[str, str] | None = None,
     required: Iterable[str] = tuple(s.name for s in STREAMS),
 ) -> Recording:
-    """Assemble a recording from (topic, msgtype, message); ``source`` names the file in errors."""
-    parts: dict[str, dict[str, list[NDArray[np.float64]]]] = {s.name: {c: [] for c in s.channels} for s in STREAMS}
-    stamps: dict[str, list[NDArray[np.int64]]] = {s.name: [] for s in STREAMS}
-    periods: dict[str, int] = {}
-    scenarios: list[ScenarioInfo] = []
+    """Assemble a recording from (topic, msgtype, message object); ``source`` names the file in errors."""
+    asm = _Assembler(source)
     counts: dict[str, int] = {}
     for topic, msgtype, msg in items:
         if topic == SCENARIO_TOPIC:
-            if msgtype != SCENARIO_MSGTYPE:
-                raise BagError(f"{source}: topic {topic} has type {msgtype}, expected {SCENARIO_MSGTYPE}")
-            scenarios.append(_scenario_from_msg(msg))
+            _check_type(source, topic, msgtype, SCENARIO_MSGTYPE)
+            asm.scenarios.append(_scenario_from_msg(msg))
             continue
         name = stream_of_topic(topic)
         if name is None:
             continue  # other plant data in the same bag is not ours to judge
         spec = STREAMS_BY_NAME[name]
-        if msgtype != spec.msgtype:
-            raise BagError(f"{source}: topic {topic} has type {msgtype}, expected {spec.msgtype}")
+        _check_type(source, topic, msgtype, spec.msgtype)
         index = counts.get(name, 0)
         counts[name] = index + 1
-        period_ns = int(round(float(msg.sample_period) * NS))  # type: ignore[attr-defined]
-        if period_ns <= 0:
-            raise BagError(f"{source}: {topic} message {index} has sample_period {msg.sample_period}, must be > 0")  # type: ignore[attr-defined]
-        if periods.setdefault(name, period_ns) != period_ns:
-            raise BagError(f"{source}: {topic} changes sample period from {periods[name]} ns to {period_ns} ns at message {index}")
         arrays = [np.asarray(getattr(msg, c), dtype=np.float64) for c in spec.channels]
-        lengths = {len(a) for a in arrays}
-        if len(lengths) != 1:
-            raise BagError(f"{source}: {topic} message {index} has arrays of unequal length {sorted(lengths)}")
-        n = lengths.pop()
-        t0 = time_to_ns(msg.header.stamp)  # type: ignore[attr-defined]
-        stamps[name].append(t0 + np.arange(n, dtype=np.int64) * period_ns)
-        for c, a in zip(spec.channels, arrays):
-            parts[name][c].append(a)
-    missing = [s for s in required if not stamps.get(s)]
-    if missing:
-        present = ", ".join(sorted(counts)) or "none"
-        raise BagError(f"{source}: no messages on the sensor stream(s) {missing} (streams present: {present})")
-    streams = {
-        name: StreamSamples(np.concatenate(stamps[name]), periods[name],
-                            {c: np.concatenate(v) for c, v in parts[name].items()})
-        for name in stamps if stamps[name]
-    }
-    return Recording(streams=streams, scenarios=scenarios, metadata=dict(metadata or {}))
+        asm.add_message(name, topic, index, time_to_ns(msg.header.stamp), msg.sample_period, arrays)  # type: ignore[attr-defined]
+    return asm.finish(required, metadata)
+
+
+def recording_from_raw(
+    items: Iterable[tuple[str, str, bytes]], *, source: str, metadata: dict[str, str] | None = None,
+    required: Iterable[str] = tuple(s.name for s in STREAMS),
+) -> Recording:
+    """Assemble a recording from raw CDR (topic, msgtype, bytes), decoding sensor blocks vectorised."""
+    from phid_ros.io.cdr_blocks import decode_group, group_by_layout
+
+    store = typestore()
+    raws: dict[str, list[bytes]] = {}
+    topics: dict[str, str] = {}
+
+    def deserialize(raw: bytes, msgtype: str, topic: str) -> object:
+        try:
+            return store.deserialize_cdr(raw, msgtype)
+        except Exception as exc:  # deserialisers raise struct/index/value errors on bad bytes
+            raise BagError(f"{source}: corrupt message on {topic}: {exc}") from exc
+
+    asm = _Assembler(source)
+    for topic, msgtype, raw in items:
+        if topic == SCENARIO_TOPIC:
+            _check_type(source, topic, msgtype, SCENARIO_MSGTYPE)
+            asm.scenarios.append(_scenario_from_msg(deserialize(raw, msgtype, topic)))
+            continue
+        name = stream_of_topic(topic)
+        if name is None:
+            continue
+        _check_type(source, topic, msgtype, STREAMS_BY_NAME[name].msgtype)
+        if topics.setdefault(name, topic) != topic:
+            raise BagError(f"{source}: stream {name} arrives on two topics, {topics[name]} and {topic}")
+        raws.setdefault(name, []).append(bytes(raw))
+    for name, msgs in raws.items():
+        spec = STREAMS_BY_NAME[name]
+        groups, rest = group_by_layout(msgs, len(spec.channels))
+        for layout, idx in groups.items():
+            dec = decode_group([msgs[i] for i in idx], idx, layout, len(spec.channels))
+            if dec is None:
+                rest.extend(idx)
+                continue
+            asm.add_group(name, topics[name], dec.order, dec.t0_ns, dec.period_s, dec.values)
+        for i in rest:
+            msg = deserialize(msgs[i], spec.msgtype, topics[name])
+            arrays = [np.asarray(getattr(msg, c), dtype=np.float64) for c in spec.channels]
+            asm.add_message(name, topics[name], i, time_to_ns(msg.header.stamp), msg.sample_period, arrays)  # type: ignore[attr-defined]
+    return asm.finish(required, metadata)
 
 
 def _scenario_from_msg(msg: object) -> ScenarioInfo:

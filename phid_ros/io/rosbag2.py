@@ -15,7 +15,7 @@ from phid_ros.io.recording import (
     DEFAULT_BLOCK_SIZE,
     Recording,
     is_phid_topic,
-    recording_from_messages,
+    recording_from_raw,
     recording_messages,
 )
 from phid_ros.io.topics import DEFAULT_NAMESPACE
@@ -49,7 +49,7 @@ def write_rosbag2(path: str | Path, rec: Recording, *, block_size: int = DEFAULT
     return path
 
 
-def _iter_raw(reader: Reader, source: str) -> Iterator[tuple[str, str, object]]:
+def _iter_raw(reader: Reader, source: str) -> Iterator[tuple[str, str, bytes]]:
     store = typestore()
     ours = [c for c in reader.connections if is_phid_topic(c.topic)]
     if not ours:
@@ -58,11 +58,7 @@ def _iter_raw(reader: Reader, source: str) -> Iterator[tuple[str, str, object]]:
     for conn, _, raw in reader.messages(connections=ours):
         if conn.msgtype not in store.types:
             raise BagError(f"{source}: topic {conn.topic} has unknown message type {conn.msgtype}")
-        try:
-            msg = store.deserialize_cdr(raw, conn.msgtype)
-        except Exception as exc:  # deserialisers raise struct/index/value errors on bad bytes
-            raise BagError(f"{source}: corrupt message on {conn.topic}: {exc}") from exc
-        yield conn.topic, conn.msgtype, msg
+        yield conn.topic, conn.msgtype, raw
 
 
 def read_rosbag2(path: str | Path) -> Recording:
@@ -77,7 +73,7 @@ def read_rosbag2(path: str | Path) -> Recording:
             custom = getattr(reader.storage, "metadata", None)
             custom_data = dict(getattr(custom, "custom", None) or {})
             metadata = {k[len("phid."):]: v for k, v in custom_data.items() if k.startswith("phid.")}
-            return recording_from_messages(_iter_raw(reader, source), source=source, metadata=metadata)
+            return recording_from_raw(_iter_raw(reader, source), source=source, metadata=metadata)
     except ReaderError as exc:
         raise BagError(f"{source}: cannot read bag: {exc}") from exc
     except (EOFError, OSError, KeyError) as exc:
