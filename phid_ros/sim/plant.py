@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 from phid_ros.errors import SimulationError
 from phid_ros.model.conventions import DEFAULT_F_NOMINAL_HZ, electrical_power, omega_s
 from phid_ros.model.parameters import GeneratorParameters
+from phid_ros.numerics import rk4
 from phid_ros.sim.network import Network
 
 Array = NDArray[np.float64]
@@ -213,22 +214,13 @@ class Plant:
         """RK4 from ``x0`` (4, n) over ``inputs``; returns states and terminal quantities."""
         if not 0.0 < dt <= MAX_DT + 1e-15:
             raise SimulationError(f"time step must be in (0, {MAX_DT}] s, got {dt}")
-        n_steps = inputs.n_steps
-        x = np.array(x0, dtype=float)
-        states = np.empty((n_steps + 1,) + x.shape)
-        states[0] = x
-        rhs = self._rhs
-        h2, h6 = 0.5 * dt, dt / 6.0
-        d = inputs.damping
-        for k in range(n_steps):
-            a = (inputs.p_m[k], inputs.v_f[k], inputs.v_th_abs[k], inputs.v_th_angle[k],
-                 inputs.r_th[k], inputs.x_th[k], d)
-            k1 = rhs(x, *a)
-            k2 = rhs(x + h2 * k1, *a)
-            k3 = rhs(x + h2 * k2, *a)
-            k4 = rhs(x + dt * k3, *a)
-            x = x + h6 * (k1 + 2.0 * (k2 + k3) + k4)
-            states[k + 1] = x
+        u = inputs
+        d = u.damping
+
+        def at_step(k: int) -> tuple:
+            return (u.p_m[k], u.v_f[k], u.v_th_abs[k], u.v_th_angle[k], u.r_th[k], u.x_th[k], d)
+
+        states = rk4(self._rhs, np.asarray(x0, dtype=float), u.n_steps, dt, at_step)
         if not np.all(np.isfinite(states)):
             raise SimulationError("simulation diverged (non-finite state); the scenario is unstable or dt too large")
         return self._terminal_quantities(states, inputs, dt)

@@ -1,0 +1,166 @@
+"""Event-to-scenario preparation: windows of aligned signals around one disturbance.
+
+A :class:`ScenarioData` holds the ten channels on a uniform grid, the sample
+indices of the disturbance (and of fault clearing), and V_d, V_q from V_t and the
+internal angle delta - theta_t. :func:`classify` names the kind of disturbance
+from the signals when the input does not say (fault: V_t below 0.3 of pre-fault,
+the paper's detector; torque step: a step in P_m; voltage step: a sustained V_t
+change without a fault).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from phid_ros.errors import PhidError
+from phid_ros.model.conventions import terminal_to_dq
+
+Array = NDArray[np.float64]
+CHANNELS = ("v_t", "theta_t", "i_d", "i_q", "omega", "delta", "v_f", "p_m", "p_e", "q_e")
+KINDS = ("torque_step", "voltage_step", "fault")
+
+FAULT_VOLTAGE_RATIO = 0.3  # paper, section 3.2.2: V_t < 0.3 V_pf
+MIN_TORQUE_STEP = 0.02  # pu of P_m
+MIN_VOLTAGE_STEP = 0.02  # pu of V_t
+STEADY_FRACTION = 0.2  # paper: steady state from the final 20 % of a scenario
+
+
+class ScenarioError(PhidError):
+    """A scenario window cannot be prepared (too short, NaN, no disturbance found)."""
+
+
+@dataclass
+class ScenarioData:
+    name: str
+    kind: str
+    role: str
+    generator_damping: bool
+    dt: float
+    signals: dict[str, Array]
+    k_event: int
+    k_clear: int | None = None
+    start_ns: int = 0
+    notes: list[str] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        n = len(self.signals["v_t"])
+        self.v_d, self.v_q = terminal_to_dq(self.signals["v_t"], self.signals["delta"], self.signals["theta_t"])
+        if not 0 < self.k_event < n:
+            raise ScenarioError(f"scenario {self.name}: event sample {self.k_event} outside the window of {n} samples")
+
+    @property
+    def n(self) -> int:
+        return len(self.signals["v_t"])
+
+    @property
+    def t(self) -> Array:
+        return np.arange(self.n) * self.dt
+
+    @property
+    def switching(self) -> list[int]:
+        """Samples at which an input or the network switches (event, clearing)."""
+        return [self.k_event] + ([self.k_clear] if self.k_clear is not None else [])
+
+    def steady_slice(self) -> slice:
+        return slice(int(round(self.n * (1.0 - STEADY_FRACTION))), self.n)
+
+    def pre_slice(self) -> slice:
+        return slice(0, self.k_event)
+
+    def __getitem__(self, name: str) -> Array:
+        if name == "v_d":
+            return self.v_d
+        if name == "v_q":
+            return self.v_q
+        return self.signals[name]
+
+
+def _step_size(x: Array, k: int, span: int) -> float:
+    a = max(0, k - span)
+    b = min(len(x), k + span)
+    return float(np.mean(x[k:b]) - np.mean(x[a:k])) if b > k and k > a else 0.0
+
+
+def _largest_step(x: Array, span: int) -> tuple[int, float]:
+    """Sample and size of the largest mean shift between ``span`` samples before and after."""
+    c = np.concatenate(([0.0], np.cumsum(x)))
+    k = np.arange(span, len(x) - span)
+    if k.size == 0:
+        return 0, 0.0
+    after = (c[k + span] - c[k]) / span
+    before = (c[k] - c[k - span]) / span
+    d = after - before
+    i = int(np.argmax(np.abs(d)))
+    return int(k[i]), float(d[i])
+
+
+def classify(signals: Mapping[str, Array], dt: float, k_hint: int | None = None,
+             pre_seconds: float = 0.5) -> tuple[str, int, int | None, str]:
+    """(kind, event sample, clearing sample or None, reason) from the signals alone."""
+    v = np.asarray(signals["v_t"], float)
+    n_pre = max(1, int(round(pre_seconds / dt)))
+    v_pf = float(np.median(v[:n_pre]))
+    below = np.flatnonzero(v < FAULT_VOLTAGE_RATIO * v_pf)
+    if below.size:
+        k_ev = int(below[0])
+        after = np.flatnonzero(v[k_ev:] >= FAULT_VOLTAGE_RATIO * v_pf)
+        k_cl = k_ev + int(after[0]) if after.size else None
+        return "fault", k_ev, k_cl, f"V_t fell to {v.min():.3f} pu < {FAULT_VOLTAGE_RATIO} x {v_pf:.3f} pu"
+    span = max(5, int(round(0.2 / dt)))
+    k_pm, d_pm = _largest_step(np.asarray(signals["p_m"], float), span)
+    if abs(d_pm) >= MIN_TORQUE_STEP:
+        return "torque_step", _refine(np.asarray(signals["p_m"], float), k_pm, span), None, f"P_m stepped {d_pm:+.3f} pu"
+    k_v, d_v = _largest_step(v, span)
+    if abs(d_v) >= MIN_VOLTAGE_STEP:
+        return "voltage_step", _refine(v, k_v, span), None, f"V_t stepped {d_v:+.3f} pu"
+    raise ScenarioError("no disturbance found (no fault, no P_m step >= "
+                        f"{MIN_TORQUE_STEP} pu, no V_t step >= {MIN_VOLTAGE_STEP} pu)")
+
+
+def _refine(x: Array, k: int, span: int) -> int:
+    """The first sample past half the step, near ``k``."""
+    a, b = max(1, k - span), min(len(x), k + span)
+    lo, hi = np.mean(x[max(0, a - span):a]), np.mean(x[b:b + span]) if b < len(x) else x[-1]
+    mid = 0.5 * (lo + hi)
+    seg = x[a:b]
+    crossed = np.flatnonzero((seg - mid) * np.sign(hi - lo) >= 0)
+    return a + int(crossed[0]) if crossed.size else k
+
+
+def make_scenario(name: str, signals: Mapping[str, Array], dt: float, *, kind: str = "unknown",
+                  role: str = "identify", generator_damping: bool = True, k_event: int | None = None,
+                  k_clear: int | None = None, start_ns: int = 0) -> ScenarioData:
+    """Check a window and build its :class:`ScenarioData`; classify it where the input does not say."""
+    missing = [c for c in CHANNELS if c not in signals]
+    if missing:
+        raise ScenarioError(f"scenario {name}: missing channel(s) {missing}")
+    sig = {c: np.asarray(signals[c], dtype=float) for c in CHANNELS}
+    n = len(sig["v_t"])
+    if n < int(2.0 / dt):
+        raise ScenarioError(f"scenario {name}: window of {n * dt:.2f} s is too short (needs >= 2 s)")
+    for c, x in sig.items():
+        bad = ~np.isfinite(x)
+        if bad.any():
+            raise ScenarioError(f"scenario {name}: channel {c} has {int(bad.sum())} NaN/Inf sample(s), "
+                                f"first at t = {np.flatnonzero(bad)[0] * dt:.3f} s")
+    notes: list[str] = []
+    if kind == "unknown" or k_event is None or k_event <= 0:
+        found, k_ev, k_cl, reason = classify(sig, dt)
+        if kind not in ("unknown", found):
+            notes.append(f"labelled {kind} but the signals say {found} ({reason}); kept the label")
+        else:
+            kind = found
+            notes.append(f"classified as {found}: {reason}")
+        if k_event is None or k_event <= 0:
+            k_event, k_clear = k_ev, (k_cl if kind == "fault" else None)
+    if kind not in KINDS:
+        raise ScenarioError(f"scenario {name}: kind {kind!r} not one of {KINDS}")
+    if kind == "fault" and k_clear is None:
+        _, _, k_clear, _ = classify(sig, dt)
+    return ScenarioData(name=name, kind=kind, role=role, generator_damping=generator_damping, dt=dt,
+                        signals=sig, k_event=int(k_event), k_clear=None if k_clear is None else int(k_clear),
+                        start_ns=start_ns, notes=notes)

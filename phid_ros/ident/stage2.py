@@ -1,0 +1,155 @@
+"""Stage 2: steady-state reactances X_d and X_q (paper section 3.3.2).
+
+At a steady state with R_a = 0, (7), (11) and (12) give
+
+    V_q = V_f - X_d I_d          (d axis; (35) with E'_q0 = V_f)
+    V_d = X_q I_q                (q axis; (38) with E'_d0 = 0)
+
+With measured V_f each steady state carries X_d by itself, so the d-axis fit is
+a regression through the origin of (V_f - V_q) on I_d. Without V_f the paper's
+bounded fit of (37), V_q = -X_d I_d + E'_q0 on L-BFGS-B, needs several operating
+points (voltage steps). The paper also fits an intercept E'_d0 for the q axis;
+physics says it is zero with R_a = 0, so we fit through the origin unless
+``paper_intercepts`` asks for the paper's form. Steady state: the mean over the
+final 20 % of each scenario.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import minimize
+
+from phid_ros.ident.results import Estimate, flag
+from phid_ros.ident.scenario import ScenarioData
+
+X_D_BOUNDS = (1.0, 5.0)  # (37)
+E_Q0_BOUNDS = (0.5, 2.0)  # (37)
+MIN_CURRENT_SPREAD = 0.01  # pu: below this the slope of (35) is not determined
+
+
+class Stage2Error(Exception):
+    pass
+
+
+@dataclass
+class SteadyPoint:
+    scenario: str
+    i_d: float
+    i_q: float
+    v_d: float
+    v_q: float
+    v_f: float
+    se_i_d: float  # standard error of the window mean
+    se_i_q: float
+
+
+@dataclass
+class Stage2Result:
+    X_d: Estimate
+    X_q: Estimate
+    r2_d: float
+    r2_q: float
+    points: list[SteadyPoint]
+    method_d: str
+    method_q: str
+    problems: list[str] = field(default_factory=list)
+
+
+def steady_points(scenarios: Sequence[ScenarioData]) -> list[SteadyPoint]:
+    """Steady states after the disturbance (final 20 %) of the step scenarios."""
+    out = []
+    for s in scenarios:
+        if s.role != "identify" or s.kind not in ("torque_step", "voltage_step"):
+            continue
+        sl = s.steady_slice()
+        n = sl.stop - sl.start
+
+        def m(x: np.ndarray) -> float:
+            return float(np.mean(x[sl]))
+
+        out.append(SteadyPoint(s.name, m(s["i_d"]), m(s["i_q"]), m(s.v_d), m(s.v_q), m(s["v_f"]),
+                               float(np.std(s["i_d"][sl]) / math.sqrt(n)), float(np.std(s["i_q"][sl]) / math.sqrt(n))))
+    return out
+
+
+def _r2(y: np.ndarray, fit: np.ndarray) -> float:
+    ss_tot = float(np.sum((y - y.mean()) ** 2))
+    return 1.0 - float(np.sum((y - fit) ** 2)) / ss_tot if ss_tot > 0 else math.nan
+
+
+def _through_origin(x: np.ndarray, y: np.ndarray) -> tuple[float, float, float]:
+    """Slope, its standard error, and R^2 (about the mean, as the paper reports) of y = k x."""
+    k = float(x @ y / (x @ x))
+    res = y - k * x
+    dof = max(len(x) - 1, 1)
+    se = math.sqrt(float(res @ res) / dof / float(x @ x)) if len(x) > 1 else math.nan
+    return k, se, _r2(y, k * x)
+
+
+def identify_reactances(scenarios: Sequence[ScenarioData], *, use_field_voltage: bool = True,
+                        paper_intercepts: bool = False) -> Stage2Result:
+    pts = steady_points(scenarios)
+    if not pts:
+        raise Stage2Error("stage 2 needs steady states after torque or voltage steps; none in the input "
+                          "(record a voltage step or a torque step and let it settle)")
+    i_d = np.array([p.i_d for p in pts])
+    i_q = np.array([p.i_q for p in pts])
+    v_d = np.array([p.v_d for p in pts])
+    v_q = np.array([p.v_q for p in pts])
+    v_f = np.array([p.v_f for p in pts])
+    names = [p.scenario for p in pts]
+    problems: list[str] = []
+
+    if use_field_voltage and not paper_intercepts:
+        xd, se_d, r2_d = _through_origin(i_d, v_f - v_q)
+        method_d = "V_f - V_q = X_d I_d (measured V_f), through the origin"
+    else:
+        if float(np.ptp(i_d)) < MIN_CURRENT_SPREAD:
+            raise Stage2Error(f"stage 2 cannot fit (37): I_d spans only {np.ptp(i_d):.4f} pu across the steady "
+                              "states; voltage-step scenarios at several set points would fix it")
+
+        def cost(th: np.ndarray) -> float:
+            return float(np.sum((v_q - (-th[0] * i_d + th[1])) ** 2))
+
+        res = minimize(cost, x0=[2.0, 1.0], method="L-BFGS-B", bounds=[X_D_BOUNDS, E_Q0_BOUNDS])
+        xd = float(res.x[0])
+        fit = -xd * i_d + res.x[1]
+        r2_d = _r2(v_q, fit)
+        a = np.column_stack([-i_d, np.ones_like(i_d)])
+        s2 = float(np.sum((v_q - fit) ** 2)) / max(len(v_q) - 2, 1)
+        se_d = math.sqrt(s2 * np.linalg.pinv(a.T @ a)[0, 0]) if len(v_q) > 2 else math.nan
+        method_d = "(37) V_q = -X_d I_d + E'_q0, L-BFGS-B"
+        if any(abs(xd - b) < 1e-6 for b in X_D_BOUNDS):
+            problems.append(f"X_d = {xd:.3f} pu is at a bound of (37) {X_D_BOUNDS}")
+        if any(abs(res.x[1] - b) < 1e-6 for b in E_Q0_BOUNDS):
+            problems.append(f"E'_q0 = {res.x[1]:.3f} pu is at a bound of (37) {E_Q0_BOUNDS}: the field voltage "
+                            "lies outside the paper's range, so X_d from (37) is wrong; use measured V_f")
+
+    if paper_intercepts:
+        if float(np.ptp(i_q)) < MIN_CURRENT_SPREAD:
+            raise Stage2Error(f"stage 2 cannot fit (38): I_q spans only {np.ptp(i_q):.4f} pu; torque steps would fix it")
+        coef = np.polyfit(i_q, v_d, 1)
+        xq = float(coef[0])
+        fit = np.polyval(coef, i_q)
+        r2_q = _r2(v_d, fit)
+        a = np.column_stack([i_q, np.ones_like(i_q)])
+        s2 = float(np.sum((v_d - fit) ** 2)) / max(len(v_d) - 2, 1)
+        se_q = math.sqrt(s2 * np.linalg.pinv(a.T @ a)[0, 0]) if len(v_d) > 2 else math.nan
+        method_q = "(38) V_d = X_q I_q + E'_d0, polynomial regression"
+    else:
+        xq, se_q, r2_q = _through_origin(i_q, v_d)
+        method_q = "V_d = X_q I_q, through the origin (E'_d0 = 0 with R_a = 0)"
+
+    d_share = np.abs(i_d) / np.abs(i_d).sum()
+    q_share = np.abs(i_q) / np.abs(i_q).sum()
+    top = lambda share: [names[i] for i in np.argsort(share)[::-1][:3]]  # noqa: E731
+    if len(pts) < 2:
+        problems.append("only one steady state: X_d and X_q rest on a single operating point")
+    return Stage2Result(
+        X_d=flag(Estimate(xd, se_d, drivers=top(d_share)), "X_d"),
+        X_q=flag(Estimate(xq, se_q, drivers=top(q_share)), "X_q"),
+        r2_d=r2_d, r2_q=r2_q, points=pts, method_d=method_d, method_q=method_q, problems=problems)

@@ -1,0 +1,387 @@
+"""Stage 3: transient parameters by state consistency (paper section 3.3.3, Algorithm 1).
+
+The ODE-evolved fluxes (7)-(8), driven by measured V_f, I_d, I_q, must match the
+fluxes reconstructed algebraically from terminal quantities (40)-(41):
+
+    r_d = E'_q,sim - (V_q + X'_d I_d),   r_q = E'_d,sim - (V_d - X'_q I_q),
+    J(theta) = (1/N) sum_s sum_k (r_d^2 + r_q^2) + penalties.
+
+Our objective differs from the paper's in three deliberate ways, shared by both
+methods so that their J values compare:
+- the flux ODEs are integrated exactly (first-order hold, :mod:`phid_ros.numerics`),
+  not by a step-size-dependent scheme;
+- each scenario's initial fluxes are free (the paper fixes them from a possibly
+  non-steady first sample), and so is a jump at each switching instant, which
+  absorbs the sub-sample timing of a fault (a sampled current jump otherwise
+  looks half a sample early);
+- every term passes through one linear low-pass (``prefilter_hz``) before the
+  squares are taken: I_d and I_q are noisy regressors, and without it noise
+  biases X'_d and X'_q low (errors in variables).
+
+For fixed T'_d0 the d-axis residual is linear in X'_d (and X_d) and in the
+initial fluxes, and likewise on the q axis, so J(theta) separates into two
+one-dimensional problems over the time constants with inner least squares
+(variable projection): the ``fast`` method. The ``paper`` method runs the
+paper's differential evolution (population 12, 300 generations, Latin
+hypercube) and multi-start L-BFGS-B over (X'_d, X'_q, T'_d0, T'_q0) on the
+same J, eliminating only the initial fluxes.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import differential_evolution, minimize, minimize_scalar
+from scipy.signal import lfilter
+
+from phid_ros.ident.results import Estimate, flag
+from phid_ros.ident.scenario import ScenarioData
+from phid_ros.ident.uncertainty import block_ids, cluster_robust_cov, information_share
+from phid_ros.numerics import first_order_response, lowpass2
+
+Array = NDArray[np.float64]
+
+T_D0_BOUNDS = (0.2, 15.0)  # s
+T_Q0_BOUNDS = (0.02, 3.0)  # s
+DEFAULT_PREFILTER_HZ = 20.0
+DEFAULT_DECIMATE = 5  # samples kept for the least squares after the prefilter (1 kHz -> 200 Hz)
+LAMBDA_PRIOR = 0.2  # paper, section 4.1.3
+LAMBDA_PENALTY = 1e3
+BLOCK_SECONDS = 1.0
+
+
+class Stage3Error(Exception):
+    pass
+
+
+@dataclass
+class AxisData:
+    """One axis, all scenarios padded to one length: rows are scenarios."""
+
+    current: Array  # P[I_d] or P[I_q]
+    drive: Array | None  # P[V_f] on the d axis
+    voltage: Array  # P[V_q] or P[V_d]
+    starts: Array  # P[impulse at 0]
+    switch_imp: Array  # (n_switches, n): P[impulse at k_sw]
+    switch_row: NDArray[np.int64]  # scenario row of each switch
+    switch_slot: NDArray[np.int64]  # nuisance slot (1..) of each switch within its row
+    mask: Array  # True where a scenario has data
+    keep: slice  # decimation
+    names: list[str]
+
+
+@dataclass
+class Stage3Data:
+    d: AxisData
+    q: AxisData
+    dt: float
+    n_samples: int
+
+
+def prepare(scenarios: Sequence[ScenarioData], prefilter_hz: float | None = DEFAULT_PREFILTER_HZ,
+            decimate: int = DEFAULT_DECIMATE, window_s: float | None = 12.0) -> Stage3Data:
+    """Filtered, padded arrays for both axes; ``window_s`` after the event is kept per scenario."""
+    scs = [s for s in scenarios if s.role == "identify"]
+    if not scs:
+        raise Stage3Error("stage 3 needs identification scenarios")
+    dt = scs[0].dt
+    if any(abs(s.dt - dt) > 1e-12 for s in scs):
+        raise Stage3Error("stage 3: scenarios have different sample periods; resample them to one grid")
+    ends = [s.n if window_s is None else min(s.n, s.k_event + int(round(window_s / dt))) for s in scs]
+    n_max = max(ends)
+    m = len(scs)
+
+    def pad(get: Callable[[ScenarioData], Array]) -> Array:
+        out = np.zeros((m, n_max))
+        for i, (s, e) in enumerate(zip(scs, ends)):
+            out[i, :e] = get(s)[:e]
+        return out
+
+    def filt(x: Array) -> Array:
+        return lowpass2(x, prefilter_hz, dt, axis=1) if prefilter_hz else x
+
+    mask = np.zeros((m, n_max), dtype=bool)
+    for i, e in enumerate(ends):
+        mask[i, :e] = True
+    impulse0 = np.zeros((m, n_max))
+    impulse0[:, 0] = 1.0
+    starts = filt(impulse0)
+    sw_rows, sw_slots, sw_imp = [], [], []
+    for i, s in enumerate(scs):
+        slot = 1
+        for k in s.switching:
+            if k < ends[i]:
+                e = np.zeros(n_max)
+                e[k] = 1.0
+                sw_rows.append(i)
+                sw_slots.append(slot)
+                sw_imp.append(e)
+                slot += 1
+    switch_imp = filt(np.array(sw_imp)) if sw_imp else np.zeros((0, n_max))
+    names = [s.name for s in scs]
+    keep = slice(0, None, max(1, decimate))
+    sw = (switch_imp, np.array(sw_rows, dtype=np.int64), np.array(sw_slots, dtype=np.int64))
+    d = AxisData(filt(pad(lambda s: s["i_d"])), filt(pad(lambda s: s["v_f"])), filt(pad(lambda s: s.v_q)),
+                 starts, *sw, mask, keep, names)
+    q = AxisData(filt(pad(lambda s: s["i_q"])), None, filt(pad(lambda s: s.v_d)), starts, *sw, mask, keep, names)
+    return Stage3Data(d, q, dt, int(mask.sum()))
+
+
+@dataclass
+class AxisFit:
+    tau: float
+    x_prime: float
+    x_sync: float
+    sse: float
+    residual: Array | None = None
+    columns: Array | None = None  # design columns for the (x_prime, x_sync) coefficients
+
+
+def _axis_system(ax: AxisData, tau: float, x_sync: float | None, dt: float, d_axis: bool
+                 ) -> tuple[Array, list[Array], Array]:
+    """(known part y, shared columns, per-scenario nuisance (m, p, n)) with y ~ columns + nuisance."""
+    a = math.exp(-dt / tau)
+    l_i = first_order_response(ax.current, tau, dt, axis=1)
+    p = 1 + (int(ax.switch_slot.max()) if ax.switch_slot.size else 0)
+    nuisance = np.zeros((ax.current.shape[0], p, ax.current.shape[1]))
+    nuisance[:, 0] = lfilter([1.0], [1.0, -a], ax.starts, axis=1)
+    if ax.switch_row.size:
+        nuisance[ax.switch_row, ax.switch_slot] = lfilter([1.0], [1.0, -a], ax.switch_imp, axis=1)
+    if d_axis:
+        # r_d = E0 decay + L[V_f] - X_d L[I_d] + X'_d (L[I_d] - I_d) - V_q
+        y = ax.voltage - first_order_response(ax.drive, tau, dt, axis=1)  # type: ignore[arg-type]
+        sync_col = -l_i
+        prime_col = l_i - ax.current
+    else:
+        # r_q = E0 decay + X_q L[I_q] + X'_q (I_q - L[I_q]) - V_d
+        y = ax.voltage.copy()
+        sync_col = l_i
+        prime_col = ax.current - l_i
+    if x_sync is not None:
+        y = y - x_sync * sync_col
+        cols = [prime_col]
+    else:
+        cols = [prime_col, sync_col]
+    return y, cols, nuisance  # type: ignore[return-value]
+
+
+def solve_axis(ax: AxisData, tau: float, dt: float, d_axis: bool, x_sync: float | None,
+               x_prime: float | None = None, keep_residual: bool = False) -> AxisFit:
+    """Inner least squares for one time constant: initial fluxes (and x', x_sync if free)."""
+    y, cols, nuisance = _axis_system(ax, tau, x_sync, dt, d_axis)
+    if x_prime is not None:
+        y = y - x_prime * cols[0]
+        cols = cols[1:]
+    sel = (slice(None), ax.keep)
+    mask = ax.mask[sel]
+    yk = np.where(mask, y[sel], 0.0)
+    ck = [np.where(mask, c[sel], 0.0) for c in cols]
+    nk = np.where(mask[:, None, :], nuisance[:, :, ax.keep], 0.0)
+    # Frisch-Waugh: project each scenario's own nuisance columns (initial flux, switching
+    # jumps) out of y and the shared columns, one small normal-equation solve per scenario
+    gram = np.einsum("mpn,mqn->mpq", nk, nk)
+    empty = np.einsum("mpp->mp", gram) <= 1e-300
+    gram[empty, :] = 0.0
+    idx = np.nonzero(empty)
+    gram[idx[0], idx[1], idx[1]] = 1.0  # unused slots: identity, coefficient 0
+
+    def project(v: Array) -> Array:
+        coef = np.linalg.solve(gram, np.einsum("mpn,mn->mp", nk, v)[..., None])[..., 0]
+        return v - np.einsum("mp,mpn->mn", coef, nk)
+
+    yt = project(yk)
+    ct = [project(c) for c in ck]
+    if ct:
+        a_mat = np.array([[np.sum(ci * cj) for cj in ct] for ci in ct])
+        b_vec = np.array([np.sum(ci * yt) for ci in ct])
+        coef = np.linalg.solve(a_mat, b_vec)
+    else:
+        coef = np.zeros(0)
+    r = yt - sum((c * k for c, k in zip(coef, ct)), np.zeros_like(yt))
+    sse = float(np.sum(r * r))
+    xp = float(coef[0]) if x_prime is None else float(x_prime)
+    if x_sync is None:
+        xs = float(coef[-1])
+    else:
+        xs = float(x_sync)
+    fit = AxisFit(tau, xp, xs, sse)
+    if keep_residual:
+        fit.residual = r[mask]
+        fit.columns = np.column_stack([c[mask] for c in ct]) if ct else None
+    return fit
+
+
+@dataclass
+class Stage3Result:
+    method: str
+    X_d_prime: Estimate
+    X_q_prime: Estimate
+    T_d0_prime: Estimate
+    T_q0_prime: Estimate
+    X_d: float
+    X_q: float
+    objective: float
+    evaluations: int
+    seconds: float
+    history: list[tuple[int, float]] = field(default_factory=list)  # (evaluations, best J)
+    problems: list[str] = field(default_factory=list)
+
+
+def _penalty(xdp: float, xqp: float, td0: float, tq0: float, xd: float, xq: float) -> float:
+    """Physics constraints of Algorithm 1 line 18: X'_d < X_d, X'_q < X_q, T'_d0 > T'_q0."""
+    v = max(0.0, xdp - xd) ** 2 + max(0.0, xqp - xq) ** 2 + max(0.0, tq0 - td0) ** 2
+    return LAMBDA_PENALTY * v
+
+
+def _prior(theta: Sequence[float], prior: Sequence[float] | None) -> float:
+    if prior is None:
+        return 0.0
+    return LAMBDA_PRIOR * float(sum(((t - p) / p) ** 2 for t, p in zip(theta, prior)))
+
+
+def objective(data: Stage3Data, theta: Sequence[float], x_d: float, x_q: float,
+              prior: Sequence[float] | None = None) -> float:
+    """J(theta) for theta = (X'_d, X'_q, T'_d0, T'_q0), initial fluxes eliminated."""
+    xdp, xqp, td0, tq0 = (float(v) for v in theta)
+    n = data.d.mask[:, data.d.keep].sum()
+    fd = solve_axis(data.d, td0, data.dt, True, x_d, x_prime=xdp)
+    fq = solve_axis(data.q, tq0, data.dt, False, x_q, x_prime=xqp)
+    return (fd.sse + fq.sse) / n + _penalty(xdp, xqp, td0, tq0, x_d, x_q) + _prior(theta, prior)
+
+
+def _profile(data: Stage3Data, d_axis: bool, x_sync: float | None, bounds: tuple[float, float],
+             counter: list[int]) -> AxisFit:
+    ax = data.d if d_axis else data.q
+
+    def f(log_tau: float) -> float:
+        counter[0] += 1
+        return solve_axis(ax, math.exp(log_tau), data.dt, d_axis, x_sync).sse
+
+    lo, hi = math.log(bounds[0]), math.log(bounds[1])
+    # coarse grid first: the profile can have a shallow second minimum near the bounds
+    grid = np.linspace(lo, hi, 13)
+    vals = [f(g) for g in grid]
+    i = int(np.argmin(vals))
+    a, b = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
+    res = minimize_scalar(f, bounds=(a, b), method="bounded", options={"xatol": 1e-5})
+    return solve_axis(ax, math.exp(float(res.x)), data.dt, d_axis, x_sync)
+
+
+def fast(data: Stage3Data, x_d: float, x_q: float, *, refine_synchronous: bool = False) -> Stage3Result:
+    """Variable projection: two 1-D searches over the time constants, everything else linear."""
+    t0 = time.perf_counter()
+    counter = [0]
+    fd = _profile(data, True, None if refine_synchronous else x_d, T_D0_BOUNDS, counter)
+    fq = _profile(data, False, None if refine_synchronous else x_q, T_Q0_BOUNDS, counter)
+    theta = (fd.x_prime, fq.x_prime, fd.tau, fq.tau)
+    j = objective(data, theta, fd.x_sync, fq.x_sync)
+    result = Stage3Result("fast", *_estimates(data, fd, fq), X_d=fd.x_sync, X_q=fq.x_sync, objective=j,
+                          evaluations=counter[0], seconds=time.perf_counter() - t0,
+                          history=[(counter[0], j)])
+    _check_bounds(result)
+    return result
+
+
+def paper(data: Stage3Data, x_d: float, x_q: float, *, prior: Sequence[float] | None = None, seed: int = 0,
+          maxiter: int = 300, popsize: int = 12, starts: int = 4, optimizer: str = "de") -> Stage3Result:
+    """The paper's global search on J: DE (or dual annealing / basin hopping) + multi-start L-BFGS-B."""
+    t0 = time.perf_counter()
+    bounds = [(0.05, 0.95 * x_d), (0.05, 0.95 * x_q), T_D0_BOUNDS, T_Q0_BOUNDS]
+    count = [0]
+    best = [math.inf]
+    history: list[tuple[int, float]] = []
+
+    def f(th: Array) -> float:
+        count[0] += 1
+        v = objective(data, th, x_d, x_q, prior)
+        if v < best[0]:
+            best[0] = v
+            history.append((count[0], v))
+        return v
+
+    rng = np.random.default_rng(seed)
+    if optimizer == "de":
+        res = differential_evolution(f, bounds, popsize=popsize, maxiter=maxiter, init="latinhypercube",
+                                     seed=seed, tol=1e-8, polish=False)
+        x_best = res.x
+    elif optimizer == "dual_annealing":
+        from scipy.optimize import dual_annealing
+
+        res = dual_annealing(f, bounds, maxfun=popsize * len(bounds) * maxiter, seed=seed,
+                             no_local_search=True)
+        x_best = res.x
+    elif optimizer == "basin_hopping":
+        from scipy.optimize import basinhopping
+
+        x0 = np.array([lo + rng.random() * (hi - lo) for lo, hi in bounds])
+        res = basinhopping(f, x0, niter=max(1, maxiter // 10), seed=seed,
+                           minimizer_kwargs={"method": "L-BFGS-B", "bounds": bounds})
+        x_best = res.x
+    else:
+        raise Stage3Error(f"unknown optimizer {optimizer!r}")
+    # multi-start L-BFGS-B refinement around the global result (Algorithm 1, line 18)
+    candidates = [np.asarray(x_best)] + [
+        np.clip(np.asarray(x_best) * (1 + 0.05 * rng.standard_normal(4)), [b[0] for b in bounds], [b[1] for b in bounds])
+        for _ in range(max(0, starts - 1))]
+    for c in candidates:
+        r = minimize(f, c, method="L-BFGS-B", bounds=bounds, options={"ftol": 1e-14, "gtol": 1e-12})
+        if r.fun <= best[0] + 1e-15:
+            x_best = r.x
+    xdp, xqp, td0, tq0 = (float(v) for v in x_best)
+    fd = solve_axis(data.d, td0, data.dt, True, x_d, x_prime=xdp)
+    fq = solve_axis(data.q, tq0, data.dt, False, x_q, x_prime=xqp)
+    fd.x_prime, fq.x_prime = xdp, xqp
+    j = objective(data, x_best, x_d, x_q, prior)
+    result = Stage3Result(f"paper:{optimizer}", *_estimates(data, fd, fq), X_d=x_d, X_q=x_q, objective=j,
+                          evaluations=count[0], seconds=time.perf_counter() - t0, history=history)
+    _check_bounds(result)
+    return result
+
+
+def _estimates(data: Stage3Data, fd: AxisFit, fq: AxisFit) -> tuple[Estimate, Estimate, Estimate, Estimate]:
+    """Cluster-robust standard errors from the linearised residual in (x', log tau)."""
+    out = []
+    for ax, fit, d_axis, names in ((data.d, fd, True, ("X_d_prime", "T_d0_prime")),
+                                   (data.q, fq, False, ("X_q_prime", "T_q0_prime"))):
+        def resid(xp: float, tau: float) -> tuple[Array, Array]:
+            y, cols, nuisance = _axis_system(ax, tau, fit.x_sync, data.dt, d_axis)
+            y = y - xp * cols[0]
+            sel = (slice(None), ax.keep)
+            # nuisance re-fitted per perturbation (profile residual)
+            fit_i = solve_axis(ax, tau, data.dt, d_axis, fit.x_sync, x_prime=xp, keep_residual=True)
+            return fit_i.residual, cols[0][sel][ax.mask[sel]]  # type: ignore[return-value]
+
+        r0, _ = resid(fit.x_prime, fit.tau)
+        h_x, h_t = 1e-6, 1e-5
+        r_x, _ = resid(fit.x_prime + h_x, fit.tau)
+        r_t, _ = resid(fit.x_prime, fit.tau * (1 + h_t))
+        jac = np.column_stack([(r_x - r0) / h_x, (r_t - r0) / (fit.tau * h_t)])
+        rows_per_scn = ax.mask[:, ax.keep].sum(axis=1).tolist()
+        step = max(1, int(round(BLOCK_SECONDS / (data.dt * (ax.keep.step or 1)))))
+        cov = cluster_robust_cov(jac, r0, block_ids(rows_per_scn, step))
+        share_x = information_share(jac, rows_per_scn, 0)
+        share_t = information_share(jac, rows_per_scn, 1)
+        top = lambda s: [ax.names[i] for i in np.argsort(s)[::-1][:3] if s[i] > 0.05]  # noqa: E731
+        out.append(flag(Estimate(fit.x_prime, math.sqrt(max(cov[0, 0], 0.0)), drivers=top(share_x)), names[0]))
+        out.append(flag(Estimate(fit.tau, math.sqrt(max(cov[1, 1], 0.0)), drivers=top(share_t)), names[1]))
+    xdp, td0, xqp, tq0 = out
+    return xdp, xqp, td0, tq0
+
+
+def _check_bounds(r: Stage3Result) -> None:
+    for name, est, (lo, hi) in (("T_d0_prime", r.T_d0_prime, T_D0_BOUNDS), ("T_q0_prime", r.T_q0_prime, T_Q0_BOUNDS)):
+        if est.value <= lo * 1.001 or est.value >= hi * 0.999:
+            est.at_bound = True
+            est.identifiable = False
+            r.problems.append(f"{name} = {est.value:.4g} s is at its search bound [{lo}, {hi}]")
+    if r.X_d_prime.value >= r.X_d:
+        r.problems.append("X'_d >= X_d violates the physics constraint")
+    if r.X_q_prime.value >= r.X_q:
+        r.problems.append("X'_q >= X_q violates the physics constraint")
+    if r.T_d0_prime.value <= r.T_q0_prime.value:
+        r.problems.append("T'_d0 <= T'_q0 violates the physics constraint")
