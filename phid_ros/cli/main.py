@@ -127,6 +127,13 @@ def cmd_info(args: argparse.Namespace, console: Console) -> int:
     return 0
 
 
+# -- identify ------------------------------------------------------------------------
+def cmd_identify(args: argparse.Namespace, console: Console) -> int:
+    from phid_ros.cli.identify import run
+
+    return run(args, console)
+
+
 # -- entry point -----------------------------------------------------------------
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="phid", description="Port-Hamiltonian generator identification.")
@@ -152,6 +159,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--strict", action="store_true", help="refuse extra columns instead of ignoring them")
     p.add_argument("--block-size", type=int, default=50, help="samples per sensor message (default 50)")
     p.set_defaults(func=cmd_import_csv)
+
+    p = sub.add_parser("identify", help="three-stage identification of the eight parameters")
+    p.add_argument("input", help="rosbag2 folder, .mcap file, or CSV manifest.json")
+    p.add_argument("--json", metavar="OUT", help="write the results JSON here")
+    p.add_argument("--method", choices=("fast", "paper"), default="fast",
+                   help="stage 3 optimiser: fast (variable projection, default) or paper (differential evolution)")
+    p.add_argument("--truth", metavar="TRUTH.json", help="true parameters (e.g. <bag>.truth.json) for errors")
+    p.add_argument("--report", metavar="OUT.html", help="write a self-contained HTML report")
+    p.add_argument("--no-baseline", action="store_true", help="skip the IEEE 115 baseline column")
+    p.add_argument("--seed", type=int, default=0, help="seed of the stochastic optimisers (default 0)")
+    p.add_argument("--paper-maxiter", type=int, default=300, help="generations of the paper's DE (default 300)")
+    p.set_defaults(func=cmd_identify)
 
     p = sub.add_parser("info", help="topics, message counts, rates, time span and gaps of a bag")
     p.add_argument("bag")

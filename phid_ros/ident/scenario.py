@@ -164,3 +164,61 @@ def make_scenario(name: str, signals: Mapping[str, Array], dt: float, *, kind: s
     return ScenarioData(name=name, kind=kind, role=role, generator_damping=generator_damping, dt=dt,
                         signals=sig, k_event=int(k_event), k_clear=None if k_clear is None else int(k_clear),
                         start_ns=start_ns, notes=notes)
+
+
+def _moving_step(x: Array, span: int) -> Array:
+    """Mean of the next ``span`` samples minus mean of the previous ``span``, at every sample."""
+    c = np.concatenate(([0.0], np.cumsum(x)))
+    n = len(x)
+    k = np.arange(n)
+    lo, hi = np.clip(k - span, 0, n), np.clip(k + span, 0, n)
+    before = (c[k] - c[lo]) / np.maximum(k - lo, 1)
+    after = (c[hi] - c[k]) / np.maximum(hi - k, 1)
+    out = after - before
+    out[(k - lo < span) | (hi - k < span)] = 0.0
+    return out
+
+
+def find_events(signals: Mapping[str, Array], dt: float, *, quiet_s: float = 2.0) -> list[tuple[str, int, int | None]]:
+    """Disturbances in a continuous recording: (kind, event sample, clearing sample or None).
+
+    Faults first (V_t below 0.3 of its mean over the preceding second), then
+    steps in P_m, then steps in V_t; a lower-priority detection within
+    ``quiet_s`` of another event is the same disturbance seen in another signal.
+    """
+    v = np.asarray(signals["v_t"], float)
+    n = len(v)
+    span_pf = max(1, int(round(1.0 / dt)))
+    c = np.concatenate(([0.0], np.cumsum(v)))
+    k = np.arange(n)
+    lo = np.clip(k - span_pf, 0, n)
+    v_pf = (c[k] - c[lo]) / np.maximum(k - lo, 1)
+    v_pf[0] = v[0]
+    events: list[tuple[str, int, int | None]] = []
+    below = v < FAULT_VOLTAGE_RATIO * v_pf
+    below[:span_pf] = False
+    edges = np.diff(below.astype(np.int8), prepend=0)
+    starts = np.flatnonzero(edges == 1)
+    stops = np.flatnonzero(edges == -1)
+    for s in starts:
+        after = stops[stops > s]
+        events.append(("fault", int(s), int(after[0]) if after.size else None))
+    quiet = int(round(quiet_s / dt))
+
+    def busy(k0: int) -> bool:
+        return any(abs(k0 - e[1]) < quiet or (e[2] is not None and abs(k0 - e[2]) < quiet) for e in events)
+
+    span = max(5, int(round(0.2 / dt)))
+    for kind, x, thr in (("torque_step", signals["p_m"], MIN_TORQUE_STEP), ("voltage_step", v, MIN_VOLTAGE_STEP)):
+        d = np.abs(_moving_step(np.asarray(x, float), span))
+        cand = np.flatnonzero(d >= thr)
+        if cand.size == 0:
+            continue
+        # one event per run of candidate samples: its peak
+        groups = np.split(cand, np.flatnonzero(np.diff(cand) > span) + 1)
+        for g in groups:
+            k_peak = int(g[np.argmax(d[g])])
+            if not busy(k_peak):
+                events.append((kind, _refine(np.asarray(x, float), k_peak, span), None))
+    events.sort(key=lambda e: e[1])
+    return events

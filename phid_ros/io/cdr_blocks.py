@@ -95,6 +95,8 @@ def decode_group(raws: Sequence[bytes], order: Sequence[int], layout: BlockLayou
 
     if not np.all(buf[:, :4] == np.frombuffer(CDR_LE_HEADER, dtype=np.uint8)):
         return None
+    if not np.all(buf[:, 12:16] == buf[0, 12:16]):  # every frame_id of the same length
+        return None
     for c in layout.counts:
         if not np.all(field(c, "<u4")[:, 0] == layout.n):
             return None
@@ -109,17 +111,19 @@ def decode_group(raws: Sequence[bytes], order: Sequence[int], layout: BlockLayou
 
 
 def group_by_layout(raws: Sequence[bytes], n_channels: int) -> tuple[dict[BlockLayout, list[int]], list[int]]:
-    """Message indices per layout, and the indices that need the generic deserialiser."""
+    """Message indices per layout, and the indices that need the generic deserialiser.
+
+    Grouping is by message length (numpy); :func:`decode_group` then checks that
+    every message of a group really has the layout of its first one.
+    """
+    lengths = np.fromiter((len(r) for r in raws), dtype=np.int64, count=len(raws))
     groups: dict[BlockLayout, list[int]] = {}
     rest: list[int] = []
-    cache: dict[tuple[int, bytes], BlockLayout | None] = {}
-    for i, raw in enumerate(raws):
-        key = (len(raw), bytes(raw[:4]) + bytes(raw[12:16]))  # size, endianness, frame_id length
-        if key not in cache:
-            cache[key] = _guess_layout(raw, n_channels)
-        layout = cache[key]
+    for length in np.unique(lengths):
+        idx = np.flatnonzero(lengths == length)
+        layout = _guess_layout(bytes(raws[int(idx[0])]), n_channels)
         if layout is None:
-            rest.append(i)
+            rest.extend(idx.tolist())
         else:
-            groups.setdefault(layout, []).append(i)
+            groups.setdefault(layout, []).extend(idx.tolist())
     return groups, rest

@@ -50,6 +50,52 @@ def write_mcap(path: str | Path, rec: Recording, *, block_size: int = DEFAULT_BL
 
 
 def read_mcap(path: str | Path) -> Recording:
+    """Fast record walker first; the ``mcap`` library reader where the walker does not apply."""
+    from phid_ros.io.mcap_raw import McapFormatError, iter_messages
+
+    path = Path(path)
+    source = str(path)
+    if not path.is_file():
+        raise BagError(f"{source}: no such MCAP file")
+    store = typestore()
+    try:
+        metadata = _metadata(path)
+        ours: set[str] = set()
+
+        def items() -> Iterator[tuple[str, str, bytes]]:
+            for topic, schema, encoding, raw in iter_messages(path):
+                if topic not in ours:
+                    if not is_phid_topic(topic):
+                        yield topic, schema, raw  # foreign data: routed nowhere, but counted
+                        continue
+                    ours.add(topic)
+                if encoding != "cdr" or not schema:
+                    raise BagError(f"{source}: channel {topic} is not cdr-encoded ROS 2 data")
+                if schema not in store.types:
+                    raise BagError(f"{source}: topic {topic} has unknown message type {schema}")
+                yield topic, schema, raw
+
+        return recording_from_raw(items(), source=source, metadata=metadata)
+    except McapFormatError as exc:
+        raise BagError(f"{source}: truncated or corrupt MCAP file: {exc}") from exc
+
+
+def _metadata(path: Path) -> dict[str, str]:
+    from mcap.reader import make_reader
+
+    try:
+        with path.open("rb") as fh:
+            out: dict[str, str] = {}
+            for record in make_reader(fh).iter_metadata():
+                if record.name == METADATA_NAME:
+                    out.update(record.metadata)
+            return out
+    except Exception as exc:  # the mcap reader raises assorted errors on damaged files
+        raise BagError(f"{path}: truncated or corrupt MCAP file: {type(exc).__name__}: {exc}") from exc
+
+
+def read_mcap_reference(path: str | Path) -> Recording:
+    """Read through the ``mcap`` library reader: the reference path."""
     path = Path(path)
     source = str(path)
     if not path.is_file():

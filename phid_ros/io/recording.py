@@ -282,18 +282,18 @@ def recording_from_raw(
             raise BagError(f"{source}: corrupt message on {topic}: {exc}") from exc
 
     asm = _Assembler(source)
+    routes: dict[tuple[str, str], list[bytes] | None] = {}  # (topic, type) -> where its payloads go
     for topic, msgtype, raw in items:
-        if topic == SCENARIO_TOPIC:
-            _check_type(source, topic, msgtype, SCENARIO_MSGTYPE)
+        dest = routes.get((topic, msgtype), False)
+        if dest is False:
+            dest = routes[(topic, msgtype)] = _route(source, topic, msgtype, raws, topics)
+        if dest is not None:
+            dest.append(raw)
+        elif topic == SCENARIO_TOPIC:
             asm.scenarios.append(_scenario_from_msg(deserialize(raw, msgtype, topic)))
-            continue
-        name = stream_of_topic(topic)
-        if name is None:
-            continue
-        _check_type(source, topic, msgtype, STREAMS_BY_NAME[name].msgtype)
-        if topics.setdefault(name, topic) != topic:
-            raise BagError(f"{source}: stream {name} arrives on two topics, {topics[name]} and {topic}")
-        raws.setdefault(name, []).append(bytes(raw))
+    if not raws and not asm.scenarios:
+        present = ", ".join(sorted({t for t, _ in routes})) or "none"
+        raise BagError(f"{source}: none of the phid sensor topics found (topics present: {present})")
     for name, msgs in raws.items():
         spec = STREAMS_BY_NAME[name]
         groups, rest = group_by_layout(msgs, len(spec.channels))
@@ -308,6 +308,21 @@ def recording_from_raw(
             arrays = [np.asarray(getattr(msg, c), dtype=np.float64) for c in spec.channels]
             asm.add_message(name, topics[name], i, time_to_ns(msg.header.stamp), msg.sample_period, arrays)  # type: ignore[attr-defined]
     return asm.finish(required, metadata)
+
+
+def _route(source: str, topic: str, msgtype: str, raws: dict[str, list[bytes]],
+           topics: dict[str, str]) -> list[bytes] | None:
+    """The payload list of a sensor topic (after checking its type); None for others."""
+    if topic == SCENARIO_TOPIC:
+        _check_type(source, topic, msgtype, SCENARIO_MSGTYPE)
+        return None
+    name = stream_of_topic(topic)
+    if name is None:
+        return None
+    _check_type(source, topic, msgtype, STREAMS_BY_NAME[name].msgtype)
+    if topics.setdefault(name, topic) != topic:
+        raise BagError(f"{source}: stream {name} arrives on two topics, {topics[name]} and {topic}")
+    return raws.setdefault(name, [])
 
 
 def _scenario_from_msg(msg: object) -> ScenarioInfo:

@@ -61,6 +61,48 @@ def _iter_raw(reader: Reader, source: str) -> Iterator[tuple[str, str, bytes]]:
         yield conn.topic, conn.msgtype, raw
 
 
+def _fast_read(path: Path, source: str) -> Recording | None:
+    """Our own MCAP walker over the bag's storage files; None when it cannot apply."""
+    from rosbags.rosbag2.metadata import ReaderMetadata  # noqa: F401  (import check only)
+    from ruamel.yaml import YAML
+
+    from phid_ros.io.mcap_raw import McapFormatError, iter_messages
+
+    try:
+        meta = YAML(typ="safe").load((path / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    except Exception:
+        return None
+    if meta.get("storage_identifier") != "mcap" or meta.get("compression_mode"):
+        return None
+    files = [path / Path(f).name for f in meta.get("relative_file_paths", [])]
+    if not files or not all(f.is_file() for f in files):
+        return None
+    custom = meta.get("custom_data") or {}
+    metadata = {k[len("phid."):]: str(v) for k, v in custom.items() if k.startswith("phid.")}
+    store = typestore()
+
+    ours: set[str] = set()
+
+    def items() -> Iterator[tuple[str, str, bytes]]:
+        for f in files:
+            for topic, schema, encoding, raw in iter_messages(f):
+                if topic not in ours:
+                    if not is_phid_topic(topic):
+                        yield topic, schema, raw  # foreign data: routed nowhere, but counted
+                        continue
+                    ours.add(topic)
+                if encoding != "cdr":
+                    raise BagError(f"{source}: topic {topic} is not cdr-encoded")
+                if schema not in store.types:
+                    raise BagError(f"{source}: topic {topic} has unknown message type {schema}")
+                yield topic, schema, raw
+
+    try:
+        return recording_from_raw(items(), source=source, metadata=metadata)
+    except McapFormatError as exc:
+        raise BagError(f"{source}: truncated or corrupt bag: {exc}") from exc
+
+
 def read_rosbag2(path: str | Path) -> Recording:
     path = Path(path)
     source = str(path)
@@ -68,6 +110,17 @@ def read_rosbag2(path: str | Path) -> Recording:
         raise BagError(f"{source}: no such bag")
     if path.is_dir() and not (path / "metadata.yaml").is_file():
         raise BagError(f"{source}: not a rosbag2 folder (metadata.yaml missing)")
+    if path.is_dir():
+        fast = _fast_read(path, source)
+        if fast is not None:
+            return fast
+    return read_rosbag2_reference(path)
+
+
+def read_rosbag2_reference(path: str | Path) -> Recording:
+    """Read through the rosbags reader (any storage, any compression): the reference path."""
+    path = Path(path)
+    source = str(path)
     try:
         with Reader(path) as reader:
             custom = getattr(reader.storage, "metadata", None)

@@ -78,3 +78,23 @@ def test_rosbag2_is_mcap_storage_with_zstd(tmp_path, short_recording):
     assert "version: 9" in meta
     head = (path / "bag.mcap").read_bytes()
     assert head.startswith(b"\x89MCAP0\r\n") and b"zstd" in head
+
+
+@pytest.mark.parametrize("suffix", ["", ".mcap"])
+def test_fast_reader_equals_the_library_readers(tmp_path, short_recording, suffix):
+    from phid_ros.io.mcap_file import read_mcap_reference
+    from phid_ros.io.rosbag2 import read_rosbag2_reference
+
+    path = write_recording(tmp_path / f"bag{suffix}", short_recording, block_size=33)
+    reference = read_mcap_reference(path) if suffix else read_rosbag2_reference(path)
+    assert_same(reference, read_recording(path))
+    assert_same(short_recording, reference)
+
+
+def test_fast_mcap_walker_refuses_what_it_does_not_understand(tmp_path):
+    from phid_ros.io.mcap_raw import McapFormatError, iter_messages
+
+    p = tmp_path / "x.mcap"
+    p.write_bytes(b"not an mcap at all")
+    with pytest.raises(McapFormatError, match="bad magic"):
+        list(iter_messages(p))

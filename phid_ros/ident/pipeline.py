@@ -1,0 +1,210 @@
+"""The three-stage identification from prepared scenarios to one result (Algorithm 1).
+
+Each stage that cannot run (too few scenarios of a kind, NaN windows, an
+ill-posed fit) leaves its parameters as NaN with the reason in ``problems``;
+nothing is filled in silently. Stage 3 takes X_d and X_q from stage 2, or,
+when stage 2 cannot run, refines them itself (``fast`` only).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from phid_ros.ident import ieee115, stage1, stage2, stage3, validation
+from phid_ros.ident.results import Estimate
+from phid_ros.ident.scenario import ScenarioData
+from phid_ros.model.conventions import DEFAULT_F_NOMINAL_HZ
+from phid_ros.model.parameters import PARAMETER_NAMES, GeneratorParameters, validation_problems
+
+METHODS = ("fast", "paper")
+
+
+@dataclass
+class IdentifyOptions:
+    method: str = "fast"
+    stage1_cutoff_hz: float = stage1.DEFAULT_CUTOFF_HZ
+    prefilter_hz: float | None = stage3.DEFAULT_PREFILTER_HZ
+    refine_synchronous: bool = False
+    use_prior: bool = False  # paper: IEEE 115 estimates as prior with lambda 0.2
+    baseline: bool = True
+    validate: bool = True
+    f_nominal_hz: float = DEFAULT_F_NOMINAL_HZ
+    seed: int = 0
+    paper_maxiter: int = 300
+
+
+@dataclass
+class IdentificationResult:
+    estimates: dict[str, Estimate]
+    method: str
+    scenarios: list[ScenarioData]
+    baseline: dict[str, Estimate] = field(default_factory=dict)
+    stage1_paper: stage1.Stage1Result | None = None
+    stage1: stage1.Stage1Result | None = None
+    stage2: stage2.Stage2Result | None = None
+    stage3: stage3.Stage3Result | None = None
+    validation: validation.ValidationResult | None = None
+    validation_truth: validation.ValidationResult | None = None
+    problems: list[str] = field(default_factory=list)
+    timing: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def parameters(self) -> dict[str, float]:
+        return {n: self.estimates[n].value if n in self.estimates else math.nan for n in PARAMETER_NAMES}
+
+    def complete(self) -> GeneratorParameters | None:
+        """The identified set as a model, if all eight exist and are physically valid."""
+        p = self.parameters
+        if any(not math.isfinite(v) for v in p.values()) or validation_problems(p):
+            return None
+        return GeneratorParameters(**p)
+
+    def to_json(self, truth: GeneratorParameters | None = None) -> dict[str, Any]:
+        p = self.parameters
+        doc: dict[str, Any] = {
+            "parameters": p,
+            "uncertainty": {n: self.estimates[n].std if n in self.estimates else math.nan for n in PARAMETER_NAMES},
+            "identifiable": {n: self.estimates[n].identifiable if n in self.estimates else False
+                             for n in PARAMETER_NAMES},
+            "drivers": {n: self.estimates[n].drivers if n in self.estimates else [] for n in PARAMETER_NAMES},
+            "method": self.method,
+            "events": [{"name": s.name, "kind": s.kind, "role": s.role, "generator_damping": s.generator_damping,
+                        "event_time_s": s.k_event * s.dt, "clearing_time_s": None if s.k_clear is None else s.k_clear * s.dt,
+                        "start_ns": s.start_ns, "notes": s.notes} for s in self.scenarios],
+            "validation": self.validation.as_dict() if self.validation else None,
+            "baseline_ieee115": {n: e.value for n, e in self.baseline.items()},
+            "stages": self._stage_details(),
+            "problems": self.problems,
+            "timing_s": self.timing,
+        }
+        if self.stage1_paper is not None:
+            doc["stage1_differential_damping"] = {"H": self.stage1_paper.H.value, "D": self.stage1_paper.D.value,
+                                                  "pairs": self.stage1_paper.details.get("pairs", [])}
+        if truth is not None:
+            t = truth.as_dict()
+            doc["truth"] = t
+            doc["errors_pct"] = {n: 100.0 * (p[n] / t[n] - 1.0) if math.isfinite(p[n]) and t[n] else None
+                                 for n in PARAMETER_NAMES}
+            doc["baseline_errors_pct"] = {n: 100.0 * (e.value / t[n] - 1.0) for n, e in self.baseline.items()
+                                          if math.isfinite(e.value) and t[n]}
+            if self.validation_truth is not None:
+                doc["validation_vs_measurement"] = self.validation_truth.as_dict()
+        return doc
+
+    def _stage_details(self) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        if self.stage1:
+            out["stage1"] = {"method": self.stage1.method, **self.stage1.details}
+        if self.stage2:
+            out["stage2"] = {"method_d": self.stage2.method_d, "method_q": self.stage2.method_q,
+                             "r2_d": self.stage2.r2_d, "r2_q": self.stage2.r2_q,
+                             "steady_points": [pt.__dict__ for pt in self.stage2.points]}
+        if self.stage3:
+            out["stage3"] = {"method": self.stage3.method, "objective": self.stage3.objective,
+                             "evaluations": self.stage3.evaluations, "seconds": self.stage3.seconds,
+                             "X_d_used": self.stage3.X_d, "X_q_used": self.stage3.X_q}
+        return out
+
+
+def _timed(timing: dict[str, float], key: str, t0: float) -> None:
+    timing[key] = round(time.perf_counter() - t0, 6)
+
+
+def identify(scenarios: Sequence[ScenarioData], options: IdentifyOptions | None = None,
+             truth: GeneratorParameters | None = None) -> IdentificationResult:
+    opt = options or IdentifyOptions()
+    if opt.method not in METHODS:
+        raise ValueError(f"method must be one of {METHODS}, got {opt.method!r}")
+    scs = list(scenarios)
+    res = IdentificationResult({}, opt.method, scs)
+    for s in scs:
+        res.problems.extend(f"{s.name}: {n}" for n in s.notes if "kept the label" in n)
+    ident = [s for s in scs if s.role == "identify"]
+    if not ident:
+        res.problems.append("no identification scenarios: nothing to identify")
+        return res
+
+    # -- stage 1 -------------------------------------------------------------------
+    t0 = time.perf_counter()
+    try:
+        res.stage1 = stage1.swing_regression(ident, opt.stage1_cutoff_hz)
+        res.estimates["H"], res.estimates["D"] = res.stage1.H, res.stage1.D
+    except stage1.Stage1Error as exc:
+        res.problems.append(f"stage 1 (H, D) did not run: {exc}")
+    if any(s.kind == "torque_step" and not s.generator_damping for s in ident):
+        try:
+            res.stage1_paper = stage1.differential_damping(ident)
+        except (stage1.Stage1Error, RuntimeError) as exc:
+            res.problems.append(f"paper's differential damping method did not run: {exc}")
+    _timed(res.timing, "stage1", t0)
+
+    # -- stage 2 -------------------------------------------------------------------
+    t0 = time.perf_counter()
+    x_d = x_q = None
+    try:
+        res.stage2 = stage2.identify_reactances(ident)
+        res.estimates["X_d"], res.estimates["X_q"] = res.stage2.X_d, res.stage2.X_q
+        res.problems.extend(f"stage 2: {p}" for p in res.stage2.problems)
+        x_d, x_q = res.stage2.X_d.value, res.stage2.X_q.value
+    except stage2.Stage2Error as exc:
+        res.problems.append(f"stage 2 (X_d, X_q) did not run: {exc}")
+    _timed(res.timing, "stage2", t0)
+
+    # -- IEEE 115 baseline (needs a reference X_d, X_q for its bounds (18), (21)) -----
+    t0 = time.perf_counter()
+    base = None
+    if opt.baseline and x_d is not None and x_q is not None:
+        try:
+            base = ieee115.identify(ident, x_d, x_q, seed=opt.seed)
+            res.baseline = {n: Estimate(res.estimates[n].value) for n in ("H", "D", "X_d", "X_q") if n in res.estimates}
+            res.baseline.update(base.estimates())
+        except ieee115.BaselineError as exc:
+            res.problems.append(f"IEEE 115 baseline did not run: {exc}")
+    _timed(res.timing, "ieee115", t0)
+
+    # -- stage 3 -------------------------------------------------------------------
+    t0 = time.perf_counter()
+    try:
+        data = stage3.prepare(ident, opt.prefilter_hz)
+        refine = opt.refine_synchronous or x_d is None or x_q is None
+        if opt.method == "fast":
+            r3 = stage3.fast(data, x_d or 2.0, x_q or 2.0, refine_synchronous=refine)
+            if refine and (x_d is None or x_q is None):
+                res.estimates["X_d"] = Estimate(r3.X_d, note="refined in stage 3 (stage 2 could not run)")
+                res.estimates["X_q"] = Estimate(r3.X_q, note="refined in stage 3 (stage 2 could not run)")
+        else:
+            if x_d is None or x_q is None:
+                raise stage3.Stage3Error("the paper method needs X_d and X_q from stage 2")
+            prior = None
+            if opt.use_prior and base is not None:
+                prior = [base.d.x_prime, base.q.x_prime, base.d.t_open, base.q.t_open]
+            r3 = stage3.paper(data, x_d, x_q, prior=prior, seed=opt.seed, maxiter=opt.paper_maxiter)
+        res.stage3 = r3
+        for n in ("X_d_prime", "X_q_prime", "T_d0_prime", "T_q0_prime"):
+            res.estimates[n] = getattr(r3, n)
+        res.problems.extend(f"stage 3: {p}" for p in r3.problems)
+    except stage3.Stage3Error as exc:
+        res.problems.append(f"stage 3 (X'_d, X'_q, T'_d0, T'_q0) did not run: {exc}")
+    _timed(res.timing, "stage3", t0)
+
+    for name, est in res.estimates.items():
+        if not est.identifiable and est.note:
+            res.problems.append(est.note)
+
+    # -- validation ----------------------------------------------------------------
+    t0 = time.perf_counter()
+    model = res.complete()
+    if opt.validate:
+        if model is None:
+            res.problems.append("validation skipped: the identified set is incomplete or not physically valid")
+        else:
+            res.validation = validation.validate(scs, model, truth, opt.f_nominal_hz)
+            res.problems.extend(res.validation.problems)
+            if truth is not None:
+                res.validation_truth = validation.validate(scs, model, None, opt.f_nominal_hz)
+    _timed(res.timing, "validation", t0)
+    return res

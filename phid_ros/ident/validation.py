@@ -1,0 +1,173 @@
+"""Validation (paper section 4.2): simulate a parameter set on the validation scenarios.
+
+The model (5)-(13) is driven by the measured boundary signals V_t, theta_t, P_m
+and V_f (a "play-in" simulation: the grid is whatever the terminal voltage
+says, so no network model is assumed) and its rotor angle, speed, fluxes and
+P, Q are compared with the reference model's (when the truth is known) or
+with the measurement. Metrics: RMS and max delta error (deg) and RMS omega
+error (%) as in Table 8; RMSE/MAE/STD of the combined state-trajectory error
+as in Table 9; a MOD-026-style check that simulated P and Q stay within
+0.05 pu (5 %) of the measurement. V_t is an input of the play-in, so it is not
+checked.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from phid_ros.ident.scenario import ScenarioData
+from phid_ros.model.conventions import DEFAULT_F_NOMINAL_HZ, electrical_power, omega_s, terminal_to_dq
+from phid_ros.model.parameters import GeneratorParameters
+from phid_ros.numerics import rk4
+
+Array = NDArray[np.float64]
+STEP_SECONDS = 0.005  # RK4 step of the play-in; inputs are held over a step
+MOD026_TOLERANCE_PU = 0.05
+
+
+@dataclass
+class Trajectories:
+    t: Array
+    delta: Array  # (steps + 1, models)
+    omega: Array
+    e_q: Array
+    e_d: Array
+    p_e: Array
+    q_e: Array
+
+
+def play_in(scenarios: Sequence[ScenarioData], params: Sequence[GeneratorParameters],
+            f_nominal_hz: float = DEFAULT_F_NOMINAL_HZ, step: float = STEP_SECONDS) -> list[Trajectories]:
+    """Simulate every parameter set on every scenario in one vectorised run.
+
+    Columns are (scenario, parameter set) pairs; scenarios shorter than the
+    longest simply hold their last input, and their tail is cut off again.
+    """
+    m = len(params)
+    dt = scenarios[0].dt
+    stride = max(1, int(round(step / dt)))
+    h = stride * dt
+    idx = [np.arange(0, s.n, stride) for s in scenarios]
+    steps = max(len(i) for i in idx)
+
+    def inputs(name: str) -> Array:
+        out = np.empty((steps, len(scenarios) * m))
+        for j, (s, ii) in enumerate(zip(scenarios, idx)):
+            x = s[name][ii]
+            out[:, j * m:(j + 1) * m] = np.concatenate((x, np.full(steps - len(x), x[-1])))[:, None]
+        return out
+
+    v_t, theta, p_m, v_f = (inputs(n) for n in ("v_t", "theta_t", "p_m", "v_f"))
+    col = lambda name: np.tile([getattr(p, name) for p in params], len(scenarios)).astype(float)  # noqa: E731
+    H, D, xd, xq, xdp, xqp, td0, tq0 = (col(n) for n in ("H", "D", "X_d", "X_q", "X_d_prime", "X_q_prime",
+                                                         "T_d0_prime", "T_q0_prime"))
+    damping_on = np.repeat([1.0 if s.generator_damping else 0.0 for s in scenarios], m)
+    D = D * damping_on
+    ws = omega_s(f_nominal_hz)
+    inv_2h, xd_diff, xq_diff = 1.0 / (2.0 * H), xd - xdp, xq - xqp
+
+    def rhs(x: Array, vt: Array, th: Array, pm: Array, vf: Array) -> Array:
+        delta, omega, e_q, e_d = x
+        ang = delta - th
+        v_d, v_q = vt * np.sin(ang), vt * np.cos(ang)
+        i_d = (e_q - v_q) / xdp  # (11)
+        i_q = (v_d - e_d) / xqp  # (12)
+        slip = omega - 1.0
+        return np.stack((ws * slip, (pm - (v_d * i_d + v_q * i_q) - D * slip) * inv_2h,  # (13) in (6)
+                         (vf - e_q - xd_diff * i_d) / td0, (xq_diff * i_q - e_d) / tq0))
+
+    # initial state: the pre-event steady state as each model sees it
+    x0 = np.empty((4, len(scenarios) * m))
+    for j, s in enumerate(scenarios):
+        pre = s.pre_slice()
+        c = slice(j * m, (j + 1) * m)
+        x0[0, c] = np.mean(s["delta"][pre])
+        x0[1, c] = np.mean(s["omega"][pre])
+        x0[2, c] = np.mean(s.v_q[pre]) + xdp[c] * np.mean(s["i_d"][pre])
+        x0[3, c] = np.mean(s.v_d[pre]) - xqp[c] * np.mean(s["i_q"][pre])
+    states = rk4(rhs, x0, steps - 1, h, lambda k: (v_t[k], theta[k], p_m[k], v_f[k]))
+    delta, omega, e_q, e_d = (states[:, i] for i in range(4))
+    v_d, v_q = terminal_to_dq(v_t, delta, theta)
+    i_d, i_q = (e_q - v_q) / xdp, (v_d - e_d) / xqp
+    p_e, q_e = electrical_power(v_d, v_q, i_d, i_q)
+    out = []
+    for j, ii in enumerate(idx):
+        c, n = slice(j * m, (j + 1) * m), len(ii)
+        out.append(Trajectories(ii * dt, delta[:n, c], omega[:n, c], e_q[:n, c], e_d[:n, c], p_e[:n, c], q_e[:n, c]))
+    return out
+
+
+@dataclass
+class ScenarioMetrics:
+    scenario: str
+    against: str  # "reference" or "measurement"
+    rms_delta_deg: float
+    max_delta_deg: float
+    rms_omega_pct: float
+    rmse: float
+    mae: float
+    std: float
+    max_dp: float
+    max_dq: float
+    mod026_pass: bool
+
+    def as_dict(self) -> dict:
+        return dict(self.__dict__)
+
+
+@dataclass
+class ValidationResult:
+    scenarios: list[ScenarioMetrics]
+    against: str
+    problems: list[str] = field(default_factory=list)
+
+    def worst(self, name: str) -> float:
+        vals = [getattr(s, name) for s in self.scenarios]
+        return max(vals) if vals else math.nan
+
+    def as_dict(self) -> dict:
+        return {"against": self.against, "scenarios": [s.as_dict() for s in self.scenarios],
+                "max_rms_delta_deg": self.worst("rms_delta_deg"), "max_rms_omega_pct": self.worst("rms_omega_pct"),
+                "mod026_pass": all(s.mod026_pass for s in self.scenarios), "problems": self.problems}
+
+
+def _metrics(name: str, against: str, t: Trajectories, col: int, ref: dict[str, Array]) -> ScenarioMetrics:
+    dd = t.delta[:, col] - ref["delta"]
+    dw = t.omega[:, col] - ref["omega"]
+    parts = [dd, dw] + [getattr(t, k)[:, col] - ref[k] for k in ("e_q", "e_d") if k in ref]
+    err = np.concatenate(parts)
+    dp = np.max(np.abs(t.p_e[:, col] - ref["p_e"]))
+    dq = np.max(np.abs(t.q_e[:, col] - ref["q_e"]))
+    return ScenarioMetrics(
+        scenario=name, against=against,
+        rms_delta_deg=float(np.degrees(np.sqrt(np.mean(dd**2)))), max_delta_deg=float(np.degrees(np.max(np.abs(dd)))),
+        rms_omega_pct=float(100 * np.sqrt(np.mean(dw**2))),
+        rmse=float(np.sqrt(np.mean(err**2))), mae=float(np.mean(np.abs(err))), std=float(np.std(err)),
+        max_dp=float(dp), max_dq=float(dq), mod026_pass=bool(dp <= MOD026_TOLERANCE_PU and dq <= MOD026_TOLERANCE_PU))
+
+
+def validate(scenarios: Sequence[ScenarioData], params: GeneratorParameters,
+             reference: GeneratorParameters | None = None,
+             f_nominal_hz: float = DEFAULT_F_NOMINAL_HZ) -> ValidationResult:
+    """Metrics of ``params`` on the validation scenarios (role ``validate``; else all scenarios)."""
+    chosen = [s for s in scenarios if s.role == "validate"]
+    problems = []
+    if not chosen:
+        chosen = list(scenarios)
+        problems.append("no validation scenarios in the input: validated on the identification scenarios")
+    against = "reference" if reference is not None else "measurement"
+    sets = [params] + ([reference] if reference is not None else [])
+    out = []
+    for s, traj in zip(chosen, play_in(chosen, sets, f_nominal_hz)):
+        if reference is not None:
+            ref = {k: getattr(traj, k)[:, 1] for k in ("delta", "omega", "e_q", "e_d", "p_e", "q_e")}
+        else:
+            idx = np.arange(0, s.n, max(1, int(round(STEP_SECONDS / s.dt))))
+            ref = {"delta": s["delta"][idx], "omega": s["omega"][idx], "p_e": s["p_e"][idx], "q_e": s["q_e"][idx]}
+        out.append(_metrics(s.name, against, traj, 0, ref))
+    return ValidationResult(out, against, problems)
