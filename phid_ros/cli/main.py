@@ -18,6 +18,7 @@ from rich.table import Table
 
 from phid_ros import __version__
 from phid_ros.errors import PhidError
+from phid_ros.io.recording import DEFAULT_BLOCK_SIZE
 
 EXIT_USER_ERROR = 2
 
@@ -149,7 +150,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="sensor noise seed (default 0)")
     p.add_argument("--noiseless", action="store_true", help="write the true signals, no sensor noise")
     p.add_argument("--f-nominal", type=float, default=50.0, help="nominal frequency, Hz (default 50)")
-    p.add_argument("--block-size", type=int, default=50, help="samples per sensor message (default 50)")
+    p.add_argument("--block-size", type=int, default=DEFAULT_BLOCK_SIZE, help=f"samples per sensor message (default {DEFAULT_BLOCK_SIZE})")
     p.add_argument("--effect", action="append", metavar="NAME[=k=v,...]", help="switch on a plant effect")
     p.set_defaults(func=cmd_simulate)
 
@@ -157,7 +158,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("manifest")
     p.add_argument("--out", required=True, help="output: a rosbag2 folder, or a file ending in .mcap")
     p.add_argument("--strict", action="store_true", help="refuse extra columns instead of ignoring them")
-    p.add_argument("--block-size", type=int, default=50, help="samples per sensor message (default 50)")
+    p.add_argument("--block-size", type=int, default=DEFAULT_BLOCK_SIZE, help=f"samples per sensor message (default {DEFAULT_BLOCK_SIZE})")
     p.set_defaults(func=cmd_import_csv)
 
     p = sub.add_parser("identify", help="three-stage identification of the eight parameters")

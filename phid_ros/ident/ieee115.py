@@ -25,7 +25,7 @@ from phid_ros.ident.scenario import ScenarioData
 
 Array = NDArray[np.float64]
 FIT_SECONDS = 3.0  # "from fault initiation to several seconds post-clearing"
-DECIMATE = 10  # the envelope is smooth; 100 Hz is plenty for the fit
+DECIMATE = 20  # the envelope is smooth; 50 Hz is plenty for the fit
 
 
 class BaselineError(Exception):
@@ -66,7 +66,7 @@ def _fit(t: Array, y: Array, w: Array, bounds: list[tuple[float, float]], seed: 
         model = e * (np.exp(-t[None, :] / tc) / xp + 1.0 / xs)
         return np.sum(w[None, :] * (y[None, :] - model) ** 2, axis=1)
 
-    res = differential_evolution(cost, bounds, seed=seed, tol=1e-10, maxiter=600, popsize=15,
+    res = differential_evolution(cost, bounds, seed=seed, tol=1e-7, maxiter=400, popsize=10,
                                  init="latinhypercube", vectorized=True, updating="deferred", polish=False)
     return np.asarray(res.x), float(res.fun)
 

@@ -202,9 +202,7 @@ def identify(scenarios: Sequence[ScenarioData], options: IdentifyOptions | None 
         if model is None:
             res.problems.append("validation skipped: the identified set is incomplete or not physically valid")
         else:
-            res.validation = validation.validate(scs, model, truth, opt.f_nominal_hz)
+            res.validation, res.validation_truth = validation.validate(scs, model, truth, opt.f_nominal_hz)
             res.problems.extend(res.validation.problems)
-            if truth is not None:
-                res.validation_truth = validation.validate(scs, model, None, opt.f_nominal_hz)
     _timed(res.timing, "validation", t0)
     return res

@@ -38,6 +38,7 @@ from phid_ros.numerics import lowpass2, lowpass2_derivative
 
 DEFAULT_CUTOFF_HZ = 2.0
 BLOCK_SECONDS = 1.0
+WINDOW_AFTER_EVENT_S = 15.0  # the swing has died out long before; the steady tail adds only noise
 
 
 class Stage1Error(Exception):
@@ -83,25 +84,26 @@ def swing_regression(scenarios: Sequence[ScenarioData], cutoff_hz: float = DEFAU
     for s in scs:
         dt = s.dt
         pre = s.pre_slice()
-        omega = s["omega"]
+        end = min(s.n, s.k_event + int(round(WINDOW_AFTER_EVENT_S / dt)))
+        omega = s["omega"][:end]
         w0 = float(np.mean(omega[pre]))
-        dp = s["p_m"] - s["p_e"]
+        dp = (s["p_m"] - s["p_e"])[:end]
         # filters start from rest on deviations from the pre-event steady state: exactly
         # linear, no start-up transient; the D column is then F[omega - omega_0] because the
         # pre-event balance already holds D(omega_0 - 1) and the transducer offsets
         y = lowpass2(dp - float(np.mean(dp[pre])), cutoff_hz, dt)
         main = np.column_stack([
             2.0 * lowpass2_derivative(omega - w0, cutoff_hz, dt),
-            lowpass2(omega - w0, cutoff_hz, dt) if s.generator_damping else np.zeros(s.n),
+            lowpass2(omega - w0, cutoff_hz, dt) if s.generator_damping else np.zeros(end),
         ])
-        nuisance = [lowpass2(np.ones(s.n), cutoff_hz, dt)]
-        for k in s.switching:
+        nuisance = [lowpass2(np.ones(end), cutoff_hz, dt)]
+        for k in (k for k in s.switching if k < end):
             for lag in (0, 1):  # impulse and doublet: any sub-sample switching time
-                col = np.zeros(s.n)
-                seg = h_imp[: s.n - k]
+                col = np.zeros(end)
+                seg = h_imp[: end - k]
                 col[k:k + len(seg)] += seg
                 if lag:
-                    seg1 = h_imp[: s.n - k + 1]
+                    seg1 = h_imp[: end - k + 1]
                     col[k - 1:k - 1 + len(seg1)] -= seg1
                 nuisance.append(col)
         z = np.column_stack(nuisance)
@@ -109,7 +111,7 @@ def swing_regression(scenarios: Sequence[ScenarioData], cutoff_hz: float = DEFAU
         resid = np.column_stack([y, main]) - z @ coef
         ys.append(resid[:, 0])
         xs.append(resid[:, 1:])
-        lengths.append(s.n)
+        lengths.append(end)
     X = np.vstack(xs)
     Y = np.concatenate(ys)
     theta, *_ = np.linalg.lstsq(X, Y, rcond=None)

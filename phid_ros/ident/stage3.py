@@ -66,8 +66,8 @@ class AxisData:
     current: Array  # P[I_d] or P[I_q]
     drive: Array | None  # P[V_f] on the d axis
     voltage: Array  # P[V_q] or P[V_d]
-    starts: Array  # P[impulse at 0]
-    switch_imp: Array  # (n_switches, n): P[impulse at k_sw]
+    impulse: Array  # P[unit impulse at 0], 1-D: every initial-flux and switching column is it, shifted
+    switch_at: NDArray[np.int64]  # sample of each switch
     switch_row: NDArray[np.int64]  # scenario row of each switch
     switch_slot: NDArray[np.int64]  # nuisance slot (1..) of each switch within its row
     mask: Array  # True where a scenario has data
@@ -108,27 +108,25 @@ def prepare(scenarios: Sequence[ScenarioData], prefilter_hz: float | None = DEFA
     mask = np.zeros((m, n_max), dtype=bool)
     for i, e in enumerate(ends):
         mask[i, :e] = True
-    impulse0 = np.zeros((m, n_max))
-    impulse0[:, 0] = 1.0
-    starts = filt(impulse0)
-    sw_rows, sw_slots, sw_imp = [], [], []
+    unit = np.zeros((1, n_max))
+    unit[0, 0] = 1.0
+    impulse = filt(unit)[0]
+    sw_rows, sw_slots, sw_at = [], [], []
     for i, s in enumerate(scs):
         slot = 1
         for k in s.switching:
             if k < ends[i]:
-                e = np.zeros(n_max)
-                e[k] = 1.0
                 sw_rows.append(i)
                 sw_slots.append(slot)
-                sw_imp.append(e)
+                sw_at.append(k)
                 slot += 1
-    switch_imp = filt(np.array(sw_imp)) if sw_imp else np.zeros((0, n_max))
     names = [s.name for s in scs]
     keep = slice(0, None, max(1, decimate))
-    sw = (switch_imp, np.array(sw_rows, dtype=np.int64), np.array(sw_slots, dtype=np.int64))
+    sw = (impulse, np.array(sw_at, dtype=np.int64), np.array(sw_rows, dtype=np.int64),
+          np.array(sw_slots, dtype=np.int64))
     d = AxisData(filt(pad(lambda s: s["i_d"])), filt(pad(lambda s: s["v_f"])), filt(pad(lambda s: s.v_q)),
-                 starts, *sw, mask, keep, names)
-    q = AxisData(filt(pad(lambda s: s["i_q"])), None, filt(pad(lambda s: s.v_d)), starts, *sw, mask, keep, names)
+                 *sw, mask, keep, names)
+    q = AxisData(filt(pad(lambda s: s["i_q"])), None, filt(pad(lambda s: s.v_d)), *sw, mask, keep, names)
     return Stage3Data(d, q, dt, int(mask.sum()))
 
 
@@ -148,10 +146,12 @@ def _axis_system(ax: AxisData, tau: float, x_sync: float | None, dt: float, d_ax
     a = math.exp(-dt / tau)
     l_i = first_order_response(ax.current, tau, dt, axis=1)
     p = 1 + (int(ax.switch_slot.max()) if ax.switch_slot.size else 0)
-    nuisance = np.zeros((ax.current.shape[0], p, ax.current.shape[1]))
-    nuisance[:, 0] = lfilter([1.0], [1.0, -a], ax.starts, axis=1)
-    if ax.switch_row.size:
-        nuisance[ax.switch_row, ax.switch_slot] = lfilter([1.0], [1.0, -a], ax.switch_imp, axis=1)
+    n = ax.current.shape[1]
+    nuisance = np.zeros((ax.current.shape[0], p, n))
+    g = lfilter([1.0], [1.0, -a], ax.impulse)  # a free flux decaying from one sample on, filtered
+    nuisance[:, 0] = g
+    for row, slot, k in zip(ax.switch_row, ax.switch_slot, ax.switch_at):
+        nuisance[row, slot, k:] = g[: n - k]
     if d_axis:
         # r_d = E0 decay + L[V_f] - X_d L[I_d] + X'_d (L[I_d] - I_d) - V_q
         y = ax.voltage - first_order_response(ax.drive, tau, dt, axis=1)  # type: ignore[arg-type]
@@ -264,7 +264,7 @@ def _profile(data: Stage3Data, d_axis: bool, x_sync: float | None, bounds: tuple
 
     lo, hi = math.log(bounds[0]), math.log(bounds[1])
     # coarse grid first: the profile can have a shallow second minimum near the bounds
-    grid = np.linspace(lo, hi, 13)
+    grid = np.linspace(lo, hi, 9)
     vals = [f(g) for g in grid]
     i = int(np.argmin(vals))
     a, b = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]

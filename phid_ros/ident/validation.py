@@ -153,21 +153,29 @@ def _metrics(name: str, against: str, t: Trajectories, col: int, ref: dict[str, 
 
 def validate(scenarios: Sequence[ScenarioData], params: GeneratorParameters,
              reference: GeneratorParameters | None = None,
-             f_nominal_hz: float = DEFAULT_F_NOMINAL_HZ) -> ValidationResult:
-    """Metrics of ``params`` on the validation scenarios (role ``validate``; else all scenarios)."""
+             f_nominal_hz: float = DEFAULT_F_NOMINAL_HZ) -> tuple[ValidationResult, ValidationResult | None]:
+    """Metrics of ``params`` on the validation scenarios (role ``validate``; else all scenarios).
+
+    Returns (primary, against measurement): with a reference set the primary
+    metrics compare against the reference model's trajectories and the second
+    against the measurement; without one the primary is against the measurement.
+    One play-in run serves both.
+    """
     chosen = [s for s in scenarios if s.role == "validate"]
     problems = []
     if not chosen:
         chosen = list(scenarios)
         problems.append("no validation scenarios in the input: validated on the identification scenarios")
-    against = "reference" if reference is not None else "measurement"
     sets = [params] + ([reference] if reference is not None else [])
-    out = []
+    vs_ref, vs_meas = [], []
     for s, traj in zip(chosen, play_in(chosen, sets, f_nominal_hz)):
+        idx = np.arange(0, s.n, max(1, int(round(STEP_SECONDS / s.dt))))
+        meas = {"delta": s["delta"][idx], "omega": s["omega"][idx], "p_e": s["p_e"][idx], "q_e": s["q_e"][idx]}
+        vs_meas.append(_metrics(s.name, "measurement", traj, 0, meas))
         if reference is not None:
             ref = {k: getattr(traj, k)[:, 1] for k in ("delta", "omega", "e_q", "e_d", "p_e", "q_e")}
-        else:
-            idx = np.arange(0, s.n, max(1, int(round(STEP_SECONDS / s.dt))))
-            ref = {"delta": s["delta"][idx], "omega": s["omega"][idx], "p_e": s["p_e"][idx], "q_e": s["q_e"][idx]}
-        out.append(_metrics(s.name, against, traj, 0, ref))
-    return ValidationResult(out, against, problems)
+            vs_ref.append(_metrics(s.name, "reference", traj, 0, ref))
+    measured = ValidationResult(vs_meas, "measurement", list(problems))
+    if reference is None:
+        return measured, None
+    return ValidationResult(vs_ref, "reference", problems), measured
