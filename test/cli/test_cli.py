@@ -31,7 +31,10 @@ def test_simulate_one_scenario_then_info(tmp_path, capsys):
     capsys.readouterr()
     assert main(["info", str(out)]) == 0
     text = capsys.readouterr().out
-    assert "/generator/pt_ct" in text and "260" in text and "S13_fault_100ms" in text
+    from phid_ros.io.recording import DEFAULT_BLOCK_SIZE
+
+    messages = -(-13_000 // DEFAULT_BLOCK_SIZE)
+    assert "/generator/pt_ct" in text and f"│ {messages:>8} │" in text and "S13_fault_100ms" in text
 
 
 def test_simulation_is_deterministic(tmp_path):
