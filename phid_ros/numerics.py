@@ -74,18 +74,27 @@ def lowpass2_derivative(x: Array, fc: float, dt: float, axis: int = -1) -> Array
 
 
 def rk4(rhs: Callable[..., Array], x0: Array, n_steps: int, dt: float,
-        inputs: Callable[[int], tuple], out: Array | None = None) -> Array:
-    """Integrate ``dx/dt = rhs(x, *inputs(k))`` with inputs held over step k; returns states (n+1, ...)."""
+        inputs: Callable[[int], tuple], out: Array | None = None,
+        staged: Callable[[int, int], tuple] | None = None) -> Array:
+    """Integrate ``dx/dt = rhs(x, *u)``; returns states (n+1, ...).
+
+    By default the inputs ``inputs(k)`` are held over step k (a sampled plant's
+    zero-order hold). With ``staged``, ``staged(k, j)`` gives the inputs at
+    t_k + j h/2 (j = 0, 1, 2), so RK4 keeps its fourth order on sampled signals.
+    """
     x = np.array(x0, dtype=float)
     states = out if out is not None else np.empty((n_steps + 1,) + x.shape)
     states[0] = x
     h2, h6 = 0.5 * dt, dt / 6.0
     for k in range(n_steps):
-        a = inputs(k)
+        if staged is None:
+            a = b = c = inputs(k)
+        else:
+            a, b, c = staged(k, 0), staged(k, 1), staged(k, 2)
         k1 = rhs(x, *a)
-        k2 = rhs(x + h2 * k1, *a)
-        k3 = rhs(x + h2 * k2, *a)
-        k4 = rhs(x + dt * k3, *a)
+        k2 = rhs(x + h2 * k1, *b)
+        k3 = rhs(x + h2 * k2, *b)
+        k4 = rhs(x + dt * k3, *c)
         x = x + h6 * (k1 + 2.0 * (k2 + k3) + k4)
         states[k + 1] = x
     return states

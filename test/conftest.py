@@ -31,3 +31,36 @@ def short_runs(short_config: SimulationConfig) -> list[ScenarioRun]:
 @pytest.fixture(scope="session")
 def short_recording(short_runs: list[ScenarioRun], short_config: SimulationConfig) -> Recording:
     return recording_from_runs(short_runs, short_config)
+
+
+def scenario_from_run(run: ScenarioRun, *, noisy: bool = True):
+    """ScenarioData straight from a simulated run (analysis window only)."""
+    from phid_ros.ident.scenario import make_scenario
+
+    n = run.n_analysis
+    source = run.measured if noisy else run.truth
+    sc = run.scenario
+    dt = float(run.t[1] - run.t[0])
+    k_ev = int(round(sc.t_event / dt))
+    k_cl = None if sc.t_clear is None else int(round(sc.t_clear / dt))
+    return make_scenario(sc.name, {k: v[:n] for k, v in source.items()}, dt, kind=sc.kind, role=sc.role,
+                         generator_damping=sc.generator_damping, k_event=k_ev, k_clear=k_cl)
+
+
+@pytest.fixture(scope="session")
+def catalogue_runs() -> list[ScenarioRun]:
+    """The paper catalogue with 12 s windows (10 s for validation), sensor seed 0."""
+    from dataclasses import replace
+
+    cat = [replace(s, duration=12.0 if s.role == "identify" else 10.0) for s in paper_catalogue()]
+    return simulate_scenarios(cat, SimulationConfig(restore_ramp=1.0, restore_hold=1.0))
+
+
+@pytest.fixture(scope="session")
+def noisy_scenarios(catalogue_runs):
+    return [scenario_from_run(r) for r in catalogue_runs]
+
+
+@pytest.fixture(scope="session")
+def clean_scenarios(catalogue_runs):
+    return [scenario_from_run(r, noisy=False) for r in catalogue_runs]

@@ -115,17 +115,22 @@ def identify_reactances(scenarios: Sequence[ScenarioData], *, use_field_voltage:
         def cost(th: np.ndarray) -> float:
             return float(np.sum((v_q - (-th[0] * i_d + th[1])) ** 2))
 
-        res = minimize(cost, x0=[2.0, 1.0], method="L-BFGS-B", bounds=[X_D_BOUNDS, E_Q0_BOUNDS])
+        res = minimize(cost, x0=[2.0, 1.0], method="L-BFGS-B", bounds=[X_D_BOUNDS, E_Q0_BOUNDS],
+                       options={"ftol": 1e-15, "gtol": 1e-12, "maxiter": 10_000})
         xd = float(res.x[0])
+
+        def at_bound(v: float, bounds: tuple[float, float]) -> bool:
+            return min(abs(v - bounds[0]), abs(v - bounds[1])) < 1e-4 * (bounds[1] - bounds[0])
+
         fit = -xd * i_d + res.x[1]
         r2_d = _r2(v_q, fit)
         a = np.column_stack([-i_d, np.ones_like(i_d)])
         s2 = float(np.sum((v_q - fit) ** 2)) / max(len(v_q) - 2, 1)
         se_d = math.sqrt(s2 * np.linalg.pinv(a.T @ a)[0, 0]) if len(v_q) > 2 else math.nan
         method_d = "(37) V_q = -X_d I_d + E'_q0, L-BFGS-B"
-        if any(abs(xd - b) < 1e-6 for b in X_D_BOUNDS):
+        if at_bound(xd, X_D_BOUNDS):
             problems.append(f"X_d = {xd:.3f} pu is at a bound of (37) {X_D_BOUNDS}")
-        if any(abs(res.x[1] - b) < 1e-6 for b in E_Q0_BOUNDS):
+        if at_bound(float(res.x[1]), E_Q0_BOUNDS):
             problems.append(f"E'_q0 = {res.x[1]:.3f} pu is at a bound of (37) {E_Q0_BOUNDS}: the field voltage "
                             "lies outside the paper's range, so X_d from (37) is wrong; use measured V_f")
 

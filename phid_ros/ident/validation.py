@@ -26,7 +26,12 @@ from phid_ros.model.parameters import GeneratorParameters
 from phid_ros.numerics import rk4
 
 Array = NDArray[np.float64]
-STEP_SECONDS = 0.005  # RK4 step of the play-in; inputs are held over a step
+STEP_SECONDS = 0.004  # RK4 step of the play-in (an even number of samples at 1 kHz)
+
+
+def _stride(dt: float, step: float = STEP_SECONDS) -> int:
+    """Samples per play-in step; even, so the mid-step input is a sample too."""
+    return max(2, 2 * int(round(step / dt / 2)))
 MOD026_TOLERANCE_PU = 0.05
 
 
@@ -50,16 +55,19 @@ def play_in(scenarios: Sequence[ScenarioData], params: Sequence[GeneratorParamet
     """
     m = len(params)
     dt = scenarios[0].dt
-    stride = max(1, int(round(step / dt)))
+    stride = _stride(dt, step)
     h = stride * dt
     idx = [np.arange(0, s.n, stride) for s in scenarios]
     steps = max(len(i) for i in idx)
+    half = stride // 2
 
     def inputs(name: str) -> Array:
-        out = np.empty((steps, len(scenarios) * m))
-        for j, (s, ii) in enumerate(zip(scenarios, idx)):
-            x = s[name][ii]
-            out[:, j * m:(j + 1) * m] = np.concatenate((x, np.full(steps - len(x), x[-1])))[:, None]
+        """Samples at every half step (2 * steps rows), each scenario held after its end."""
+        rows = 2 * steps - 1
+        out = np.empty((rows, len(scenarios) * m))
+        for j, s in enumerate(scenarios):
+            x = s[name][np.minimum(np.arange(rows) * half, s.n - 1)]
+            out[:, j * m:(j + 1) * m] = x[:, None]
         return out
 
     v_t, theta, p_m, v_f = (inputs(n) for n in ("v_t", "theta_t", "p_m", "v_f"))
@@ -90,8 +98,11 @@ def play_in(scenarios: Sequence[ScenarioData], params: Sequence[GeneratorParamet
         x0[1, c] = np.mean(s["omega"][pre])
         x0[2, c] = np.mean(s.v_q[pre]) + xdp[c] * np.mean(s["i_d"][pre])
         x0[3, c] = np.mean(s.v_d[pre]) - xqp[c] * np.mean(s["i_q"][pre])
-    states = rk4(rhs, x0, steps - 1, h, lambda k: (v_t[k], theta[k], p_m[k], v_f[k]))
+    # inputs at t_k, t_k + h/2, t_k + h come straight from the 1 kHz samples
+    states = rk4(rhs, x0, steps - 1, h, lambda k: (), staged=lambda k, j: (
+        v_t[2 * k + j], theta[2 * k + j], p_m[2 * k + j], v_f[2 * k + j]))
     delta, omega, e_q, e_d = (states[:, i] for i in range(4))
+    v_t, theta = v_t[::2], theta[::2]
     v_d, v_q = terminal_to_dq(v_t, delta, theta)
     i_d, i_q = (e_q - v_q) / xdp, (v_d - e_d) / xqp
     p_e, q_e = electrical_power(v_d, v_q, i_d, i_q)
@@ -169,7 +180,7 @@ def validate(scenarios: Sequence[ScenarioData], params: GeneratorParameters,
     sets = [params] + ([reference] if reference is not None else [])
     vs_ref, vs_meas = [], []
     for s, traj in zip(chosen, play_in(chosen, sets, f_nominal_hz)):
-        idx = np.arange(0, s.n, max(1, int(round(STEP_SECONDS / s.dt))))
+        idx = np.arange(0, s.n, _stride(s.dt))
         meas = {"delta": s["delta"][idx], "omega": s["omega"][idx], "p_e": s["p_e"][idx], "q_e": s["q_e"][idx]}
         vs_meas.append(_metrics(s.name, "measurement", traj, 0, meas))
         if reference is not None:

@@ -1,0 +1,41 @@
+import math
+
+import pytest
+
+from phid_ros.ident.pipeline import IdentifyOptions, identify
+from phid_ros.model.parameters import PARAMETER_NAMES, TABLE1
+
+
+def test_pipeline_recovers_all_eight_and_validates(noisy_scenarios):
+    res = identify(noisy_scenarios, IdentifyOptions(), TABLE1)
+    p = res.parameters
+    for name in PARAMETER_NAMES:
+        tol = 0.10 if name == "D" else 0.01
+        assert p[name] == pytest.approx(getattr(TABLE1, name), rel=tol), name
+    assert res.validation.worst("rms_delta_deg") < 0.2
+    assert res.validation.worst("rms_omega_pct") < 0.02
+    doc = res.to_json(TABLE1)
+    for key in ("parameters", "uncertainty", "method", "events", "validation"):
+        assert key in doc
+    assert set(doc["parameters"]) == set(PARAMETER_NAMES)
+    assert doc["method"] == "fast" and len(doc["events"]) == 18
+    assert set(doc["baseline_ieee115"]) == set(PARAMETER_NAMES)
+
+
+def test_missing_kinds_leave_marked_gaps(noisy_scenarios):
+    only_voltage = [s for s in noisy_scenarios if s.kind == "voltage_step"]
+    res = identify(only_voltage, IdentifyOptions(validate=False))
+    # stage 1 still runs on voltage steps, stage 2 too; the baseline needs faults
+    assert any("IEEE 115 baseline did not run: the IEEE 115 baseline needs fault scenarios" in p for p in res.problems)
+    faults_only = [s for s in noisy_scenarios if s.kind == "fault"]
+    res = identify(faults_only, IdentifyOptions(validate=False))
+    assert any("stage 2 (X_d, X_q) did not run" in p and "voltage step or a torque step" in p for p in res.problems)
+    # stage 3 then refines X_d, X_q itself and says so
+    assert "refined in stage 3" in res.estimates["X_d"].note
+    assert math.isfinite(res.parameters["X_d_prime"])
+
+
+def test_no_identification_scenarios(noisy_scenarios):
+    res = identify([s for s in noisy_scenarios if s.role == "validate"])
+    assert res.problems == ["no identification scenarios: nothing to identify"]
+    assert all(math.isnan(v) for v in res.parameters.values())

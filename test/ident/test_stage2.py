@@ -1,0 +1,25 @@
+import pytest
+
+from phid_ros.ident.stage2 import Stage2Error, identify_reactances
+from phid_ros.model.parameters import TABLE1
+
+
+@pytest.mark.parametrize("fixture, rel", [("clean_scenarios", 1e-4), ("noisy_scenarios", 5e-4)])
+def test_reactances_from_steady_states(request, fixture, rel):
+    r = identify_reactances(request.getfixturevalue(fixture))
+    assert r.X_d.value == pytest.approx(TABLE1.X_d, rel=rel)
+    assert r.X_q.value == pytest.approx(TABLE1.X_q, rel=rel)
+    assert r.r2_d > 0.999 and r.r2_q > 0.999
+    assert len(r.points) == 11  # 7 torque + 4 voltage steps
+
+
+def test_paper_form_flags_its_own_bound(clean_scenarios):
+    """(37) bounds E'_q0 to [0.5, 2]; this machine's field voltage is higher, and we say so."""
+    r = identify_reactances(clean_scenarios, paper_intercepts=True)
+    assert any("at a bound of (37)" in p for p in r.problems)
+
+
+def test_no_steady_states(clean_scenarios):
+    faults = [s for s in clean_scenarios if s.kind == "fault"]
+    with pytest.raises(Stage2Error, match="record a voltage step or a torque step"):
+        identify_reactances(faults)
