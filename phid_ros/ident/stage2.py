@@ -29,6 +29,8 @@ from phid_ros.ident.scenario import ScenarioData
 X_D_BOUNDS = (1.0, 5.0)  # (37)
 E_Q0_BOUNDS = (0.5, 2.0)  # (37)
 MIN_CURRENT_SPREAD = 0.01  # pu: below this the slope of (35) is not determined
+STEADY_DRIFT_SIGMAS = 8.0  # halves of the final window differing by more than this are not steady
+STEADY_DRIFT_FLOOR = 2e-4  # pu: smaller drifts move X_d, X_q by < 0.05 %, whatever the noise
 
 
 class Stage2Error(Exception):
@@ -59,11 +61,30 @@ class Stage2Result:
     problems: list[str] = field(default_factory=list)
 
 
-def steady_points(scenarios: Sequence[ScenarioData]) -> list[SteadyPoint]:
-    """Steady states after the disturbance (final 20 %) of the step scenarios."""
+def unsteady(s: ScenarioData) -> str | None:
+    """Why the final window of ``s`` is not a steady state, or None when it is."""
+    sl = s.steady_slice()
+    for name in ("i_d", "i_q", "v_t"):
+        x = s[name][sl]
+        half = len(x) // 2
+        a, b = x[:half], x[half:]
+        se = math.sqrt(float(np.var(a)) / len(a) + float(np.var(b)) / len(b))
+        drift = abs(float(np.mean(b) - np.mean(a)))
+        if drift > max(STEADY_DRIFT_SIGMAS * se, STEADY_DRIFT_FLOOR):
+            return f"{s.name}: {name} still moves by {drift:.4f} pu across the final 20 % (not settled)"
+    return None
+
+
+def steady_points(scenarios: Sequence[ScenarioData], problems: list[str] | None = None) -> list[SteadyPoint]:
+    """Steady states after the disturbance (final 20 %) of the step scenarios; unsettled ones are left out."""
     out = []
     for s in scenarios:
         if s.role != "identify" or s.kind not in ("torque_step", "voltage_step"):
+            continue
+        why = unsteady(s)
+        if why is not None:
+            if problems is not None:
+                problems.append(why)
             continue
         sl = s.steady_slice()
         n = sl.stop - sl.start
@@ -92,7 +113,8 @@ def _through_origin(x: np.ndarray, y: np.ndarray) -> tuple[float, float, float]:
 
 def identify_reactances(scenarios: Sequence[ScenarioData], *, use_field_voltage: bool = True,
                         paper_intercepts: bool = False) -> Stage2Result:
-    pts = steady_points(scenarios)
+    problems: list[str] = []
+    pts = steady_points(scenarios, problems)
     if not pts:
         raise Stage2Error("stage 2 needs steady states after torque or voltage steps; none in the input "
                           "(record a voltage step or a torque step and let it settle)")
@@ -102,7 +124,6 @@ def identify_reactances(scenarios: Sequence[ScenarioData], *, use_field_voltage:
     v_q = np.array([p.v_q for p in pts])
     v_f = np.array([p.v_f for p in pts])
     names = [p.scenario for p in pts]
-    problems: list[str] = []
 
     if use_field_voltage and not paper_intercepts:
         xd, se_d, r2_d = _through_origin(i_d, v_f - v_q)

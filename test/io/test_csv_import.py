@@ -17,9 +17,10 @@ def write_set(folder: Path, runs, *, gz: bool = False, extra: dict | None = None
     """A CSV scenario set in the DESIGN.md format from simulated runs."""
     entries = []
     for k, run in enumerate(runs):
-        cols = {"t": run.t, **run.measured}
+        n = run.n_analysis  # a CSV export holds the scenario, not the simulator's restore period
+        cols = {"t": run.t[:n], **{c: v[:n] for c, v in run.measured.items()}}
         if extra:
-            cols.update({name: np.full(run.t.size, v) for name, v in extra.items()})
+            cols.update({name: np.full(n, v) for name, v in extra.items()})
         header = list(cols)
         rows = np.column_stack([cols[h] for h in header])
         lines = [",".join(header)] + [",".join(repr(float(v)) for v in row) for row in rows]
@@ -44,8 +45,9 @@ def test_import_keeps_every_value_and_places_scenarios_in_order(tmp_path, short_
     manifest = write_set(tmp_path, short_runs, gz=gz, extra={"id_ref": 0.0})
     rec, warnings = import_csv_set(manifest)
     assert len(warnings) == 3 and "ignored extra column(s) ['id_ref']" in warnings[0]
-    n = len(short_runs[0].t)
+    n = short_runs[0].n_analysis
     for c, values in short_runs[0].measured.items():
+        values = values[:n]
         stream = next(s for s in rec.streams.values() if c in s.channels)
         assert np.array_equal(stream.channels[c][:n], values)
     assert [s.kind for s in rec.scenarios] == ["torque_step", "voltage_step", "fault"]
