@@ -42,6 +42,11 @@ def load_truth(path: str | Path, rec: Recording) -> GeneratorParameters:
     f_truth = doc.get("f_nominal_hz")
     if f_truth is not None and "f_nominal_hz" in rec.metadata and abs(float(f_truth) - rec.f_nominal_hz) > 1e-9:
         raise PhidError(f"{path}: nominal frequency {f_truth} Hz differs from the recording's {rec.f_nominal_hz} Hz")
+    base_truth = doc.get("base_mva")
+    base_rec = rec.metadata.get("base_mva")
+    if base_truth is not None and base_rec is not None and abs(float(base_truth) - float(base_rec)) > 1e-9:
+        raise PhidError(f"{path}: base {base_truth} MVA differs from the recording's {base_rec} MVA; "
+                        "per-unit parameters on different bases do not compare")
     return truth
 
 

@@ -14,6 +14,7 @@ from phid_ros.io.topics import STREAMS
 from phid_ros.sim.runner import ScenarioRun, SimulationConfig, simulate_scenarios
 from phid_ros.sim.scenarios import Scenario
 
+BASE_MVA = 1000  # the paper's machine: 1000 MVA, 20 kV
 DEFAULT_START_NS = 1_767_225_600 * NS  # 2026-01-01T00:00:00Z: a plausible wall clock, fixed for determinism
 
 
@@ -46,7 +47,7 @@ def recording_from_runs(runs: Sequence[ScenarioRun], cfg: SimulationConfig,
     }
     metadata = {
         "f_nominal_hz": str(cfg.f_nominal_hz),
-        "base_mva": "1000",
+        "base_mva": str(BASE_MVA),
         "source": f"phid simulate (phid_ros {__version__})",
         "sensor_seed": str(cfg.sensors.seed),
     }
@@ -58,6 +59,7 @@ def truth_document(cfg: SimulationConfig, scenarios: Sequence[Scenario]) -> dict
     return {
         "parameters": cfg.params.as_dict(),
         "f_nominal_hz": cfg.f_nominal_hz,
+        "base_mva": BASE_MVA,
         "network": asdict(cfg.network),
         "operating_point": asdict(cfg.operating_point),
         "dt": cfg.dt,

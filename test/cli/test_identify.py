@@ -90,3 +90,33 @@ def test_truth_file_with_a_wrong_name(tmp_path):
     bad.write_text(json.dumps({"parameters": {**TABLE1.as_dict(), "Xdp": 0.3}}))
     r = run_phid("identify", str(BAGS / "validation.mcap"), "--truth", str(bad))
     assert r.returncode == 2 and "unknown parameter(s) ['Xdp']" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_inconsistent_base_between_truth_and_bag(tmp_path):
+    truth = json.loads((BAGS / "validation.mcap.truth.json").read_text())
+    truth["base_mva"] = 500
+    bad = tmp_path / "t.json"
+    bad.write_text(json.dumps(truth))
+    r = run_phid("identify", str(BAGS / "validation.mcap"), "--truth", str(bad))
+    assert r.returncode == 2 and "base 500 MVA differs from the recording's 1000 MVA" in r.stderr
+
+
+def test_a_nan_window_is_skipped_by_name_and_the_rest_identified(tmp_path, short_recording):
+    import numpy as np
+
+    from phid_ros.io.bags import write_recording
+    from phid_ros.io.recording import Recording, StreamSamples
+
+    pmu = short_recording.streams["pmu"]
+    delta = pmu.channels["delta"].copy()
+    sc = short_recording.scenarios[1]
+    k = int(np.searchsorted(pmu.t_ns, sc.event_ns)) + 200
+    delta[k] = np.nan
+    streams = dict(short_recording.streams)
+    streams["pmu"] = StreamSamples(pmu.t_ns, pmu.period_ns, {"theta_t": pmu.channels["theta_t"], "delta": delta})
+    path = write_recording(tmp_path / "nan.mcap", Recording(streams, short_recording.scenarios, short_recording.metadata))
+    out = tmp_path / "r.json"
+    assert main(["identify", str(path), "--json", str(out), "--no-baseline"]) == 0
+    doc = json.loads(out.read_text())
+    assert any(p.startswith(f"skipped: scenario {sc.name}: channel delta has 1 NaN/Inf") for p in doc["problems"])
+    assert [e["name"] for e in doc["events"]] == [short_recording.scenarios[0].name, short_recording.scenarios[2].name]
