@@ -32,8 +32,11 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "r.json"
         for _ in range(args.runs):
-            subprocess.run([sys.executable, "-m", "phid_ros.cli.main", "identify", args.bag, "--json", str(out)],
-                           check=True, capture_output=True)
+            subprocess.run(
+                [sys.executable, "-m", "phid_ros.cli.main", "identify", args.bag, "--json", str(out)],
+                check=True,
+                capture_output=True,
+            )
             doc = json.loads(out.read_text())
             totals.append(doc["timing_s"]["total"])
             stages.append(doc["timing_s"])
@@ -58,7 +61,8 @@ def main() -> None:
             write_json(Path(tmp) / "r.json", res.to_json())
             warm.append(time.perf_counter() - t0)
     print(f"  same work in one warm process: median {statistics.median(warm):.3f} s over {args.runs}")
-    print(f"  peak resident memory of the warm process: {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB")
+    peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    print(f"  peak resident memory of the warm process: {peak_mb:.0f} MB")
 
 
 if __name__ == "__main__":

@@ -73,11 +73,15 @@ def main() -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    print(f"objective: {len(_DATA['data'].d.names)} scenarios, {args.window:g} s windows; "
-          f"budget: DE {args.maxiter} generations x population 48, others the same evaluations")
+    print(
+        f"objective: {len(_DATA['data'].d.names)} scenarios, {args.window:g} s windows; "
+        f"budget: DE {args.maxiter} generations x population 48, others the same evaluations"
+    )
     print(f"fast: J* = {fast.objective:.8e} in {t_fast:.3f} s, {fast.evaluations} evaluations")
-    print(f"{'optimizer':16s} {'median J*':>14s} {'min J*':>14s} {'max J*':>14s} {'J*/J_fast-1':>12s} "
-          f"{'median s':>9s} {'evals':>7s}")
+    print(
+        f"{'optimizer':16s} {'median J*':>14s} {'min J*':>14s} {'max J*':>14s} {'J*/J_fast-1':>12s} "
+        f"{'median s':>9s} {'evals':>7s}"
+    )
     fig, ax = plt.subplots(figsize=(8, 5))
     box = []
     for opt in OPTIMIZERS:
@@ -85,8 +89,10 @@ def main() -> None:
         js = [r[2] for r in rs]
         box.append(js)
         med = statistics.median(js)
-        print(f"{opt:16s} {med:14.8e} {min(js):14.8e} {max(js):14.8e} {med / fast.objective - 1:12.2e} "
-              f"{statistics.median(r[3] for r in rs):9.2f} {int(statistics.median(r[4] for r in rs)):7d}")
+        print(
+            f"{opt:16s} {med:14.8e} {min(js):14.8e} {max(js):14.8e} {med / fast.objective - 1:12.2e} "
+            f"{statistics.median(r[3] for r in rs):9.2f} {int(statistics.median(r[4] for r in rs)):7d}"
+        )
         grid = np.unique(np.geomspace(1, max(r[4] for r in rs), 200).astype(int))
         curves = []
         for r in rs:

@@ -10,24 +10,19 @@ from __future__ import annotations
 import argparse
 import resource
 import shutil
-import statistics
+import sys
 import tempfile
 import time
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from common import median_time as timed  # noqa: E402
 
 from phid_ros.cli.simulate import recording_from_runs
 from phid_ros.io.bags import read_recording, write_recording
 from phid_ros.sim.runner import SimulationConfig, simulate_scenarios
 from phid_ros.sim.scenarios import paper_catalogue
-
-
-def timed(fn, repeats: int) -> tuple[float, object]:
-    times, out = [], None
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times), out
 
 
 def main() -> None:
@@ -42,9 +37,11 @@ def main() -> None:
     samples = sum(len(s) * len(s.channels) for s in rec.streams.values())
     tmp = Path(tempfile.mkdtemp())
     try:
+
         def write(kind: str) -> Path:
             p = tmp / f"b{time.perf_counter_ns()}{kind}"
             return write_recording(p, rec)
+
         t_w2, p2 = timed(lambda: write(""), args.repeats)
         t_wm, pm = timed(lambda: write(".mcap"), args.repeats)
         t_r2, _ = timed(lambda: read_recording(p2), args.repeats)
@@ -53,7 +50,8 @@ def main() -> None:
     finally:
         shutil.rmtree(tmp)
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    print(f"catalogue: {len(cat)} scenarios, {samples / 1e6:.2f} M channel-samples ({len(rec.streams['pt_ct']) / 1000:.0f} s at 1 kHz)")
+    seconds = len(rec.streams["pt_ct"]) / 1000
+    print(f"catalogue: {len(cat)} scenarios, {samples / 1e6:.2f} M channel-samples ({seconds:.0f} s at 1 kHz)")
     print(f"simulate, vectorised over scenarios : {t_vec:6.2f} s (median of {args.repeats})")
     print(f"simulate, one scenario at a time    : {t_one:6.2f} s  -> vectorised is {t_one / t_vec:.1f}x faster")
     print(f"write rosbag2 (mcap, zstd)          : {t_w2:6.2f} s, {size2 / 1e6:.1f} MB")

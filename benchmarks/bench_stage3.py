@@ -41,10 +41,12 @@ def main() -> None:
         print(f"{name:8s} {t:9.3f} {r.evaluations:7d} {r.objective:14.8e}   " + "  ".join(f"{v:.5f}" for v in vals))
     truth = [TABLE1.X_d_prime, TABLE1.X_q_prime, TABLE1.T_d0_prime, TABLE1.T_q0_prime]
     print(f"J at the true parameters: {stage3.objective(data, truth, xd, xq):.8e}")
-    print(f"ratio: fast is {t_paper / t_fast:.0f}x faster (wall, fast median of {args.repeats}), "
-          f"{paper.evaluations / fast.evaluations:.0f}x fewer evaluations; "
-          f"J_fast - J_paper = {fast.objective - paper.objective:+.3e} "
-          f"({'fast lower or equal' if fast.objective <= paper.objective * (1 + 1e-9) else 'paper lower'})")
+    print(
+        f"ratio: fast is {t_paper / t_fast:.0f}x faster (wall, fast median of {args.repeats}), "
+        f"{paper.evaluations / fast.evaluations:.0f}x fewer evaluations; "
+        f"J_fast - J_paper = {fast.objective - paper.objective:+.3e} "
+        f"({'fast lower or equal' if fast.objective <= paper.objective * (1 + 1e-9) else 'paper lower'})"
+    )
 
 
 if __name__ == "__main__":

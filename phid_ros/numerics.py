@@ -73,9 +73,15 @@ def lowpass2_derivative(x: Array, fc: float, dt: float, axis: int = -1) -> Array
     return lfilter(b, a, x, axis=axis)
 
 
-def rk4(rhs: Callable[..., Array], x0: Array, n_steps: int, dt: float,
-        inputs: Callable[[int], tuple], out: Array | None = None,
-        staged: Callable[[int, int], tuple] | None = None) -> Array:
+def rk4(
+    rhs: Callable[..., Array],
+    x0: Array,
+    n_steps: int,
+    dt: float,
+    inputs: Callable[[int], tuple],
+    out: Array | None = None,
+    staged: Callable[[int, int], tuple] | None = None,
+) -> Array:
     """Integrate ``dx/dt = rhs(x, *u)``; returns states (n+1, ...).
 
     By default the inputs ``inputs(k)`` are held over step k (a sampled plant's

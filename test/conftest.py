@@ -43,8 +43,16 @@ def scenario_from_run(run: ScenarioRun, *, noisy: bool = True):
     dt = float(run.t[1] - run.t[0])
     k_ev = int(round(sc.t_event / dt))
     k_cl = None if sc.t_clear is None else int(round(sc.t_clear / dt))
-    return make_scenario(sc.name, {k: v[:n] for k, v in source.items()}, dt, kind=sc.kind, role=sc.role,
-                         generator_damping=sc.generator_damping, k_event=k_ev, k_clear=k_cl)
+    return make_scenario(
+        sc.name,
+        {k: v[:n] for k, v in source.items()},
+        dt,
+        kind=sc.kind,
+        role=sc.role,
+        generator_damping=sc.generator_damping,
+        k_event=k_ev,
+        k_clear=k_cl,
+    )
 
 
 @pytest.fixture(scope="session")

@@ -16,8 +16,16 @@ from phid_ros.io.recording import Recording
 from phid_ros.io.results import read_json, write_json
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, GeneratorParameters
 
-SYMBOLS = {"H": "H", "D": "D", "X_d": "X_d", "X_q": "X_q", "X_d_prime": "X'_d", "X_q_prime": "X'_q",
-           "T_d0_prime": "T'_d0", "T_q0_prime": "T'_q0"}
+SYMBOLS = {
+    "H": "H",
+    "D": "D",
+    "X_d": "X_d",
+    "X_q": "X_q",
+    "X_d_prime": "X'_d",
+    "X_q_prime": "X'_q",
+    "T_d0_prime": "T'_d0",
+    "T_q0_prime": "T'_q0",
+}
 
 
 def load_input(path: str | Path) -> tuple[Recording, str]:
@@ -45,8 +53,10 @@ def load_truth(path: str | Path, rec: Recording) -> GeneratorParameters:
     base_truth = doc.get("base_mva")
     base_rec = rec.metadata.get("base_mva")
     if base_truth is not None and base_rec is not None and abs(float(base_truth) - float(base_rec)) > 1e-9:
-        raise PhidError(f"{path}: base {base_truth} MVA differs from the recording's {base_rec} MVA; "
-                        "per-unit parameters on different bases do not compare")
+        raise PhidError(
+            f"{path}: base {base_truth} MVA differs from the recording's {base_rec} MVA; "
+            "per-unit parameters on different bases do not compare"
+        )
     return truth
 
 
@@ -62,8 +72,13 @@ def _err(v: float, t: float | None) -> str:
 
 def parameter_table(res: IdentificationResult, truth: GeneratorParameters | None) -> Table:
     table = Table(title=f"identified parameters (method: {res.method})", title_justify="left")
-    cols = ["parameter", "unit", "IEEE 115"] + (["err"] if truth else []) + ["proposed", "± std"] + (
-        ["err", "truth"] if truth else []) + ["note"]
+    cols = (
+        ["parameter", "unit", "IEEE 115"]
+        + (["err"] if truth else [])
+        + ["proposed", "± std"]
+        + (["err", "truth"] if truth else [])
+        + ["note"]
+    )
     for c in cols:
         table.add_column(c, justify="left" if c in ("parameter", "unit", "note") else "right")
     t = truth.as_dict() if truth else {}
@@ -71,8 +86,11 @@ def parameter_table(res: IdentificationResult, truth: GeneratorParameters | None
         est = res.estimates.get(name)
         base = res.baseline.get(name)
         v = est.value if est else math.nan
-        row = [SYMBOLS[name], SPECS_BY_NAME[name].unit, _fmt(base.value if base else math.nan)
-               + (" (bound)" if base and base.at_bound else "")]
+        row = [
+            SYMBOLS[name],
+            SPECS_BY_NAME[name].unit,
+            _fmt(base.value if base else math.nan) + (" (bound)" if base and base.at_bound else ""),
+        ]
         if truth:
             row.append(_err(base.value, t[name]) if base else "")
         row += [_fmt(v, 5), _fmt(est.std if est else math.nan, 2)]
@@ -88,14 +106,35 @@ def validation_table(res: IdentificationResult) -> Table | None:
     if res.validation is None:
         return None
     v = res.validation
-    table = Table(title=f"validation against the {v.against} (Tables 8, 9; MOD-026 ±0.05 pu on P, Q)",
-                  title_justify="left")
-    for c in ("scenario", "RMS δ °", "max δ °", "RMS ω %", "RMSE pu", "MAE pu", "STD pu", "max ΔP", "max ΔQ", "MOD-026"):
+    table = Table(
+        title=f"validation against the {v.against} (Tables 8, 9; MOD-026 ±0.05 pu on P, Q)", title_justify="left"
+    )
+    for c in (
+        "scenario",
+        "RMS δ °",
+        "max δ °",
+        "RMS ω %",
+        "RMSE pu",
+        "MAE pu",
+        "STD pu",
+        "max ΔP",
+        "max ΔQ",
+        "MOD-026",
+    ):
         table.add_column(c, justify="left" if c == "scenario" else "right")
     for m in v.scenarios:
-        table.add_row(m.scenario, f"{m.rms_delta_deg:.4f}", f"{m.max_delta_deg:.4f}", f"{m.rms_omega_pct:.5f}",
-                      f"{m.rmse:.2e}", f"{m.mae:.2e}", f"{m.std:.2e}", f"{m.max_dp:.4f}", f"{m.max_dq:.4f}",
-                      "pass" if m.mod026_pass else "FAIL")
+        table.add_row(
+            m.scenario,
+            f"{m.rms_delta_deg:.4f}",
+            f"{m.max_delta_deg:.4f}",
+            f"{m.rms_omega_pct:.5f}",
+            f"{m.rmse:.2e}",
+            f"{m.mae:.2e}",
+            f"{m.std:.2e}",
+            f"{m.max_dp:.4f}",
+            f"{m.max_dq:.4f}",
+            "pass" if m.mod026_pass else "FAIL",
+        )
     return table
 
 
@@ -107,8 +146,13 @@ def run(args: Any, console: Console) -> int:
     from phid_ros.cli.scenarios import scenarios_from_recording
 
     scenarios, problems = scenarios_from_recording(rec, source)
-    options = IdentifyOptions(method=args.method, f_nominal_hz=rec.f_nominal_hz, seed=args.seed,
-                              baseline=not args.no_baseline, paper_maxiter=args.paper_maxiter)
+    options = IdentifyOptions(
+        method=args.method,
+        f_nominal_hz=rec.f_nominal_hz,
+        seed=args.seed,
+        baseline=not args.no_baseline,
+        paper_maxiter=args.paper_maxiter,
+    )
     res = identify(scenarios, options, truth)
     res.problems[:0] = problems
     res.timing = {"read": round(t_read, 6), **res.timing}
@@ -127,12 +171,17 @@ def run(args: Any, console: Console) -> int:
     if vt is not None:
         console.print(vt)
     if res.stage1_paper is not None:
-        console.print(f"paper's differential damping (stage 1a): H = {res.stage1_paper.H.value:.4f} s, "
-                      f"D = {res.stage1_paper.D.value:.4f} pu", highlight=False)
+        console.print(
+            f"paper's differential damping (stage 1a): H = {res.stage1_paper.H.value:.4f} s, "
+            f"D = {res.stage1_paper.D.value:.4f} pu",
+            highlight=False,
+        )
     for p in res.problems:
         console.print(f"[yellow]note:[/] {p}", highlight=False)
-    console.print(f"{len(scenarios)} scenarios, {res.timing['total']:.3f} s"
-                  + (f", wrote {args.json}" if args.json else ""), highlight=False)
+    console.print(
+        f"{len(scenarios)} scenarios, {res.timing['total']:.3f} s" + (f", wrote {args.json}" if args.json else ""),
+        highlight=False,
+    )
     if args.report:
         from phid_ros.cli.report import write_report
 

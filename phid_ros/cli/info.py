@@ -26,10 +26,16 @@ def summarise_streams(rec: Recording) -> list[StreamSummary]:
     for name, s in rec.streams.items():
         d = np.diff(s.t_ns)
         gap = d > 1.5 * s.period_ns
-        out.append(StreamSummary(
-            name=name, samples=len(s), rate_hz=NS / s.period_ns,
-            start_ns=int(s.t_ns[0]) if len(s) else 0, end_ns=int(s.t_ns[-1]) if len(s) else 0,
-            gaps=int(gap.sum()), gap_seconds=float((d[gap] - s.period_ns).sum() / NS),
-            backwards=int((d <= 0).sum()),
-        ))
+        out.append(
+            StreamSummary(
+                name=name,
+                samples=len(s),
+                rate_hz=NS / s.period_ns,
+                start_ns=int(s.t_ns[0]) if len(s) else 0,
+                end_ns=int(s.t_ns[-1]) if len(s) else 0,
+                gaps=int(gap.sum()),
+                gap_seconds=float((d[gap] - s.period_ns).sum() / NS),
+                backwards=int((d <= 0).sum()),
+            )
+        )
     return out

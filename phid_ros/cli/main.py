@@ -24,8 +24,15 @@ EXIT_USER_ERROR = 2
 
 
 def _progress(console: Console) -> Progress:
-    return Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), TimeElapsedColumn(),
-                    console=console, transient=True, disable=not console.is_terminal)
+    return Progress(
+        SpinnerColumn(),
+        TextColumn("{task.description}"),
+        BarColumn(),
+        TimeElapsedColumn(),
+        console=console,
+        transient=True,
+        disable=not console.is_terminal,
+    )
 
 
 # -- simulate ------------------------------------------------------------------
@@ -110,8 +117,16 @@ def cmd_info(args: argparse.Namespace, console: Console) -> int:
     for col in ("stream", "samples", "rate Hz", "start (UTC)", "span s", "gaps", "gap s", "backwards"):
         streams.add_column(col, justify="left" if col in ("stream", "start (UTC)") else "right")
     for s in summarise_streams(rec):
-        streams.add_row(s.name, str(s.samples), f"{s.rate_hz:g}", _iso(s.start_ns), f"{(s.end_ns - s.start_ns) / 1e9:.3f}",
-                        str(s.gaps), f"{s.gap_seconds:.3f}", str(s.backwards))
+        streams.add_row(
+            s.name,
+            str(s.samples),
+            f"{s.rate_hz:g}",
+            _iso(s.start_ns),
+            f"{(s.end_ns - s.start_ns) / 1e9:.3f}",
+            str(s.gaps),
+            f"{s.gap_seconds:.3f}",
+            str(s.backwards),
+        )
     console.print(streams)
     if rec.scenarios:
         sc_table = Table(title="scenarios", title_justify="left")
@@ -120,8 +135,14 @@ def cmd_info(args: argparse.Namespace, console: Console) -> int:
         t0 = rec.span_ns()[0]
         for sc in rec.scenarios:
             ev = f"{(sc.event_ns - t0) / 1e9:.3f}" if sc.event_ns else "?"
-            sc_table.add_row(sc.name, sc.kind, sc.role, "yes" if sc.generator_damping else "no", ev,
-                             f"{(sc.end_ns - sc.start_ns) / 1e9:.1f}")
+            sc_table.add_row(
+                sc.name,
+                sc.kind,
+                sc.role,
+                "yes" if sc.generator_damping else "no",
+                ev,
+                f"{(sc.end_ns - sc.start_ns) / 1e9:.1f}",
+            )
         console.print(sc_table)
     if rec.metadata:
         console.print("metadata: " + ", ".join(f"{k}={v}" for k, v in sorted(rec.metadata.items())), highlight=False)
@@ -143,14 +164,25 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("simulate", help="simulate the scenario catalogue (or some scenarios) into a bag")
     p.add_argument("--out", required=True, help="output: a rosbag2 folder, or a file ending in .mcap")
-    p.add_argument("--catalogue", choices=("paper", "validation"), default="paper",
-                   help="paper: 15 identification + 3 validation scenarios (default); validation: the 3 only")
-    p.add_argument("--scenario", action="append", metavar="NAME", help="one scenario by name or id (S04, V3, ...); repeatable")
+    p.add_argument(
+        "--catalogue",
+        choices=("paper", "validation"),
+        default="paper",
+        help="paper: 15 identification + 3 validation scenarios (default); validation: the 3 only",
+    )
+    p.add_argument(
+        "--scenario", action="append", metavar="NAME", help="one scenario by name or id (S04, V3, ...); repeatable"
+    )
     p.add_argument("--duration", type=float, help="override every scenario's analysis window, s")
     p.add_argument("--seed", type=int, default=0, help="sensor noise seed (default 0)")
     p.add_argument("--noiseless", action="store_true", help="write the true signals, no sensor noise")
     p.add_argument("--f-nominal", type=float, default=50.0, help="nominal frequency, Hz (default 50)")
-    p.add_argument("--block-size", type=int, default=DEFAULT_BLOCK_SIZE, help=f"samples per sensor message (default {DEFAULT_BLOCK_SIZE})")
+    p.add_argument(
+        "--block-size",
+        type=int,
+        default=DEFAULT_BLOCK_SIZE,
+        help=f"samples per sensor message (default {DEFAULT_BLOCK_SIZE})",
+    )
     p.add_argument("--effect", action="append", metavar="NAME[=k=v,...]", help="switch on a plant effect")
     p.set_defaults(func=cmd_simulate)
 
@@ -158,14 +190,23 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("manifest")
     p.add_argument("--out", required=True, help="output: a rosbag2 folder, or a file ending in .mcap")
     p.add_argument("--strict", action="store_true", help="refuse extra columns instead of ignoring them")
-    p.add_argument("--block-size", type=int, default=DEFAULT_BLOCK_SIZE, help=f"samples per sensor message (default {DEFAULT_BLOCK_SIZE})")
+    p.add_argument(
+        "--block-size",
+        type=int,
+        default=DEFAULT_BLOCK_SIZE,
+        help=f"samples per sensor message (default {DEFAULT_BLOCK_SIZE})",
+    )
     p.set_defaults(func=cmd_import_csv)
 
     p = sub.add_parser("identify", help="three-stage identification of the eight parameters")
     p.add_argument("input", help="rosbag2 folder, .mcap file, or CSV manifest.json")
     p.add_argument("--json", metavar="OUT", help="write the results JSON here")
-    p.add_argument("--method", choices=("fast", "paper"), default="fast",
-                   help="stage 3 optimiser: fast (variable projection, default) or paper (differential evolution)")
+    p.add_argument(
+        "--method",
+        choices=("fast", "paper"),
+        default="fast",
+        help="stage 3 optimiser: fast (variable projection, default) or paper (differential evolution)",
+    )
     p.add_argument("--truth", metavar="TRUTH.json", help="true parameters (e.g. <bag>.truth.json) for errors")
     p.add_argument("--report", metavar="OUT.html", help="write a self-contained HTML report")
     p.add_argument("--no-baseline", action="store_true", help="skip the IEEE 115 baseline column")

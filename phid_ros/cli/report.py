@@ -63,13 +63,19 @@ def _validation_figures(res: IdentificationResult, truth: GeneratorParameters | 
     if truth is not None:
         sets.append(("reference", truth))
     base = {n: e.value for n, e in res.baseline.items()}
-    if len(base) == len(PARAMETER_NAMES) and all(math.isfinite(v) for v in base.values()) \
-            and not validation_problems(base):
+    if (
+        len(base) == len(PARAMETER_NAMES)
+        and all(math.isfinite(v) for v in base.values())
+        and not validation_problems(base)
+    ):
         sets.append(("IEEE 115", GeneratorParameters(**base)))
     trajs = play_in(chosen, [p for _, p in sets])
     out = []
-    styles = {"proposed": dict(ls="-.", color="#d8a200"), "reference": dict(ls="-", color="#1f5fbf"),
-              "IEEE 115": dict(ls="--", color="#c0392b")}
+    styles = {
+        "proposed": dict(ls="-.", color="#d8a200"),
+        "reference": dict(ls="-", color="#1f5fbf"),
+        "IEEE 115": dict(ls="--", color="#c0392b"),
+    }
     for s, tr in zip(chosen, trajs):
         fig, axes = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
         idx = np.arange(0, s.n, max(1, int(round((tr.t[1] - tr.t[0]) / s.dt))))[: len(tr.t)]
@@ -111,13 +117,16 @@ def write_report(path: str | Path, res: IdentificationResult, truth: GeneratorPa
             f"<td><b>{_cell(v)}</b></td><td>{_cell(e.std if e else math.nan, 2)}</td><td>{err}</td>"
             f"<td>{_cell(t.get(n, math.nan), 4)}</td>"
             f"<td>{html.escape(', '.join(e.drivers) if e else '')}</td>"
-            f"<td>{'' if e is None or e.identifiable else 'not identified'}</td></tr>")
+            f"<td>{'' if e is None or e.identifiable else 'not identified'}</td></tr>"
+        )
     vrows = []
     if res.validation:
         for m in res.validation.scenarios:
-            vrows.append(f"<tr><td>{html.escape(m.scenario)}</td><td>{m.rms_delta_deg:.4f}</td><td>{m.max_delta_deg:.4f}</td>"
-                         f"<td>{m.rms_omega_pct:.5f}</td><td>{m.rmse:.2e}</td><td>{m.mae:.2e}</td><td>{m.std:.2e}</td>"
-                         f"<td>{m.max_dp:.4f}</td><td>{m.max_dq:.4f}</td><td>{'pass' if m.mod026_pass else 'FAIL'}</td></tr>")
+            vrows.append(
+                f"<tr><td>{html.escape(m.scenario)}</td><td>{m.rms_delta_deg:.4f}</td><td>{m.max_delta_deg:.4f}</td>"
+                f"<td>{m.rms_omega_pct:.5f}</td><td>{m.rmse:.2e}</td><td>{m.mae:.2e}</td><td>{m.std:.2e}</td>"
+                f"<td>{m.max_dp:.4f}</td><td>{m.max_dq:.4f}</td><td>{'pass' if m.mod026_pass else 'FAIL'}</td></tr>"
+            )
     figs = []
     f1 = _scenario_figure(res)
     if f1:
@@ -135,12 +144,12 @@ td:first-child,th:first-child{{text-align:left}}img{{max-width:100%}}</style></h
 {len(res.scenarios)} scenarios</p>
 <h2>Parameters</h2>
 <table><tr><th>parameter</th><th>unit</th><th>IEEE 115</th><th>err</th><th>proposed</th><th>± std</th><th>err</th>
-<th>truth</th><th>driven by</th><th></th></tr>{''.join(rows)}</table>
+<th>truth</th><th>driven by</th><th></th></tr>{"".join(rows)}</table>
 <h2>Validation against the {against}</h2>
 <table><tr><th>scenario</th><th>RMS δ °</th><th>max δ °</th><th>RMS ω %</th><th>RMSE pu</th><th>MAE pu</th>
-<th>STD pu</th><th>max ΔP</th><th>max ΔQ</th><th>MOD-026</th></tr>{''.join(vrows)}</table>
+<th>STD pu</th><th>max ΔP</th><th>max ΔQ</th><th>MOD-026</th></tr>{"".join(vrows)}</table>
 <h2>Notes</h2><ul>{problems}</ul>
-{''.join(figs)}
+{"".join(figs)}
 </body></html>"""
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)

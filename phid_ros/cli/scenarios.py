@@ -24,8 +24,10 @@ def aligned_channels(rec: Recording, source: str) -> tuple[np.ndarray, float, di
     base = rec.streams["pt_ct"]
     t = base.t_ns
     if np.any(np.diff(t) <= 0):
-        raise PhidError(f"{source}: PT/CT stamps are not increasing; replay it through the online pipeline "
-                        "(phid replay) which splits segments at clock jumps")
+        raise PhidError(
+            f"{source}: PT/CT stamps are not increasing; replay it through the online pipeline "
+            "(phid replay) which splits segments at clock jumps"
+        )
     out: dict[str, np.ndarray] = {}
     for stream in rec.streams.values():
         same = len(stream.t_ns) == len(t) and np.array_equal(stream.t_ns, t)
@@ -61,20 +63,33 @@ def scenarios_from_recording(rec: Recording, source: str) -> tuple[list[Scenario
     else:
         events = find_events(ch, dt)
         if not events:
-            raise PhidError(f"{source}: no scenario markers and no disturbance found "
-                            "(no fault, torque step or voltage step)")
+            raise PhidError(
+                f"{source}: no scenario markers and no disturbance found (no fault, torque step or voltage step)"
+            )
         pre, post = int(PRE_EVENT_S / dt), int(POST_EVENT_S / dt)
         for i, (kind, k, k_cl) in enumerate(events):
             a = max(0, k - pre)
             nxt = events[i + 1][1] - pre if i + 1 < len(events) else len(t)
             b = min(len(t), k + post, nxt)
-            windows.append((f"E{i + 1:02d}_{kind}", kind, "identify", True, a, b, k - a,
-                            None if k_cl is None else k_cl - a))
+            windows.append(
+                (f"E{i + 1:02d}_{kind}", kind, "identify", True, a, b, k - a, None if k_cl is None else k_cl - a)
+            )
         problems.append(f"no scenario markers: {len(events)} disturbance(s) detected and cut into windows")
     for name, kind, role, damping, a, b, k_ev, k_cl in windows:
         try:
-            out.append(make_scenario(name, {c: x[a:b] for c, x in ch.items()}, dt, kind=kind, role=role,
-                                     generator_damping=damping, k_event=k_ev, k_clear=k_cl, start_ns=int(t[a])))
+            out.append(
+                make_scenario(
+                    name,
+                    {c: x[a:b] for c, x in ch.items()},
+                    dt,
+                    kind=kind,
+                    role=role,
+                    generator_damping=damping,
+                    k_event=k_ev,
+                    k_clear=k_cl,
+                    start_ns=int(t[a]),
+                )
+            )
         except ScenarioError as exc:
             problems.append(f"skipped: {exc}")
     return out, problems

@@ -18,8 +18,9 @@ BASE_MVA = 1000  # the paper's machine: 1000 MVA, 20 kV
 DEFAULT_START_NS = 1_767_225_600 * NS  # 2026-01-01T00:00:00Z: a plausible wall clock, fixed for determinism
 
 
-def recording_from_runs(runs: Sequence[ScenarioRun], cfg: SimulationConfig,
-                        *, start_ns: int = DEFAULT_START_NS) -> Recording:
+def recording_from_runs(
+    runs: Sequence[ScenarioRun], cfg: SimulationConfig, *, start_ns: int = DEFAULT_START_NS
+) -> Recording:
     """Concatenate scenario segments back to back into one stream per sensor."""
     dt_ns = int(round(cfg.dt * NS))
     cursor = start_ns
@@ -35,10 +36,20 @@ def recording_from_runs(runs: Sequence[ScenarioRun], cfg: SimulationConfig,
         sc = run.scenario
         k_ev = int(round(sc.t_event / cfg.dt))
         clearing = 0 if sc.t_clear is None else int(t_ns[int(round(sc.t_clear / cfg.dt))])
-        scenarios.append(ScenarioInfo(
-            name=sc.name, kind=sc.kind, role=sc.role, generator_damping=sc.generator_damping,
-            magnitude=sc.magnitude, start_ns=int(t_ns[0]), event_ns=int(t_ns[k_ev]), clearing_ns=clearing,
-            end_ns=int(t_ns[run.n_analysis - 1]), description=sc.description))
+        scenarios.append(
+            ScenarioInfo(
+                name=sc.name,
+                kind=sc.kind,
+                role=sc.role,
+                generator_damping=sc.generator_damping,
+                magnitude=sc.magnitude,
+                start_ns=int(t_ns[0]),
+                event_ns=int(t_ns[k_ev]),
+                clearing_ns=clearing,
+                end_ns=int(t_ns[run.n_analysis - 1]),
+                description=sc.description,
+            )
+        )
         cursor = int(t_ns[-1]) + dt_ns
     t_all = np.concatenate(stamps)
     streams = {
@@ -63,8 +74,11 @@ def truth_document(cfg: SimulationConfig, scenarios: Sequence[Scenario]) -> dict
         "network": asdict(cfg.network),
         "operating_point": asdict(cfg.operating_point),
         "dt": cfg.dt,
-        "sensors": {"seed": cfg.sensors.seed, "noiseless": cfg.sensors.noiseless,
-                    "channels": {k: asdict(v) for k, v in cfg.sensors.channels.items()}},
+        "sensors": {
+            "seed": cfg.sensors.seed,
+            "noiseless": cfg.sensors.noiseless,
+            "channels": {k: asdict(v) for k, v in cfg.sensors.channels.items()},
+        },
         "scenarios": [asdict(s) for s in scenarios],
     }
 

@@ -51,8 +51,12 @@ class BaselineResult:
     problems: list[str] = field(default_factory=list)
 
     def estimates(self) -> dict[str, Estimate]:
-        out = {"X_d_prime": Estimate(self.d.x_prime), "T_d0_prime": Estimate(self.d.t_open),
-               "X_q_prime": Estimate(self.q.x_prime), "T_q0_prime": Estimate(self.q.t_open)}
+        out = {
+            "X_d_prime": Estimate(self.d.x_prime),
+            "T_d0_prime": Estimate(self.d.t_open),
+            "X_q_prime": Estimate(self.q.x_prime),
+            "T_q0_prime": Estimate(self.q.t_open),
+        }
         for name in self.d.at_bound + self.q.at_bound:
             if name in out:
                 out[name].at_bound = True
@@ -66,8 +70,18 @@ def _fit(t: Array, y: Array, w: Array, bounds: list[tuple[float, float]], seed: 
         model = e * (np.exp(-t[None, :] / tc) / xp + 1.0 / xs)
         return np.sum(w[None, :] * (y[None, :] - model) ** 2, axis=1)
 
-    res = differential_evolution(cost, bounds, seed=seed, tol=1e-7, maxiter=400, popsize=10,
-                                 init="latinhypercube", vectorized=True, updating="deferred", polish=False)
+    res = differential_evolution(
+        cost,
+        bounds,
+        seed=seed,
+        tol=1e-7,
+        maxiter=400,
+        popsize=10,
+        init="latinhypercube",
+        vectorized=True,
+        updating="deferred",
+        polish=False,
+    )
     return np.asarray(res.x), float(res.fun)
 
 
@@ -105,13 +119,24 @@ def identify(scenarios: Sequence[ScenarioData], x_d_ref: float, x_q_ref: float, 
     xq_fit, cost_q = _fit(t, np.concatenate(iqs), w, bounds_q, seed + 1)
     names_d = ["E", "X_d", "X_d_prime", "T_d_prime"]
     names_q = ["E", "X_q", "X_q_prime", "T_q_prime"]
-    d = AxisEnvelope(*map(float, xd_fit), t_open=float(xd_fit[3] * xd_fit[1] / xd_fit[2]), cost=cost_d,  # (16)
-                     at_bound=_bound_hits(xd_fit, bounds_d, names_d))
-    q = AxisEnvelope(*map(float, xq_fit), t_open=float(xq_fit[3] * xq_fit[1] / xq_fit[2]), cost=cost_q,  # (17)
-                     at_bound=_bound_hits(xq_fit, bounds_q, names_q))
+    d = AxisEnvelope(
+        *map(float, xd_fit),
+        t_open=float(xd_fit[3] * xd_fit[1] / xd_fit[2]),
+        cost=cost_d,  # (16)
+        at_bound=_bound_hits(xd_fit, bounds_d, names_d),
+    )
+    q = AxisEnvelope(
+        *map(float, xq_fit),
+        t_open=float(xq_fit[3] * xq_fit[1] / xq_fit[2]),
+        cost=cost_q,  # (17)
+        at_bound=_bound_hits(xq_fit, bounds_q, names_q),
+    )
     # a short-circuit time constant at its bound carries into the open-circuit one
     d.at_bound += ["T_d0_prime"] if "T_d_prime" in d.at_bound else []
     q.at_bound += ["T_q0_prime"] if "T_q_prime" in q.at_bound else []
-    problems = [f"IEEE 115 {name} at its bound" for name in d.at_bound + q.at_bound if not name.startswith("T_")
-                or name.endswith("0_prime")]
+    problems = [
+        f"IEEE 115 {name} at its bound"
+        for name in d.at_bound + q.at_bound
+        if not name.startswith("T_") or name.endswith("0_prime")
+    ]
     return BaselineResult(d, q, [s.name for s in faults], problems)

@@ -68,13 +68,24 @@ class IdentificationResult:
         doc: dict[str, Any] = {
             "parameters": p,
             "uncertainty": {n: self.estimates[n].std if n in self.estimates else math.nan for n in PARAMETER_NAMES},
-            "identifiable": {n: self.estimates[n].identifiable if n in self.estimates else False
-                             for n in PARAMETER_NAMES},
+            "identifiable": {
+                n: self.estimates[n].identifiable if n in self.estimates else False for n in PARAMETER_NAMES
+            },
             "drivers": {n: self.estimates[n].drivers if n in self.estimates else [] for n in PARAMETER_NAMES},
             "method": self.method,
-            "events": [{"name": s.name, "kind": s.kind, "role": s.role, "generator_damping": s.generator_damping,
-                        "event_time_s": s.k_event * s.dt, "clearing_time_s": None if s.k_clear is None else s.k_clear * s.dt,
-                        "start_ns": s.start_ns, "notes": s.notes} for s in self.scenarios],
+            "events": [
+                {
+                    "name": s.name,
+                    "kind": s.kind,
+                    "role": s.role,
+                    "generator_damping": s.generator_damping,
+                    "event_time_s": s.k_event * s.dt,
+                    "clearing_time_s": None if s.k_clear is None else s.k_clear * s.dt,
+                    "start_ns": s.start_ns,
+                    "notes": s.notes,
+                }
+                for s in self.scenarios
+            ],
             "validation": self.validation.as_dict() if self.validation else None,
             "baseline_ieee115": {n: e.value for n, e in self.baseline.items()},
             "stages": self._stage_details(),
@@ -82,15 +93,20 @@ class IdentificationResult:
             "timing_s": self.timing,
         }
         if self.stage1_paper is not None:
-            doc["stage1_differential_damping"] = {"H": self.stage1_paper.H.value, "D": self.stage1_paper.D.value,
-                                                  "pairs": self.stage1_paper.details.get("pairs", [])}
+            doc["stage1_differential_damping"] = {
+                "H": self.stage1_paper.H.value,
+                "D": self.stage1_paper.D.value,
+                "pairs": self.stage1_paper.details.get("pairs", []),
+            }
         if truth is not None:
             t = truth.as_dict()
             doc["truth"] = t
-            doc["errors_pct"] = {n: 100.0 * (p[n] / t[n] - 1.0) if math.isfinite(p[n]) and t[n] else None
-                                 for n in PARAMETER_NAMES}
-            doc["baseline_errors_pct"] = {n: 100.0 * (e.value / t[n] - 1.0) for n, e in self.baseline.items()
-                                          if math.isfinite(e.value) and t[n]}
+            doc["errors_pct"] = {
+                n: 100.0 * (p[n] / t[n] - 1.0) if math.isfinite(p[n]) and t[n] else None for n in PARAMETER_NAMES
+            }
+            doc["baseline_errors_pct"] = {
+                n: 100.0 * (e.value / t[n] - 1.0) for n, e in self.baseline.items() if math.isfinite(e.value) and t[n]
+            }
             if self.validation_truth is not None:
                 doc["validation_vs_measurement"] = self.validation_truth.as_dict()
         return doc
@@ -100,13 +116,22 @@ class IdentificationResult:
         if self.stage1:
             out["stage1"] = {"method": self.stage1.method, **self.stage1.details}
         if self.stage2:
-            out["stage2"] = {"method_d": self.stage2.method_d, "method_q": self.stage2.method_q,
-                             "r2_d": self.stage2.r2_d, "r2_q": self.stage2.r2_q,
-                             "steady_points": [pt.__dict__ for pt in self.stage2.points]}
+            out["stage2"] = {
+                "method_d": self.stage2.method_d,
+                "method_q": self.stage2.method_q,
+                "r2_d": self.stage2.r2_d,
+                "r2_q": self.stage2.r2_q,
+                "steady_points": [pt.__dict__ for pt in self.stage2.points],
+            }
         if self.stage3:
-            out["stage3"] = {"method": self.stage3.method, "objective": self.stage3.objective,
-                             "evaluations": self.stage3.evaluations, "seconds": self.stage3.seconds,
-                             "X_d_used": self.stage3.X_d, "X_q_used": self.stage3.X_q}
+            out["stage3"] = {
+                "method": self.stage3.method,
+                "objective": self.stage3.objective,
+                "evaluations": self.stage3.evaluations,
+                "seconds": self.stage3.seconds,
+                "X_d_used": self.stage3.X_d,
+                "X_q_used": self.stage3.X_q,
+            }
         return out
 
 
@@ -114,8 +139,9 @@ def _timed(timing: dict[str, float], key: str, t0: float) -> None:
     timing[key] = round(time.perf_counter() - t0, 6)
 
 
-def identify(scenarios: Sequence[ScenarioData], options: IdentifyOptions | None = None,
-             truth: GeneratorParameters | None = None) -> IdentificationResult:
+def identify(
+    scenarios: Sequence[ScenarioData], options: IdentifyOptions | None = None, truth: GeneratorParameters | None = None
+) -> IdentificationResult:
     opt = options or IdentifyOptions()
     if opt.method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {opt.method!r}")

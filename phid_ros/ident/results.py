@@ -18,8 +18,14 @@ class Estimate:
     at_bound: bool = False
 
     def as_dict(self) -> dict:
-        return {"value": self.value, "std": self.std, "identifiable": self.identifiable,
-                "drivers": self.drivers, "note": self.note, "at_bound": self.at_bound}
+        return {
+            "value": self.value,
+            "std": self.std,
+            "identifiable": self.identifiable,
+            "drivers": self.drivers,
+            "note": self.note,
+            "at_bound": self.at_bound,
+        }
 
 
 # a parameter whose relative standard deviation exceeds this is flagged as not identified
@@ -33,5 +39,6 @@ def flag(est: Estimate, name: str) -> Estimate:
     elif math.isfinite(est.std) and abs(est.value) > 0 and est.std / abs(est.value) > MAX_RELATIVE_STD:
         est.identifiable = False
         est.note = (est.note + "; " if est.note else "") + (
-            f"{name} poorly identified: std is {100 * est.std / abs(est.value):.0f} % of the value")
+            f"{name} poorly identified: std is {100 * est.std / abs(est.value):.0f} % of the value"
+        )
     return est

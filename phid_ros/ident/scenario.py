@@ -98,8 +98,9 @@ def _largest_step(x: Array, span: int) -> tuple[int, float]:
     return int(k[i]), float(d[i])
 
 
-def classify(signals: Mapping[str, Array], dt: float, k_hint: int | None = None,
-             pre_seconds: float = 0.5) -> tuple[str, int, int | None, str]:
+def classify(
+    signals: Mapping[str, Array], dt: float, k_hint: int | None = None, pre_seconds: float = 0.5
+) -> tuple[str, int, int | None, str]:
     """(kind, event sample, clearing sample or None, reason) from the signals alone."""
     v = np.asarray(signals["v_t"], float)
     n_pre = max(1, int(round(pre_seconds / dt)))
@@ -113,27 +114,42 @@ def classify(signals: Mapping[str, Array], dt: float, k_hint: int | None = None,
     span = max(5, int(round(0.2 / dt)))
     k_pm, d_pm = _largest_step(np.asarray(signals["p_m"], float), span)
     if abs(d_pm) >= MIN_TORQUE_STEP:
-        return "torque_step", _refine(np.asarray(signals["p_m"], float), k_pm, span), None, f"P_m stepped {d_pm:+.3f} pu"
+        return (
+            "torque_step",
+            _refine(np.asarray(signals["p_m"], float), k_pm, span),
+            None,
+            f"P_m stepped {d_pm:+.3f} pu",
+        )
     k_v, d_v = _largest_step(v, span)
     if abs(d_v) >= MIN_VOLTAGE_STEP:
         return "voltage_step", _refine(v, k_v, span), None, f"V_t stepped {d_v:+.3f} pu"
-    raise ScenarioError("no disturbance found (no fault, no P_m step >= "
-                        f"{MIN_TORQUE_STEP} pu, no V_t step >= {MIN_VOLTAGE_STEP} pu)")
+    raise ScenarioError(
+        f"no disturbance found (no fault, no P_m step >= {MIN_TORQUE_STEP} pu, no V_t step >= {MIN_VOLTAGE_STEP} pu)"
+    )
 
 
 def _refine(x: Array, k: int, span: int) -> int:
     """The first sample past half the step, near ``k``."""
     a, b = max(1, k - span), min(len(x), k + span)
-    lo, hi = np.mean(x[max(0, a - span):a]), np.mean(x[b:b + span]) if b < len(x) else x[-1]
+    lo, hi = np.mean(x[max(0, a - span) : a]), np.mean(x[b : b + span]) if b < len(x) else x[-1]
     mid = 0.5 * (lo + hi)
     seg = x[a:b]
     crossed = np.flatnonzero((seg - mid) * np.sign(hi - lo) >= 0)
     return a + int(crossed[0]) if crossed.size else k
 
 
-def make_scenario(name: str, signals: Mapping[str, Array], dt: float, *, kind: str = "unknown",
-                  role: str = "identify", generator_damping: bool = True, k_event: int | None = None,
-                  k_clear: int | None = None, start_ns: int = 0) -> ScenarioData:
+def make_scenario(
+    name: str,
+    signals: Mapping[str, Array],
+    dt: float,
+    *,
+    kind: str = "unknown",
+    role: str = "identify",
+    generator_damping: bool = True,
+    k_event: int | None = None,
+    k_clear: int | None = None,
+    start_ns: int = 0,
+) -> ScenarioData:
     """Check a window and build its :class:`ScenarioData`; classify it where the input does not say."""
     missing = [c for c in CHANNELS if c not in signals]
     if missing:
@@ -145,8 +161,10 @@ def make_scenario(name: str, signals: Mapping[str, Array], dt: float, *, kind: s
     for c, x in sig.items():
         bad = ~np.isfinite(x)
         if bad.any():
-            raise ScenarioError(f"scenario {name}: channel {c} has {int(bad.sum())} NaN/Inf sample(s), "
-                                f"first at t = {np.flatnonzero(bad)[0] * dt:.3f} s")
+            raise ScenarioError(
+                f"scenario {name}: channel {c} has {int(bad.sum())} NaN/Inf sample(s), "
+                f"first at t = {np.flatnonzero(bad)[0] * dt:.3f} s"
+            )
     notes: list[str] = []
     if kind == "unknown" or k_event is None or k_event <= 0:
         found, k_ev, k_cl, reason = classify(sig, dt)
@@ -161,9 +179,18 @@ def make_scenario(name: str, signals: Mapping[str, Array], dt: float, *, kind: s
         raise ScenarioError(f"scenario {name}: kind {kind!r} not one of {KINDS}")
     if kind == "fault" and k_clear is None:
         _, _, k_clear, _ = classify(sig, dt)
-    return ScenarioData(name=name, kind=kind, role=role, generator_damping=generator_damping, dt=dt,
-                        signals=sig, k_event=int(k_event), k_clear=None if k_clear is None else int(k_clear),
-                        start_ns=start_ns, notes=notes)
+    return ScenarioData(
+        name=name,
+        kind=kind,
+        role=role,
+        generator_damping=generator_damping,
+        dt=dt,
+        signals=sig,
+        k_event=int(k_event),
+        k_clear=None if k_clear is None else int(k_clear),
+        start_ns=start_ns,
+        notes=notes,
+    )
 
 
 def _moving_step(x: Array, span: int) -> Array:

@@ -92,19 +92,21 @@ def swing_regression(scenarios: Sequence[ScenarioData], cutoff_hz: float = DEFAU
         # linear, no start-up transient; the D column is then F[omega - omega_0] because the
         # pre-event balance already holds D(omega_0 - 1) and the transducer offsets
         y = lowpass2(dp - float(np.mean(dp[pre])), cutoff_hz, dt)
-        main = np.column_stack([
-            2.0 * lowpass2_derivative(omega - w0, cutoff_hz, dt),
-            lowpass2(omega - w0, cutoff_hz, dt) if s.generator_damping else np.zeros(end),
-        ])
+        main = np.column_stack(
+            [
+                2.0 * lowpass2_derivative(omega - w0, cutoff_hz, dt),
+                lowpass2(omega - w0, cutoff_hz, dt) if s.generator_damping else np.zeros(end),
+            ]
+        )
         nuisance = [lowpass2(np.ones(end), cutoff_hz, dt)]
         for k in (k for k in s.switching if k < end):
             for lag in (0, 1):  # impulse and doublet: any sub-sample switching time
                 col = np.zeros(end)
                 seg = h_imp[: end - k]
-                col[k:k + len(seg)] += seg
+                col[k : k + len(seg)] += seg
                 if lag:
                     seg1 = h_imp[: end - k + 1]
-                    col[k - 1:k - 1 + len(seg1)] -= seg1
+                    col[k - 1 : k - 1 + len(seg1)] -= seg1
                 nuisance.append(col)
         z = np.column_stack(nuisance)
         coef, *_ = np.linalg.lstsq(z, np.column_stack([y, main]), rcond=None)
@@ -124,9 +126,18 @@ def swing_regression(scenarios: Sequence[ScenarioData], cutoff_hz: float = DEFAU
     H = flag(Estimate(float(theta[0]), float(math.sqrt(max(cov[0, 0], 0.0))), drivers=_top(names, h_share)), "H")
     D = flag(Estimate(float(theta[1]), float(math.sqrt(max(cov[1, 1], 0.0))), drivers=_top(names, d_share)), "D")
     rms = float(np.sqrt(np.mean(resid**2)))
-    return Stage1Result("swing_regression", H, D, names,
-                        details={"cutoff_hz": cutoff_hz, "residual_rms_pu": rms, "samples": int(len(Y)),
-                                 "information_share_D": dict(zip(names, d_share.round(4).tolist()))})
+    return Stage1Result(
+        "swing_regression",
+        H,
+        D,
+        names,
+        details={
+            "cutoff_hz": cutoff_hz,
+            "residual_rms_pu": rms,
+            "samples": int(len(Y)),
+            "information_share_D": dict(zip(names, d_share.round(4).tolist())),
+        },
+    )
 
 
 def _top(names: list[str], share: np.ndarray, k: int = 3) -> list[str]:
@@ -170,7 +181,7 @@ def differential_damping(scenarios: Sequence[ScenarioData], torque_of: dict[str,
             return torque_of[s.name]
         k = s.k_event
         span = int(0.5 / s.dt)
-        return float(np.mean(s["p_m"][k:k + span]) - np.mean(s["p_m"][max(0, k - span):k]))
+        return float(np.mean(s["p_m"][k : k + span]) - np.mean(s["p_m"][max(0, k - span) : k]))
 
     pairs = []
     for a in dl:
@@ -190,16 +201,29 @@ def differential_damping(scenarios: Sequence[ScenarioData], torque_of: dict[str,
         d_grid = 4 * z_dl * h_init * wn_dl  # (27)
         d_total = 4 * z_n * h_init * wn_n  # (28)
         d_gen.append(d_total - d_grid)  # (29)
-        table.append({"dampingless": a.name, "normal": b.name, "zeta_dl": z_dl, "omega_n_dl": wn_dl,
-                      "zeta_normal": z_n, "omega_n_normal": wn_n, "D_grid": d_grid, "D_total": d_total,
-                      "D_gen": d_total - d_grid})
+        table.append(
+            {
+                "dampingless": a.name,
+                "normal": b.name,
+                "zeta_dl": z_dl,
+                "omega_n_dl": wn_dl,
+                "zeta_normal": z_n,
+                "omega_n_normal": wn_n,
+                "D_grid": d_grid,
+                "D_total": d_total,
+                "D_gen": d_total - d_grid,
+            }
+        )
     d_id = float(np.mean(d_gen))  # (30)
     h_id = _median_h(torque, d_id)
     d_std = float(np.std(d_gen, ddof=1) / math.sqrt(len(d_gen))) if len(d_gen) > 1 else math.nan
-    return Stage1Result("differential_damping",
-                        flag(Estimate(h_id, note="median of (31)", drivers=[s.name for s in torque]), "H"),
-                        flag(Estimate(d_id, d_std, drivers=[p for a, b in pairs for p in (a.name, b.name)]), "D"),
-                        [s.name for s in torque], details={"H_init": h_init, "pairs": table})
+    return Stage1Result(
+        "differential_damping",
+        flag(Estimate(h_id, note="median of (31)", drivers=[s.name for s in torque]), "H"),
+        flag(Estimate(d_id, d_std, drivers=[p for a, b in pairs for p in (a.name, b.name)]), "D"),
+        [s.name for s in torque],
+        details={"H_init": h_init, "pairs": table},
+    )
 
 
 def _median_h(scenarios: Sequence[ScenarioData], d: float, cutoff_hz: float = 10.0) -> float:

@@ -92,8 +92,18 @@ def steady_points(scenarios: Sequence[ScenarioData], problems: list[str] | None 
         def m(x: np.ndarray) -> float:
             return float(np.mean(x[sl]))
 
-        out.append(SteadyPoint(s.name, m(s["i_d"]), m(s["i_q"]), m(s.v_d), m(s.v_q), m(s["v_f"]),
-                               float(np.std(s["i_d"][sl]) / math.sqrt(n)), float(np.std(s["i_q"][sl]) / math.sqrt(n))))
+        out.append(
+            SteadyPoint(
+                s.name,
+                m(s["i_d"]),
+                m(s["i_q"]),
+                m(s.v_d),
+                m(s.v_q),
+                m(s["v_f"]),
+                float(np.std(s["i_d"][sl]) / math.sqrt(n)),
+                float(np.std(s["i_q"][sl]) / math.sqrt(n)),
+            )
+        )
     return out
 
 
@@ -111,13 +121,16 @@ def _through_origin(x: np.ndarray, y: np.ndarray) -> tuple[float, float, float]:
     return k, se, _r2(y, k * x)
 
 
-def identify_reactances(scenarios: Sequence[ScenarioData], *, use_field_voltage: bool = True,
-                        paper_intercepts: bool = False) -> Stage2Result:
+def identify_reactances(
+    scenarios: Sequence[ScenarioData], *, use_field_voltage: bool = True, paper_intercepts: bool = False
+) -> Stage2Result:
     problems: list[str] = []
     pts = steady_points(scenarios, problems)
     if not pts:
-        raise Stage2Error("stage 2 needs steady states after torque or voltage steps; none in the input "
-                          "(record a voltage step or a torque step and let it settle)")
+        raise Stage2Error(
+            "stage 2 needs steady states after torque or voltage steps; none in the input "
+            "(record a voltage step or a torque step and let it settle)"
+        )
     i_d = np.array([p.i_d for p in pts])
     i_q = np.array([p.i_q for p in pts])
     v_d = np.array([p.v_d for p in pts])
@@ -130,14 +143,21 @@ def identify_reactances(scenarios: Sequence[ScenarioData], *, use_field_voltage:
         method_d = "V_f - V_q = X_d I_d (measured V_f), through the origin"
     else:
         if float(np.ptp(i_d)) < MIN_CURRENT_SPREAD:
-            raise Stage2Error(f"stage 2 cannot fit (37): I_d spans only {np.ptp(i_d):.4f} pu across the steady "
-                              "states; voltage-step scenarios at several set points would fix it")
+            raise Stage2Error(
+                f"stage 2 cannot fit (37): I_d spans only {np.ptp(i_d):.4f} pu across the steady "
+                "states; voltage-step scenarios at several set points would fix it"
+            )
 
         def cost(th: np.ndarray) -> float:
             return float(np.sum((v_q - (-th[0] * i_d + th[1])) ** 2))
 
-        res = minimize(cost, x0=[2.0, 1.0], method="L-BFGS-B", bounds=[X_D_BOUNDS, E_Q0_BOUNDS],
-                       options={"ftol": 1e-15, "gtol": 1e-12, "maxiter": 10_000})
+        res = minimize(
+            cost,
+            x0=[2.0, 1.0],
+            method="L-BFGS-B",
+            bounds=[X_D_BOUNDS, E_Q0_BOUNDS],
+            options={"ftol": 1e-15, "gtol": 1e-12, "maxiter": 10_000},
+        )
         xd = float(res.x[0])
 
         def at_bound(v: float, bounds: tuple[float, float]) -> bool:
@@ -152,12 +172,16 @@ def identify_reactances(scenarios: Sequence[ScenarioData], *, use_field_voltage:
         if at_bound(xd, X_D_BOUNDS):
             problems.append(f"X_d = {xd:.3f} pu is at a bound of (37) {X_D_BOUNDS}")
         if at_bound(float(res.x[1]), E_Q0_BOUNDS):
-            problems.append(f"E'_q0 = {res.x[1]:.3f} pu is at a bound of (37) {E_Q0_BOUNDS}: the field voltage "
-                            "lies outside the paper's range, so X_d from (37) is wrong; use measured V_f")
+            problems.append(
+                f"E'_q0 = {res.x[1]:.3f} pu is at a bound of (37) {E_Q0_BOUNDS}: the field voltage "
+                "lies outside the paper's range, so X_d from (37) is wrong; use measured V_f"
+            )
 
     if paper_intercepts:
         if float(np.ptp(i_q)) < MIN_CURRENT_SPREAD:
-            raise Stage2Error(f"stage 2 cannot fit (38): I_q spans only {np.ptp(i_q):.4f} pu; torque steps would fix it")
+            raise Stage2Error(
+                f"stage 2 cannot fit (38): I_q spans only {np.ptp(i_q):.4f} pu; torque steps would fix it"
+            )
         coef = np.polyfit(i_q, v_d, 1)
         xq = float(coef[0])
         fit = np.polyval(coef, i_q)
@@ -178,4 +202,10 @@ def identify_reactances(scenarios: Sequence[ScenarioData], *, use_field_voltage:
     return Stage2Result(
         X_d=flag(Estimate(xd, se_d, drivers=top(d_share)), "X_d"),
         X_q=flag(Estimate(xq, se_q, drivers=top(q_share)), "X_q"),
-        r2_d=r2_d, r2_q=r2_q, points=pts, method_d=method_d, method_q=method_q, problems=problems)
+        r2_d=r2_d,
+        r2_q=r2_q,
+        points=pts,
+        method_d=method_d,
+        method_q=method_q,
+        problems=problems,
+    )

@@ -83,8 +83,12 @@ class Stage3Data:
     n_samples: int
 
 
-def prepare(scenarios: Sequence[ScenarioData], prefilter_hz: float | None = DEFAULT_PREFILTER_HZ,
-            decimate: int = DEFAULT_DECIMATE, window_s: float | None = 12.0) -> Stage3Data:
+def prepare(
+    scenarios: Sequence[ScenarioData],
+    prefilter_hz: float | None = DEFAULT_PREFILTER_HZ,
+    decimate: int = DEFAULT_DECIMATE,
+    window_s: float | None = 12.0,
+) -> Stage3Data:
     """Filtered, padded arrays for both axes; ``window_s`` after the event is kept per scenario."""
     scs = [s for s in scenarios if s.role == "identify"]
     if not scs:
@@ -122,10 +126,15 @@ def prepare(scenarios: Sequence[ScenarioData], prefilter_hz: float | None = DEFA
                 slot += 1
     names = [s.name for s in scs]
     keep = slice(0, None, max(1, decimate))
-    sw = (impulse, np.array(sw_at, dtype=np.int64), np.array(sw_rows, dtype=np.int64),
-          np.array(sw_slots, dtype=np.int64))
-    d = AxisData(filt(pad(lambda s: s["i_d"])), filt(pad(lambda s: s["v_f"])), filt(pad(lambda s: s.v_q)),
-                 *sw, mask, keep, names)
+    sw = (
+        impulse,
+        np.array(sw_at, dtype=np.int64),
+        np.array(sw_rows, dtype=np.int64),
+        np.array(sw_slots, dtype=np.int64),
+    )
+    d = AxisData(
+        filt(pad(lambda s: s["i_d"])), filt(pad(lambda s: s["v_f"])), filt(pad(lambda s: s.v_q)), *sw, mask, keep, names
+    )
     q = AxisData(filt(pad(lambda s: s["i_q"])), None, filt(pad(lambda s: s.v_d)), *sw, mask, keep, names)
     return Stage3Data(d, q, dt, int(mask.sum()))
 
@@ -140,8 +149,9 @@ class AxisFit:
     columns: Array | None = None  # design columns for the (x_prime, x_sync) coefficients
 
 
-def _axis_system(ax: AxisData, tau: float, x_sync: float | None, dt: float, d_axis: bool
-                 ) -> tuple[Array, list[Array], Array]:
+def _axis_system(
+    ax: AxisData, tau: float, x_sync: float | None, dt: float, d_axis: bool
+) -> tuple[Array, list[Array], Array]:
     """(known part y, shared columns, per-scenario nuisance (m, p, n)) with y ~ columns + nuisance."""
     a = math.exp(-dt / tau)
     l_i = first_order_response(ax.current, tau, dt, axis=1)
@@ -170,8 +180,15 @@ def _axis_system(ax: AxisData, tau: float, x_sync: float | None, dt: float, d_ax
     return y, cols, nuisance  # type: ignore[return-value]
 
 
-def solve_axis(ax: AxisData, tau: float, dt: float, d_axis: bool, x_sync: float | None,
-               x_prime: float | None = None, keep_residual: bool = False) -> AxisFit:
+def solve_axis(
+    ax: AxisData,
+    tau: float,
+    dt: float,
+    d_axis: bool,
+    x_sync: float | None,
+    x_prime: float | None = None,
+    keep_residual: bool = False,
+) -> AxisFit:
     """Inner least squares for one time constant: initial fluxes (and x', x_sync if free)."""
     y, cols, nuisance = _axis_system(ax, tau, x_sync, dt, d_axis)
     if x_prime is not None:
@@ -244,8 +261,9 @@ def _prior(theta: Sequence[float], prior: Sequence[float] | None) -> float:
     return LAMBDA_PRIOR * float(sum(((t - p) / p) ** 2 for t, p in zip(theta, prior)))
 
 
-def objective(data: Stage3Data, theta: Sequence[float], x_d: float, x_q: float,
-              prior: Sequence[float] | None = None) -> float:
+def objective(
+    data: Stage3Data, theta: Sequence[float], x_d: float, x_q: float, prior: Sequence[float] | None = None
+) -> float:
     """J(theta) for theta = (X'_d, X'_q, T'_d0, T'_q0), initial fluxes eliminated."""
     xdp, xqp, td0, tq0 = (float(v) for v in theta)
     n = data.d.mask[:, data.d.keep].sum()
@@ -254,8 +272,9 @@ def objective(data: Stage3Data, theta: Sequence[float], x_d: float, x_q: float,
     return (fd.sse + fq.sse) / n + _penalty(xdp, xqp, td0, tq0, x_d, x_q) + _prior(theta, prior)
 
 
-def _profile(data: Stage3Data, d_axis: bool, x_sync: float | None, bounds: tuple[float, float],
-             counter: list[int]) -> AxisFit:
+def _profile(
+    data: Stage3Data, d_axis: bool, x_sync: float | None, bounds: tuple[float, float], counter: list[int]
+) -> AxisFit:
     ax = data.d if d_axis else data.q
 
     def f(log_tau: float) -> float:
@@ -282,15 +301,32 @@ def fast(data: Stage3Data, x_d: float, x_q: float, *, refine_synchronous: bool =
     fq = _profile(data, False, None if refine_synchronous else x_q, T_Q0_BOUNDS, counter)
     theta = (fd.x_prime, fq.x_prime, fd.tau, fq.tau)
     j = objective(data, theta, fd.x_sync, fq.x_sync)
-    result = Stage3Result("fast", *_estimates(data, fd, fq), X_d=fd.x_sync, X_q=fq.x_sync, objective=j,
-                          evaluations=counter[0], seconds=time.perf_counter() - t0,
-                          history=[(counter[0], j)])
+    result = Stage3Result(
+        "fast",
+        *_estimates(data, fd, fq),
+        X_d=fd.x_sync,
+        X_q=fq.x_sync,
+        objective=j,
+        evaluations=counter[0],
+        seconds=time.perf_counter() - t0,
+        history=[(counter[0], j)],
+    )
     _check_bounds(result)
     return result
 
 
-def paper(data: Stage3Data, x_d: float, x_q: float, *, prior: Sequence[float] | None = None, seed: int = 0,
-          maxiter: int = 300, popsize: int = 12, starts: int = 4, optimizer: str = "de") -> Stage3Result:
+def paper(
+    data: Stage3Data,
+    x_d: float,
+    x_q: float,
+    *,
+    prior: Sequence[float] | None = None,
+    seed: int = 0,
+    maxiter: int = 300,
+    popsize: int = 12,
+    starts: int = 4,
+    optimizer: str = "de",
+) -> Stage3Result:
     """The paper's global search on J: DE (or dual annealing / basin hopping) + multi-start L-BFGS-B."""
     t0 = time.perf_counter()
     bounds = [(0.05, 0.95 * x_d), (0.05, 0.95 * x_q), T_D0_BOUNDS, T_Q0_BOUNDS]
@@ -308,28 +344,32 @@ def paper(data: Stage3Data, x_d: float, x_q: float, *, prior: Sequence[float] | 
 
     rng = np.random.default_rng(seed)
     if optimizer == "de":
-        res = differential_evolution(f, bounds, popsize=popsize, maxiter=maxiter, init="latinhypercube",
-                                     seed=seed, tol=1e-8, polish=False)
+        res = differential_evolution(
+            f, bounds, popsize=popsize, maxiter=maxiter, init="latinhypercube", seed=seed, tol=1e-8, polish=False
+        )
         x_best = res.x
     elif optimizer == "dual_annealing":
         from scipy.optimize import dual_annealing
 
-        res = dual_annealing(f, bounds, maxfun=popsize * len(bounds) * maxiter, seed=seed,
-                             no_local_search=True)
+        res = dual_annealing(f, bounds, maxfun=popsize * len(bounds) * maxiter, seed=seed, no_local_search=True)
         x_best = res.x
     elif optimizer == "basin_hopping":
         from scipy.optimize import basinhopping
 
         x0 = np.array([lo + rng.random() * (hi - lo) for lo, hi in bounds])
-        res = basinhopping(f, x0, niter=max(1, maxiter // 10), seed=seed,
-                           minimizer_kwargs={"method": "L-BFGS-B", "bounds": bounds})
+        res = basinhopping(
+            f, x0, niter=max(1, maxiter // 10), seed=seed, minimizer_kwargs={"method": "L-BFGS-B", "bounds": bounds}
+        )
         x_best = res.x
     else:
         raise Stage3Error(f"unknown optimizer {optimizer!r}")
     # multi-start L-BFGS-B refinement around the global result (Algorithm 1, line 18)
     candidates = [np.asarray(x_best)] + [
-        np.clip(np.asarray(x_best) * (1 + 0.05 * rng.standard_normal(4)), [b[0] for b in bounds], [b[1] for b in bounds])
-        for _ in range(max(0, starts - 1))]
+        np.clip(
+            np.asarray(x_best) * (1 + 0.05 * rng.standard_normal(4)), [b[0] for b in bounds], [b[1] for b in bounds]
+        )
+        for _ in range(max(0, starts - 1))
+    ]
     for c in candidates:
         r = minimize(f, c, method="L-BFGS-B", bounds=bounds, options={"ftol": 1e-14, "gtol": 1e-12})
         if r.fun <= best[0] + 1e-15:
@@ -339,8 +379,16 @@ def paper(data: Stage3Data, x_d: float, x_q: float, *, prior: Sequence[float] | 
     fq = solve_axis(data.q, tq0, data.dt, False, x_q, x_prime=xqp)
     fd.x_prime, fq.x_prime = xdp, xqp
     j = objective(data, x_best, x_d, x_q, prior)
-    result = Stage3Result(f"paper:{optimizer}", *_estimates(data, fd, fq), X_d=x_d, X_q=x_q, objective=j,
-                          evaluations=count[0], seconds=time.perf_counter() - t0, history=history)
+    result = Stage3Result(
+        f"paper:{optimizer}",
+        *_estimates(data, fd, fq),
+        X_d=x_d,
+        X_q=x_q,
+        objective=j,
+        evaluations=count[0],
+        seconds=time.perf_counter() - t0,
+        history=history,
+    )
     _check_bounds(result)
     return result
 
@@ -348,8 +396,11 @@ def paper(data: Stage3Data, x_d: float, x_q: float, *, prior: Sequence[float] | 
 def _estimates(data: Stage3Data, fd: AxisFit, fq: AxisFit) -> tuple[Estimate, Estimate, Estimate, Estimate]:
     """Cluster-robust standard errors from the linearised residual in (x', log tau)."""
     out = []
-    for ax, fit, d_axis, names in ((data.d, fd, True, ("X_d_prime", "T_d0_prime")),
-                                   (data.q, fq, False, ("X_q_prime", "T_q0_prime"))):
+    for ax, fit, d_axis, names in (
+        (data.d, fd, True, ("X_d_prime", "T_d0_prime")),
+        (data.q, fq, False, ("X_q_prime", "T_q0_prime")),
+    ):
+
         def resid(xp: float, tau: float) -> tuple[Array, Array]:
             y, cols, nuisance = _axis_system(ax, tau, fit.x_sync, data.dt, d_axis)
             y = y - xp * cols[0]

@@ -41,7 +41,7 @@ def information_share(x: Array, segments: list[int], column: int) -> Array:
     """Fraction of the information on one coefficient contributed by each segment of rows."""
     shares, offset = [], 0
     for n in segments:
-        shares.append(float(np.sum(x[offset:offset + n, column] ** 2)))
+        shares.append(float(np.sum(x[offset : offset + n, column] ** 2)))
         offset += n
     s = np.asarray(shares)
     total = s.sum()

@@ -32,6 +32,8 @@ STEP_SECONDS = 0.004  # RK4 step of the play-in (an even number of samples at 1 
 def _stride(dt: float, step: float = STEP_SECONDS) -> int:
     """Samples per play-in step; even, so the mid-step input is a sample too."""
     return max(2, 2 * int(round(step / dt / 2)))
+
+
 MOD026_TOLERANCE_PU = 0.05
 
 
@@ -46,8 +48,12 @@ class Trajectories:
     q_e: Array
 
 
-def play_in(scenarios: Sequence[ScenarioData], params: Sequence[GeneratorParameters],
-            f_nominal_hz: float = DEFAULT_F_NOMINAL_HZ, step: float = STEP_SECONDS) -> list[Trajectories]:
+def play_in(
+    scenarios: Sequence[ScenarioData],
+    params: Sequence[GeneratorParameters],
+    f_nominal_hz: float = DEFAULT_F_NOMINAL_HZ,
+    step: float = STEP_SECONDS,
+) -> list[Trajectories]:
     """Simulate every parameter set on every scenario in one vectorised run.
 
     Columns are (scenario, parameter set) pairs; scenarios shorter than the
@@ -67,13 +73,14 @@ def play_in(scenarios: Sequence[ScenarioData], params: Sequence[GeneratorParamet
         out = np.empty((rows, len(scenarios) * m))
         for j, s in enumerate(scenarios):
             x = s[name][np.minimum(np.arange(rows) * half, s.n - 1)]
-            out[:, j * m:(j + 1) * m] = x[:, None]
+            out[:, j * m : (j + 1) * m] = x[:, None]
         return out
 
     v_t, theta, p_m, v_f = (inputs(n) for n in ("v_t", "theta_t", "p_m", "v_f"))
     col = lambda name: np.tile([getattr(p, name) for p in params], len(scenarios)).astype(float)  # noqa: E731
-    H, D, xd, xq, xdp, xqp, td0, tq0 = (col(n) for n in ("H", "D", "X_d", "X_q", "X_d_prime", "X_q_prime",
-                                                         "T_d0_prime", "T_q0_prime"))
+    H, D, xd, xq, xdp, xqp, td0, tq0 = (
+        col(n) for n in ("H", "D", "X_d", "X_q", "X_d_prime", "X_q_prime", "T_d0_prime", "T_q0_prime")
+    )
     damping_on = np.repeat([1.0 if s.generator_damping else 0.0 for s in scenarios], m)
     D = D * damping_on
     ws = omega_s(f_nominal_hz)
@@ -86,8 +93,14 @@ def play_in(scenarios: Sequence[ScenarioData], params: Sequence[GeneratorParamet
         i_d = (e_q - v_q) / xdp  # (11)
         i_q = (v_d - e_d) / xqp  # (12)
         slip = omega - 1.0
-        return np.stack((ws * slip, (pm - (v_d * i_d + v_q * i_q) - D * slip) * inv_2h,  # (13) in (6)
-                         (vf - e_q - xd_diff * i_d) / td0, (xq_diff * i_q - e_d) / tq0))
+        return np.stack(
+            (
+                ws * slip,
+                (pm - (v_d * i_d + v_q * i_q) - D * slip) * inv_2h,  # (13) in (6)
+                (vf - e_q - xd_diff * i_d) / td0,
+                (xq_diff * i_q - e_d) / tq0,
+            )
+        )
 
     # initial state: the pre-event steady state as each model sees it
     x0 = np.empty((4, len(scenarios) * m))
@@ -99,8 +112,14 @@ def play_in(scenarios: Sequence[ScenarioData], params: Sequence[GeneratorParamet
         x0[2, c] = np.mean(s.v_q[pre]) + xdp[c] * np.mean(s["i_d"][pre])
         x0[3, c] = np.mean(s.v_d[pre]) - xqp[c] * np.mean(s["i_q"][pre])
     # inputs at t_k, t_k + h/2, t_k + h come straight from the 1 kHz samples
-    states = rk4(rhs, x0, steps - 1, h, lambda k: (), staged=lambda k, j: (
-        v_t[2 * k + j], theta[2 * k + j], p_m[2 * k + j], v_f[2 * k + j]))
+    states = rk4(
+        rhs,
+        x0,
+        steps - 1,
+        h,
+        lambda k: (),
+        staged=lambda k, j: (v_t[2 * k + j], theta[2 * k + j], p_m[2 * k + j], v_f[2 * k + j]),
+    )
     delta, omega, e_q, e_d = (states[:, i] for i in range(4))
     v_t, theta = v_t[::2], theta[::2]
     v_d, v_q = terminal_to_dq(v_t, delta, theta)
@@ -142,9 +161,14 @@ class ValidationResult:
         return max(vals) if vals else math.nan
 
     def as_dict(self) -> dict:
-        return {"against": self.against, "scenarios": [s.as_dict() for s in self.scenarios],
-                "max_rms_delta_deg": self.worst("rms_delta_deg"), "max_rms_omega_pct": self.worst("rms_omega_pct"),
-                "mod026_pass": all(s.mod026_pass for s in self.scenarios), "problems": self.problems}
+        return {
+            "against": self.against,
+            "scenarios": [s.as_dict() for s in self.scenarios],
+            "max_rms_delta_deg": self.worst("rms_delta_deg"),
+            "max_rms_omega_pct": self.worst("rms_omega_pct"),
+            "mod026_pass": all(s.mod026_pass for s in self.scenarios),
+            "problems": self.problems,
+        }
 
 
 def _metrics(name: str, against: str, t: Trajectories, col: int, ref: dict[str, Array]) -> ScenarioMetrics:
@@ -155,16 +179,26 @@ def _metrics(name: str, against: str, t: Trajectories, col: int, ref: dict[str, 
     dp = np.max(np.abs(t.p_e[:, col] - ref["p_e"]))
     dq = np.max(np.abs(t.q_e[:, col] - ref["q_e"]))
     return ScenarioMetrics(
-        scenario=name, against=against,
-        rms_delta_deg=float(np.degrees(np.sqrt(np.mean(dd**2)))), max_delta_deg=float(np.degrees(np.max(np.abs(dd)))),
+        scenario=name,
+        against=against,
+        rms_delta_deg=float(np.degrees(np.sqrt(np.mean(dd**2)))),
+        max_delta_deg=float(np.degrees(np.max(np.abs(dd)))),
         rms_omega_pct=float(100 * np.sqrt(np.mean(dw**2))),
-        rmse=float(np.sqrt(np.mean(err**2))), mae=float(np.mean(np.abs(err))), std=float(np.std(err)),
-        max_dp=float(dp), max_dq=float(dq), mod026_pass=bool(dp <= MOD026_TOLERANCE_PU and dq <= MOD026_TOLERANCE_PU))
+        rmse=float(np.sqrt(np.mean(err**2))),
+        mae=float(np.mean(np.abs(err))),
+        std=float(np.std(err)),
+        max_dp=float(dp),
+        max_dq=float(dq),
+        mod026_pass=bool(dp <= MOD026_TOLERANCE_PU and dq <= MOD026_TOLERANCE_PU),
+    )
 
 
-def validate(scenarios: Sequence[ScenarioData], params: GeneratorParameters,
-             reference: GeneratorParameters | None = None,
-             f_nominal_hz: float = DEFAULT_F_NOMINAL_HZ) -> tuple[ValidationResult, ValidationResult | None]:
+def validate(
+    scenarios: Sequence[ScenarioData],
+    params: GeneratorParameters,
+    reference: GeneratorParameters | None = None,
+    f_nominal_hz: float = DEFAULT_F_NOMINAL_HZ,
+) -> tuple[ValidationResult, ValidationResult | None]:
     """Metrics of ``params`` on the validation scenarios (role ``validate``; else all scenarios).
 
     Returns (primary, against measurement): with a reference set the primary

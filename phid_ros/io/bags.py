@@ -52,9 +52,13 @@ def topic_table(path: str | Path) -> list[tuple[str, str, int]]:
                 raise BagError(f"{p}: MCAP file has no summary section (truncated?)")
             counts = summary.statistics.channel_message_counts if summary.statistics else {}
             return sorted(
-                (ch.topic, summary.schemas[ch.schema_id].name if ch.schema_id in summary.schemas else "?",
-                 counts.get(cid, 0))
-                for cid, ch in summary.channels.items())
+                (
+                    ch.topic,
+                    summary.schemas[ch.schema_id].name if ch.schema_id in summary.schemas else "?",
+                    counts.get(cid, 0),
+                )
+                for cid, ch in summary.channels.items()
+            )
     except BagError:
         raise
     except Exception as exc:  # both readers raise assorted errors on damaged files

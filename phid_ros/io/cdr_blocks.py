@@ -58,8 +58,15 @@ def block_layout(frame_id_len: int, n_channels: int, n: int) -> BlockLayout:
         data.append(pos)
         pos += 8 * n
     e = ENCAPSULATION
-    return BlockLayout(total=pos + e, sec=e, nanosec=e + 4, period=period + e,
-                       counts=tuple(c + e for c in counts), data=tuple(d + e for d in data), n=n)
+    return BlockLayout(
+        total=pos + e,
+        sec=e,
+        nanosec=e + 4,
+        period=period + e,
+        counts=tuple(c + e for c in counts),
+        data=tuple(d + e for d in data),
+        n=n,
+    )
 
 
 def _guess_layout(raw: bytes, n_channels: int) -> BlockLayout | None:
@@ -72,7 +79,7 @@ def _guess_layout(raw: bytes, n_channels: int) -> BlockLayout | None:
     probe = block_layout(flen, n_channels, 0)
     if probe.counts[0] + 4 > len(raw):
         return None
-    n = int.from_bytes(raw[probe.counts[0]:probe.counts[0] + 4], "little")
+    n = int.from_bytes(raw[probe.counts[0] : probe.counts[0] + 4], "little")
     layout = block_layout(flen, n_channels, n)
     return layout if layout.total == len(raw) else None
 
@@ -85,13 +92,15 @@ class DecodedGroup:
     values: list[NDArray[np.float64]]  # per channel, shape (messages, n)
 
 
-def decode_group(raws: Sequence[bytes], order: Sequence[int], layout: BlockLayout, n_channels: int) -> DecodedGroup | None:
+def decode_group(
+    raws: Sequence[bytes], order: Sequence[int], layout: BlockLayout, n_channels: int
+) -> DecodedGroup | None:
     """Decode equally shaped messages at once; None if any message breaks the layout."""
     buf = np.frombuffer(b"".join(raws), dtype=np.uint8).reshape(len(raws), layout.total)
 
     def field(offset: int, dtype: str, count: int = 1) -> NDArray:
         size = np.dtype(dtype).itemsize * count
-        return buf[:, offset:offset + size].copy().view(dtype).reshape(len(raws), count)
+        return buf[:, offset : offset + size].copy().view(dtype).reshape(len(raws), count)
 
     if not np.all(buf[:, :4] == np.frombuffer(CDR_LE_HEADER, dtype=np.uint8)):
         return None

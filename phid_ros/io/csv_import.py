@@ -97,8 +97,10 @@ def read_scenario_csv(path: Path, *, strict: bool = False) -> tuple[dict[str, ND
     if not finite.all():
         r, j = np.argwhere(~finite)[0]
         count = int((~finite.all(axis=1)).sum())
-        raise CsvImportError(f"{path}: line {r + 2}, column {CSV_COLUMNS[j]!r} is {data[r, j]} "
-                             f"({count} row(s) with NaN/Inf); clean or drop them before import")
+        raise CsvImportError(
+            f"{path}: line {r + 2}, column {CSV_COLUMNS[j]!r} is {data[r, j]} "
+            f"({count} row(s) with NaN/Inf); clean or drop them before import"
+        )
     t = data[:, 0]
     dt = np.diff(t)
     if np.any(dt <= 0):
@@ -107,8 +109,10 @@ def read_scenario_csv(path: Path, *, strict: bool = False) -> tuple[dict[str, ND
     period = float(np.median(dt))
     jitter = float(np.max(np.abs(dt - period)))
     if jitter > MAX_PERIOD_JITTER * period:
-        raise CsvImportError(f"{path}: non-uniform sampling (period {period:g} s, deviation up to {jitter:g} s); "
-                             "resample to a uniform grid first")
+        raise CsvImportError(
+            f"{path}: non-uniform sampling (period {period:g} s, deviation up to {jitter:g} s); "
+            "resample to a uniform grid first"
+        )
     return {c: data[:, j] for j, c in enumerate(CSV_COLUMNS)}, extra
 
 
@@ -149,8 +153,9 @@ def _manifest_entry(entry: Any, k: int, manifest: Path) -> tuple[Path, str, str,
     return manifest.parent / str(entry["file"]), kind, role, damping
 
 
-def import_csv_set(manifest_path: str | Path, *, strict: bool = False,
-                   start_ns: int = DEFAULT_START_NS) -> tuple[Recording, list[str]]:
+def import_csv_set(
+    manifest_path: str | Path, *, strict: bool = False, start_ns: int = DEFAULT_START_NS
+) -> tuple[Recording, list[str]]:
     """Manifest -> one continuous recording; returns it with warnings (ignored columns)."""
     manifest = Path(manifest_path)
     try:
@@ -186,9 +191,17 @@ def import_csv_set(manifest_path: str | Path, *, strict: bool = False,
         t_parts.append(stamps)
         for c in CHANNELS:
             c_parts[c].append(cols[c])
-        infos.append(ScenarioInfo(name=path.name.split(".")[0], kind=kind, role=role, generator_damping=damping,
-                                  start_ns=int(stamps[0]), end_ns=int(stamps[-1]),
-                                  description=f"imported from {path.name}"))
+        infos.append(
+            ScenarioInfo(
+                name=path.name.split(".")[0],
+                kind=kind,
+                role=role,
+                generator_damping=damping,
+                start_ns=int(stamps[0]),
+                end_ns=int(stamps[-1]),
+                description=f"imported from {path.name}",
+            )
+        )
         cursor = int(stamps[-1]) + int(GAP_BETWEEN_SCENARIOS_S * NS)
     assert period_ns is not None
     t_all = np.concatenate(t_parts)

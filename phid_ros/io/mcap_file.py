@@ -15,6 +15,7 @@ from phid_ros.io.msg_schemas import typestore
 from phid_ros.io.recording import (
     DEFAULT_BLOCK_SIZE,
     Recording,
+    checked_payloads,
     is_phid_topic,
     recording_from_raw,
     recording_messages,
@@ -24,8 +25,9 @@ from phid_ros.io.topics import DEFAULT_NAMESPACE
 METADATA_NAME = "phid"
 
 
-def write_mcap(path: str | Path, rec: Recording, *, block_size: int = DEFAULT_BLOCK_SIZE,
-               namespace: str = DEFAULT_NAMESPACE) -> Path:
+def write_mcap(
+    path: str | Path, rec: Recording, *, block_size: int = DEFAULT_BLOCK_SIZE, namespace: str = DEFAULT_NAMESPACE
+) -> Path:
     path = Path(path)
     if path.exists():
         raise BagError(f"{path}: already exists, not overwriting")
@@ -57,25 +59,9 @@ def read_mcap(path: str | Path) -> Recording:
     source = str(path)
     if not path.is_file():
         raise BagError(f"{source}: no such MCAP file")
-    store = typestore()
     try:
         metadata = _metadata(path)
-        ours: set[str] = set()
-
-        def items() -> Iterator[tuple[str, str, bytes]]:
-            for topic, schema, encoding, raw in iter_messages(path):
-                if topic not in ours:
-                    if not is_phid_topic(topic):
-                        yield topic, schema, raw  # foreign data: routed nowhere, but counted
-                        continue
-                    ours.add(topic)
-                if encoding != "cdr" or not schema:
-                    raise BagError(f"{source}: channel {topic} is not cdr-encoded ROS 2 data")
-                if schema not in store.types:
-                    raise BagError(f"{source}: topic {topic} has unknown message type {schema}")
-                yield topic, schema, raw
-
-        return recording_from_raw(items(), source=source, metadata=metadata)
+        return recording_from_raw(checked_payloads(iter_messages(path), source), source=source, metadata=metadata)
     except McapFormatError as exc:
         raise BagError(f"{source}: truncated or corrupt MCAP file: {exc}") from exc
 
@@ -101,13 +87,10 @@ def read_mcap_reference(path: str | Path) -> Recording:
     if not path.is_file():
         raise BagError(f"{source}: no such MCAP file")
     store = typestore()
+    metadata = _metadata(path)
     try:
         with path.open("rb") as fh:
             reader = make_reader(fh)
-            metadata: dict[str, str] = {}
-            for record in reader.iter_metadata():
-                if record.name == METADATA_NAME:
-                    metadata.update(record.metadata)
 
             def items() -> Iterator[tuple[str, str, bytes]]:
                 for schema, channel, message in reader.iter_messages(log_time_order=False):

@@ -29,7 +29,7 @@ class McapFormatError(Exception):
 def _string(buf: bytes | memoryview, pos: int) -> tuple[str, int]:
     (n,) = _U32.unpack_from(buf, pos)
     pos += 4
-    return bytes(buf[pos:pos + n]).decode("utf-8"), pos + n
+    return bytes(buf[pos : pos + n]).decode("utf-8"), pos + n
 
 
 def _decompress(kind: str, data: bytes, size: int) -> bytes:
@@ -67,7 +67,7 @@ def iter_messages(path: str | Path) -> Iterator[tuple[str, str, str, memoryview]
                 ch = channels.get(cid)
                 if ch is None:
                     raise McapFormatError(f"message on unknown channel {cid}")
-                yield ch[0], schemas.get(ch[1], ""), ch[2], memoryview(buf)[body + 22:nxt]
+                yield ch[0], schemas.get(ch[1], ""), ch[2], memoryview(buf)[body + 22 : nxt]
             elif op == OP_SCHEMA:
                 (sid,) = _U16.unpack_from(buf, body)
                 name, _ = _string(buf, body + 2)
@@ -84,7 +84,7 @@ def iter_messages(path: str | Path) -> Iterator[tuple[str, str, str, memoryview]
                 p += 8
                 if p + clen > nxt:
                     raise McapFormatError("chunk runs past its record")
-                raw = _decompress(kind, bytes(buf[p:p + clen]), usize)
+                raw = _decompress(kind, bytes(buf[p : p + clen]), usize)
                 if len(raw) != usize:
                     raise McapFormatError("chunk decompressed to the wrong size")
                 yield from walk(raw, 0, len(raw), False)

@@ -136,10 +136,17 @@ def recording_messages(
     marker_cls = store.types[SCENARIO_MSGTYPE]
     for sc in rec.scenarios:
         msg = marker_cls(
-            header=_header(sc.start_ns), name=sc.name, kind=sc.kind, role=sc.role,
-            generator_damping=sc.generator_damping, magnitude=float(sc.magnitude),
-            start=ns_to_time(sc.start_ns), event=ns_to_time(sc.event_ns),
-            clearing=ns_to_time(sc.clearing_ns), end=ns_to_time(sc.end_ns), description=sc.description,
+            header=_header(sc.start_ns),
+            name=sc.name,
+            kind=sc.kind,
+            role=sc.role,
+            generator_damping=sc.generator_damping,
+            magnitude=float(sc.magnitude),
+            start=ns_to_time(sc.start_ns),
+            event=ns_to_time(sc.event_ns),
+            clearing=ns_to_time(sc.clearing_ns),
+            end=ns_to_time(sc.end_ns),
+            description=sc.description,
         )
         out.append((sc.start_ns, SCENARIO_TOPIC, SCENARIO_MSGTYPE, msg))
     out.sort(key=lambda item: item[0])
@@ -174,24 +181,41 @@ class _Assembler:
         self.topics: dict[str, str] = {}
         self.scenarios: list[ScenarioInfo] = []
 
-    def add_group(self, stream: str, topic: str, order: NDArray[np.int64], t0_ns: NDArray[np.int64],
-                  period_s: NDArray[np.float64], values: list[NDArray[np.float64]]) -> None:
+    def add_group(
+        self,
+        stream: str,
+        topic: str,
+        order: NDArray[np.int64],
+        t0_ns: NDArray[np.int64],
+        period_s: NDArray[np.float64],
+        values: list[NDArray[np.float64]],
+    ) -> None:
         self.topics.setdefault(stream, topic)
         period_ns = np.rint(np.asarray(period_s, dtype=np.float64) * NS)
         bad = ~(period_ns > 0)
         if bad.any():
             i = int(np.flatnonzero(bad)[0])
-            raise BagError(f"{self.source}: {topic} message {int(order[i])} has sample_period {period_s[i]}, must be > 0")
+            raise BagError(
+                f"{self.source}: {topic} message {int(order[i])} has sample_period {period_s[i]}, must be > 0"
+            )
         self.groups.setdefault(stream, []).append(
-            _Group(np.asarray(order, np.int64), np.asarray(t0_ns, np.int64), period_ns.astype(np.int64), values))
+            _Group(np.asarray(order, np.int64), np.asarray(t0_ns, np.int64), period_ns.astype(np.int64), values)
+        )
 
-    def add_message(self, stream: str, topic: str, index: int, t0_ns: int, period_s: float,
-                    arrays: list[NDArray[np.float64]]) -> None:
+    def add_message(
+        self, stream: str, topic: str, index: int, t0_ns: int, period_s: float, arrays: list[NDArray[np.float64]]
+    ) -> None:
         lengths = {len(a) for a in arrays}
         if len(lengths) != 1:
             raise BagError(f"{self.source}: {topic} message {index} has arrays of unequal length {sorted(lengths)}")
-        self.add_group(stream, topic, np.array([index]), np.array([t0_ns]), np.array([period_s]),
-                       [np.asarray(a, np.float64)[None, :] for a in arrays])
+        self.add_group(
+            stream,
+            topic,
+            np.array([index]),
+            np.array([t0_ns]),
+            np.array([period_s]),
+            [np.asarray(a, np.float64)[None, :] for a in arrays],
+        )
 
     def _stream(self, name: str) -> StreamSamples:
         groups = self.groups[name]
@@ -204,8 +228,10 @@ class _Assembler:
         changed = np.flatnonzero(periods[rank] != first)
         if changed.size:
             k = rank[changed[0]]
-            raise BagError(f"{self.source}: {self.topics[name]} changes sample period from {first} ns "
-                           f"to {int(periods[k])} ns at message {int(order[k])}")
+            raise BagError(
+                f"{self.source}: {self.topics[name]} changes sample period from {first} ns "
+                f"to {int(periods[k])} ns at message {int(order[k])}"
+            )
         group_of = np.concatenate([np.full(len(g.order), i) for i, g in enumerate(groups)])
         row_of = np.concatenate([np.arange(len(g.order)) for g in groups])
         g_sorted, r_sorted, n_sorted = group_of[rank], row_of[rank], lengths[rank]
@@ -247,7 +273,10 @@ def is_phid_topic(topic: str) -> bool:
 
 
 def recording_from_messages(
-    items: Iterable[tuple[str, str, object]], *, source: str, metadata: dict[str, str] | None = None,
+    items: Iterable[tuple[str, str, object]],
+    *,
+    source: str,
+    metadata: dict[str, str] | None = None,
     required: Iterable[str] = tuple(s.name for s in STREAMS),
 ) -> Recording:
     """Assemble a recording from (topic, msgtype, message object); ``source`` names the file in errors."""
@@ -271,7 +300,10 @@ def recording_from_messages(
 
 
 def recording_from_raw(
-    items: Iterable[tuple[str, str, bytes]], *, source: str, metadata: dict[str, str] | None = None,
+    items: Iterable[tuple[str, str, bytes]],
+    *,
+    source: str,
+    metadata: dict[str, str] | None = None,
     required: Iterable[str] = tuple(s.name for s in STREAMS),
 ) -> Recording:
     """Assemble a recording from raw CDR (topic, msgtype, bytes), decoding sensor blocks vectorised."""
@@ -316,8 +348,29 @@ def recording_from_raw(
     return asm.finish(required, metadata)
 
 
-def _route(source: str, topic: str, msgtype: str, raws: dict[str, list[bytes]],
-           topics: dict[str, str]) -> list[bytes] | None:
+def checked_payloads(messages: Iterable[tuple[str, str, str, bytes]], source: str) -> Iterator[tuple[str, str, bytes]]:
+    """(topic, type, raw) from (topic, schema name, encoding, raw): our topics must be cdr and known.
+
+    Foreign topics pass through unchecked (they are counted, then ignored).
+    """
+    store = typestore()
+    ours: set[str] = set()
+    for topic, schema, encoding, raw in messages:
+        if topic not in ours:
+            if not is_phid_topic(topic):
+                yield topic, schema, raw
+                continue
+            ours.add(topic)
+        if encoding != "cdr" or not schema:
+            raise BagError(f"{source}: topic {topic} is not cdr-encoded ROS 2 data")
+        if schema not in store.types:
+            raise BagError(f"{source}: topic {topic} has unknown message type {schema}")
+        yield topic, schema, raw
+
+
+def _route(
+    source: str, topic: str, msgtype: str, raws: dict[str, list[bytes]], topics: dict[str, str]
+) -> list[bytes] | None:
     """The payload list of a sensor topic (after checking its type); None for others."""
     if topic == SCENARIO_TOPIC:
         _check_type(source, topic, msgtype, SCENARIO_MSGTYPE)
@@ -334,9 +387,16 @@ def _route(source: str, topic: str, msgtype: str, raws: dict[str, list[bytes]],
 def _scenario_from_msg(msg: object) -> ScenarioInfo:
     m = msg
     return ScenarioInfo(
-        name=m.name, kind=m.kind, role=m.role, generator_damping=bool(m.generator_damping),  # type: ignore[attr-defined]
-        magnitude=float(m.magnitude), start_ns=time_to_ns(m.start), event_ns=time_to_ns(m.event),  # type: ignore[attr-defined]
-        clearing_ns=time_to_ns(m.clearing), end_ns=time_to_ns(m.end), description=m.description,  # type: ignore[attr-defined]
+        name=m.name,
+        kind=m.kind,
+        role=m.role,
+        generator_damping=bool(m.generator_damping),  # type: ignore[attr-defined]
+        magnitude=float(m.magnitude),
+        start_ns=time_to_ns(m.start),
+        event_ns=time_to_ns(m.event),  # type: ignore[attr-defined]
+        clearing_ns=time_to_ns(m.clearing),
+        end_ns=time_to_ns(m.end),
+        description=m.description,  # type: ignore[attr-defined]
     )
 
 

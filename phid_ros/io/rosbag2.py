@@ -14,6 +14,7 @@ from phid_ros.io.msg_schemas import typestore
 from phid_ros.io.recording import (
     DEFAULT_BLOCK_SIZE,
     Recording,
+    checked_payloads,
     is_phid_topic,
     recording_from_raw,
     recording_messages,
@@ -23,8 +24,9 @@ from phid_ros.io.topics import DEFAULT_NAMESPACE
 ROSBAG2_VERSION = 9  # what ROS 2 Jazzy writes
 
 
-def write_rosbag2(path: str | Path, rec: Recording, *, block_size: int = DEFAULT_BLOCK_SIZE,
-                  namespace: str = DEFAULT_NAMESPACE) -> Path:
+def write_rosbag2(
+    path: str | Path, rec: Recording, *, block_size: int = DEFAULT_BLOCK_SIZE, namespace: str = DEFAULT_NAMESPACE
+) -> Path:
     path = Path(path)
     if path.exists():
         raise BagError(f"{path}: already exists, not overwriting")
@@ -78,24 +80,11 @@ def _fast_read(path: Path, source: str) -> Recording | None:
     if not files or not all(f.is_file() for f in files):
         return None
     custom = meta.get("custom_data") or {}
-    metadata = {k[len("phid."):]: str(v) for k, v in custom.items() if k.startswith("phid.")}
-    store = typestore()
-
-    ours: set[str] = set()
+    metadata = {k[len("phid.") :]: str(v) for k, v in custom.items() if k.startswith("phid.")}
 
     def items() -> Iterator[tuple[str, str, bytes]]:
         for f in files:
-            for topic, schema, encoding, raw in iter_messages(f):
-                if topic not in ours:
-                    if not is_phid_topic(topic):
-                        yield topic, schema, raw  # foreign data: routed nowhere, but counted
-                        continue
-                    ours.add(topic)
-                if encoding != "cdr":
-                    raise BagError(f"{source}: topic {topic} is not cdr-encoded")
-                if schema not in store.types:
-                    raise BagError(f"{source}: topic {topic} has unknown message type {schema}")
-                yield topic, schema, raw
+            yield from checked_payloads(iter_messages(f), source)
 
     try:
         return recording_from_raw(items(), source=source, metadata=metadata)
@@ -125,7 +114,7 @@ def read_rosbag2_reference(path: str | Path) -> Recording:
         with Reader(path) as reader:
             custom = getattr(reader.storage, "metadata", None)
             custom_data = dict(getattr(custom, "custom", None) or {})
-            metadata = {k[len("phid."):]: v for k, v in custom_data.items() if k.startswith("phid.")}
+            metadata = {k[len("phid.") :]: v for k, v in custom_data.items() if k.startswith("phid.")}
             return recording_from_raw(_iter_raw(reader, source), source=source, metadata=metadata)
     except ReaderError as exc:
         raise BagError(f"{source}: cannot read bag: {exc}") from exc

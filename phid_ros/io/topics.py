@@ -14,10 +14,13 @@ class StreamSpec:
 
 
 STREAMS: tuple[StreamSpec, ...] = (
-    StreamSpec("pt_ct", "phid_msgs/msg/PtCtBlock", ("v_t", "i_d", "i_q", "p_e", "q_e"),
-               "potential/current transformers with Park transform"),
-    StreamSpec("encoder", "phid_msgs/msg/EncoderBlock", ("omega", "p_m"),
-               "shaft speed encoder and mechanical power"),
+    StreamSpec(
+        "pt_ct",
+        "phid_msgs/msg/PtCtBlock",
+        ("v_t", "i_d", "i_q", "p_e", "q_e"),
+        "potential/current transformers with Park transform",
+    ),
+    StreamSpec("encoder", "phid_msgs/msg/EncoderBlock", ("omega", "p_m"), "shaft speed encoder and mechanical power"),
     StreamSpec("pmu", "phid_msgs/msg/PmuBlock", ("theta_t", "delta"), "phasor measurement unit angles"),
     StreamSpec("excitation", "phid_msgs/msg/ExcitationBlock", ("v_f",), "excitation system field voltage"),
 )

@@ -38,9 +38,7 @@ def terminal_to_dq(
     return v * np.sin(internal), v * np.cos(internal)
 
 
-def dq_to_terminal(
-    v_d: ArrayLike, v_q: ArrayLike, delta: ArrayLike
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def dq_to_terminal(v_d: ArrayLike, v_q: ArrayLike, delta: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """(V_t, theta_t) from d/q components and the rotor angle; inverse of :func:`terminal_to_dq`."""
     vd = np.asarray(v_d, dtype=float)
     vq = np.asarray(v_q, dtype=float)

@@ -100,7 +100,9 @@ def port_inputs(p_m: ArrayLike, p_e: ArrayLike, v_f: ArrayLike, i_d: ArrayLike, 
     return np.stack(np.broadcast_arrays(*(np.asarray(a, float) for a in (p_m, p_e, v_f, i_d, i_q))))
 
 
-def ph_dynamics(x: ArrayLike, u: ArrayLike, params: GeneratorParameters, f_nominal_hz: float = DEFAULT_F_NOMINAL_HZ) -> Array:
+def ph_dynamics(
+    x: ArrayLike, u: ArrayLike, params: GeneratorParameters, f_nominal_hz: float = DEFAULT_F_NOMINAL_HZ
+) -> Array:
     """``(J - R) ∇ℋ + g u``; equals :func:`phid_ros.model.equations.state_derivatives`."""
     grad = hamiltonian_gradient(x, params)
     jr = interconnection_matrix(params, f_nominal_hz) - dissipation_matrix(params)

@@ -94,8 +94,10 @@ class Trajectory:
 
     def channels(self) -> dict[str, Array]:
         """The ten sensor channels (true values)."""
-        return {name: getattr(self, name) for name in
-                ("v_t", "theta_t", "i_d", "i_q", "omega", "delta", "v_f", "p_m", "p_e", "q_e")}
+        return {
+            name: getattr(self, name)
+            for name in ("v_t", "theta_t", "i_d", "i_q", "omega", "delta", "v_f", "p_m", "p_e", "q_e")
+        }
 
 
 class Plant:
@@ -147,8 +149,9 @@ class Plant:
         )
 
     # -- equations --------------------------------------------------------
-    def _currents(self, delta: Array, e_q: Array, e_d: Array, v_abs: Array, v_ang: Array,
-                  r_th: Array, x_th: Array) -> tuple[Array, Array, Array, Array]:
+    def _currents(
+        self, delta: Array, e_q: Array, e_d: Array, v_abs: Array, v_ang: Array, r_th: Array, x_th: Array
+    ) -> tuple[Array, Array, Array, Array]:
         """Solve the stator (11)-(12) and network equations together for I_d, I_q."""
         p = self.params
         ang = delta - v_ang
@@ -164,20 +167,23 @@ class Plant:
         i_q = (-r * b2 - a21 * b1) / det
         return i_d, i_q, vth_d, vth_q
 
-    def _rhs(self, x: Array, p_m: Array, v_f: Array, v_abs: Array, v_ang: Array,
-             r_th: Array, x_th: Array, damping: Array) -> Array:
+    def _rhs(
+        self, x: Array, p_m: Array, v_f: Array, v_abs: Array, v_ang: Array, r_th: Array, x_th: Array, damping: Array
+    ) -> Array:
         p = self.params
         delta, omega, e_q, e_d = x
         i_d, i_q, _, _ = self._currents(delta, e_q, e_d, v_abs, v_ang, r_th, x_th)
         # air-gap power; equals terminal P_e (13) when R_a = 0
         p_airgap = e_d * i_d + e_q * i_q + (p.X_q_prime - p.X_d_prime) * i_d * i_q
         slip = omega - 1.0
-        return np.stack((
-            self._ws * slip,
-            (p_m - p_airgap - damping * slip) * self._inv_2h,
-            (v_f - e_q - self._xd_diff * i_d) * self._inv_td0,
-            (self._xq_diff * i_q - e_d) * self._inv_tq0,
-        ))
+        return np.stack(
+            (
+                self._ws * slip,
+                (p_m - p_airgap - damping * slip) * self._inv_2h,
+                (v_f - e_q - self._xd_diff * i_d) * self._inv_td0,
+                (self._xq_diff * i_q - e_d) * self._inv_tq0,
+            )
+        )
 
     @property
     def _ws(self) -> float:
@@ -206,8 +212,16 @@ class Plant:
     def derivatives(self, x: Array, inputs: Inputs, step: int = 0) -> Array:
         """dx/dt for states ``x`` (4, n) under the inputs of one step."""
         k = step
-        return self._rhs(np.asarray(x, float), inputs.p_m[k], inputs.v_f[k], inputs.v_th_abs[k],
-                         inputs.v_th_angle[k], inputs.r_th[k], inputs.x_th[k], inputs.damping)
+        return self._rhs(
+            np.asarray(x, float),
+            inputs.p_m[k],
+            inputs.v_f[k],
+            inputs.v_th_abs[k],
+            inputs.v_th_angle[k],
+            inputs.r_th[k],
+            inputs.x_th[k],
+            inputs.damping,
+        )
 
     # -- integration ------------------------------------------------------
     def simulate(self, x0: Array, inputs: Inputs, dt: float) -> Trajectory:
@@ -227,9 +241,11 @@ class Plant:
 
     def _terminal_quantities(self, states: Array, inputs: Inputs, dt: float) -> Trajectory:
         n = states.shape[0]
+
         # the sample at step k sees the inputs of step k; the last sample keeps the last inputs
         def at_samples(a: Array) -> Array:
             return np.concatenate((a, a[-1:]), axis=0)[:n]
+
         v_abs, v_ang = at_samples(inputs.v_th_abs), at_samples(inputs.v_th_angle)
         r_th, x_th = at_samples(inputs.r_th), at_samples(inputs.x_th)
         delta, omega, e_q, e_d = (states[:, i] for i in range(4))
@@ -239,7 +255,18 @@ class Plant:
         p_e, q_e = electrical_power(v_d, v_q, i_d, i_q)
         return Trajectory(
             t=np.arange(n) * dt,
-            delta=delta, omega=omega, e_q=e_q, e_d=e_d, i_d=i_d, i_q=i_q, v_d=v_d, v_q=v_q,
-            v_t=np.hypot(v_d, v_q), theta_t=delta - np.arctan2(v_d, v_q),
-            p_e=p_e, q_e=q_e, p_m=at_samples(inputs.p_m), v_f=at_samples(inputs.v_f),
+            delta=delta,
+            omega=omega,
+            e_q=e_q,
+            e_d=e_d,
+            i_d=i_d,
+            i_q=i_q,
+            v_d=v_d,
+            v_q=v_q,
+            v_t=np.hypot(v_d, v_q),
+            theta_t=delta - np.arctan2(v_d, v_q),
+            p_e=p_e,
+            q_e=q_e,
+            p_m=at_samples(inputs.p_m),
+            v_f=at_samples(inputs.v_f),
         )

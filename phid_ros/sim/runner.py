@@ -79,25 +79,30 @@ def build_inputs(scenarios: Sequence[Scenario], plant: Plant, ss: SteadyState, c
         ramp = 1.0 - np.arange(1, k_ramp + 1) / max(k_ramp, 1)
         if sc.kind == "torque_step":
             p_m[k_ev:k_end, j] += sc.magnitude
-            p_m[k_end:k_end + k_ramp, j] += sc.magnitude * ramp[: max(0, min(k_ramp, n_steps - k_end))]
+            p_m[k_end : k_end + k_ramp, j] += sc.magnitude * ramp[: max(0, min(k_ramp, n_steps - k_end))]
         elif sc.kind == "voltage_step":
             dv = ss.v_inf * (sc.magnitude - 1.0)
             v_inf[k_ev:k_end, j] += dv
-            v_inf[k_end:k_end + k_ramp, j] += dv * ramp[: max(0, min(k_ramp, n_steps - k_end))]
+            v_inf[k_end : k_end + k_ramp, j] += dv * ramp[: max(0, min(k_ramp, n_steps - k_end))]
         else:
             k_clear = int(round((sc.t_event + sc.magnitude) / dt))
             z_f[k_ev:k_clear, j] = 1j * sc.fault_reactance
     v_th, z_th = plant.network.thevenin(v_inf, z_f)
     damping = np.array([plant.params.D if sc.generator_damping else 0.0 for sc in scenarios])
     return Inputs(
-        p_m=p_m, v_f=np.full((n_steps, n), ss.v_f),
-        v_th_abs=np.abs(v_th), v_th_angle=np.angle(v_th), r_th=z_th.real, x_th=z_th.imag,
+        p_m=p_m,
+        v_f=np.full((n_steps, n), ss.v_f),
+        v_th_abs=np.abs(v_th),
+        v_th_angle=np.angle(v_th),
+        r_th=z_th.real,
+        x_th=z_th.imag,
         damping=damping,
     )
 
 
-def simulate_scenarios(scenarios: Sequence[Scenario], cfg: SimulationConfig | None = None,
-                       *, seed_offset: int = 0) -> list[ScenarioRun]:
+def simulate_scenarios(
+    scenarios: Sequence[Scenario], cfg: SimulationConfig | None = None, *, seed_offset: int = 0
+) -> list[ScenarioRun]:
     """Simulate all scenarios in one vectorised run; sensor noise is seeded per scenario index."""
     cfg = cfg or SimulationConfig()
     if not scenarios:
@@ -115,7 +120,8 @@ def simulate_scenarios(scenarios: Sequence[Scenario], cfg: SimulationConfig | No
         if dev > MAX_SPEED_DEVIATION:
             raise SimulationError(
                 f"scenario {sc.name} loses synchronism (speed deviation {dev:.3f} pu); "
-                "reduce the disturbance or the loading")
+                "reduce the disturbance or the loading"
+            )
         truth = {k: v[:n, j].copy() for k, v in channels.items()}
         states = {k: getattr(traj, k)[:n, j].copy() for k in ("delta", "omega", "e_q", "e_d")}
         measured = cfg.sensors.measure(truth, stream_seed=seed_offset + j)

@@ -58,29 +58,76 @@ def paper_catalogue(duration: float = 30.0) -> list[Scenario]:
     """The 15 identification scenarios of section 4 and the 3 validation scenarios of 4.2."""
     s: list[Scenario] = []
     for k, dpm in enumerate((+0.10, -0.10), start=1):
-        s.append(Scenario(f"S0{k}_dampingless_torque_{dpm:+.2f}", "torque_step", dpm, generator_damping=False,
-                          duration=duration, description=f"dampingless torque step {dpm:+.2f} pu"))
+        s.append(
+            Scenario(
+                f"S0{k}_dampingless_torque_{dpm:+.2f}",
+                "torque_step",
+                dpm,
+                generator_damping=False,
+                duration=duration,
+                description=f"dampingless torque step {dpm:+.2f} pu",
+            )
+        )
     for k, dpm in enumerate((+0.05, +0.10, +0.15, -0.05, -0.10), start=3):
-        s.append(Scenario(f"S0{k}_torque_{dpm:+.2f}", "torque_step", dpm, duration=duration,
-                          description=f"torque step {dpm:+.2f} pu"))
+        s.append(
+            Scenario(
+                f"S0{k}_torque_{dpm:+.2f}",
+                "torque_step",
+                dpm,
+                duration=duration,
+                description=f"torque step {dpm:+.2f} pu",
+            )
+        )
     for k, ratio in enumerate((1.20, 1.10, 0.90, 0.85), start=8):
-        s.append(Scenario(f"S{k:02d}_voltage_{ratio:.2f}", "voltage_step", ratio, duration=duration,
-                          description=f"infinite-bus voltage step to {ratio:.2f} of pre-event"))
+        s.append(
+            Scenario(
+                f"S{k:02d}_voltage_{ratio:.2f}",
+                "voltage_step",
+                ratio,
+                duration=duration,
+                description=f"infinite-bus voltage step to {ratio:.2f} of pre-event",
+            )
+        )
     for k, tf in enumerate((0.050, 0.100, 0.150, 0.200), start=12):
-        s.append(Scenario(f"S{k:02d}_fault_{int(tf * 1000)}ms", "fault", tf, duration=duration,
-                          description=f"three-phase terminal fault, {int(tf * 1000)} ms"))
+        s.append(
+            Scenario(
+                f"S{k:02d}_fault_{int(tf * 1000)}ms",
+                "fault",
+                tf,
+                duration=duration,
+                description=f"three-phase terminal fault, {int(tf * 1000)} ms",
+            )
+        )
     return s + validation_scenarios()
 
 
 def validation_scenarios(duration: float = 10.0) -> list[Scenario]:
     """Section 4.2: +20 % mechanical power (0.16 pu), dip to 0.85 pu, 150 ms fault; 10 s each."""
     return [
-        Scenario("V1_power_step", "torque_step", 0.16, role="validate", duration=duration,
-                 description="mechanical power +20 % (0.16 pu)"),
-        Scenario("V2_voltage_dip", "voltage_step", 0.85, role="validate", duration=duration,
-                 description="infinite-bus voltage dip to 0.85 of pre-event"),
-        Scenario("V3_fault_150ms", "fault", 0.150, role="validate", duration=duration,
-                 description="three-phase terminal fault, 150 ms"),
+        Scenario(
+            "V1_power_step",
+            "torque_step",
+            0.16,
+            role="validate",
+            duration=duration,
+            description="mechanical power +20 % (0.16 pu)",
+        ),
+        Scenario(
+            "V2_voltage_dip",
+            "voltage_step",
+            0.85,
+            role="validate",
+            duration=duration,
+            description="infinite-bus voltage dip to 0.85 of pre-event",
+        ),
+        Scenario(
+            "V3_fault_150ms",
+            "fault",
+            0.150,
+            role="validate",
+            duration=duration,
+            description="three-phase terminal fault, 150 ms",
+        ),
     ]
 
 

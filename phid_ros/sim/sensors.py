@@ -50,7 +50,9 @@ class SensorModel:
     seed: int = 0
     noiseless: bool = False
 
-    def measure(self, truth: Mapping[str, NDArray[np.float64]], *, stream_seed: int = 0) -> dict[str, NDArray[np.float64]]:
+    def measure(
+        self, truth: Mapping[str, NDArray[np.float64]], *, stream_seed: int = 0
+    ) -> dict[str, NDArray[np.float64]]:
         """Noisy, quantised copies of the true signals; same seeds give the same samples."""
         out: dict[str, NDArray[np.float64]] = {}
         for index, (name, values) in enumerate(sorted(truth.items())):

@@ -56,12 +56,19 @@ def test_import_csv_command(tmp_path, short_runs):
     assert len(read_recording(out).scenarios) == 2
 
 
-@pytest.mark.parametrize("make, args, message", [
-    (None, ["info", "{tmp}/missing"], "phid: error: {tmp}/missing: no such bag or MCAP file"),
-    ("truncated", ["info", "{tmp}/t.mcap"], "phid: error: {tmp}/t.mcap:"),
-    ("badcol", ["import-csv", "{tmp}/manifest.json", "--out", "{tmp}/o"], "phid: error: {tmp}/s0.csv: missing column(s) 'v_t'"),
-    (None, ["simulate", "--scenario", "S99", "--out", "{tmp}/x"], "phid: error: unknown scenario 'S99'"),
-])
+@pytest.mark.parametrize(
+    "make, args, message",
+    [
+        (None, ["info", "{tmp}/missing"], "phid: error: {tmp}/missing: no such bag or MCAP file"),
+        ("truncated", ["info", "{tmp}/t.mcap"], "phid: error: {tmp}/t.mcap:"),
+        (
+            "badcol",
+            ["import-csv", "{tmp}/manifest.json", "--out", "{tmp}/o"],
+            "phid: error: {tmp}/s0.csv: missing column(s) 'v_t'",
+        ),
+        (None, ["simulate", "--scenario", "S99", "--out", "{tmp}/x"], "phid: error: unknown scenario 'S99'"),
+    ],
+)
 def test_user_errors_are_one_line_without_traceback(tmp_path, short_runs, short_recording, make, args, message):
     if make == "truncated":
         from phid_ros.io.bags import write_recording

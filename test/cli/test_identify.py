@@ -19,8 +19,21 @@ BAGS = Path(__file__).resolve().parents[2] / "bags"
 def test_identify_shipped_catalogue_writes_the_contract(tmp_path, capsys):
     out = tmp_path / "result.json"
     report = tmp_path / "report.html"
-    assert main(["identify", str(BAGS / "catalogue"), "--json", str(out), "--truth",
-                 str(BAGS / "catalogue.truth.json"), "--report", str(report)]) == 0
+    assert (
+        main(
+            [
+                "identify",
+                str(BAGS / "catalogue"),
+                "--json",
+                str(out),
+                "--truth",
+                str(BAGS / "catalogue.truth.json"),
+                "--report",
+                str(report),
+            ]
+        )
+        == 0
+    )
     doc = json.loads(out.read_text())
     for key in ("parameters", "uncertainty", "method", "events", "validation"):
         assert key in doc
@@ -114,7 +127,9 @@ def test_a_nan_window_is_skipped_by_name_and_the_rest_identified(tmp_path, short
     delta[k] = np.nan
     streams = dict(short_recording.streams)
     streams["pmu"] = StreamSamples(pmu.t_ns, pmu.period_ns, {"theta_t": pmu.channels["theta_t"], "delta": delta})
-    path = write_recording(tmp_path / "nan.mcap", Recording(streams, short_recording.scenarios, short_recording.metadata))
+    path = write_recording(
+        tmp_path / "nan.mcap", Recording(streams, short_recording.scenarios, short_recording.metadata)
+    )
     out = tmp_path / "r.json"
     assert main(["identify", str(path), "--json", str(out), "--no-baseline"]) == 0
     doc = json.loads(out.read_text())

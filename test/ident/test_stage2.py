@@ -33,7 +33,7 @@ def test_unsettled_final_windows_are_left_out_and_named(clean_scenarios):
     sc = next(s for s in clean_scenarios if s.name.startswith("S09"))
     ramp = {k: v.copy() for k, v in sc.signals.items()}
     n = sc.n
-    ramp["i_d"][int(0.8 * n):] += np.linspace(0, 0.02, n - int(0.8 * n))  # still moving at the end
+    ramp["i_d"][int(0.8 * n) :] += np.linspace(0, 0.02, n - int(0.8 * n))  # still moving at the end
     moving = make_scenario("S09_moving", ramp, sc.dt, kind=sc.kind, k_event=sc.k_event)
     r = identify_reactances([moving] + [s for s in clean_scenarios if s.name.startswith("S10")])
     assert [p.scenario for p in r.points] == ["S10_voltage_0.90"]

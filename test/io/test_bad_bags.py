@@ -53,7 +53,7 @@ def test_corrupt_bytes_in_mcap(tmp_path, short_recording):
     path = write_recording(tmp_path / "c.mcap", short_recording)
     data = bytearray(path.read_bytes())
     mid = len(data) // 2
-    data[mid:mid + 64] = b"\xff" * 64
+    data[mid : mid + 64] = b"\xff" * 64
     path.write_bytes(bytes(data))
     with pytest.raises(BagError, match=r"c\.mcap"):
         read_recording(path)
@@ -80,7 +80,9 @@ def test_bag_without_the_expected_topics(tmp_path):
 
 def test_wrong_type_on_a_sensor_topic(tmp_path):
     _foreign_bag(tmp_path / "wrong", "/generator/pt_ct", "std_msgs/msg/String")
-    with pytest.raises(BagError, match="/generator/pt_ct has type std_msgs/msg/String, expected phid_msgs/msg/PtCtBlock"):
+    with pytest.raises(
+        BagError, match="/generator/pt_ct has type std_msgs/msg/String, expected phid_msgs/msg/PtCtBlock"
+    ):
         read_recording(tmp_path / "wrong")
 
 
@@ -91,8 +93,11 @@ def test_unknown_message_type_on_a_sensor_topic(tmp_path):
 
 
 def test_some_streams_missing(tmp_path, short_recording):
-    partial = Recording(streams={k: v for k, v in short_recording.streams.items() if k != "pmu"},
-                        scenarios=short_recording.scenarios, metadata=short_recording.metadata)
+    partial = Recording(
+        streams={k: v for k, v in short_recording.streams.items() if k != "pmu"},
+        scenarios=short_recording.scenarios,
+        metadata=short_recording.metadata,
+    )
     path = write_recording(tmp_path / "partial.mcap", partial)
     with pytest.raises(BagError, match=r"partial\.mcap: no messages on the sensor stream\(s\) \['pmu'\]"):
         read_recording(path)

@@ -11,8 +11,9 @@ from phid_ros.io.recording import recording_from_messages, recording_from_raw, r
 
 def _pt_ct(n: int, frame_id: str = "generator", sec: int = 5):
     store = typestore()
-    hdr = store.types["std_msgs/msg/Header"](stamp=store.types["builtin_interfaces/msg/Time"](sec=sec, nanosec=9),
-                                            frame_id=frame_id)
+    hdr = store.types["std_msgs/msg/Header"](
+        stamp=store.types["builtin_interfaces/msg/Time"](sec=sec, nanosec=9), frame_id=frame_id
+    )
     rng = np.random.default_rng(n)
     arrays = {c: rng.normal(size=n) for c in ("v_t", "i_d", "i_q", "p_e", "q_e")}
     msg = store.types["phid_msgs/msg/PtCtBlock"](header=hdr, sample_period=1e-3, **arrays)

@@ -33,8 +33,14 @@ def write_set(folder: Path, runs, *, gz: bool = False, extra: dict | None = None
                 fh.write(text)
         else:
             (folder / name).write_text(text)
-        entries.append({"file": name, "kind": run.scenario.kind, "role": run.scenario.role,
-                        "generator_damping": run.scenario.generator_damping})
+        entries.append(
+            {
+                "file": name,
+                "kind": run.scenario.kind,
+                "role": run.scenario.role,
+                "generator_damping": run.scenario.generator_damping,
+            }
+        )
     manifest = folder / "manifest.json"
     manifest.write_text(json.dumps({"f_nominal_hz": 50, "base_mva": 1000, "scenarios": entries}))
     return manifest
@@ -61,6 +67,7 @@ def test_import_keeps_every_value_and_places_scenarios_in_order(tmp_path, short_
 
 def _set_field(file_line: int, column: str, value: str):
     """Mutator: in the second CSV, put ``value`` into ``column`` on 1-based ``file_line``."""
+
     def mutate(k, lines):
         if k == 1:
             j = lines[0].split(",").index(column)
@@ -68,6 +75,7 @@ def _set_field(file_line: int, column: str, value: str):
             fields[j] = value
             lines[file_line - 1] = ",".join(fields)
         return lines
+
     return mutate
 
 
@@ -76,20 +84,28 @@ def _append_field(file_line: int):
         if k == 1:
             lines[file_line - 1] += ",1"
         return lines
+
     return mutate
 
 
-@pytest.mark.parametrize("mutate, message", [
-    (lambda k, lines: [lines[0].replace("omega", "omegaa")] + lines[1:],
-     r"s0\.csv: missing column\(s\) 'omega' \(found 'omegaa'\)"),
-    (lambda k, lines: [lines[0].replace(",q_e", "")] + [ln.rsplit(",", 1)[0] for ln in lines[1:]],
-     r"s0\.csv: missing column\(s\) 'q_e'"),
-    (_set_field(11, "i_d", "nan"), r"s1\.csv: line 11, column 'i_d' is nan"),
-    (_set_field(13, "v_t", "inf"), r"s1\.csv: line 13, column 'v_t' is inf"),
-    (_set_field(21, "i_q", "abc"), r"s1\.csv: line 21, column 'i_q': not a number \('abc'\)"),
-    (_append_field(31), r"s1\.csv: line 31 has 12 fields, header has 11"),
-    (_set_field(41, "t", "0.0"), r"s1\.csv: time is not strictly increasing at line 41 \(t=0\.0 after 0\.038\)"),
-])
+@pytest.mark.parametrize(
+    "mutate, message",
+    [
+        (
+            lambda k, lines: [lines[0].replace("omega", "omegaa")] + lines[1:],
+            r"s0\.csv: missing column\(s\) 'omega' \(found 'omegaa'\)",
+        ),
+        (
+            lambda k, lines: [lines[0].replace(",q_e", "")] + [ln.rsplit(",", 1)[0] for ln in lines[1:]],
+            r"s0\.csv: missing column\(s\) 'q_e'",
+        ),
+        (_set_field(11, "i_d", "nan"), r"s1\.csv: line 11, column 'i_d' is nan"),
+        (_set_field(13, "v_t", "inf"), r"s1\.csv: line 13, column 'v_t' is inf"),
+        (_set_field(21, "i_q", "abc"), r"s1\.csv: line 21, column 'i_q': not a number \('abc'\)"),
+        (_append_field(31), r"s1\.csv: line 31 has 12 fields, header has 11"),
+        (_set_field(41, "t", "0.0"), r"s1\.csv: time is not strictly increasing at line 41 \(t=0\.0 after 0\.038\)"),
+    ],
+)
 def test_bad_csv_files_are_named_with_the_problem(tmp_path, short_runs, mutate, message):
     manifest = write_set(tmp_path, short_runs, mutate=mutate)
     with pytest.raises(CsvImportError, match=message):
@@ -107,18 +123,22 @@ def test_non_uniform_sampling_is_refused(tmp_path, short_runs):
         head, *rows = lines
         rows = [r for i, r in enumerate(rows) if i % 3 != 1]  # drop every third sample
         return [head, *rows]
+
     with pytest.raises(CsvImportError, match=r"non-uniform sampling"):
         import_csv_set(write_set(tmp_path, short_runs[:1], mutate=mutate))
 
 
-@pytest.mark.parametrize("manifest, message", [
-    ({"scenarios": []}, "'scenarios' must be a non-empty list"),
-    ({"scenarios": [{"kind": "fault"}]}, r"scenarios\[0\]: each scenario needs a 'file'"),
-    ({"scenarios": [{"file": "a.csv", "kind": "storm"}]}, r"kind 'storm' not one of"),
-    ({"scenarios": [{"file": "a.csv", "role": "train"}]}, r"role 'train' not one of"),
-    ({"f_nominal_hz": -50, "scenarios": [{"file": "a.csv"}]}, "f_nominal_hz must be a positive number"),
-    ({"scenarios": [{"file": "missing.csv"}]}, r"missing\.csv: no such CSV file"),
-])
+@pytest.mark.parametrize(
+    "manifest, message",
+    [
+        ({"scenarios": []}, "'scenarios' must be a non-empty list"),
+        ({"scenarios": [{"kind": "fault"}]}, r"scenarios\[0\]: each scenario needs a 'file'"),
+        ({"scenarios": [{"file": "a.csv", "kind": "storm"}]}, r"kind 'storm' not one of"),
+        ({"scenarios": [{"file": "a.csv", "role": "train"}]}, r"role 'train' not one of"),
+        ({"f_nominal_hz": -50, "scenarios": [{"file": "a.csv"}]}, "f_nominal_hz must be a positive number"),
+        ({"scenarios": [{"file": "missing.csv"}]}, r"missing\.csv: no such CSV file"),
+    ],
+)
 def test_bad_manifests(tmp_path, manifest, message):
     path = tmp_path / "manifest.json"
     path.write_text(json.dumps(manifest))

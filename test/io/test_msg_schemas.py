@@ -32,7 +32,9 @@ def test_typestore_knows_every_message_and_the_stream_fields():
 def test_block_message_serialises_and_round_trips_arrays():
     store = typestore()
     cls = store.types["phid_msgs/msg/PtCtBlock"]
-    hdr = store.types["std_msgs/msg/Header"](stamp=store.types["builtin_interfaces/msg/Time"](sec=5, nanosec=7), frame_id="g")
+    hdr = store.types["std_msgs/msg/Header"](
+        stamp=store.types["builtin_interfaces/msg/Time"](sec=5, nanosec=7), frame_id="g"
+    )
     data = {c: np.arange(4, dtype=float) + i for i, c in enumerate(("v_t", "i_d", "i_q", "p_e", "q_e"))}
     msg = cls(header=hdr, sample_period=1e-3, **data)
     raw = store.serialize_cdr(msg, "phid_msgs/msg/PtCtBlock")

@@ -35,7 +35,9 @@ def test_j_is_skew_and_r_is_psd(params, f0):
 def test_ph_form_equals_equations_5_to_8_at_random_states(params, f0):
     rng = np.random.default_rng(7)
     n = 200
-    x = np.stack([rng.uniform(-3, 3, n), rng.uniform(0.95, 1.05, n), rng.uniform(0.5, 1.5, n), rng.uniform(-0.8, 0.8, n)])
+    x = np.stack(
+        [rng.uniform(-3, 3, n), rng.uniform(0.95, 1.05, n), rng.uniform(0.5, 1.5, n), rng.uniform(-0.8, 0.8, n)]
+    )
     p_m, p_e, v_f, i_d, i_q = (rng.uniform(-2, 2, n) for _ in range(5))
     explicit = state_derivatives(x, p_m, p_e, v_f, i_d, i_q, params, f0)
     ph = ph_dynamics(x, port_inputs(p_m, p_e, v_f, i_d, i_q), params, f0)

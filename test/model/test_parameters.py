@@ -8,20 +8,29 @@ from phid_ros.model.parameters import PARAMETER_NAMES, PARAMETER_SPECS, TABLE1, 
 
 def test_defaults_are_table_1_of_the_paper():
     assert TABLE1.as_dict() == {
-        "H": 3.480, "D": 0.400, "X_d": 2.540, "X_q": 2.410, "X_d_prime": 0.500,
-        "X_q_prime": 0.814, "T_d0_prime": 1.437, "T_q0_prime": 0.1351,
+        "H": 3.480,
+        "D": 0.400,
+        "X_d": 2.540,
+        "X_q": 2.410,
+        "X_d_prime": 0.500,
+        "X_q_prime": 0.814,
+        "T_d0_prime": 1.437,
+        "T_q0_prime": 0.1351,
     }
     assert PARAMETER_NAMES == ("H", "D", "X_d", "X_q", "X_d_prime", "X_q_prime", "T_d0_prime", "T_q0_prime")
     assert all(spec.default == getattr(TABLE1, spec.name) for spec in PARAMETER_SPECS)
 
 
-@pytest.mark.parametrize("change, phrase", [
-    ({"X_d_prime": 2.6}, "X_d_prime=2.6 must be below X_d"),
-    ({"X_q_prime": 2.41}, "X_q_prime=2.41 must be below X_q"),
-    ({"T_d0_prime": -1.0}, "T_d0_prime=-1"),
-    ({"H": math.nan}, "H=nan is not finite"),
-    ({"D": -0.1}, "D=-0.1 pu outside"),
-])
+@pytest.mark.parametrize(
+    "change, phrase",
+    [
+        ({"X_d_prime": 2.6}, "X_d_prime=2.6 must be below X_d"),
+        ({"X_q_prime": 2.41}, "X_q_prime=2.41 must be below X_q"),
+        ({"T_d0_prime": -1.0}, "T_d0_prime=-1"),
+        ({"H": math.nan}, "H=nan is not finite"),
+        ({"D": -0.1}, "D=-0.1 pu outside"),
+    ],
+)
 def test_invalid_sets_are_rejected_with_the_reason(change, phrase):
     with pytest.raises(ParameterError, match=phrase.replace("(", r"\(").replace(".", r"\.")):
         TABLE1.replace(**change)

@@ -24,9 +24,19 @@ def test_initialisation_is_an_equilibrium(op, f0):
     dx = plant.derivatives(ss.x[:, None], inputs)
     assert np.max(np.abs(dx)) < 1e-9
     # and it delivers the requested operating point at the terminals
-    traj = plant.simulate(ss.x[:, None], replace(inputs, p_m=inputs.p_m[:10], v_f=inputs.v_f[:10],
-                                                  v_th_abs=inputs.v_th_abs[:10], v_th_angle=inputs.v_th_angle[:10],
-                                                  r_th=inputs.r_th[:10], x_th=inputs.x_th[:10]), 1e-3)
+    traj = plant.simulate(
+        ss.x[:, None],
+        replace(
+            inputs,
+            p_m=inputs.p_m[:10],
+            v_f=inputs.v_f[:10],
+            v_th_abs=inputs.v_th_abs[:10],
+            v_th_angle=inputs.v_th_angle[:10],
+            r_th=inputs.r_th[:10],
+            x_th=inputs.x_th[:10],
+        ),
+        1e-3,
+    )
     assert np.allclose(traj.p_e, op.p_e, atol=1e-12)
     assert np.allclose(traj.q_e, op.q_e, atol=1e-12)
     assert np.allclose(traj.v_t, op.v_t, atol=1e-12)

@@ -8,7 +8,13 @@ def test_catalogue_matches_section_4():
     ident = [s for s in cat if s.role == "identify"]
     kinds = Counter((s.kind, s.generator_damping) for s in ident)
     assert kinds == {("torque_step", False): 2, ("torque_step", True): 5, ("voltage_step", True): 4, ("fault", True): 4}
-    assert sorted(s.magnitude for s in ident if s.kind == "torque_step" and s.generator_damping) == [-0.10, -0.05, 0.05, 0.10, 0.15]
+    assert sorted(s.magnitude for s in ident if s.kind == "torque_step" and s.generator_damping) == [
+        -0.10,
+        -0.05,
+        0.05,
+        0.10,
+        0.15,
+    ]
     assert sorted(s.magnitude for s in ident if not s.generator_damping) == [-0.10, 0.10]
     assert sorted(s.magnitude for s in ident if s.kind == "fault") == [0.05, 0.10, 0.15, 0.20]
     assert all(s.t_event == 1.0 and s.duration == 30.0 for s in ident)
