@@ -31,6 +31,7 @@ import numpy as np
 from scipy.optimize import curve_fit
 from scipy.signal import find_peaks
 
+from phid_ros.errors import PhidError
 from phid_ros.ident.results import Estimate, flag
 from phid_ros.ident.scenario import ScenarioData
 from phid_ros.ident.uncertainty import block_ids, cluster_robust_cov, information_share
@@ -41,8 +42,8 @@ BLOCK_SECONDS = 1.0
 WINDOW_AFTER_EVENT_S = 15.0  # the swing has died out long before; the steady tail adds only noise
 
 
-class Stage1Error(Exception):
-    pass
+class Stage1Error(PhidError):
+    """Stage 1 cannot run on these scenarios (no swing, no damping to see)."""
 
 
 @dataclass

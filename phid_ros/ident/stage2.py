@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import minimize
 
+from phid_ros.errors import PhidError
 from phid_ros.ident.results import Estimate, flag
 from phid_ros.ident.scenario import ScenarioData
 
@@ -33,8 +34,8 @@ STEADY_DRIFT_SIGMAS = 8.0  # halves of the final window differing by more than t
 STEADY_DRIFT_FLOOR = 2e-4  # pu: smaller drifts move X_d, X_q by < 0.05 %, whatever the noise
 
 
-class Stage2Error(Exception):
-    pass
+class Stage2Error(PhidError):
+    """Stage 2 cannot run: no settled steady states, or no spread in the currents."""
 
 
 @dataclass

@@ -39,6 +39,7 @@ from numpy.typing import NDArray
 from scipy.optimize import differential_evolution, minimize, minimize_scalar
 from scipy.signal import lfilter
 
+from phid_ros.errors import PhidError
 from phid_ros.ident.results import Estimate, flag
 from phid_ros.ident.scenario import ScenarioData
 from phid_ros.ident.uncertainty import block_ids, cluster_robust_cov, information_share
@@ -55,8 +56,8 @@ LAMBDA_PENALTY = 1e3
 BLOCK_SECONDS = 1.0
 
 
-class Stage3Error(Exception):
-    pass
+class Stage3Error(PhidError):
+    """Stage 3 cannot run on these scenarios."""
 
 
 @dataclass
