@@ -10,8 +10,12 @@ from typing import Any
 from rich.console import Console
 from rich.table import Table
 
+# imported here, with the command, so that their import is start-up and not "reading"
+from phid_ros.cli.scenarios import scenarios_from_recording
 from phid_ros.errors import PhidError, ResultsError
 from phid_ros.ident.pipeline import IdentificationResult, IdentifyOptions, identify
+from phid_ros.io.bags import read_recording
+from phid_ros.io.csv_import import import_csv_set
 from phid_ros.io.recording import Recording
 from phid_ros.io.results import read_json, write_json
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, GeneratorParameters
@@ -32,12 +36,8 @@ def load_input(path: str | Path) -> tuple[Recording, str]:
     """A rosbag2 folder, a single .mcap, or a CSV manifest.json."""
     p = Path(path)
     if p.suffix == ".json":
-        from phid_ros.io.csv_import import import_csv_set
-
         rec, _ = import_csv_set(p)
         return rec, str(p)
-    from phid_ros.io.bags import read_recording
-
     return read_recording(p), str(p)
 
 
@@ -143,8 +143,6 @@ def run(args: Any, console: Console) -> int:
     rec, source = load_input(args.input)
     t_read = time.perf_counter() - t_start
     truth = load_truth(args.truth, rec) if args.truth else None
-    from phid_ros.cli.scenarios import scenarios_from_recording
-
     scenarios, problems = scenarios_from_recording(rec, source)
     options = IdentifyOptions(
         method=args.method,

@@ -98,9 +98,15 @@ def decode_group(
     """Decode equally shaped messages at once; None if any message breaks the layout."""
     buf = np.frombuffer(b"".join(raws), dtype=np.uint8).reshape(len(raws), layout.total)
 
+    joined = buf.base if buf.base is not None else buf
+    total = layout.total
+
     def field(offset: int, dtype: str, count: int = 1) -> NDArray:
-        size = np.dtype(dtype).itemsize * count
-        return buf[:, offset : offset + size].copy().view(dtype).reshape(len(raws), count)
+        # a strided view into the joined bytes, no copy (the assembly copies once, into the
+        # stream); CDR aligns from the body, so float64 fields sit 4 bytes off: numpy allows it
+        return np.ndarray(
+            (len(raws), count), dtype=dtype, buffer=joined, offset=offset, strides=(total, np.dtype(dtype).itemsize)
+        )
 
     if not np.all(buf[:, :4] == np.frombuffer(CDR_LE_HEADER, dtype=np.uint8)):
         return None

@@ -20,6 +20,14 @@ from phid_ros.errors import SchemaError
 INTERFACE_PACKAGE = "phid_msgs"
 ENV_VAR = "PHID_MSG_SCHEMAS"
 
+# The only standard types our messages use, as ROS 2 Jazzy defines them. Registering
+# just these (not the ~200 types of the full Jazzy store) keeps a cold start short;
+# a test checks that their definitions and type hashes equal the full store's.
+BASE_TYPES: dict[str, str] = {
+    "builtin_interfaces/msg/Time": "int32 sec\nuint32 nanosec",
+    "std_msgs/msg/Header": "builtin_interfaces/Time stamp\nstring frame_id",
+}
+
 
 def _candidates() -> list[Path]:
     here = Path(__file__).resolve()
@@ -54,8 +62,10 @@ def msg_files(root: Path | None = None) -> dict[str, Path]:
 
 @lru_cache(maxsize=4)
 def typestore(root: str | None = None) -> Typestore:
-    """A Jazzy typestore with the phid_msgs types registered (cached)."""
-    store = get_typestore(Stores.ROS2_JAZZY)
+    """A typestore with the phid_msgs types and the Jazzy types they use (cached)."""
+    store = get_typestore(Stores.EMPTY)
+    for name, text in BASE_TYPES.items():
+        store.register(get_types_from_msg(text, name))
     types: dict = {}
     for name, path in msg_files(Path(root) if root else None).items():
         try:

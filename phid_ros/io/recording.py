@@ -267,6 +267,14 @@ def _check_type(source: str, topic: str, msgtype: str, expected: str) -> None:
         raise BagError(f"{source}: topic {topic} has type {msgtype}, expected {expected}")
 
 
+def expected_type(topic: str) -> str | None:
+    """The message type one of our topics must carry; None for topics that are not ours."""
+    if topic == SCENARIO_TOPIC:
+        return SCENARIO_MSGTYPE
+    name = stream_of_topic(topic)
+    return STREAMS_BY_NAME[name].msgtype if name else None
+
+
 def is_phid_topic(topic: str) -> bool:
     """True for the topics this package reads (sensor streams and scenario markers)."""
     return topic == SCENARIO_TOPIC or stream_of_topic(topic) is not None
@@ -363,6 +371,7 @@ def checked_payloads(messages: Iterable[tuple[str, str, str, bytes]], source: st
             ours.add(topic)
         if encoding != "cdr" or not schema:
             raise BagError(f"{source}: topic {topic} is not cdr-encoded ROS 2 data")
+        _check_type(source, topic, schema, expected_type(topic))  # type: ignore[arg-type]
         if schema not in store.types:
             raise BagError(f"{source}: topic {topic} has unknown message type {schema}")
         yield topic, schema, raw

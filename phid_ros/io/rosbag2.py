@@ -15,6 +15,7 @@ from phid_ros.io.recording import (
     DEFAULT_BLOCK_SIZE,
     Recording,
     checked_payloads,
+    expected_type,
     is_phid_topic,
     recording_from_raw,
     recording_messages,
@@ -58,6 +59,9 @@ def _iter_raw(reader: Reader, source: str) -> Iterator[tuple[str, str, bytes]]:
         present = ", ".join(sorted({c.topic for c in reader.connections})) or "none"
         raise BagError(f"{source}: none of the phid sensor topics found (topics present: {present})")
     for conn, _, raw in reader.messages(connections=ours):
+        expected = expected_type(conn.topic)
+        if expected is not None and conn.msgtype != expected:
+            raise BagError(f"{source}: topic {conn.topic} has type {conn.msgtype}, expected {expected}")
         if conn.msgtype not in store.types:
             raise BagError(f"{source}: topic {conn.topic} has unknown message type {conn.msgtype}")
         yield conn.topic, conn.msgtype, raw

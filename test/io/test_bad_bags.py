@@ -86,9 +86,11 @@ def test_wrong_type_on_a_sensor_topic(tmp_path):
         read_recording(tmp_path / "wrong")
 
 
-def test_unknown_message_type_on_a_sensor_topic(tmp_path):
+def test_vendor_message_type_on_a_sensor_topic(tmp_path):
     _foreign_bag(tmp_path / "unknown", "/generator/pmu", "vendor_msgs/msg/Angle", "float64 value")
-    with pytest.raises(BagError, match="/generator/pmu has unknown message type vendor_msgs/msg/Angle"):
+    with pytest.raises(
+        BagError, match="/generator/pmu has type vendor_msgs/msg/Angle, expected phid_msgs/msg/PmuBlock"
+    ):
         read_recording(tmp_path / "unknown")
 
 

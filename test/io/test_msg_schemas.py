@@ -42,3 +42,13 @@ def test_block_message_serialises_and_round_trips_arrays():
     assert back.header.stamp.nanosec == 7
     for c, v in data.items():
         assert np.array_equal(getattr(back, c), v)
+
+
+def test_base_types_equal_the_full_jazzy_store():
+    from rosbags.typesys import Stores, get_typestore
+
+    full = get_typestore(Stores.ROS2_JAZZY)
+    ours = typestore()
+    for name in ("builtin_interfaces/msg/Time", "std_msgs/msg/Header"):
+        assert ours.hash_rihs01(name) == full.hash_rihs01(name)
+        assert ours.generate_msgdef(name, ros_version=2) == full.generate_msgdef(name, ros_version=2)
