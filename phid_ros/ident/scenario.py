@@ -17,10 +17,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from phid_ros.errors import PhidError
+from phid_ros.io.topics import CHANNELS  # the one channel table, shared by every layer
 from phid_ros.model.conventions import terminal_to_dq
 
 Array = NDArray[np.float64]
-CHANNELS = ("v_t", "theta_t", "i_d", "i_q", "omega", "delta", "v_f", "p_m", "p_e", "q_e")
 KINDS = ("torque_step", "voltage_step", "fault")
 
 FAULT_VOLTAGE_RATIO = 0.3  # paper, section 3.2.2: V_t < 0.3 V_pf

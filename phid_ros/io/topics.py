@@ -1,4 +1,8 @@
-"""The sensor streams and the topics they travel on: one table, used by every front-end."""
+"""The sensor streams, their channels and topics: one table, used by every layer.
+
+This module imports nothing from phid_ros, so model-side layers (ident, stream)
+may use it without depending on the bag and file code in the rest of io/.
+"""
 
 from __future__ import annotations
 

@@ -1,0 +1,296 @@
+"""Align the four sensor streams on one uniform time grid, and keep their health.
+
+Each stream arrives as blocks (start stamp, sample period, arrays) with its own
+clock and rate. The aligner accepts samples per stream, then emits grid points
+once every stream has data past them; a stream value on the grid is its own
+sample when the stamps coincide, else a linear interpolation between the
+bracketing samples when they are at most ``max_bracket`` apart (the
+approximate-time idea of message_filters, for continuous signals), else NaN
+(a gap, counted).
+
+Bad input is dropped sample by sample and counted, never written into the
+buffer: non-finite values, values implausible for per unit (a kV or A feed by
+mistake), duplicate stamps, stamps that go backwards a little (out of order).
+A stamp that jumps back by more than ``jump_back_ns`` (a bag looping, simulated
+time reset) starts a new segment: the aligner flushes and restarts, and the
+consumer is told (``segment`` increments) so no window spans the jump.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from phid_ros.io.topics import CHANNELS, STREAMS, STREAMS_BY_NAME
+
+NS = 1_000_000_000
+
+# Plausible ranges in per unit / rad: anything outside is a wrong feed, not a disturbance.
+PLAUSIBLE: dict[str, tuple[float, float]] = {
+    "v_t": (0.0, 3.0),
+    "i_d": (-25.0, 25.0),
+    "i_q": (-25.0, 25.0),
+    "p_e": (-25.0, 25.0),
+    "q_e": (-25.0, 25.0),
+    "omega": (0.5, 1.5),
+    "p_m": (-5.0, 5.0),
+    "theta_t": (-1e6, 1e6),
+    "delta": (-1e6, 1e6),
+    "v_f": (-30.0, 30.0),
+}
+
+
+@dataclass
+class StreamHealth:
+    """Counters and rate of one input stream (diagnostic_updater's frequency and stamp status)."""
+
+    name: str
+    expected_rate_hz: float = 1000.0
+    messages: int = 0
+    samples: int = 0
+    accepted: int = 0
+    duplicates: int = 0
+    out_of_order: int = 0
+    nonfinite: int = 0
+    implausible: int = 0
+    gaps: int = 0
+    clock_jumps: int = 0
+    gap_grid_points: int = 0
+    last_stamp_ns: int | None = None
+    last_receive_ns: int | None = None
+    lag_ns: int = 0
+    _recent: list[tuple[int, int]] = field(default_factory=list)  # (stamp of last sample, samples)
+
+    @property
+    def dropped(self) -> int:
+        return self.duplicates + self.out_of_order + self.nonfinite + self.implausible
+
+    def rate_hz(self) -> float:
+        """Samples per second over the recent blocks, by their stamps."""
+        if len(self._recent) < 2:
+            return float("nan")
+        span = self._recent[-1][0] - self._recent[0][0]
+        n = sum(k for _, k in self._recent[1:])
+        return n * NS / span if span > 0 else float("nan")
+
+    def status(self, now_ns: int | None = None, *, rate_tolerance: float = 0.1,
+               stale_ns: int = 2 * NS, max_lag_ns: int = NS) -> tuple[str, str]:
+        """(level, message): OK, WARN, ERROR or STALE, as diagnostic_updater reports."""
+        if self.last_stamp_ns is None:
+            return "STALE", "no data yet"
+        if now_ns is not None and self.last_receive_ns is not None and now_ns - self.last_receive_ns > stale_ns:
+            return "STALE", f"no data for {(now_ns - self.last_receive_ns) / NS:.1f} s"
+        rate = self.rate_hz()
+        problems = []
+        level = "OK"
+        if np.isfinite(rate) and abs(rate - self.expected_rate_hz) > rate_tolerance * self.expected_rate_hz:
+            problems.append(f"rate {rate:.0f} Hz, expected {self.expected_rate_hz:.0f} Hz")
+            level = "WARN"
+        if self.lag_ns > max_lag_ns:
+            problems.append(f"stamp lag {self.lag_ns / NS:.2f} s")
+            level = "WARN"
+        if self.dropped:
+            problems.append(f"{self.dropped} samples dropped (dup {self.duplicates}, order {self.out_of_order}, "
+                            f"non-finite {self.nonfinite}, implausible {self.implausible})")
+            level = "WARN" if level == "OK" else level
+        if self.samples and self.dropped > 0.5 * self.samples:
+            level = "ERROR"
+        return level, "; ".join(problems) or f"{rate:.0f} Hz"
+
+    def as_dict(self) -> dict[str, object]:
+        return {k: v for k, v in self.__dict__.items() if not k.startswith("_")} | {"rate_hz": self.rate_hz()}
+
+
+@dataclass
+class AlignedBlock:
+    t_ns: NDArray[np.int64]
+    values: NDArray[np.float64]  # (n, len(CHANNELS)), NaN where a stream had a gap
+    segment: int
+
+
+class _Pending:
+    """Accepted samples of one stream not yet consumed by the grid."""
+
+    def __init__(self, channels: tuple[str, ...]) -> None:
+        self.channels = channels
+        self.t: list[NDArray[np.int64]] = []
+        self.x: list[NDArray[np.float64]] = []
+
+    def add(self, t: NDArray[np.int64], x: NDArray[np.float64]) -> None:
+        if len(t):
+            self.t.append(t)
+            self.x.append(x)
+
+    def arrays(self) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+        if len(self.t) > 1:
+            self.t = [np.concatenate(self.t)]
+            self.x = [np.concatenate(self.x)]
+        if not self.t:
+            return np.zeros(0, np.int64), np.zeros((0, len(self.channels)))
+        return self.t[0], self.x[0]
+
+    def drop_before(self, t_ns: int) -> None:
+        t, x = self.arrays()
+        k = int(np.searchsorted(t, t_ns, side="left"))
+        k = max(0, k - 1)  # keep the left bracket
+        if k:
+            self.t, self.x = [t[k:]], [x[k:]]
+
+    def clear(self) -> None:
+        self.t, self.x = [], []
+
+    @property
+    def latest(self) -> int | None:
+        return int(self.t[-1][-1]) if self.t else None
+
+
+class Aligner:
+    def __init__(self, period_ns: int = 1_000_000, *, max_bracket_ns: int | None = None,
+                 jump_back_ns: int = NS, stale_ns: int = NS, expected_rates_hz: Mapping[str, float] | None = None):
+        self.period_ns = int(period_ns)
+        self.max_bracket_ns = int(max_bracket_ns if max_bracket_ns is not None else 5 * period_ns)
+        self.jump_back_ns = int(jump_back_ns)
+        self.stale_ns = int(stale_ns)
+        rates = dict(expected_rates_hz or {})
+        self.health = {s.name: StreamHealth(s.name, rates.get(s.name, NS / period_ns)) for s in STREAMS}
+        self._pending = {s.name: _Pending(s.channels) for s in STREAMS}
+        self._col = {c: i for i, c in enumerate(CHANNELS)}
+        self.segment = 0
+        self._next_grid: int | None = None
+        self._out: list[AlignedBlock] = []
+
+    # -- input -------------------------------------------------------------------------
+    def ingest(self, stream: str, t0_ns: int, period_ns: int, arrays: Mapping[str, NDArray[np.float64]],
+               receive_ns: int | None = None) -> None:
+        spec = STREAMS_BY_NAME[stream]
+        h = self.health[stream]
+        x = np.column_stack([np.asarray(arrays[c], dtype=np.float64) for c in spec.channels])
+        n = len(x)
+        h.messages += 1
+        h.samples += n
+        if n == 0:
+            return
+        t = int(t0_ns) + np.arange(n, dtype=np.int64) * int(period_ns)
+        if receive_ns is not None:
+            h.last_receive_ns = int(receive_ns)
+            h.lag_ns = int(receive_ns) - int(t[-1])
+        # a clock that jumps back by more than the threshold: new segment, flush first
+        last = h.last_stamp_ns
+        if last is not None and t[0] < last - self.jump_back_ns:
+            h.clock_jumps += 1
+            self._new_segment()
+            last = None
+        ok = np.ones(n, dtype=bool)
+        finite = np.isfinite(x).all(axis=1)
+        h.nonfinite += int((~finite).sum())
+        ok &= finite
+        lo = np.array([PLAUSIBLE[c][0] for c in spec.channels])
+        hi = np.array([PLAUSIBLE[c][1] for c in spec.channels])
+        with np.errstate(invalid="ignore"):
+            plausible = ((x >= lo) & (x <= hi)).all(axis=1)
+        bad_range = finite & ~plausible
+        h.implausible += int(bad_range.sum())
+        ok &= plausible
+        # duplicates and out-of-order against the last accepted stamp and within the block
+        prev = np.maximum.accumulate(np.concatenate(([last if last is not None else np.iinfo(np.int64).min], t)))[:-1]
+        dup = ok & (t == prev)
+        back = ok & (t < prev)
+        h.duplicates += int(dup.sum())
+        h.out_of_order += int(back.sum())
+        ok &= ~dup & ~back
+        # a duplicate inside the block shadows later equal stamps too: keep strictly increasing
+        t_ok, x_ok = t[ok], x[ok]
+        if len(t_ok) > 1:
+            inc = np.concatenate(([True], np.diff(t_ok) > 0))
+            h.duplicates += int((~inc).sum())
+            t_ok, x_ok = t_ok[inc], x_ok[inc]
+        if len(t_ok) == 0:
+            return
+        if h.last_stamp_ns is not None:
+            d = np.diff(np.concatenate(([h.last_stamp_ns], t_ok)))
+            h.gaps += int((d > 1.5 * period_ns).sum())
+        h.accepted += len(t_ok)
+        h.last_stamp_ns = int(t_ok[-1])
+        h._recent.append((int(t_ok[-1]), len(t_ok)))
+        if len(h._recent) > 50:
+            del h._recent[:-50]
+        self._pending[stream].add(t_ok, x_ok)
+
+    def _new_segment(self) -> None:
+        self.flush()
+        for p in self._pending.values():
+            p.clear()
+        for h in self.health.values():
+            h.last_stamp_ns = None
+            h._recent.clear()
+        self._next_grid = None
+        self.segment += 1
+
+    # -- output ------------------------------------------------------------------------
+    def pull(self, *, final: bool = False) -> list[AlignedBlock]:
+        """Grid points that every stream has passed (or, with ``final``, everything left)."""
+        self._align(final)
+        out, self._out = self._out, []
+        return out
+
+    def flush(self) -> None:
+        self._align(final=True)
+
+    def _align(self, final: bool) -> None:
+        latest = {name: p.latest for name, p in self._pending.items()}
+        have = [v for v in latest.values() if v is not None]
+        if not have:
+            return
+        if self._next_grid is None:
+            firsts = [int(p.arrays()[0][0]) for p in self._pending.values() if p.t]
+            if len(firsts) < len(self._pending) and not final:
+                return  # wait until every stream has started
+            start = max(firsts)
+            self._next_grid = -(-start // self.period_ns) * self.period_ns
+        newest = max(have)
+        if final:
+            end = newest
+        else:
+            # a stream that fell more than stale_ns behind the others does not hold the grid back
+            live = [v for v in have if v >= newest - self.stale_ns]
+            end = min(live)
+            if len(live) < len(self._pending):
+                end = min(end, newest - self.stale_ns)
+        if end < self._next_grid:
+            return
+        grid = np.arange(self._next_grid, end + 1, self.period_ns, dtype=np.int64)
+        if grid.size == 0:
+            return
+        values = np.full((grid.size, len(CHANNELS)), np.nan)
+        for name, p in self._pending.items():
+            cols = [self._col[c] for c in p.channels]
+            t, x = p.arrays()
+            if t.size == 0:
+                self.health[name].gap_grid_points += grid.size
+                continue
+            values[:, cols] = self._sample(t, x, grid)
+            self.health[name].gap_grid_points += int(np.isnan(values[:, cols[0]]).sum())
+            p.drop_before(int(grid[-1]))
+        self._next_grid = int(grid[-1]) + self.period_ns
+        self._out.append(AlignedBlock(grid, values, self.segment))
+
+    def _sample(self, t: NDArray[np.int64], x: NDArray[np.float64], grid: NDArray[np.int64]) -> NDArray[np.float64]:
+        # fast path: the stream sits on the grid itself (same clock and rate)
+        k0 = int(np.searchsorted(t, grid[0]))
+        if k0 + grid.size <= t.size and t[k0] == grid[0] and t[k0 + grid.size - 1] == grid[-1] \
+                and np.array_equal(t[k0:k0 + grid.size], grid):
+            return x[k0:k0 + grid.size]
+        right = np.searchsorted(t, grid, side="left")
+        exact = (right < t.size) & (t[np.minimum(right, t.size - 1)] == grid)
+        left = np.clip(right - 1, 0, t.size - 1)
+        right_c = np.clip(right, 0, t.size - 1)
+        span = t[right_c] - t[left]
+        ok = (right > 0) & (right < t.size) & (span <= self.max_bracket_ns)
+        w = np.where(ok & (span > 0), (grid - t[left]) / np.where(span > 0, span, 1), 0.0)
+        out = x[left] + (x[right_c] - x[left]) * w[:, None]
+        out[~(ok | exact)] = np.nan
+        out[exact] = x[right_c[exact]]
+        return out
