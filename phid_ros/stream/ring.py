@@ -35,10 +35,10 @@ class RingBuffer:
         if n == 0:
             return
         if n >= self.capacity:
-            t_ns, values, n = t_ns[-self.capacity:], values[-self.capacity:], self.capacity
+            t_ns, values, n = t_ns[-self.capacity :], values[-self.capacity :], self.capacity
         first = min(n, self.capacity - self._head)
-        self._t[self._head:self._head + first] = t_ns[:first]
-        self._x[self._head:self._head + first] = values[:first]
+        self._t[self._head : self._head + first] = t_ns[:first]
+        self._x[self._head : self._head + first] = values[:first]
         rest = n - first
         if rest:
             self._t[:rest] = t_ns[first:]
@@ -72,12 +72,18 @@ class RingBuffer:
     def stamps(self) -> NDArray[np.int64]:
         return self.rows(0, self._size)[0]
 
+    def _search(self, t_ns: int, side: str) -> int:
+        """Logical index of ``t_ns`` by binary search in the (at most two) stored runs, no copy."""
+        base = (self._head - self._size) % self.capacity
+        first = self._t[base : base + min(self._size, self.capacity - base)]
+        k = int(np.searchsorted(first, t_ns, side=side))  # type: ignore[call-overload]
+        if k < len(first) or len(first) == self._size:
+            return k
+        return len(first) + int(np.searchsorted(self._t[: self._size - len(first)], t_ns, side=side))  # type: ignore[call-overload]
+
     def window(self, t0_ns: int, t1_ns: int) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
         """Samples with t0 <= t <= t1 (the buffer holds increasing stamps)."""
-        t = self.stamps()
-        a = int(np.searchsorted(t, t0_ns, side="left"))
-        b = int(np.searchsorted(t, t1_ns, side="right"))
-        return self.rows(a, b)
+        return self.rows(self._search(t0_ns, "left"), self._search(t1_ns, "right"))
 
     def column(self, name: str) -> int:
         return self._col[name]

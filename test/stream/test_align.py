@@ -69,13 +69,24 @@ def test_a_gap_gives_nan_and_is_counted():
     assert al.health["encoder"].gaps == 1 and al.health["encoder"].gap_grid_points >= 95
 
 
-@pytest.mark.parametrize("bad, counter", [
-    (lambda name, a: a.__setitem__("v_t", np.where(np.arange(len(a["v_t"])) == 7, np.nan, a["v_t"]))
-     if name == "pt_ct" else None, "nonfinite"),
-    (lambda name, a: a.__setitem__("omega", np.full(len(a["omega"]), np.inf)) if name == "encoder" else None,
-     "nonfinite"),
-    (lambda name, a: a.__setitem__("v_t", a["v_t"] * 20.0) if name == "pt_ct" else None, "implausible"),  # kV feed
-])
+@pytest.mark.parametrize(
+    "bad, counter",
+    [
+        (
+            lambda name, a: (
+                a.__setitem__("v_t", np.where(np.arange(len(a["v_t"])) == 7, np.nan, a["v_t"]))
+                if name == "pt_ct"
+                else None
+            ),
+            "nonfinite",
+        ),
+        (
+            lambda name, a: a.__setitem__("omega", np.full(len(a["omega"]), np.inf)) if name == "encoder" else None,
+            "nonfinite",
+        ),
+        (lambda name, a: a.__setitem__("v_t", a["v_t"] * 20.0) if name == "pt_ct" else None, "implausible"),  # kV feed
+    ],
+)
 def test_bad_values_are_dropped_and_counted(bad, counter):
     al = Aligner()
     feed(al, 0, 100)

@@ -1,0 +1,177 @@
+"""Streaming disturbance detection and event windows.
+
+Detection runs the batch detector of :mod:`phid_ros.ident.scenario` (fault:
+V_t < 0.3 V_pf; steps in P_m; sustained steps in V_t) on a sliding analysis
+window, so the online pipeline and ``phid identify`` on a markerless bag find the
+same events at the same samples. An event is accepted once ``settle_s`` of data
+follows it (enough to see a fault clear and a step settle), and its window
+(``pre_s`` before, ``post_s`` after) is cut from the ring buffer once the post-
+event time has passed.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from phid_ros.ident.scenario import find_events
+from phid_ros.io.topics import CHANNELS
+from phid_ros.stream.ring import RingBuffer
+
+NS = 1_000_000_000
+
+
+@dataclass(frozen=True)
+class DetectorSettings:
+    pre_s: float = 1.0
+    post_s: float = 29.0
+    settle_s: float = 2.0
+    context_s: float = 3.5  # history the batch detector needs: 1 s pre-fault mean + 2 s quiet + step span
+    detect_every_s: float = 1.0  # stream time between detector runs (latency: this plus settle_s)
+
+
+@dataclass
+class Event:
+    event_id: str
+    kind: str
+    inception_ns: int
+    clearing_ns: int  # 0 when not a fault
+    severity: float
+    v_prefault: float
+    segment: int
+    # filled from a scenario marker when the recording carries one
+    name: str = ""
+    role: str = "identify"
+    generator_damping: bool = True
+
+
+@dataclass
+class EventWindow:
+    event: Event
+    t_ns: NDArray[np.int64]
+    values: NDArray[np.float64]  # (n, len(CHANNELS))
+    period_ns: int
+    usable: bool = True
+    reason: str = ""
+
+    def channel(self, name: str) -> NDArray[np.float64]:
+        return self.values[:, CHANNELS.index(name)]
+
+
+@dataclass
+class Detector:
+    ring: RingBuffer
+    period_ns: int
+    settings: DetectorSettings = field(default_factory=DetectorSettings)
+    _frontier_ns: int | None = None
+    _segment: int = 0
+    _pending: list[Event] = field(default_factory=list)
+    _ids: itertools.count = field(default_factory=lambda: itertools.count(1))
+
+    def reset(self, segment: int) -> None:
+        """A new segment (clock jump): nothing before it can be part of a window after it."""
+        self._frontier_ns = None
+        self._segment = segment
+        self._pending = [e for e in self._pending if e.segment == segment]
+
+    def update(self, *, force: bool = False) -> tuple[list[Event], list[EventWindow]]:
+        """New events since the last call, and windows whose post-event time has passed.
+
+        Detection runs every ``detect_every_s`` of stream time, or now with ``force``.
+        """
+        latest = self.ring.latest_ns
+        if latest is None:
+            return [], []
+        s = self.settings
+        new: list[Event] = []
+        decided = latest - int(s.settle_s * NS)
+        if self._frontier_ns is None:
+            # from the start of a segment, events can be found once the pre-event mean exists
+            oldest = self.ring.oldest_ns
+            self._frontier_ns = (oldest if oldest is not None else latest) + int(s.pre_s * NS)
+        due = self._frontier_ns + (0 if force else int(s.detect_every_s * NS))
+        if decided > self._frontier_ns and decided >= due:
+            t, x = self.ring.window(self._frontier_ns - int(s.context_s * NS), latest)
+            if len(t) > 10:
+                # the batch detector reads V_t and P_m only
+                signals = {c: _ffill(x[:, CHANNELS.index(c)]) for c in ("v_t", "p_m")}
+                for kind, k, k_cl in find_events(signals, self.period_ns / NS):
+                    if not self._frontier_ns <= t[k] < decided:
+                        continue
+                    new.append(self._event(kind, t, signals, k, k_cl))
+            self._frontier_ns = decided
+        self._pending.extend(new)
+        windows = []
+        still = []
+        for ev in self._pending:
+            if latest >= ev.inception_ns + int(s.post_s * NS):
+                windows.append(self._cut(ev))
+            else:
+                still.append(ev)
+        self._pending = still
+        return new, windows
+
+    def flush(self) -> tuple[list[Event], list[EventWindow]]:
+        """End of input: detect what can still be decided, and cut every waiting window as it is."""
+        new, windows = self.update(force=True)
+        out = windows + [self._cut(ev) for ev in self._pending]
+        self._pending = []
+        return new, out
+
+    def _event(
+        self, kind: str, t: NDArray[np.int64], sig: dict[str, NDArray[np.float64]], k: int, k_cl: int | None
+    ) -> Event:
+        n_pre = max(1, int(1.0 * NS / self.period_ns))
+        v_pf = float(np.mean(sig["v_t"][max(0, k - n_pre) : k])) if k > 0 else float(sig["v_t"][0])
+        span = max(1, int(0.2 * NS / self.period_ns))
+        if kind == "fault":
+            stop = k_cl if k_cl is not None else len(t)
+            severity = 1.0 - float(np.min(sig["v_t"][k:stop])) / v_pf
+        else:
+            x = sig["p_m"] if kind == "torque_step" else sig["v_t"]
+            severity = float(np.mean(x[k : k + span]) - np.mean(x[max(0, k - span) : k]))
+        return Event(
+            event_id=f"ev{next(self._ids):04d}",
+            kind=kind,
+            inception_ns=int(t[k]),
+            clearing_ns=int(t[k_cl]) if (kind == "fault" and k_cl is not None) else 0,
+            severity=severity,
+            v_prefault=v_pf,
+            segment=self._segment,
+        )
+
+    def _cut(self, ev: Event) -> EventWindow:
+        s = self.settings
+        t0 = ev.inception_ns - int(s.pre_s * NS)
+        t1 = ev.inception_ns + int(s.post_s * NS) - self.period_ns
+        t, x = self.ring.window(t0, t1)
+        t, x = t.copy(), x.copy()
+        expected = int(round((t1 - t0) / self.period_ns)) + 1
+        w = EventWindow(ev, t, x, self.period_ns)
+        if ev.segment != self._segment:
+            w.usable, w.reason = False, "the clock jumped (new segment) before the window was complete"
+        elif len(t) < expected:
+            w.usable, w.reason = False, f"window has {len(t)} of {expected} samples (ring buffer too short or gap)"
+        elif not np.isfinite(x).all():
+            bad = [c for i, c in enumerate(CHANNELS) if not np.isfinite(x[:, i]).all()]
+            w.usable, w.reason = False, f"stale data in the window: {bad} have gaps"
+        return w
+
+
+def _ffill(x: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Forward-fill NaN gaps (leading ones take the first finite value) for detection only."""
+    bad = ~np.isfinite(x)
+    if not bad.any():
+        return x
+    idx = np.where(~bad, np.arange(len(x)), 0)
+    np.maximum.accumulate(idx, out=idx)
+    out = x[idx]
+    first = np.flatnonzero(~bad)
+    if first.size:
+        out[: first[0]] = x[first[0]]
+    else:
+        out[:] = 0.0
+    return out

@@ -1,0 +1,189 @@
+"""The online monitor: sensor blocks in; events, windows, parameters, energy and health out.
+
+One object, :class:`MonitorPipeline`, holds the whole live chain (aligner ->
+ring buffer -> detector -> event store -> recalibration worker -> energy). The
+ROS nodes and ``phid replay`` call exactly these methods; neither owns logic.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from phid_ros.ident.pipeline import IdentifyOptions
+from phid_ros.io.topics import CHANNELS
+from phid_ros.model.parameters import GeneratorParameters
+from phid_ros.stream.align import Aligner, StreamHealth
+from phid_ros.stream.detector import Detector, DetectorSettings, Event, EventWindow
+from phid_ros.stream.energy import EnergySamples, energy
+from phid_ros.stream.recalibration import RecalibrationOutcome, RecalibrationPolicy, Recalibrator
+from phid_ros.stream.ring import RingBuffer
+from phid_ros.stream.store import EventStore
+
+NS = 1_000_000_000
+
+
+@dataclass
+class PipelineSettings:
+    period_ns: int = 1_000_000
+    ring_seconds: float = 120.0
+    detector: DetectorSettings = field(default_factory=DetectorSettings)
+    hamiltonian_rate_hz: float = 10.0
+    store_path: str = ":memory:"
+    auto_recalibrate: bool = True
+    policy: RecalibrationPolicy = field(default_factory=RecalibrationPolicy)
+    identify: IdentifyOptions = field(default_factory=lambda: IdentifyOptions(baseline=False))
+    initial_parameters: GeneratorParameters | None = None
+
+    def __post_init__(self) -> None:
+        needed = self.detector.pre_s + self.detector.post_s + self.detector.context_s
+        if self.ring_seconds < needed:
+            raise ValueError(
+                f"ring_seconds {self.ring_seconds} s cannot hold an event window plus context ({needed:.1f} s)"
+            )
+        if self.hamiltonian_rate_hz <= 0:
+            raise ValueError("hamiltonian_rate_hz must be positive")
+
+
+@dataclass
+class Marker:
+    name: str
+    kind: str
+    role: str
+    generator_damping: bool
+    start_ns: int
+    end_ns: int
+
+
+@dataclass
+class Outputs:
+    events: list[Event] = field(default_factory=list)
+    windows: list[EventWindow] = field(default_factory=list)
+    recalibrations: list[RecalibrationOutcome] = field(default_factory=list)
+    energy: list[EnergySamples] = field(default_factory=list)
+
+    def extend(self, other: Outputs) -> None:
+        self.events += other.events
+        self.windows += other.windows
+        self.recalibrations += other.recalibrations
+        self.energy += other.energy
+
+
+class MonitorPipeline:
+    def __init__(self, settings: PipelineSettings | None = None) -> None:
+        self.settings = s = settings or PipelineSettings()
+        self.aligner = Aligner(s.period_ns)
+        self.ring = RingBuffer(int(s.ring_seconds * NS // s.period_ns), CHANNELS)
+        self.detector = Detector(self.ring, s.period_ns, s.detector)
+        self.store = EventStore(s.store_path)
+        self.recalibrator = Recalibrator(self.store, s.policy, s.identify)
+        self.recalibrator.last_good = s.initial_parameters
+        self.markers: list[Marker] = []
+        self.samples_in = 0
+        self._segment = 0
+        self._energy_slot: int | None = None
+        self.latest_ns: int | None = None
+
+    # -- input ---------------------------------------------------------------------------
+    def ingest(self, stream: str, t0_ns: int, period_ns: int, arrays: dict, receive_ns: int | None = None) -> None:
+        self.aligner.ingest(stream, t0_ns, period_ns, arrays, receive_ns)
+        self.samples_in += sum(len(a) for a in arrays.values())
+
+    def add_marker(self, marker: Marker) -> None:
+        self.markers.append(marker)
+
+    # -- processing ---------------------------------------------------------------------------
+    @property
+    def parameters(self) -> GeneratorParameters | None:
+        return self.recalibrator.last_good
+
+    def process(self, *, final: bool = False) -> Outputs:
+        out = Outputs()
+        for block in self.aligner.pull(final=final):
+            if block.segment != self._segment:
+                self._segment = block.segment
+                late_events, pending = self.detector.flush()
+                for e in late_events:
+                    self._label(e)
+                out.events += late_events
+                for w in pending:
+                    w.usable, w.reason = False, "the clock jumped (new segment) before the window was complete"
+                self._store(pending, out)
+                self.ring.clear()
+                self.detector.reset(block.segment)
+                self._energy_slot = None
+            self.ring.append(block.t_ns, block.values)
+            self.latest_ns = int(block.t_ns[-1])
+            events, windows = self.detector.update()
+            for e in events:
+                self._label(e)
+            out.events += events
+            self._store(windows, out)
+            self._energy(block.t_ns, block.values, out)
+        if final:
+            late_events, rest = self.detector.flush()
+            for e in late_events:
+                self._label(e)
+            out.events += late_events
+            for w in rest:
+                if w.usable:
+                    w.usable, w.reason = False, "the recording ended before the post-event time"
+            self._store(rest, out)
+            if self.latest_ns is not None:
+                out.recalibrations += self.recalibrator.finish(self.latest_ns)
+        else:
+            out.recalibrations += self.recalibrator.poll(self.latest_ns)
+        return out
+
+    def recalibrate(self) -> str:
+        """On demand (the ~/recalibrate service): run now with the latest events."""
+        return self.recalibrator.request(self.latest_ns or 0, force=True)
+
+    def reset(self) -> None:
+        """Forget buffered data and stored events (the ~/reset service); parameters are kept."""
+        self.aligner = Aligner(self.settings.period_ns)
+        self.ring.clear()
+        self.detector = Detector(self.ring, self.settings.period_ns, self.settings.detector)
+        self.store.clear()
+        self._segment = 0
+        self._energy_slot = None
+
+    def close(self) -> None:
+        self.recalibrator.shutdown()
+        self.store.close()
+
+    @property
+    def health(self) -> dict[str, StreamHealth]:
+        return self.aligner.health
+
+    # -- helpers ----------------------------------------------------------------------------
+    def _label(self, e: Event) -> None:
+        for m in self.markers:
+            if m.start_ns <= e.inception_ns <= m.end_ns:
+                e.name, e.role, e.generator_damping = m.name, m.role, m.generator_damping
+                return
+
+    def _store(self, windows: list[EventWindow], out: Outputs) -> None:
+        for w in windows:
+            self.store.add(w)
+            out.windows.append(w)
+            if w.usable and self.settings.auto_recalibrate and w.event.role == "identify":
+                self.recalibrator.request(int(w.t_ns[-1]) if len(w.t_ns) else w.event.inception_ns)
+
+    def _energy(self, t_ns: np.ndarray, values: np.ndarray, out: Outputs) -> None:
+        params = self.parameters
+        if params is None:
+            return
+        interval = int(NS / self.settings.hamiltonian_rate_hz)
+        slots = t_ns // interval
+        first = np.flatnonzero(
+            np.diff(np.concatenate(([self._energy_slot if self._energy_slot is not None else slots[0] - 1], slots))) > 0
+        )
+        self._energy_slot = int(slots[-1])
+        if first.size == 0:
+            return
+        rows = values[first]
+        ok = np.isfinite(rows).all(axis=1)
+        if ok.any():
+            out.energy.append(energy(t_ns[first][ok], rows[ok], params))

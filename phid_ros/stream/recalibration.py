@@ -1,0 +1,221 @@
+"""Recalibration policy and worker: the three-stage identification off the ingestion path.
+
+The policy decides *when* (enough usable events of the kinds the stages need,
+at least ``min_interval_s`` of stream time since the last run, or on demand)
+and *with what* (the latest N events per kind). The worker runs the
+identification in one background thread, so ingestion never waits; requests that
+arrive while it runs are coalesced into one more run. A failed run, an
+incomplete or physically invalid set, or an implausible jump from the last good
+set keeps the last good parameters, with the reason in the outcome.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass, field
+
+from phid_ros.ident.pipeline import IdentificationResult, IdentifyOptions, identify
+from phid_ros.ident.scenario import ScenarioData, ScenarioError, make_scenario
+from phid_ros.model.parameters import GeneratorParameters
+from phid_ros.stream.detector import EventWindow
+from phid_ros.stream.store import EventStore
+
+NS = 1_000_000_000
+
+
+@dataclass
+class RecalibrationPolicy:
+    latest_per_kind: int = 10
+    # the stages' needs: a swing for stage 1 (a fault or a torque step) and a settled step for stage 2
+    min_swing_events: int = 1
+    min_step_events: int = 1
+    min_interval_s: float = 300.0  # the paper recalibrates in batches over several minutes of events
+    max_relative_jump: float = 0.5  # a parameter moving more than this in one run is implausible ...
+    jump_sigmas: float = 4.0  # ... if the move also exceeds this many combined standard deviations
+
+    def ready(self, counts: dict[str, int]) -> tuple[bool, str]:
+        swings = counts.get("fault", 0) + counts.get("torque_step", 0)
+        steps = counts.get("torque_step", 0) + counts.get("voltage_step", 0)
+        if swings < self.min_swing_events:
+            return False, f"needs {self.min_swing_events} fault or torque-step event(s), has {swings}"
+        if steps < self.min_step_events:
+            return False, f"needs {self.min_step_events} torque- or voltage-step event(s), has {steps}"
+        return True, "ready"
+
+
+@dataclass
+class RecalibrationOutcome:
+    accepted: bool
+    status: str
+    parameters: GeneratorParameters | None  # the set in force after this run (last good if rejected)
+    result: IdentificationResult | None
+    event_ids: list[str]
+    stream_time_ns: int
+    seconds: float
+
+
+def scenario_from_window(w: EventWindow) -> ScenarioData:
+    e = w.event
+    dt = w.period_ns / NS
+    k_ev = int((e.inception_ns - int(w.t_ns[0])) // w.period_ns)
+    k_cl = int((e.clearing_ns - int(w.t_ns[0])) // w.period_ns) if e.clearing_ns else None
+    from phid_ros.io.topics import CHANNELS
+
+    signals = {c: w.values[:, i] for i, c in enumerate(CHANNELS)}
+    return make_scenario(
+        e.name or e.event_id,
+        signals,
+        dt,
+        kind=e.kind,
+        role=e.role,
+        generator_damping=e.generator_damping,
+        k_event=k_ev,
+        k_clear=k_cl,
+        start_ns=int(w.t_ns[0]),
+    )
+
+
+@dataclass
+class Recalibrator:
+    store: EventStore
+    policy: RecalibrationPolicy = field(default_factory=RecalibrationPolicy)
+    options: IdentifyOptions = field(default_factory=lambda: IdentifyOptions(baseline=False, validate=False))
+    last_good: GeneratorParameters | None = None
+    last_result: IdentificationResult | None = None
+    runs: int = 0
+    _executor: ThreadPoolExecutor = field(default_factory=lambda: ThreadPoolExecutor(1, "phid-recalibration"))
+    _future: Future | None = None
+    _dirty: bool = False
+    _last_start_ns: int | None = None
+    _done: list[RecalibrationOutcome] = field(default_factory=list)
+    _lock: threading.Lock = field(default_factory=threading.Lock)
+
+    def request(self, stream_time_ns: int, *, force: bool = False) -> str:
+        """Ask for a run; returns what happened (started, coalesced, or why not)."""
+        ok, why = self.policy.ready(self.store.counts())
+        if not ok and not force:
+            return f"not ready: {why}"
+        if (
+            not force
+            and self._last_start_ns is not None
+            and stream_time_ns - self._last_start_ns < self.policy.min_interval_s * NS
+        ):
+            self._dirty = True
+            return "deferred: minimum interval since the last run"
+        if self._future is not None and not self._future.done():
+            self._dirty = True
+            return "coalesced: a run is in progress"
+        self._start(stream_time_ns)
+        return "started"
+
+    def _start(self, stream_time_ns: int) -> None:
+        windows = self.store.latest(n=self.policy.latest_per_kind)
+        self._dirty = False
+        self._last_start_ns = stream_time_ns
+        self._future = self._executor.submit(self._run, windows, stream_time_ns)
+
+    def poll(self, stream_time_ns: int | None = None) -> list[RecalibrationOutcome]:
+        """Finished runs since the last poll; starts a coalesced rerun when one is owed."""
+        with self._lock:
+            done, self._done = self._done, []
+        if self._dirty and stream_time_ns is not None and (self._future is None or self._future.done()):
+            if self._last_start_ns is None or stream_time_ns - self._last_start_ns >= self.policy.min_interval_s * NS:
+                self.request(stream_time_ns)
+        return done
+
+    def wait(self) -> list[RecalibrationOutcome]:
+        if self._future is not None:
+            self._future.result()
+        return self.poll()
+
+    def finish(self, stream_time_ns: int) -> list[RecalibrationOutcome]:
+        """End of input: run once more if events arrived since the last run, and wait."""
+        out = self.wait()
+        if self._dirty or self.runs == 0:
+            ok, _ = self.policy.ready(self.store.counts())
+            if ok:
+                self._start(stream_time_ns)
+                out += self.wait()
+        return out
+
+    def shutdown(self) -> None:
+        self._executor.shutdown(wait=True)
+
+    def _run(self, windows: list[EventWindow], stream_time_ns: int) -> None:
+        t0 = time.perf_counter()
+        ids = [w.event.event_id for w in windows]
+        try:
+            scenarios = []
+            skipped = []
+            for w in windows:
+                try:
+                    scenarios.append(scenario_from_window(w))
+                except ScenarioError as exc:
+                    skipped.append(str(exc))
+            result = identify(scenarios, self.options)
+            outcome = self._judge(result, ids, stream_time_ns, time.perf_counter() - t0)
+            if skipped:
+                outcome.status += "; skipped: " + "; ".join(skipped)
+        except Exception as exc:  # a failed run must never take the worker (or the node) down
+            outcome = RecalibrationOutcome(
+                False,
+                f"recalibration failed: {type(exc).__name__}: {exc}",
+                self.last_good,
+                None,
+                ids,
+                stream_time_ns,
+                time.perf_counter() - t0,
+            )
+        with self._lock:
+            self.runs += 1
+            self._done.append(outcome)
+
+    def _jumps(self, model: GeneratorParameters, result: IdentificationResult) -> dict[str, float]:
+        """Parameters that moved implausibly: beyond the relative limit *and* the combined uncertainty.
+
+        A parameter flagged as poorly identified in either set cannot anchor a rejection:
+        an early, uncertain set must not block the better one that more events bring.
+        """
+        old, new = self.last_good.as_dict(), model.as_dict()  # type: ignore[union-attr]
+        prev = self.last_result.estimates if self.last_result else {}
+        out = {}
+        for n in new:
+            if not old[n]:
+                continue
+            rel = new[n] / old[n] - 1
+            if abs(rel) <= self.policy.max_relative_jump:
+                continue
+            e_new, e_old = result.estimates.get(n), prev.get(n)
+            if e_new is None or not e_new.identifiable or (e_old is not None and not e_old.identifiable):
+                continue
+            sigma = math.hypot(
+                e_new.std if math.isfinite(e_new.std) else 0.0,
+                e_old.std if e_old is not None and math.isfinite(e_old.std) else 0.0,
+            )
+            if abs(new[n] - old[n]) > self.policy.jump_sigmas * sigma:
+                out[n] = rel
+        return out
+
+    def _judge(self, result: IdentificationResult, ids: list[str], now: int, seconds: float) -> RecalibrationOutcome:
+        model = result.complete()
+        if model is None:
+            missing = [n for n, v in result.parameters.items() if not math.isfinite(v)]
+            why = "; ".join(result.problems[:3]) or f"missing {missing}"
+            return RecalibrationOutcome(
+                False, f"kept last good set: incomplete result ({why})", self.last_good, result, ids, now, seconds
+            )
+        if self.last_good is not None:
+            jumps = self._jumps(model, result)
+            if jumps:
+                text = ", ".join(f"{n} {100 * j:+.0f} %" for n, j in jumps.items())
+                return RecalibrationOutcome(
+                    False, f"kept last good set: implausible jump ({text})", self.last_good, result, ids, now, seconds
+                )
+        self.last_good = model
+        self.last_result = result
+        flagged = [n for n, e in result.estimates.items() if not e.identifiable]
+        status = "ok" if not flagged else f"ok; poorly identified: {', '.join(flagged)}"
+        return RecalibrationOutcome(True, status, model, result, ids, now, seconds)
