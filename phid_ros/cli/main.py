@@ -103,9 +103,19 @@ def _iso(ns: int) -> str:
 def cmd_info(args: argparse.Namespace, console: Console) -> int:
     from phid_ros.cli.info import summarise_streams
     from phid_ros.io.bags import read_recording, topic_table
+    from phid_ros.io.recording import expected_type
 
     path = Path(args.bag)
     topics = topic_table(path)
+    if not any(expected_type(t) for t, _, _ in topics):
+        # an output bag (phid replay) or foreign data: the topic table is all there is to show
+        table = Table(title=f"{path} (no sensor streams)", title_justify="left")
+        for col in ("topic", "type", "messages"):
+            table.add_column(col, justify="right" if col == "messages" else "left")
+        for topic, msgtype, count in topics:
+            table.add_row(topic, msgtype, str(count))
+        console.print(table)
+        return 0
     rec = read_recording(path)
     table = Table(title=f"{path}", title_justify="left")
     for col in ("topic", "type", "messages"):
@@ -152,6 +162,13 @@ def cmd_info(args: argparse.Namespace, console: Console) -> int:
 # -- identify ------------------------------------------------------------------------
 def cmd_identify(args: argparse.Namespace, console: Console) -> int:
     from phid_ros.cli.identify import run
+
+    return run(args, console)
+
+
+# -- replay --------------------------------------------------------------------------
+def cmd_replay(args: argparse.Namespace, console: Console) -> int:
+    from phid_ros.cli.replay import run
 
     return run(args, console)
 
@@ -213,6 +230,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="seed of the stochastic optimisers (default 0)")
     p.add_argument("--paper-maxiter", type=int, default=300, help="generations of the paper's DE (default 300)")
     p.set_defaults(func=cmd_identify)
+
+    p = sub.add_parser("replay", help="play a bag through the online pipeline (detection, recalibration, energy)")
+    p.add_argument("bag", help="rosbag2 folder or .mcap file")
+    p.add_argument("--out", required=True, help="output bag for every published message (.mcap or folder)")
+    p.add_argument("--rate", type=float, help="play at R x real time (default: as fast as possible)")
+    p.add_argument("--store", metavar="EVENTS.sqlite", help="keep the event store in this file (default: memory)")
+    p.set_defaults(func=cmd_replay)
 
     p = sub.add_parser("info", help="topics, message counts, rates, time span and gaps of a bag")
     p.add_argument("bag")

@@ -68,3 +68,144 @@ def replay(
 
 def event_times(outputs: Outputs) -> np.ndarray:
     return np.array([e.inception_ns for e in outputs.events], dtype=np.int64)
+
+
+# -- the command -----------------------------------------------------------------------------
+OUTPUT_TOPICS = {
+    "events": ("/phid/events", "phid_msgs/msg/DisturbanceEvent"),
+    "windows": ("/phid/event_windows", "phid_msgs/msg/EventWindow"),
+    "parameters": ("/phid/parameters", "phid_msgs/msg/GeneratorParameters"),
+    "hamiltonian": ("/phid/hamiltonian", "phid_msgs/msg/HamiltonianState"),
+    "diagnostics": ("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray"),
+}
+
+
+class OutputCollector:
+    """Turns pipeline outputs into (log time, topic, type, message) for the output bag."""
+
+    def __init__(self, pipeline: MonitorPipeline, diagnostics_period_ns: int = NS) -> None:
+        from phid_ros.io.msg_schemas import typestore
+
+        self.types = typestore().types
+        self.pipeline = pipeline
+        self.messages: list[tuple[int, str, str, object]] = []
+        self.last_status: str | None = None
+        self._diag_period = diagnostics_period_ns
+        self._next_diag: int | None = None
+
+    def _add(self, key: str, log_ns: int, msg: object) -> None:
+        topic, msgtype = OUTPUT_TOPICS[key]
+        self.messages.append((int(log_ns), topic, msgtype, msg))
+
+    def __call__(self, out: Outputs) -> None:
+        from phid_ros.stream import messages as m
+
+        for e in out.events:
+            self._add("events", e.inception_ns, m.event_message(self.types, e))
+        for w in out.windows:
+            self._add(
+                "windows", int(w.t_ns[-1]) if len(w.t_ns) else w.event.inception_ns, m.window_message(self.types, w)
+            )
+        for r in out.recalibrations:
+            self.last_status = r.status
+            msg = m.parameters_message(self.types, r)
+            if msg is not None:
+                self._add("parameters", r.stream_time_ns, msg)
+        for e in out.energy:
+            for t, msg in zip(e.t_ns, m.hamiltonian_messages(self.types, e)):
+                self._add("hamiltonian", int(t), msg)
+        now = self.pipeline.latest_ns
+        if now is not None:
+            if self._next_diag is None:
+                self._next_diag = now
+            while now >= self._next_diag:
+                self._add(
+                    "diagnostics",
+                    self._next_diag,
+                    m.diagnostics_message(self.types, self._next_diag, self.pipeline.health, self.last_status),
+                )
+                self._next_diag += self._diag_period
+
+    def sorted(self) -> list[tuple[int, str, str, object]]:
+        return sorted(self.messages, key=lambda x: x[0])
+
+
+def run(args: object, console: object) -> int:
+    import resource
+
+    from rich.table import Table
+
+    from phid_ros.errors import PhidError
+    from phid_ros.io.bags import read_recording, write_messages
+    from phid_ros.model.parameters import PARAMETER_NAMES
+    from phid_ros.stream.pipeline import PipelineSettings
+
+    out_path = args.out  # type: ignore[attr-defined]
+    from pathlib import Path
+
+    if Path(out_path).exists():
+        raise PhidError(f"{out_path}: already exists, not overwriting")
+    rec = read_recording(args.bag)  # type: ignore[attr-defined]
+    settings = PipelineSettings(store_path=args.store or ":memory:")  # type: ignore[attr-defined]
+    pipeline = MonitorPipeline(settings)
+    collector = OutputCollector(pipeline)
+    t0 = time.perf_counter()
+    outputs = replay(rec, pipeline, rate=args.rate, on_outputs=collector)  # type: ignore[attr-defined]
+    wall = time.perf_counter() - t0
+    write_messages(out_path, collector.sorted(), metadata={"source": f"phid replay {args.bag}"})  # type: ignore[attr-defined]
+    start, end = rec.span_ns()
+    span = (end - start) / NS
+    c = console
+    ev = Table(title=f"events found ({len(outputs.events)})", title_justify="left")
+    for col in ("id", "kind", "scenario", "t s", "clearing s", "severity", "window"):
+        ev.add_column(col)
+    usable = {w.event.event_id: ("ok" if w.usable else w.reason) for w in outputs.windows}
+    for e in outputs.events:
+        ev.add_row(
+            e.event_id,
+            e.kind,
+            e.name or "—",
+            f"{(e.inception_ns - start) / NS:.3f}",
+            f"{(e.clearing_ns - start) / NS:.3f}" if e.clearing_ns else "",
+            f"{e.severity:+.3f}",
+            usable.get(e.event_id, "pending"),
+        )
+    c.print(ev)  # type: ignore[attr-defined]
+    for r in outputs.recalibrations:
+        c.print(
+            f"recalibration at {(r.stream_time_ns - start) / NS:.1f} s with {len(r.event_ids)} events: "  # type: ignore[attr-defined]
+            f"{'accepted' if r.accepted else 'rejected'} — {r.status} ({r.seconds:.2f} s)",
+            highlight=False,
+        )
+    p = pipeline.parameters
+    if p is not None:
+        c.print(
+            "final parameters: " + ", ".join(f"{n} = {getattr(p, n):.5g}" for n in PARAMETER_NAMES),  # type: ignore[attr-defined]
+            highlight=False,
+        )
+    else:
+        c.print("final parameters: none (not enough events for a recalibration)")  # type: ignore[attr-defined]
+    if pipeline.recalibrator.last_good is not None and outputs.energy:
+        last = outputs.energy[-1]
+        c.print(
+            f"Hamiltonian at the end: {last.value[-1]:.5f} (kinetic {last.kinetic[-1]:.2e}, "  # type: ignore[attr-defined]
+            f"magnetic d {last.magnetic_d[-1]:.4f}, q {last.magnetic_q[-1]:.4f}); "
+            f"{sum(len(e) for e in outputs.energy)} samples at {settings.hamiltonian_rate_hz:g} Hz",
+            highlight=False,
+        )
+    health = Table(title="stream health", title_justify="left")
+    for col in ("stream", "level", "status", "samples", "dropped", "gaps", "clock jumps"):
+        health.add_column(col)
+    for name, h in pipeline.health.items():
+        level, msg = h.status()
+        health.add_row(name, level, msg, str(h.samples), str(h.dropped), str(h.gaps), str(h.clock_jumps))
+    c.print(health)  # type: ignore[attr-defined]
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    c.print(
+        f"replayed {span:.1f} s in {wall:.2f} s ({span / wall:.0f}x real time), "  # type: ignore[attr-defined]
+        f"{pipeline.samples_in / wall / 1e6:.2f} M channel-samples/s, peak memory {peak:.0f} MB; "
+        f"wrote {len(collector.messages)} messages to {out_path}",
+        highlight=False,
+    )
+    pipeline.close()
+    return 0

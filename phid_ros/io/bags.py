@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from pathlib import Path
 
 from phid_ros.errors import BagError
@@ -23,6 +24,19 @@ def read_recording(path: str | Path) -> Recording:
     if is_mcap_file(p):
         return read_mcap(p)
     raise BagError(f"{p}: not a rosbag2 folder or .mcap file")
+
+
+def write_messages(
+    path: str | Path, messages: Iterable[tuple[int, str, str, object]], metadata: dict[str, str] | None = None
+) -> Path:
+    """(log time, topic, msgtype, message) in log-time order -> ``*.mcap`` file or rosbag2 folder."""
+    from phid_ros.io.mcap_file import write_mcap_messages
+    from phid_ros.io.rosbag2 import write_rosbag2_messages
+
+    p = Path(path)
+    if p.suffix == ".mcap":
+        return write_mcap_messages(p, messages, metadata)
+    return write_rosbag2_messages(p, messages, metadata)
 
 
 def write_recording(path: str | Path, rec: Recording, **kwargs: object) -> Path:

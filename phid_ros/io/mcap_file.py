@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import json
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from mcap.exceptions import McapError
@@ -28,27 +28,46 @@ METADATA_NAME = "phid"
 def write_mcap(
     path: str | Path, rec: Recording, *, block_size: int = DEFAULT_BLOCK_SIZE, namespace: str = DEFAULT_NAMESPACE
 ) -> Path:
+    return write_mcap_messages(
+        path, recording_messages(rec, block_size=block_size, namespace=namespace), metadata=rec.metadata
+    )
+
+
+def write_mcap_messages(
+    path: str | Path, messages: Iterable[tuple[int, str, str, object]], metadata: dict[str, str] | None = None
+) -> Path:
+    """Any (log time ns, topic, msgtype, message) stream, in that order, into a new .mcap file."""
     path = Path(path)
     if path.exists():
         raise BagError(f"{path}: already exists, not overwriting")
     store = typestore()
+    try:
+        _write_mcap(path, messages, metadata, store)
+    except BaseException:
+        path.unlink(missing_ok=True)  # never leave a truncated file that looks like a recording
+        raise
+    return path
+
+
+def _write_mcap(
+    path: Path, messages: Iterable[tuple[int, str, str, object]], metadata: dict[str, str] | None, store: object
+) -> None:
     with path.open("wb") as fh:
         writer = Writer(fh, compression=CompressionType.ZSTD)
         writer.start(profile="ros2", library="phid_ros")
         schemas: dict[str, int] = {}
         channels: dict[str, int] = {}
-        for log_ns, topic, msgtype, msg in recording_messages(rec, block_size=block_size, namespace=namespace):
+        for log_ns, topic, msgtype, msg in messages:
             if msgtype not in schemas:
-                msgdef, _ = store.generate_msgdef(msgtype, ros_version=2)
+                msgdef, _ = store.generate_msgdef(msgtype, ros_version=2)  # type: ignore[attr-defined]
                 schemas[msgtype] = writer.register_schema(msgtype, "ros2msg", msgdef.encode())
             if topic not in channels:
                 channels[topic] = writer.register_channel(topic, "cdr", schemas[msgtype])
-            data = bytes(store.serialize_cdr(msg, msgtype))
+            data = bytes(store.serialize_cdr(msg, msgtype))  # type: ignore[attr-defined]
             writer.add_message(channels[topic], log_time=log_ns, data=data, publish_time=log_ns)
-        if rec.metadata:
-            writer.add_metadata(METADATA_NAME, {k: str(v) for k, v in rec.metadata.items()})
+        if metadata:
+            writer.add_metadata(METADATA_NAME, {k: str(v) for k, v in metadata.items()})
         writer.finish()
-    return path
 
 
 def read_mcap(path: str | Path) -> Recording:

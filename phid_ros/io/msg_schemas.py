@@ -26,6 +26,13 @@ ENV_VAR = "PHID_MSG_SCHEMAS"
 BASE_TYPES: dict[str, str] = {
     "builtin_interfaces/msg/Time": "int32 sec\nuint32 nanosec",
     "std_msgs/msg/Header": "builtin_interfaces/Time stamp\nstring frame_id",
+    # /diagnostics, as diagnostic_updater publishes it
+    "diagnostic_msgs/msg/KeyValue": "string key\nstring value",
+    "diagnostic_msgs/msg/DiagnosticStatus": (
+        "byte OK=0\nbyte WARN=1\nbyte ERROR=2\nbyte STALE=3\n"
+        "byte level\nstring name\nstring message\nstring hardware_id\ndiagnostic_msgs/KeyValue[] values"
+    ),
+    "diagnostic_msgs/msg/DiagnosticArray": "std_msgs/Header header\ndiagnostic_msgs/DiagnosticStatus[] status",
 }
 
 

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+import shutil
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from rosbags.rosbag2 import Reader, Writer
@@ -28,27 +29,39 @@ ROSBAG2_VERSION = 9  # what ROS 2 Jazzy writes
 def write_rosbag2(
     path: str | Path, rec: Recording, *, block_size: int = DEFAULT_BLOCK_SIZE, namespace: str = DEFAULT_NAMESPACE
 ) -> Path:
+    return write_rosbag2_messages(
+        path, recording_messages(rec, block_size=block_size, namespace=namespace), metadata=rec.metadata
+    )
+
+
+def write_rosbag2_messages(
+    path: str | Path, messages: Iterable[tuple[int, str, str, object]], metadata: dict[str, str] | None = None
+) -> Path:
+    """Any (log time ns, topic, msgtype, message) stream, in that order, into a new rosbag2 folder."""
     path = Path(path)
     if path.exists():
         raise BagError(f"{path}: already exists, not overwriting")
     store = typestore()
     writer = Writer(path, version=ROSBAG2_VERSION, storage_plugin=StoragePlugin.MCAP)
     writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
-    for key, value in rec.metadata.items():
+    for key, value in (metadata or {}).items():
         writer.set_custom_data(f"phid.{key}", str(value))
     try:
         writer.open()
         connections: dict[str, object] = {}
-        for log_ns, topic, msgtype, msg in recording_messages(rec, block_size=block_size, namespace=namespace):
+        for log_ns, topic, msgtype, msg in messages:
             conn = connections.get(topic)
             if conn is None:
                 conn = connections[topic] = writer.add_connection(topic, msgtype, typestore=store)
             writer.write(conn, log_ns, store.serialize_cdr(msg, msgtype))  # type: ignore[arg-type]
-    except WriterError as exc:
-        raise BagError(f"{path}: cannot write bag: {exc}") from exc
-    finally:
+    except BaseException as exc:
         if writer.storage is not None:
-            writer.close()
+            writer.storage.abort()  # close the file without index and footer
+        shutil.rmtree(path, ignore_errors=True)  # never leave a half-written bag behind
+        if isinstance(exc, WriterError):
+            raise BagError(f"{path}: cannot write bag: {exc}") from exc
+        raise
+    writer.close()
     return path
 
 

@@ -153,6 +153,9 @@ class Detector:
         w = EventWindow(ev, t, x, self.period_ns)
         if ev.segment != self._segment:
             w.usable, w.reason = False, "the clock jumped (new segment) before the window was complete"
+        elif len(t) < expected and (self.ring.latest_ns or 0) < t1:
+            short = (t1 - (self.ring.latest_ns or 0)) / NS
+            w.usable, w.reason = False, f"the data ended {short:.1f} s before the end of the window"
         elif len(t) < expected:
             w.usable, w.reason = False, f"window has {len(t)} of {expected} samples (ring buffer too short or gap)"
         elif not np.isfinite(x).all():

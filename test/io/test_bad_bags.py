@@ -115,3 +115,26 @@ def test_existing_output_is_not_overwritten(tmp_path, short_recording):
     with pytest.raises(BagError, match="already exists"):
         write_recording(folder, short_recording)
     shutil.rmtree(folder)
+
+
+@pytest.mark.parametrize("name", ["broken.mcap", "broken"])
+def test_a_failed_write_leaves_nothing_behind(tmp_path, name):
+    from phid_ros.io.bags import write_messages
+    from phid_ros.io.recording import recording_messages
+
+    def messages():
+        yield from recording_messages(_small())[:3]
+        raise RuntimeError("producer failed")
+
+    with pytest.raises(RuntimeError, match="producer failed"):
+        write_messages(tmp_path / name, messages())
+    assert not (tmp_path / name).exists()
+
+
+def _small():
+    import numpy as np
+
+    from phid_ros.io.recording import Recording, StreamSamples
+
+    t = np.arange(10, dtype=np.int64) * 1_000_000
+    return Recording(streams={"pmu": StreamSamples(t, 1_000_000, {"theta_t": np.zeros(10), "delta": np.ones(10)})})

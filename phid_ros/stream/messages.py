@@ -1,0 +1,170 @@
+"""Build the output messages from the pipeline's results, for any message-class table.
+
+``types`` maps a full type name (``phid_msgs/msg/GeneratorParameters``) to a class
+that takes its fields as keyword arguments: the rosbags typestore classes (for
+``phid replay`` writing a bag) and the rclpy generated classes (for the nodes)
+both do. ``seq`` turns a float array into whatever the class wants for a
+``float64[]`` field (numpy for rosbags; ``array.array('d')`` for rclpy, which
+then skips its per-element checks).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import numpy as np
+
+from phid_ros.io.topics import CHANNELS
+from phid_ros.model.parameters import PARAMETER_NAMES
+from phid_ros.stream.align import StreamHealth
+from phid_ros.stream.detector import Event, EventWindow
+from phid_ros.stream.energy import EnergySamples
+from phid_ros.stream.recalibration import RecalibrationOutcome
+
+NS = 1_000_000_000
+Types = Mapping[str, Callable[..., Any]]
+Seq = Callable[[Any], Any]
+LEVELS = {"OK": 0, "WARN": 1, "ERROR": 2, "STALE": 3}
+
+
+def numpy_seq(a: Any) -> np.ndarray:
+    return np.ascontiguousarray(a, dtype=np.float64)
+
+
+def numpy_bools(a: Any) -> np.ndarray:
+    """``bool[]`` for rosbags; rclpy takes a plain list (pass ``list``)."""
+    return np.asarray(a, dtype=bool)
+
+
+def stamp(types: Types, ns: int) -> Any:
+    sec, nanosec = divmod(int(ns), NS)
+    return types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec)
+
+
+def header(types: Types, ns: int, frame_id: str = "generator") -> Any:
+    return types["std_msgs/msg/Header"](stamp=stamp(types, ns), frame_id=frame_id)
+
+
+def event_message(types: Types, e: Event) -> Any:
+    return types["phid_msgs/msg/DisturbanceEvent"](
+        header=header(types, e.inception_ns),
+        event_id=e.event_id,
+        kind=e.kind,
+        inception=stamp(types, e.inception_ns),
+        clearing=stamp(types, e.clearing_ns),
+        severity=float(e.severity),
+        v_prefault=float(e.v_prefault),
+    )
+
+
+def window_message(types: Types, w: EventWindow, seq: Seq = numpy_seq) -> Any:
+    e = w.event
+    arrays = {c: seq(w.values[:, i]) for i, c in enumerate(CHANNELS)}
+    return types["phid_msgs/msg/EventWindow"](
+        header=header(types, int(w.t_ns[0]) if len(w.t_ns) else e.inception_ns),
+        event_id=e.event_id,
+        kind=e.kind,
+        inception=stamp(types, e.inception_ns),
+        clearing=stamp(types, e.clearing_ns),
+        sample_period=w.period_ns / NS,
+        **arrays,
+    )
+
+
+def parameters_message(
+    types: Types, outcome: RecalibrationOutcome, seq: Seq = numpy_seq, bools: Seq = numpy_bools
+) -> Any | None:
+    """The set in force after a recalibration (the new one, or the last good one kept)."""
+    p = outcome.parameters
+    if p is None:
+        return None
+    values = p.as_dict()
+    res = outcome.result if outcome.accepted else None
+    est = res.estimates if res else {}
+    std = [est[n].std if n in est else math.nan for n in PARAMETER_NAMES]
+    ident = [bool(est[n].identifiable) if n in est else False for n in PARAMETER_NAMES]
+    objective = res.stage3.objective if res and res.stage3 else math.nan
+    fit = res.validation.worst("rmse") if res and res.validation else math.nan
+    return types["phid_msgs/msg/GeneratorParameters"](
+        header=header(types, outcome.stream_time_ns),
+        names=list(PARAMETER_NAMES),
+        values=seq([values[n] for n in PARAMETER_NAMES]),
+        std_dev=seq(std),
+        identifiable=bools(ident),
+        method=res.method if res else "",
+        event_ids=list(outcome.event_ids),
+        objective=float(objective),
+        fit_rmse=float(fit),
+        status=outcome.status,
+    )
+
+
+def hamiltonian_messages(types: Types, e: EnergySamples) -> list[Any]:
+    cls = types["phid_msgs/msg/HamiltonianState"]
+    return [
+        cls(
+            header=header(types, int(e.t_ns[k])),
+            value=float(e.value[k]),
+            kinetic=float(e.kinetic[k]),
+            magnetic_d=float(e.magnetic_d[k]),
+            magnetic_q=float(e.magnetic_q[k]),
+            dissipation=float(e.dissipation[k]),
+            supply=float(e.supply[k]),
+            passivity_margin=float(e.passivity_margin[k]),
+            delta=float(e.delta[k]),
+            omega=float(e.omega[k]),
+            e_q_prime=float(e.e_q_prime[k]),
+            e_d_prime=float(e.e_d_prime[k]),
+        )
+        for k in range(len(e))
+    ]
+
+
+def diagnostics_message(
+    types: Types, now_ns: int, health: Mapping[str, StreamHealth], recalibration_status: str | None, node: str = "phid"
+) -> Any:
+    """diagnostic_msgs/DiagnosticArray: one status per stream, one for recalibration."""
+    kv = types["diagnostic_msgs/msg/KeyValue"]
+    status_cls = types["diagnostic_msgs/msg/DiagnosticStatus"]
+    statuses = []
+    for name, h in health.items():
+        level, message = h.status(now_ns)
+        values = [
+            kv(key=k, value=str(v))
+            for k, v in (
+                ("rate_hz", f"{h.rate_hz():.1f}"),
+                ("stamp_lag_s", f"{h.lag_ns / NS:.3f}"),
+                ("samples", h.samples),
+                ("accepted", h.accepted),
+                ("dropped", h.dropped),
+                ("duplicates", h.duplicates),
+                ("out_of_order", h.out_of_order),
+                ("nonfinite", h.nonfinite),
+                ("implausible", h.implausible),
+                ("gaps", h.gaps),
+                ("clock_jumps", h.clock_jumps),
+            )
+        ]
+        statuses.append(
+            status_cls(
+                level=LEVELS[level],
+                name=f"{node}: {name} stream",
+                message=message,
+                hardware_id="generator",
+                values=values,
+            )
+        )
+    if recalibration_status is not None:
+        level = 0 if recalibration_status.startswith("ok") else (2 if "failed" in recalibration_status else 1)
+        statuses.append(
+            status_cls(
+                level=level,
+                name=f"{node}: recalibration",
+                message=recalibration_status,
+                hardware_id="generator",
+                values=[],
+            )
+        )
+    return types["diagnostic_msgs/msg/DiagnosticArray"](header=header(types, now_ns), status=statuses)
