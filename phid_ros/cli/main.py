@@ -51,6 +51,10 @@ def cmd_simulate(args: argparse.Namespace, console: Console) -> int:
     from phid_ros.sim.sensors import SensorModel
 
     _parse_effects(args.effect or [])
+    if args.ambient:
+        return _simulate_ambient(args, console)
+    if args.drift:
+        raise PhidError("--drift needs --ambient (a drift happens over a long run)")
     if args.scenario:
         scenarios = [find_scenario(name) for name in args.scenario]
     elif args.catalogue == "validation":
@@ -74,6 +78,51 @@ def cmd_simulate(args: argparse.Namespace, console: Console) -> int:
     truth = write_json(truth_path_for(out), truth_document(cfg, scenarios))
     start, end = rec.span_ns()
     console.print(f"wrote {out} ({len(scenarios)} scenarios, {(end - start) / 1e9:.1f} s of data) and {truth}")
+    return 0
+
+
+def _parse_drift(text: str) -> object:
+    from phid_ros.sim.ambient import Drift
+
+    try:
+        name, rest = text.split("=", 1)
+        rel, span = rest.split("@", 1)
+        start, end = span.split("-", 1)
+        return Drift(name.strip(), float(start), float(end), float(rel))
+    except ValueError:
+        raise PhidError(f"--drift {text!r}: expected NAME=REL@START-END, e.g. T_d0_prime=0.1@300-1500") from None
+
+
+def _simulate_ambient(args: argparse.Namespace, console: Console) -> int:
+    import numpy as np
+
+    from phid_ros.cli.simulate import DEFAULT_START_NS, recording_metadata, truth_document
+    from phid_ros.io.bags import write_recording
+    from phid_ros.io.recording import NS, Recording, StreamSamples
+    from phid_ros.io.results import truth_path_for, write_json
+    from phid_ros.io.topics import STREAMS
+    from phid_ros.sim.ambient import AmbientSettings, simulate_ambient
+    from phid_ros.sim.runner import SimulationConfig
+    from phid_ros.sim.sensors import SensorModel
+
+    out = Path(args.out)
+    if out.exists():
+        raise PhidError(f"{out}: already exists, not overwriting")
+    drifts = tuple(_parse_drift(d) for d in (args.drift or []))
+    settings = AmbientSettings(duration_s=args.ambient, drifts=drifts, seed=args.seed)  # type: ignore[arg-type]
+    cfg = SimulationConfig(f_nominal_hz=args.f_nominal, sensors=SensorModel(seed=args.seed, noiseless=args.noiseless))
+    with _progress(console) as progress:
+        progress.add_task(f"simulating {args.ambient:g} s of ambient operation", total=None)
+        run = simulate_ambient(settings, cfg)
+        dt_ns = int(round(cfg.dt * NS))
+        t_ns = DEFAULT_START_NS + np.arange(len(run.t), dtype=np.int64) * dt_ns
+        streams = {s.name: StreamSamples(t_ns.copy(), dt_ns, {c: run.measured[c] for c in s.channels}) for s in STREAMS}
+        write_recording(out, Recording(streams, [], recording_metadata(cfg)), block_size=args.block_size)
+    truth = truth_document(cfg, [])
+    truth["ambient"] = {"duration_s": args.ambient, "seed": args.seed, "drifts": [d.__dict__ for d in drifts]}  # type: ignore[attr-defined]
+    truth["drifting_parameters_every_s"] = {name: v[:: int(1 / cfg.dt)].tolist() for name, v in run.parameters.items()}
+    path = write_json(truth_path_for(out), truth)
+    console.print(f"wrote {out} ({args.ambient:g} s, {len(drifts)} drift(s)) and {path}")
     return 0
 
 
@@ -173,6 +222,13 @@ def cmd_replay(args: argparse.Namespace, console: Console) -> int:
     return run(args, console)
 
 
+# -- track ---------------------------------------------------------------------------
+def cmd_track(args: argparse.Namespace, console: Console) -> int:
+    from phid_ros.cli.track import run
+
+    return run(args, console)
+
+
 # -- entry point -----------------------------------------------------------------
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="phid", description="Port-Hamiltonian generator identification.")
@@ -201,6 +257,18 @@ def build_parser() -> argparse.ArgumentParser:
         help=f"samples per sensor message (default {DEFAULT_BLOCK_SIZE})",
     )
     p.add_argument("--effect", action="append", metavar="NAME[=k=v,...]", help="switch on a plant effect")
+    p.add_argument(
+        "--ambient",
+        type=float,
+        metavar="SECONDS",
+        help="instead of the catalogue: one long run with ambient load/voltage noise and small steps",
+    )
+    p.add_argument(
+        "--drift",
+        action="append",
+        metavar="NAME=REL@START-END",
+        help="with --ambient: drift a parameter, e.g. T_d0_prime=0.1@300-1500 (+10 %% from 300 s to 1500 s)",
+    )
     p.set_defaults(func=cmd_simulate)
 
     p = sub.add_parser("import-csv", help="turn a CSV scenario set (manifest.json) into a bag")
@@ -237,6 +305,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--rate", type=float, help="play at R x real time (default: as fast as possible)")
     p.add_argument("--store", metavar="EVENTS.sqlite", help="keep the event store in this file (default: memory)")
     p.set_defaults(func=cmd_replay)
+
+    p = sub.add_parser("track", help="sliding-window tracking of parameter drift over a recording")
+    p.add_argument("bag", help="rosbag2 folder or .mcap file")
+    p.add_argument("--window", type=float, default=300.0, help="window length, s (default 300)")
+    p.add_argument("--hop", type=float, default=60.0, help="hop between estimates, s (default 60)")
+    p.add_argument("--base", metavar="PARAMS.json", help="base parameters (X_d, X_q); default Table 1")
+    p.add_argument("--out", help="write the tracked parameters to this bag (.mcap or folder)")
+    p.set_defaults(func=cmd_track)
 
     p = sub.add_parser("info", help="topics, message counts, rates, time span and gaps of a bag")
     p.add_argument("bag")

@@ -56,13 +56,16 @@ def recording_from_runs(
         spec.name: StreamSamples(t_all.copy(), dt_ns, {c: np.concatenate(channels[c]) for c in spec.channels})
         for spec in STREAMS
     }
-    metadata = {
+    return Recording(streams=streams, scenarios=scenarios, metadata=recording_metadata(cfg))
+
+
+def recording_metadata(cfg: SimulationConfig) -> dict[str, str]:
+    return {
         "f_nominal_hz": str(cfg.f_nominal_hz),
         "base_mva": str(BASE_MVA),
         "source": f"phid simulate (phid_ros {__version__})",
         "sensor_seed": str(cfg.sensors.seed),
     }
-    return Recording(streams=streams, scenarios=scenarios, metadata=metadata)
 
 
 def truth_document(cfg: SimulationConfig, scenarios: Sequence[Scenario]) -> dict[str, Any]:

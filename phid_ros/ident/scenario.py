@@ -45,6 +45,7 @@ class ScenarioData:
     k_clear: int | None = None
     start_ns: int = 0
     notes: list[str] = field(default_factory=list)
+    extra_switching: list[int] = field(default_factory=list)  # further steps inside a long window
 
     def __post_init__(self) -> None:
         n = len(self.signals["v_t"])
@@ -63,7 +64,8 @@ class ScenarioData:
     @property
     def switching(self) -> list[int]:
         """Samples at which an input or the network switches (event, clearing)."""
-        return [self.k_event] + ([self.k_clear] if self.k_clear is not None else [])
+        out = [self.k_event] + ([self.k_clear] if self.k_clear is not None else [])
+        return sorted(set(out + [k for k in self.extra_switching if 0 < k < self.n]))
 
     def steady_slice(self) -> slice:
         return slice(int(round(self.n * (1.0 - STEADY_FRACTION))), self.n)

@@ -74,6 +74,7 @@ class AxisData:
     mask: Array  # True where a scenario has data
     keep: slice  # decimation
     names: list[str]
+    noise_var: Array | None = None  # per scenario: sensor-noise variance of the prefiltered current
 
 
 @dataclass
@@ -133,10 +134,24 @@ def prepare(
         np.array(sw_rows, dtype=np.int64),
         np.array(sw_slots, dtype=np.int64),
     )
-    d = AxisData(
-        filt(pad(lambda s: s["i_d"])), filt(pad(lambda s: s["v_f"])), filt(pad(lambda s: s.v_q)), *sw, mask, keep, names
+    gain = float(np.sum(impulse**2))  # white-noise power gain of the prefilter
+
+    def noise(name: str) -> Array:
+        """Per scenario: sensor-noise variance of the prefiltered current, from first differences
+        (robust MAD; the signal barely moves in one sample)."""
+        out = []
+        for s, e in zip(scs, ends):
+            d = np.diff(s[name][:e])
+            out.append((1.4826 * np.median(np.abs(d - np.median(d)))) ** 2 / 2.0)
+        return np.array(out) * gain
+
+    d_current, d_drive, d_voltage = (
+        filt(pad(lambda s: s["i_d"])),
+        filt(pad(lambda s: s["v_f"])),
+        filt(pad(lambda s: s.v_q)),
     )
-    q = AxisData(filt(pad(lambda s: s["i_q"])), None, filt(pad(lambda s: s.v_d)), *sw, mask, keep, names)
+    d = AxisData(d_current, d_drive, d_voltage, *sw, mask, keep, names, noise("i_d"))
+    q = AxisData(filt(pad(lambda s: s["i_q"])), None, filt(pad(lambda s: s.v_d)), *sw, mask, keep, names, noise("i_q"))
     return Stage3Data(d, q, dt, int(mask.sum()))
 
 
@@ -283,8 +298,9 @@ def _profile(
         return solve_axis(ax, math.exp(log_tau), data.dt, d_axis, x_sync).sse
 
     lo, hi = math.log(bounds[0]), math.log(bounds[1])
-    # coarse grid first: the profile can have a shallow second minimum near the bounds
-    grid = np.linspace(lo, hi, 9)
+    # coarse grid first (the profile can have a shallow second minimum near the bounds), about
+    # one point per 0.5 in log(tau): 9 over the full range, fewer for a warm start's narrow one
+    grid = np.linspace(lo, hi, int(np.clip(math.ceil((hi - lo) / 0.5) + 1, 4, 9)))
     vals = [f(g) for g in grid]
     i = int(np.argmin(vals))
     a, b = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
@@ -294,12 +310,23 @@ def _profile(
     return solve_axis(ax, math.exp(float(res.x)), data.dt, d_axis, x_sync)
 
 
-def fast(data: Stage3Data, x_d: float, x_q: float, *, refine_synchronous: bool = False) -> Stage3Result:
-    """Variable projection: two 1-D searches over the time constants, everything else linear."""
+def fast(
+    data: Stage3Data,
+    x_d: float,
+    x_q: float,
+    *,
+    refine_synchronous: bool = False,
+    bounds_d: tuple[float, float] | None = None,
+    bounds_q: tuple[float, float] | None = None,
+) -> Stage3Result:
+    """Variable projection: two 1-D searches over the time constants, everything else linear.
+
+    ``bounds_d`` / ``bounds_q`` narrow the searches (warm starts of a tracker around its last value).
+    """
     t0 = time.perf_counter()
     counter = [0]
-    fd = _profile(data, True, None if refine_synchronous else x_d, T_D0_BOUNDS, counter)
-    fq = _profile(data, False, None if refine_synchronous else x_q, T_Q0_BOUNDS, counter)
+    fd = _profile(data, True, None if refine_synchronous else x_d, bounds_d or T_D0_BOUNDS, counter)
+    fq = _profile(data, False, None if refine_synchronous else x_q, bounds_q or T_Q0_BOUNDS, counter)
     theta = (fd.x_prime, fq.x_prime, fd.tau, fq.tau)
     j = objective(data, theta, fd.x_sync, fq.x_sync)
     result = Stage3Result(
@@ -421,10 +448,46 @@ def _estimates(data: Stage3Data, fd: AxisFit, fq: AxisFit) -> tuple[Estimate, Es
         share_x = information_share(jac, rows_per_scn, 0)
         share_t = information_share(jac, rows_per_scn, 1)
         top = lambda s: [ax.names[i] for i in np.argsort(s)[::-1][:3] if s[i] > 0.05]  # noqa: E731
-        out.append(flag(Estimate(fit.x_prime, math.sqrt(max(cov[0, 0], 0.0)), drivers=top(share_x)), names[0]))
-        out.append(flag(Estimate(fit.tau, math.sqrt(max(cov[1, 1], 0.0)), drivers=top(share_t)), names[1]))
+        xp_est = flag(Estimate(fit.x_prime, math.sqrt(max(cov[0, 0], 0.0)), drivers=top(share_x)), names[0])
+        att = attenuation(ax, fit.tau, data.dt, d_axis, fit.x_sync)
+        if att > MAX_ATTENUATION:
+            xp_est.identifiable = False
+            current = "I_d" if d_axis else "I_q"
+            xp_est.note = (xp_est.note + "; " if xp_est.note else "") + (
+                f"{names[0]}: {current} barely moves against its sensor noise here (errors in variables bias it "
+                f"about {-100 * att:.0f} %); larger disturbances would fix it"
+            )
+        out.append(xp_est)
+        tau_est = flag(Estimate(fit.tau, math.sqrt(max(cov[1, 1], 0.0)), drivers=top(share_t)), names[1])
+        if att > MAX_ATTENUATION_TAU:
+            tau_est.identifiable = False
+            tau_est.note = (tau_est.note + "; " if tau_est.note else "") + (
+                f"{names[1]}: the axis is dominated by sensor noise here; not trusted"
+            )
+        out.append(tau_est)
     xdp, td0, xqp, tq0 = out
     return xdp, xqp, td0, tq0
+
+
+MAX_ATTENUATION = 0.02  # errors-in-variables bias of X' above which it is flagged
+MAX_ATTENUATION_TAU = 0.10  # ... and above which the axis's time constant is no longer trusted either
+
+
+def attenuation(ax: AxisData, tau: float, dt: float, d_axis: bool, x_sync: float = 1.0) -> float:
+    """Fraction of the X' column's power that is sensor noise: its least-squares bias toward zero.
+
+    The power is taken after the per-scenario nuisance terms (free initial fluxes, switching
+    jumps) are projected out, as the fit sees it: the start-up transient of I - L[I] is absorbed
+    by the free initial flux and carries no information.
+    """
+    if ax.noise_var is None:
+        return 0.0
+    fit = solve_axis(ax, tau, dt, d_axis, x_sync, keep_residual=True)
+    if fit.columns is None:
+        return 0.0
+    power = float(np.sum(fit.columns[:, 0] ** 2))
+    noise = float(np.sum(ax.noise_var * ax.mask[:, ax.keep].sum(axis=1)))
+    return noise / power if power > 0 else 1.0
 
 
 def _check_bounds(r: Stage3Result) -> None:

@@ -1,0 +1,171 @@
+"""Long recordings for the sliding-window tracker: ambient fluctuations, small steps, drift.
+
+One continuous trajectory of the plant of :mod:`plant` (same equations, same
+network) with
+- mechanical power and infinite-bus voltage wandering as Ornstein-Uhlenbeck
+  processes (load and grid ambient noise),
+- occasional small torque and voltage steps,
+- any parameter drifting linearly between two times (e.g. T'_d0 +10 % as the
+  field winding warms).
+
+A single long trajectory cannot be vectorised over scenarios, and numpy on
+one-element arrays costs more than the arithmetic, so this integrator runs RK4
+on plain Python floats (about 10x faster here); a test checks it against
+:class:`~phid_ros.sim.plant.Plant` step for step.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.signal import lfilter
+
+from phid_ros.errors import SimulationError
+from phid_ros.model.conventions import omega_s
+from phid_ros.sim.runner import SimulationConfig
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Drift:
+    parameter: str
+    start_s: float
+    end_s: float
+    relative_change: float
+
+
+@dataclass(frozen=True)
+class AmbientSettings:
+    duration_s: float = 1800.0
+    load_std: float = 0.01  # pu, OU standard deviation of P_m
+    load_tau_s: float = 30.0
+    voltage_std: float = 0.003  # relative, OU standard deviation of V_inf
+    voltage_tau_s: float = 20.0
+    step_every_s: float = 60.0  # a small disturbance this often, alternating torque and voltage
+    torque_step: float = 0.04  # pu
+    voltage_step: float = 0.03  # relative
+    drifts: tuple[Drift, ...] = ()
+    seed: int = 0
+
+
+@dataclass
+class AmbientRun:
+    t: Array
+    truth: dict[str, Array]
+    measured: dict[str, Array]
+    parameters: dict[str, Array] = field(default_factory=dict)  # true value of each drifting parameter
+
+
+def _ou(n: int, dt: float, std: float, tau: float, rng: np.random.Generator) -> Array:
+    a = math.exp(-dt / tau)
+    return lfilter([std * math.sqrt(1 - a * a)], [1.0, -a], rng.standard_normal(n))
+
+
+def simulate_ambient(settings: AmbientSettings, cfg: SimulationConfig | None = None) -> AmbientRun:
+    cfg = cfg or SimulationConfig()
+    p = cfg.params
+    dt = cfg.dt
+    n = int(round(settings.duration_s / dt))
+    rng = np.random.default_rng(settings.seed)
+    plant = cfg.plant()
+    ss = plant.steady_state(cfg.operating_point)
+    t = np.arange(n + 1) * dt
+    # inputs per step: ambient wander plus alternating small steps that come back after half the period
+    p_m = ss.p_m + _ou(n + 1, dt, settings.load_std, settings.load_tau_s, rng)
+    v_inf = ss.v_inf * (1.0 + _ou(n + 1, dt, settings.voltage_std, settings.voltage_tau_s, rng))
+    period = settings.step_every_s
+    k = np.floor(t / period).astype(int)
+    in_step = (t % period) < period / 2
+    torque_turn = k % 2 == 0
+    p_m += np.where(in_step & torque_turn & (t >= period), settings.torque_step, 0.0)
+    v_inf *= np.where(in_step & ~torque_turn, 1.0 + settings.voltage_step, 1.0)
+    # drifting parameters
+    values = {
+        name: np.full(n + 1, getattr(p, name))
+        for name in ("H", "D", "X_d", "X_q", "X_d_prime", "X_q_prime", "T_d0_prime", "T_q0_prime")
+    }
+    for d in settings.drifts:
+        if d.parameter not in values:
+            raise SimulationError(f"cannot drift unknown parameter {d.parameter!r}")
+        ramp = np.clip((t - d.start_s) / max(d.end_s - d.start_s, dt), 0.0, 1.0)
+        values[d.parameter] = values[d.parameter] * (1.0 + d.relative_change * ramp)
+    ze = plant.network.z_e
+    r, x_e = ze.real, ze.imag
+    ws = omega_s(cfg.f_nominal_hz)
+    v_f = ss.v_f
+    states = np.empty((n + 1, 4))
+    x = [ss.delta, 1.0, ss.e_q, ss.e_d]
+    states[0] = x
+    H, D, XD, XQ, XDP, XQP, TD0, TQ0 = (
+        values[k].tolist() for k in ("H", "D", "X_d", "X_q", "X_d_prime", "X_q_prime", "T_d0_prime", "T_q0_prime")
+    )
+    pm_l, vi_l = p_m.tolist(), v_inf.tolist()
+    sin, cos = math.sin, math.cos
+    h2, h6 = 0.5 * dt, dt / 6.0
+    for j in range(n):
+        pm, vi = pm_l[j], vi_l[j]
+        hh, dd, xd, xq, xdp, xqp, td0, tq0 = H[j], D[j], XD[j], XQ[j], XDP[j], XQP[j], TD0[j], TQ0[j]
+        a12, a21 = xqp + x_e, xdp + x_e
+        det = -(r * r + a12 * a21)
+
+        def f(d0: float, w0: float, eq: float, ed: float) -> tuple[float, float, float, float]:
+            vd, vq = vi * sin(d0), vi * cos(d0)
+            b1, b2 = vd - ed, eq - vq
+            i_d = (b1 * r - a12 * b2) / det
+            i_q = (-r * b2 - a21 * b1) / det
+            pe = ed * i_d + eq * i_q + (xqp - xdp) * i_d * i_q
+            slip = w0 - 1.0
+            return (
+                ws * slip,
+                (pm - pe - dd * slip) / (2.0 * hh),
+                (v_f - eq - (xd - xdp) * i_d) / td0,
+                ((xq - xqp) * i_q - ed) / tq0,
+            )
+
+        d0, w0, eq, ed = x
+        k1 = f(d0, w0, eq, ed)
+        k2 = f(d0 + h2 * k1[0], w0 + h2 * k1[1], eq + h2 * k1[2], ed + h2 * k1[3])
+        k3 = f(d0 + h2 * k2[0], w0 + h2 * k2[1], eq + h2 * k2[2], ed + h2 * k2[3])
+        k4 = f(d0 + dt * k3[0], w0 + dt * k3[1], eq + dt * k3[2], ed + dt * k3[3])
+        x = [x[i] + h6 * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i]) for i in range(4)]
+        states[j + 1] = x
+    if not np.all(np.isfinite(states)) or np.max(np.abs(states[:, 1] - 1.0)) > 0.05:
+        raise SimulationError("the ambient run lost synchronism; reduce the fluctuations or the steps")
+    truth = _terminal(states, p_m, v_inf, v_f, values, r, x_e)
+    measured = cfg.sensors.measure(truth, stream_seed=10_000 + settings.seed)
+    drifting = {d.parameter: values[d.parameter] for d in settings.drifts}
+    return AmbientRun(t, truth, measured, drifting)
+
+
+def _terminal(
+    states: Array, p_m: Array, v_inf: Array, v_f: float, values: dict[str, Array], r: float, x_e: float
+) -> dict[str, Array]:
+    from phid_ros.model.conventions import electrical_power
+
+    delta, omega, e_q, e_d = states.T
+    xdp, xqp = values["X_d_prime"], values["X_q_prime"]
+    vd_inf, vq_inf = v_inf * np.sin(delta), v_inf * np.cos(delta)
+    a12, a21 = xqp + x_e, xdp + x_e
+    det = -(r * r + a12 * a21)
+    b1, b2 = vd_inf - e_d, e_q - vq_inf
+    i_d = (b1 * r - a12 * b2) / det
+    i_q = (-r * b2 - a21 * b1) / det
+    v_d = vd_inf + r * i_d - x_e * i_q
+    v_q = vq_inf + r * i_q + x_e * i_d
+    p_e, q_e = electrical_power(v_d, v_q, i_d, i_q)
+    return {
+        "v_t": np.hypot(v_d, v_q),
+        "theta_t": delta - np.arctan2(v_d, v_q),
+        "i_d": i_d,
+        "i_q": i_q,
+        "omega": omega,
+        "delta": delta,
+        "v_f": np.full_like(delta, v_f),
+        "p_m": p_m,
+        "p_e": p_e,
+        "q_e": q_e,
+    }

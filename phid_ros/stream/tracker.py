@@ -1,0 +1,169 @@
+"""Sliding-window tracking of slow parameter drift (the paper's future work, section 5.2).
+
+Every ``hop_s`` of stream time the tracker runs stage 1 (H, D) and stage 3
+(X'_d, X'_q, T'_d0, T'_q0) on the last ``window_s`` of aligned data, with the
+steps inside the window (found by the batch detector) as switching instants and
+the time-constant searches warm-started around the previous hop's values.
+X_d and X_q come from the base set (the last recalibration): ambient data has no
+settled steady states for stage 2. Each hop publishes estimates with standard
+deviations and identifiability; a parameter that leaves the confidence band
+around its reference (the first window's estimate) for ``alarm_after``
+consecutive hops raises a drift alarm.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from phid_ros.ident import stage1, stage3
+from phid_ros.ident.results import Estimate
+from phid_ros.ident.scenario import ScenarioData, find_events
+from phid_ros.io.topics import CHANNELS
+from phid_ros.model.parameters import GeneratorParameters
+from phid_ros.stream.ring import RingBuffer
+
+NS = 1_000_000_000
+TRACKED = ("H", "D", "X_d_prime", "X_q_prime", "T_d0_prime", "T_q0_prime")
+
+
+@dataclass(frozen=True)
+class TrackerSettings:
+    window_s: float = 300.0
+    hop_s: float = 60.0
+    drift_sigmas: float = 4.0
+    alarm_after: int = 2
+    warm_start_span: float = 0.4  # search +-40 % around the previous hop's time constants
+
+    def __post_init__(self) -> None:
+        if not 0 < self.hop_s <= self.window_s:
+            raise ValueError("need 0 < hop_s <= window_s")
+
+
+@dataclass
+class TrackPoint:
+    t_ns: int  # end of the window
+    estimates: dict[str, Estimate]
+    alarms: list[str]
+    problems: list[str] = field(default_factory=list)
+
+    def value(self, name: str) -> float:
+        e = self.estimates.get(name)
+        return e.value if e else math.nan
+
+
+@dataclass
+class SlidingTracker:
+    base: GeneratorParameters
+    period_ns: int = 1_000_000
+    settings: TrackerSettings = field(default_factory=TrackerSettings)
+    reference: dict[str, Estimate] = field(default_factory=dict)
+    history: list[TrackPoint] = field(default_factory=list)
+    _ring: RingBuffer | None = None
+    _next_hop_ns: int | None = None
+    _beyond: dict[str, int] = field(default_factory=dict)
+    _alarmed: set[str] = field(default_factory=set)
+
+    def __post_init__(self) -> None:
+        self._ring = RingBuffer(int(self.settings.window_s * NS // self.period_ns) + 1, CHANNELS)
+
+    def reset(self) -> None:
+        """A new segment (clock jump): windows must not span it."""
+        assert self._ring is not None
+        self._ring.clear()
+        self._next_hop_ns = None
+
+    def update(self, t_ns: NDArray[np.int64], values: NDArray[np.float64]) -> list[TrackPoint]:
+        ring = self._ring
+        assert ring is not None
+        ring.append(t_ns, values)
+        out = []
+        first = ring.oldest_ns
+        if self._next_hop_ns is None and first is not None:
+            self._next_hop_ns = first + int(self.settings.window_s * NS)
+        while self._next_hop_ns is not None and ring.latest_ns is not None and ring.latest_ns >= self._next_hop_ns:
+            t, x = ring.window(self._next_hop_ns - int(self.settings.window_s * NS) + self.period_ns, self._next_hop_ns)
+            out.append(self._hop(t, x))
+            self._next_hop_ns += int(self.settings.hop_s * NS)
+        return out
+
+    def _hop(self, t: NDArray[np.int64], x: NDArray[np.float64]) -> TrackPoint:
+        dt = self.period_ns / NS
+        point = TrackPoint(int(t[-1]), {}, [])
+        if not np.isfinite(x).all():
+            point.problems.append("stale window: gaps in the data; no estimate this hop")
+            self.history.append(point)
+            return point
+        signals = {c: x[:, i] for i, c in enumerate(CHANNELS)}
+        steps = [k for _, k, _ in find_events(signals, dt)] + [k_cl for _, _, k_cl in find_events(signals, dt) if k_cl]
+        k0 = max(1, int(1.0 / dt))  # a short "pre" stretch for the stages' baselines
+        sc = ScenarioData(
+            "window",
+            "torque_step",
+            "identify",
+            True,
+            dt,
+            signals,
+            k_event=k0,
+            start_ns=int(t[0]),
+            extra_switching=[k for k in steps if k > k0],
+        )
+        try:
+            r1 = stage1.swing_regression([sc])
+            point.estimates["H"], point.estimates["D"] = r1.H, r1.D
+        except stage1.Stage1Error as exc:
+            point.problems.append(f"stage 1: {exc}")
+        prev = self.history[-1] if self.history else None
+        span = self.settings.warm_start_span
+
+        def around(name: str, bounds: tuple[float, float]) -> tuple[float, float] | None:
+            v = prev.value(name) if prev else math.nan
+            if not math.isfinite(v):
+                return None
+            return max(bounds[0], v * (1 - span)), min(bounds[1], v * (1 + span))
+
+        try:
+            data = stage3.prepare([sc], window_s=None)
+            r3 = stage3.fast(
+                data,
+                self.base.X_d,
+                self.base.X_q,
+                bounds_d=around("T_d0_prime", stage3.T_D0_BOUNDS),
+                bounds_q=around("T_q0_prime", stage3.T_Q0_BOUNDS),
+            )
+            for n in ("X_d_prime", "X_q_prime", "T_d0_prime", "T_q0_prime"):
+                point.estimates[n] = getattr(r3, n)
+            point.problems += r3.problems
+        except stage3.Stage3Error as exc:
+            point.problems.append(f"stage 3: {exc}")
+        self._check_drift(point)
+        self.history.append(point)
+        return point
+
+    def _check_drift(self, point: TrackPoint) -> None:
+        for name, est in point.estimates.items():
+            if not est.identifiable or not math.isfinite(est.std):
+                continue
+            ref = self.reference.get(name)
+            if ref is None:
+                self.reference[name] = est
+                continue
+            band = self.settings.drift_sigmas * math.hypot(est.std, ref.std)
+            if abs(est.value - ref.value) > band:
+                self._beyond[name] = self._beyond.get(name, 0) + 1
+            else:
+                self._beyond[name] = 0
+            if self._beyond[name] >= self.settings.alarm_after:
+                change = 100 * (est.value / ref.value - 1)
+                point.alarms.append(
+                    f"{name} drifted {change:+.1f} % from {ref.value:.4g} "
+                    f"(beyond {self.settings.drift_sigmas:g} sigma for {self._beyond[name]} hops)"
+                )
+                self._alarmed.add(name)
+
+    @property
+    def alarmed(self) -> set[str]:
+        return set(self._alarmed)
