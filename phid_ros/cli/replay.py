@@ -35,8 +35,13 @@ def replay(
     rate: float | None = None,
     block_size: int = DEFAULT_BLOCK_SIZE,
     on_outputs: Callable[[Outputs], None] | None = None,
+    keep_arrays: bool = True,
 ) -> Outputs:
-    """Feed every sensor block in stamp order; ``rate`` paces it at R x real time (None: as fast as possible)."""
+    """Feed every sensor block in stamp order; ``rate`` paces it at R x real time (None: as fast as possible).
+
+    ``on_outputs`` sees every output in full; the returned summary drops the bulk arrays
+    when ``keep_arrays`` is False, so a long replay's memory stays flat.
+    """
     for m in markers_of(rec):
         pipeline.add_marker(m)
     total = Outputs()
@@ -56,11 +61,11 @@ def replay(
         if end_ns >= next_process:
             out = pipeline.process()
             next_process = end_ns + PROCESS_EVERY_NS
-            total.extend(out)
+            total.extend(out if keep_arrays else out.light())
             if on_outputs:
                 on_outputs(out)
     out = pipeline.process(final=True)
-    total.extend(out)
+    total.extend(out if keep_arrays else out.light())
     if on_outputs:
         on_outputs(out)
     return total
@@ -150,7 +155,7 @@ def run(args: object, console: object) -> int:
     pipeline = MonitorPipeline(settings)
     collector = OutputCollector(pipeline)
     t0 = time.perf_counter()
-    outputs = replay(rec, pipeline, rate=args.rate, on_outputs=collector)  # type: ignore[attr-defined]
+    outputs = replay(rec, pipeline, rate=args.rate, on_outputs=collector, keep_arrays=False)  # type: ignore[attr-defined]
     wall = time.perf_counter() - t0
     write_messages(out_path, collector.sorted(), metadata={"source": f"phid replay {args.bag}"})  # type: ignore[attr-defined]
     start, end = rec.span_ns()

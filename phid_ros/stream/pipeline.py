@@ -69,6 +69,17 @@ class Outputs:
         self.recalibrations += other.recalibrations
         self.energy += other.energy
 
+    def light(self) -> Outputs:
+        """The same outputs without their bulk arrays (windows' samples, all but the last energy
+        sample), for a running summary that must not grow with the length of a replay."""
+        windows = [
+            EventWindow(w.event, w.t_ns[:0], w.values[:0], w.period_ns, w.usable, w.reason) for w in self.windows
+        ]
+        energy = [
+            EnergySamples(*(getattr(e, f)[-1:] for f in EnergySamples.__dataclass_fields__)) for e in self.energy[-1:]
+        ]
+        return Outputs(list(self.events), windows, list(self.recalibrations), energy)
+
 
 class MonitorPipeline:
     def __init__(self, settings: PipelineSettings | None = None) -> None:
