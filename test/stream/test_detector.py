@@ -22,7 +22,7 @@ def test_no_false_events_in_noisy_quiet_data():
     x = _quiet(100_000)
     found = []
     for k in range(0, 100_000, 500):
-        ring.append(np.arange(k, k + 500, dtype=np.int64) * MS, x[k:k + 500])
+        ring.append(np.arange(k, k + 500, dtype=np.int64) * MS, x[k : k + 500])
         found += det.update()[0]
     assert found == []
 
@@ -35,7 +35,7 @@ def test_a_gap_in_the_data_makes_the_window_stale_not_wrong():
     x[7000:7100, CHANNELS.index("omega")] = np.nan  # the encoder stalls for 0.1 s
     events, windows = [], []
     for k in range(0, 20_000, 1000):
-        ring.append(np.arange(k, k + 1000, dtype=np.int64) * MS, x[k:k + 1000])
+        ring.append(np.arange(k, k + 1000, dtype=np.int64) * MS, x[k : k + 1000])
         e, w = det.update()
         events += e
         windows += w

@@ -69,7 +69,11 @@ def test_events_survive_a_restart(replayed):
             o = original[w.event.event_id]
             assert np.array_equal(w.t_ns, o.t_ns) and np.array_equal(w.values, o.values, equal_nan=True)
             assert (w.usable, w.event.kind, w.event.name, w.event.generator_damping) == (
-                o.usable, o.event.kind, o.event.name, o.event.generator_damping)
+                o.usable,
+                o.event.kind,
+                o.event.name,
+                o.event.generator_damping,
+            )
         assert reopened.counts() == {"torque_step": 8, "voltage_step": 5, "fault": 4}  # V3 lacks post-event data
     finally:
         reopened.close()

@@ -67,8 +67,15 @@ def test_ambient_integrator_matches_the_plant():
     v_inf *= np.where(in_step & (k % 2 == 1), 1.0 + s.voltage_step, 1.0)
     ze = plant.network.z_e
     col = lambda a: a[:n, None]  # noqa: E731
-    inputs = Inputs(p_m=col(p_m), v_f=np.full((n, 1), ss.v_f), v_th_abs=col(v_inf), v_th_angle=np.zeros((n, 1)),
-                    r_th=np.full((n, 1), ze.real), x_th=np.full((n, 1), ze.imag), damping=np.array([TABLE1.D]))
+    inputs = Inputs(
+        p_m=col(p_m),
+        v_f=np.full((n, 1), ss.v_f),
+        v_th_abs=col(v_inf),
+        v_th_angle=np.zeros((n, 1)),
+        r_th=np.full((n, 1), ze.real),
+        x_th=np.full((n, 1), ze.imag),
+        damping=np.array([TABLE1.D]),
+    )
     traj = plant.simulate(ss.x[:, None], inputs, cfg.dt)
     assert np.allclose(traj.delta[:, 0], run.truth["delta"], atol=1e-10)
     # the final sample: Plant holds the last step's input, the ambient run has that sample's own
