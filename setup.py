@@ -47,6 +47,8 @@ setup(
     entry_points={
         "console_scripts": [
             "phid = phid_ros.cli.main:main",
+            "ingest_node = phid_ros.nodes.ingest_node:main",
+            "recalibration_node = phid_ros.nodes.recalibration_node:main",
         ],
     },
 )

@@ -56,6 +56,7 @@ class StreamHealth:
     out_of_order: int = 0
     nonfinite: int = 0
     implausible: int = 0
+    zero_stamps: int = 0  # messages stamped 0: an unset clock, not a time
     gaps: int = 0
     clock_jumps: int = 0
     gap_grid_points: int = 0
@@ -66,7 +67,7 @@ class StreamHealth:
 
     @property
     def dropped(self) -> int:
-        return self.duplicates + self.out_of_order + self.nonfinite + self.implausible
+        return self.duplicates + self.out_of_order + self.nonfinite + self.implausible + self.zero_stamps
 
     def rate_hz(self) -> float:
         """Samples per second over the recent blocks, by their stamps."""

@@ -143,6 +143,7 @@ def diagnostics_message(
                 ("out_of_order", h.out_of_order),
                 ("nonfinite", h.nonfinite),
                 ("implausible", h.implausible),
+                ("zero_stamps", h.zero_stamps),
                 ("gaps", h.gaps),
                 ("clock_jumps", h.clock_jumps),
             )
@@ -168,3 +169,41 @@ def diagnostics_message(
             )
         )
     return types["diagnostic_msgs/msg/DiagnosticArray"](header=header(types, now_ns), status=statuses)
+
+
+# -- incoming messages -> pipeline data ------------------------------------------------------
+def time_ns(t: Any) -> int:
+    return int(t.sec) * NS + int(t.nanosec)
+
+
+def block_arrays(msg: Any, channels: tuple[str, ...]) -> dict[str, np.ndarray]:
+    """The channel arrays of a sensor block message, without copying where the buffer allows."""
+    return {c: np.asarray(getattr(msg, c), dtype=np.float64) for c in channels}
+
+
+def window_from_message(msg: Any) -> EventWindow:
+    """An EventWindow message (from the ingest node) back into a window; stale ones are marked."""
+    period = int(round(float(msg.sample_period) * NS))
+    values = np.column_stack([np.asarray(getattr(msg, c), dtype=np.float64) for c in CHANNELS])
+    t = time_ns(msg.header.stamp) + np.arange(len(values), dtype=np.int64) * period
+    ev = Event(
+        event_id=msg.event_id,
+        kind=msg.kind,
+        inception_ns=time_ns(msg.inception),
+        clearing_ns=time_ns(msg.clearing),
+        severity=math.nan,
+        v_prefault=math.nan,
+        segment=0,
+    )
+    w = EventWindow(ev, t, values, period)
+    if period <= 0 or len(values) == 0:
+        w.usable, w.reason = False, "empty window or bad sample period"
+    elif not np.isfinite(values).all():
+        w.usable, w.reason = False, "stale data in the window (gaps)"
+    return w
+
+
+def marker_from_message(msg: Any) -> Any:
+    from phid_ros.stream.pipeline import Marker
+
+    return Marker(msg.name, msg.kind, msg.role, bool(msg.generator_damping), time_ns(msg.start), time_ns(msg.end))

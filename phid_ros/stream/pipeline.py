@@ -35,6 +35,7 @@ class PipelineSettings:
     policy: RecalibrationPolicy = field(default_factory=RecalibrationPolicy)
     identify: IdentifyOptions = field(default_factory=lambda: IdentifyOptions(baseline=False))
     initial_parameters: GeneratorParameters | None = None
+    detect: bool = True  # False: windows arrive from elsewhere (the recalibration node gets them by topic)
 
     def __post_init__(self) -> None:
         needed = self.detector.pre_s + self.detector.post_s + self.detector.context_s
@@ -101,6 +102,19 @@ class MonitorPipeline:
         self.aligner.ingest(stream, t0_ns, period_ns, arrays, receive_ns)
         self.samples_in += sum(len(a) for a in arrays.values())
 
+    def ingest_message(
+        self, stream: str, t0_ns: int, period_ns: int, arrays: dict, receive_ns: int | None = None
+    ) -> None:
+        """A sensor block as a ROS message carries it: a zero stamp is an unset clock, not a time."""
+        if int(t0_ns) == 0:
+            h = self.aligner.health[stream]
+            n = len(next(iter(arrays.values()))) if arrays else 0
+            h.messages += 1
+            h.samples += n
+            h.zero_stamps += n
+            return
+        self.ingest(stream, t0_ns, period_ns, arrays, receive_ns)
+
     def add_marker(self, marker: Marker) -> None:
         self.markers.append(marker)
 
@@ -126,13 +140,13 @@ class MonitorPipeline:
                 self._energy_slot = None
             self.ring.append(block.t_ns, block.values)
             self.latest_ns = int(block.t_ns[-1])
-            events, windows = self.detector.update()
+            events, windows = self.detector.update() if self.settings.detect else ([], [])
             for e in events:
                 self._label(e)
             out.events += events
             self._store(windows, out)
             self._energy(block.t_ns, block.values, out)
-        if final:
+        if final and self.settings.detect:
             late_events, rest = self.detector.flush()
             for e in late_events:
                 self._label(e)
@@ -141,10 +155,19 @@ class MonitorPipeline:
                 if w.usable:
                     w.usable, w.reason = False, "the recording ended before the post-event time"
             self._store(rest, out)
+        if final:
             if self.latest_ns is not None:
                 out.recalibrations += self.recalibrator.finish(self.latest_ns)
         else:
             out.recalibrations += self.recalibrator.poll(self.latest_ns)
+        return out
+
+    def add_window(self, window: EventWindow) -> Outputs:
+        """A window cut elsewhere (by the ingest node): label it, store it, maybe recalibrate."""
+        out = Outputs()
+        if not window.event.name:
+            self._label(window.event)
+        self._store([window], out)
         return out
 
     def recalibrate(self) -> str:

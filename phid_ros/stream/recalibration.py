@@ -126,9 +126,13 @@ class Recalibrator:
                 self.request(stream_time_ns)
         return done
 
-    def wait(self) -> list[RecalibrationOutcome]:
+    def join(self) -> None:
+        """Wait for the running job (if any) without taking its outcome: the next poll() gets it."""
         if self._future is not None:
             self._future.result()
+
+    def wait(self) -> list[RecalibrationOutcome]:
+        self.join()
         return self.poll()
 
     def finish(self, stream_time_ns: int) -> list[RecalibrationOutcome]:

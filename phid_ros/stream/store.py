@@ -9,6 +9,7 @@ float64 / int64 blobs (the stamps as start + period, they are uniform).
 
 from __future__ import annotations
 
+import math
 import sqlite3
 from pathlib import Path
 
@@ -113,6 +114,10 @@ class EventStore:
         values = np.frombuffer(blob, dtype="<f8").reshape(n, len(channels)).copy()
         if tuple(channels) != CHANNELS:
             values = values[:, [channels.index(c) for c in CHANNELS]]
-        ev = Event(eid, kind, int(inc), int(clr), float(sev), float(vpf), int(seg), name or "", role, bool(damping))
+
+        def real(v: float | None) -> float:
+            return math.nan if v is None else float(v)  # SQLite stores NaN as NULL
+
+        ev = Event(eid, kind, int(inc), int(clr), real(sev), real(vpf), int(seg), name or "", role, bool(damping))
         t = int(start) + np.arange(n, dtype=np.int64) * int(period)
         return EventWindow(ev, t, values, int(period), bool(usable), reason or "")

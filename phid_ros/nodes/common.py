@@ -1,0 +1,119 @@
+"""Wiring shared by the phid nodes: QoS, parameter declaration from the tunables table, types.
+
+Only the nodes import rclpy; everything they do is in phid_ros.stream.
+"""
+
+from __future__ import annotations
+
+import array
+from typing import Any
+
+import numpy as np
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+from rclpy.node import Node
+from rclpy.qos import (
+    DurabilityPolicy,
+    HistoryPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+    qos_profile_sensor_data,
+)
+
+from phid_ros.stream.params import Tunable, validate
+
+SENSOR_TOPICS = ("pt_ct", "encoder", "pmu", "excitation")
+
+
+def sensor_qos(reliable: bool) -> QoSProfile:
+    if not reliable:
+        return qos_profile_sensor_data
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50, reliability=ReliabilityPolicy.RELIABLE)
+
+
+def latched_qos() -> QoSProfile:
+    """Transient local: a late subscriber gets the latest parameter set."""
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST,
+        depth=1,
+        reliability=ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL,
+    )
+
+
+def reliable_qos(depth: int = 50) -> QoSProfile:
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth, reliability=ReliabilityPolicy.RELIABLE)
+
+
+def declare(node: Node, table: tuple[Tunable, ...]) -> dict[str, Any]:
+    """Declare every tunable with its descriptor; returns the values in force."""
+    values = {}
+    for t in table:
+        d = ParameterDescriptor(description=t.description, read_only=not t.runtime)
+        if t.type is float and t.low is not None:
+            d.floating_point_range = [FloatingPointRange(from_value=float(t.low), to_value=float(t.high), step=0.0)]
+        elif t.type is int and t.low is not None:
+            d.integer_range = [IntegerRange(from_value=int(t.low), to_value=int(t.high), step=1)]
+        values[t.name] = node.declare_parameter(t.name, t.default, d).value
+        refused = validate(table, t.name, values[t.name], running=False)
+        if refused:
+            raise ValueError(f"parameter {refused}")
+    return values
+
+
+def on_set(table: tuple[Tunable, ...], apply: Any) -> Any:
+    """A parameter callback that validates each change (keeping the old value on refusal)."""
+
+    def callback(params: list[Any]) -> SetParametersResult:
+        for p in params:
+            reason = validate(table, p.name, p.value)
+            if reason:
+                return SetParametersResult(successful=False, reason=reason)
+        for p in params:
+            apply(p.name, p.value)
+        return SetParametersResult(successful=True)
+
+    return callback
+
+
+def float_seq(a: Any) -> array.array:
+    """float64[] for rclpy: an array.array('d') is taken without per-element checks."""
+    return array.array("d", np.ascontiguousarray(a, dtype=np.float64).tobytes())
+
+
+def msg_types() -> dict[str, Any]:
+    """Full type name -> rclpy message class, for phid_ros.stream.messages."""
+    from builtin_interfaces.msg import Time
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+    from phid_msgs.msg import (
+        DisturbanceEvent,
+        EncoderBlock,
+        EventWindow,
+        ExcitationBlock,
+        GeneratorParameters,
+        HamiltonianState,
+        PmuBlock,
+        PtCtBlock,
+        ScenarioMarker,
+    )
+    from std_msgs.msg import Header
+
+    return {
+        "builtin_interfaces/msg/Time": Time,
+        "std_msgs/msg/Header": Header,
+        "diagnostic_msgs/msg/DiagnosticArray": DiagnosticArray,
+        "diagnostic_msgs/msg/DiagnosticStatus": DiagnosticStatus,
+        "diagnostic_msgs/msg/KeyValue": KeyValue,
+        "phid_msgs/msg/DisturbanceEvent": DisturbanceEvent,
+        "phid_msgs/msg/EncoderBlock": EncoderBlock,
+        "phid_msgs/msg/EventWindow": EventWindow,
+        "phid_msgs/msg/ExcitationBlock": ExcitationBlock,
+        "phid_msgs/msg/GeneratorParameters": GeneratorParameters,
+        "phid_msgs/msg/HamiltonianState": HamiltonianState,
+        "phid_msgs/msg/PmuBlock": PmuBlock,
+        "phid_msgs/msg/PtCtBlock": PtCtBlock,
+        "phid_msgs/msg/ScenarioMarker": ScenarioMarker,
+    }
+
+
+def now_ns(node: Node) -> int:
+    return int(node.get_clock().now().nanoseconds)

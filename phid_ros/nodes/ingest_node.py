@@ -1,0 +1,81 @@
+"""ingest_node: sensor topics -> aligned ring buffer -> disturbance events and event windows.
+
+Subscribes (relative, remappable): pt_ct, encoder, pmu, excitation.
+Publishes: events (DisturbanceEvent), event_windows (EventWindow), ~/diagnostics is left to
+the recalibration node, which also watches the streams.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+
+from phid_ros.io.topics import STREAMS_BY_NAME
+from phid_ros.nodes.common import SENSOR_TOPICS, declare, float_seq, msg_types, now_ns, on_set, reliable_qos, sensor_qos
+from phid_ros.stream import messages as m
+from phid_ros.stream.params import INGEST, apply, pipeline_settings
+from phid_ros.stream.pipeline import MonitorPipeline
+
+
+class IngestNode(Node):
+    def __init__(self) -> None:
+        super().__init__("ingest_node")
+        self.values = declare(self, INGEST)
+        settings = pipeline_settings(self.values, detect=True)
+        settings.auto_recalibrate = False  # recalibration is the other node's job
+        self.pipeline = MonitorPipeline(settings)
+        self.types = msg_types()
+        qos = sensor_qos(self.values["reliable_qos"])
+        for name in SENSOR_TOPICS:
+            cls = self.types[STREAMS_BY_NAME[name].msgtype]
+            self.create_subscription(cls, name, self._sensor_callback(name), qos)
+        self.events_pub = self.create_publisher(self.types["phid_msgs/msg/DisturbanceEvent"], "events", reliable_qos())
+        self.windows_pub = self.create_publisher(
+            self.types["phid_msgs/msg/EventWindow"], "event_windows", reliable_qos()
+        )
+        self.add_on_set_parameters_callback(on_set(INGEST, self._apply))
+        self.create_timer(self.values["process_period_s"], self.process)
+
+    def _sensor_callback(self, stream: str) -> Any:
+        channels = STREAMS_BY_NAME[stream].channels
+
+        def callback(msg: Any) -> None:
+            t0 = m.time_ns(msg.header.stamp)  # a zero stamp is counted and dropped by the pipeline
+            period = int(round(float(msg.sample_period) * 1e9))
+            self.pipeline.ingest_message(stream, t0, period, m.block_arrays(msg, channels), receive_ns=now_ns(self))
+
+        return callback
+
+    def _apply(self, name: str, value: Any) -> None:
+        self.pipeline.settings = apply(self.pipeline.settings, name, value)
+        self.pipeline.detector.settings = self.pipeline.settings.detector
+
+    def process(self) -> None:
+        out = self.pipeline.process()
+        for e in out.events:
+            self.events_pub.publish(m.event_message(self.types, e))
+        for w in out.windows:
+            if w.usable:
+                self.windows_pub.publish(m.window_message(self.types, w, float_seq))
+            else:
+                self.get_logger().warning(f"event {w.event.event_id} ({w.event.kind}) not usable: {w.reason}")
+
+
+def main(args: list[str] | None = None) -> None:
+    rclpy.init(args=args)
+    node = IngestNode()
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.pipeline.close()
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    main()

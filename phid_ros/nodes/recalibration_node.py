@@ -1,0 +1,183 @@
+"""recalibration_node: event windows -> event store -> three-stage recalibration -> parameters.
+
+Subscribes (relative, remappable): event_windows (from ingest_node), the four sensor topics
+(for the Hamiltonian and stream health) and /phid/scenarios (markers, when a recording has
+them). Publishes: parameters (transient local), hamiltonian, /diagnostics, and with
+tracking_enabled, tracked_parameters. Services (std_srvs/Trigger): ~/recalibrate, ~/reset.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from std_srvs.srv import Trigger
+
+from phid_ros.io.topics import SCENARIO_TOPIC, STREAMS_BY_NAME
+from phid_ros.nodes.common import (
+    SENSOR_TOPICS,
+    declare,
+    float_seq,
+    latched_qos,
+    msg_types,
+    on_set,
+    reliable_qos,
+    sensor_qos,
+)
+from phid_ros.stream import messages as m
+from phid_ros.stream.params import RECALIBRATION, apply, pipeline_settings
+from phid_ros.stream.pipeline import MonitorPipeline, Outputs
+from phid_ros.stream.tracker import SlidingTracker, TrackerSettings
+
+
+class RecalibrationNode(Node):
+    def __init__(self) -> None:
+        super().__init__("recalibration_node")
+        self.values = declare(self, RECALIBRATION)
+        self.reliable = self.declare_parameter("reliable_qos", False).value
+        settings = pipeline_settings(self.values, detect=False, store_path=self.values["store_path"])
+        self.pipeline = MonitorPipeline(settings)
+        self.types = msg_types()
+        self.tracker: SlidingTracker | None = None
+        self._tracked_to: int | None = None  # the last sample handed to the tracker
+        self.last_status: str | None = None
+        qos = sensor_qos(self.reliable)
+        for name in SENSOR_TOPICS:
+            cls = self.types[STREAMS_BY_NAME[name].msgtype]
+            self.create_subscription(cls, name, self._sensor_callback(name), qos)
+        self.create_subscription(
+            self.types["phid_msgs/msg/EventWindow"], "event_windows", self._on_window, reliable_qos()
+        )
+        self.create_subscription(
+            self.types["phid_msgs/msg/ScenarioMarker"], SCENARIO_TOPIC, self._on_marker, reliable_qos()
+        )
+        self.params_pub = self.create_publisher(
+            self.types["phid_msgs/msg/GeneratorParameters"], "parameters", latched_qos()
+        )
+        self.tracked_pub = self.create_publisher(
+            self.types["phid_msgs/msg/GeneratorParameters"], "tracked_parameters", latched_qos()
+        )
+        self.energy_pub = self.create_publisher(
+            self.types["phid_msgs/msg/HamiltonianState"], "hamiltonian", reliable_qos(100)
+        )
+        self.diag_pub = self.create_publisher(
+            self.types["diagnostic_msgs/msg/DiagnosticArray"], "/diagnostics", reliable_qos(10)
+        )
+        self.create_service(Trigger, "~/recalibrate", self._recalibrate)
+        self.create_service(Trigger, "~/reset", self._reset)
+        self.add_on_set_parameters_callback(on_set(RECALIBRATION, self._apply))
+        self.create_timer(1.0 / self.values["hamiltonian_rate_hz"], self.process)
+        self.create_timer(self.values["diagnostics_period_s"], self.publish_diagnostics)
+
+    # -- callbacks ------------------------------------------------------------------------
+    def _sensor_callback(self, stream: str) -> Any:
+        channels = STREAMS_BY_NAME[stream].channels
+
+        def callback(msg: Any) -> None:
+            period = int(round(float(msg.sample_period) * 1e9))
+            self.pipeline.ingest_message(
+                stream,
+                m.time_ns(msg.header.stamp),
+                period,
+                m.block_arrays(msg, channels),
+                receive_ns=int(self.get_clock().now().nanoseconds),
+            )
+
+        return callback
+
+    def _on_window(self, msg: Any) -> None:
+        self._publish(self.pipeline.add_window(m.window_from_message(msg)))
+
+    def _on_marker(self, msg: Any) -> None:
+        self.pipeline.add_marker(m.marker_from_message(msg))
+
+    def _recalibrate(self, request: Any, response: Any) -> Any:
+        response.message = self.pipeline.recalibrate()
+        response.success = response.message == "started"
+        return response
+
+    def _reset(self, request: Any, response: Any) -> Any:
+        self.pipeline.reset()
+        if self.tracker is not None:
+            self.tracker.reset()
+        response.success, response.message = True, "buffers and event store cleared; parameters kept"
+        return response
+
+    def _apply(self, name: str, value: Any) -> None:
+        self.pipeline.settings = apply(self.pipeline.settings, name, value)
+        self.pipeline.recalibrator.policy = self.pipeline.settings.policy
+        self.values[name] = value
+
+    # -- periodic work ---------------------------------------------------------------------
+    def process(self) -> None:
+        self._publish(self.pipeline.process())
+
+    def _publish(self, out: Outputs) -> None:
+        for r in out.recalibrations:
+            self.last_status = r.status
+            msg = m.parameters_message(self.types, r, float_seq, list)
+            if msg is not None:
+                self.params_pub.publish(msg)
+            if not r.accepted:
+                self.get_logger().warning(r.status)
+        for e in out.energy:
+            for msg in m.hamiltonian_messages(self.types, e):
+                self.energy_pub.publish(msg)
+        if self.values["tracking_enabled"] and self.pipeline.parameters is not None:
+            self._track()
+
+    def _track(self) -> None:
+        if self.tracker is None:
+            self.tracker = SlidingTracker(
+                self.pipeline.parameters,
+                self.pipeline.settings.period_ns,  # type: ignore[arg-type]
+                TrackerSettings(window_s=self.values["tracking_window_s"], hop_s=self.values["tracking_hop_s"]),
+            )
+        ring = self.pipeline.ring
+        latest = ring.latest_ns
+        if latest is None:
+            return
+        start = self._tracked_to + 1 if self._tracked_to is not None else (ring.oldest_ns or latest)
+        t, x = ring.window(start, latest)
+        self._tracked_to = latest
+        for point in self.tracker.update(t, x):
+            names = list(point.estimates)
+            self.tracked_pub.publish(
+                self.types["phid_msgs/msg/GeneratorParameters"](
+                    header=m.header(self.types, point.t_ns),
+                    names=names,
+                    values=float_seq([point.estimates[n].value for n in names]),
+                    std_dev=float_seq([point.estimates[n].std for n in names]),
+                    identifiable=[point.estimates[n].identifiable for n in names],
+                    method="tracker",
+                    event_ids=[],
+                    objective=float("nan"),
+                    fit_rmse=float("nan"),
+                    status="; ".join(point.alarms) or "ok",
+                )
+            )
+            for alarm in point.alarms:
+                self.get_logger().warning(alarm)
+
+    def publish_diagnostics(self) -> None:
+        now = int(self.get_clock().now().nanoseconds)
+        self.diag_pub.publish(m.diagnostics_message(self.types, now, self.pipeline.health, self.last_status))
+
+
+def main(args: list[str] | None = None) -> None:
+    rclpy.init(args=args)
+    node = RecalibrationNode()
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.pipeline.close()
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    main()

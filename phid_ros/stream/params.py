@@ -1,0 +1,119 @@
+"""The tunables of the online pipeline: one table, declared as ROS parameters by the nodes.
+
+Each entry: name, type, default, range, description and where it lands in
+:class:`~phid_ros.stream.pipeline.PipelineSettings` (or the node itself).
+``validate`` gives the reason a value is refused; the nodes return it to
+``ros2 param set`` and keep the old value. ``config/phid.yaml`` carries the same
+defaults, and a test keeps the two equal.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Any
+
+from phid_ros.stream.pipeline import PipelineSettings
+
+
+@dataclass(frozen=True)
+class Tunable:
+    name: str
+    type: type
+    default: Any
+    description: str
+    low: float | None = None
+    high: float | None = None
+    runtime: bool = True  # can change while running
+
+
+INGEST: tuple[Tunable, ...] = (
+    Tunable(
+        "sample_rate_hz",
+        float,
+        1000.0,
+        "rate of the common time grid the streams are aligned on",
+        10.0,
+        100000.0,
+        runtime=False,
+    ),
+    Tunable(
+        "reliable_qos", bool, False, "subscribe with reliable QoS instead of the sensor-data profile", runtime=False
+    ),
+    Tunable("ring_seconds", float, 120.0, "length of the ring buffer of aligned samples", 40.0, 3600.0, runtime=False),
+    Tunable("pre_event_s", float, 1.0, "event window before the disturbance", 0.2, 10.0),
+    Tunable("post_event_s", float, 29.0, "event window after the disturbance", 2.0, 120.0),
+    Tunable(
+        "process_period_s", float, 0.1, "how often buffered samples are aligned and scanned", 0.01, 5.0, runtime=False
+    ),
+    Tunable("stale_timeout_s", float, 2.0, "a stream silent this long is reported STALE", 0.1, 60.0),
+)
+
+RECALIBRATION: tuple[Tunable, ...] = (
+    Tunable("hamiltonian_rate_hz", float, 10.0, "rate of the Hamiltonian output", 0.1, 100.0),
+    Tunable("diagnostics_period_s", float, 1.0, "period of /diagnostics", 0.1, 60.0, runtime=False),
+    Tunable("min_interval_s", float, 300.0, "least stream time between automatic recalibrations", 0.0, 86400.0),
+    Tunable("latest_per_kind", int, 10, "events per kind a recalibration uses (the newest)", 1, 100),
+    Tunable("max_relative_jump", float, 0.5, "relative change beyond which a new set is implausible", 0.01, 10.0),
+    Tunable("auto_recalibrate", bool, True, "recalibrate automatically when enough events are stored"),
+    Tunable("store_path", str, "phid_events.sqlite", "event store file (SQLite); ':memory:' keeps none", runtime=False),
+    Tunable("tracking_enabled", bool, False, "run the sliding-window tracker too"),
+    Tunable("tracking_window_s", float, 300.0, "tracker window", 30.0, 3600.0, runtime=False),
+    Tunable("tracking_hop_s", float, 60.0, "tracker hop", 1.0, 3600.0, runtime=False),
+)
+
+
+def validate(table: tuple[Tunable, ...], name: str, value: Any, *, running: bool = True) -> str | None:
+    """Why ``value`` is refused for ``name``, or None when it is acceptable."""
+    spec = next((t for t in table if t.name == name), None)
+    if spec is None:
+        return f"unknown parameter {name!r}"
+    if running and not spec.runtime:
+        return f"{name} cannot change while running; restart the node with the new value"
+    if spec.type is bool:
+        ok = isinstance(value, bool)
+    elif spec.type is int:
+        ok = isinstance(value, int) and not isinstance(value, bool)
+    elif spec.type is float:
+        ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+    else:
+        ok = isinstance(value, spec.type)
+    if not ok:
+        return f"{name} must be a {spec.type.__name__}, got {value!r}"
+    if spec.low is not None and value < spec.low or spec.high is not None and value > spec.high:
+        return f"{name}={value} outside [{spec.low}, {spec.high}]"
+    return None
+
+
+def pipeline_settings(values: dict[str, Any], *, detect: bool, store_path: str = ":memory:") -> PipelineSettings:
+    """PipelineSettings from parameter values (missing ones take their defaults)."""
+    from phid_ros.stream.detector import DetectorSettings
+    from phid_ros.stream.recalibration import RecalibrationPolicy
+
+    v = {t.name: t.default for t in INGEST + RECALIBRATION}
+    v.update(values)
+    return PipelineSettings(
+        period_ns=int(round(1e9 / v["sample_rate_hz"])),
+        ring_seconds=float(v["ring_seconds"]),
+        detector=DetectorSettings(pre_s=float(v["pre_event_s"]), post_s=float(v["post_event_s"])),
+        hamiltonian_rate_hz=float(v["hamiltonian_rate_hz"]),
+        store_path=store_path,
+        auto_recalibrate=bool(v["auto_recalibrate"]),
+        policy=RecalibrationPolicy(
+            latest_per_kind=int(v["latest_per_kind"]),
+            min_interval_s=float(v["min_interval_s"]),
+            max_relative_jump=float(v["max_relative_jump"]),
+        ),
+        detect=detect,
+    )
+
+
+def apply(settings: PipelineSettings, name: str, value: Any) -> PipelineSettings:
+    """A run-time change applied to live settings (already validated)."""
+    if name in ("pre_event_s", "post_event_s"):
+        field = {"pre_event_s": "pre_s", "post_event_s": "post_s"}[name]
+        return replace(settings, detector=replace(settings.detector, **{field: float(value)}))
+    if name in ("min_interval_s", "latest_per_kind", "max_relative_jump"):
+        return replace(settings, policy=replace(settings.policy, **{name: value}))
+    if name in ("hamiltonian_rate_hz", "auto_recalibrate"):
+        return replace(settings, **{name: value})
+    return settings

@@ -1,0 +1,43 @@
+"""The nodes run against the rclpy test double (test/rclpy_double), for these tests only."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+DOUBLE = Path(__file__).resolve().parents[1] / "rclpy_double"
+DOUBLED = (
+    "rclpy",
+    "rcl_interfaces",
+    "std_srvs",
+    "std_msgs",
+    "builtin_interfaces",
+    "diagnostic_msgs",
+    "phid_msgs",
+    "_types",
+    "phid_ros.nodes",
+)
+
+
+def _purge() -> None:
+    for name in list(sys.modules):
+        if any(name == d or name.startswith(d + ".") for d in DOUBLED):
+            del sys.modules[name]
+
+
+@pytest.fixture
+def ros(monkeypatch):
+    """The double's rclpy module, with a clean bus; the nodes imported against it."""
+    _purge()
+    monkeypatch.syspath_prepend(str(DOUBLE))
+    import rclpy
+    import rclpy.node
+
+    rclpy.reset()
+    rclpy.node.NAMESPACE = "/generator"
+    rclpy.node.OVERRIDES.clear()
+    rclpy.init()
+    yield rclpy
+    _purge()

@@ -1,0 +1,209 @@
+"""The node shells, exercised through the rclpy test double: wiring, a played bag, bad input."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from phid_ros.io.bags import read_recording
+from phid_ros.io.recording import NS, recording_messages
+
+BAGS = Path(__file__).resolve().parents[2] / "bags"
+
+
+def make_nodes(ros, **recal_overrides):
+    import rclpy.node
+
+    rclpy.node.OVERRIDES["recalibration_node"] = {"store_path": ":memory:", **recal_overrides}
+    from phid_ros.nodes.ingest_node import IngestNode
+    from phid_ros.nodes.recalibration_node import RecalibrationNode
+
+    return IngestNode(), RecalibrationNode()
+
+
+def player(ros):
+    """A stand-in for `ros2 bag play`: publishers on the bag's absolute topics."""
+    from rclpy.node import Node
+
+    return Node("player")
+
+
+def play(ros, rec, ingest, recal, *, until_s=None, process_every_s=0.1, mutate=None):
+    """Publish the recording's messages in log-time order, firing the nodes' timers on stream time."""
+    bag = player(ros)
+    pubs = {}
+    start = rec.span_ns()[0]
+    next_tick = start
+    for log_ns, topic, msgtype, msg in recording_messages(rec):
+        if until_s is not None and log_ns - start > until_s * NS:
+            break
+        if mutate:
+            msg = mutate(topic, msg)
+            if msg is None:
+                continue
+        if topic not in pubs:
+            pubs[topic] = bag.create_publisher(type(msg), topic, None)
+        for n in (ingest, recal):
+            n.get_clock().ns = log_ns
+        pubs[topic].publish(msg)
+        while log_ns >= next_tick:
+            ingest.process()
+            recal.process()
+            next_tick += int(process_every_s * NS)
+    return bag
+
+
+def published(node, topic):
+    return next(p for p in node.publishers if p.topic == topic).sent
+
+
+def test_wiring_topics_qos_services_parameters(ros):
+    from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
+
+    from phid_ros.stream.params import INGEST, RECALIBRATION
+
+    ingest, recal = make_nodes(ros)
+    subs = {s.topic: s for s in ingest.subscriptions}
+    assert set(subs) == {"/generator/pt_ct", "/generator/encoder", "/generator/pmu", "/generator/excitation"}
+    assert all(s.qos.reliability == ReliabilityPolicy.BEST_EFFORT for s in subs.values())  # sensor data QoS
+    assert {p.topic for p in ingest.publishers} == {"/generator/events", "/generator/event_windows"}
+    params = next(p for p in recal.publishers if p.topic == "/generator/parameters")
+    assert params.qos.durability == DurabilityPolicy.TRANSIENT_LOCAL
+    assert {p.topic for p in recal.publishers} >= {"/generator/hamiltonian", "/diagnostics"}
+    assert set(recal.services) == {"/generator/recalibration_node/recalibrate", "/generator/recalibration_node/reset"}
+    for node, table in ((ingest, INGEST), (recal, RECALIBRATION)):
+        for t in table:
+            d = node.descriptors[t.name]
+            assert d.description == t.description and d.read_only == (not t.runtime)
+            if t.type is float and t.low is not None:
+                assert (d.floating_point_range[0].from_value, d.floating_point_range[0].to_value) == (t.low, t.high)
+
+
+def test_reliable_qos_is_an_option(ros):
+    import rclpy.node
+    from rclpy.qos import ReliabilityPolicy
+
+    rclpy.node.OVERRIDES["ingest_node"] = {"reliable_qos": True}
+    ingest, _ = make_nodes(ros)
+    assert all(s.qos.reliability == ReliabilityPolicy.RELIABLE for s in ingest.subscriptions)
+
+
+def test_played_bag_gives_the_same_parameters_as_phid_replay(ros):
+    from phid_ros.cli.replay import replay
+    from phid_ros.stream.pipeline import MonitorPipeline
+
+    rec = read_recording(BAGS / "catalogue")
+    ingest, recal = make_nodes(ros)
+    play(ros, rec, ingest, recal)
+    # end of the bag: the operator asks for a recalibration (the ~/recalibrate service)
+    recal.pipeline.recalibrator.join()
+    recal.process()
+    response = recal.services["/generator/recalibration_node/recalibrate"].call()
+    assert response.success and response.message == "started"
+    recal.pipeline.recalibrator.join()
+    recal.process()
+    node_params = published(recal, "/generator/parameters")[-1]
+    assert list(node_params.names)[:2] == ["H", "D"]
+    reference = MonitorPipeline()
+    replay(rec, reference)
+    expect = reference.parameters.as_dict()
+    got = dict(zip(node_params.names, np.asarray(node_params.values)))
+    assert got == expect  # to the last digit
+    events = published(ingest, "/generator/events")
+    assert len(events) == 18
+    energy = published(recal, "/generator/hamiltonian")
+    assert len(energy) > 1000 and all(e.passivity_margin >= 0 for e in energy[-100:])
+    reference.close()
+
+
+def test_a_stopped_stream_is_stale_and_its_windows_are_not_used(ros):
+    rec = read_recording(BAGS / "validation.mcap")
+    ingest, recal = make_nodes(ros)
+
+    def drop_encoder_after_5s(topic, msg):
+        t = msg.header.stamp.sec * NS + msg.header.stamp.nanosec
+        return None if topic.endswith("/encoder") and t - rec.span_ns()[0] > 5 * NS else msg
+
+    play(ros, rec, ingest, recal, mutate=drop_encoder_after_5s)
+    recal.get_clock().ns = rec.span_ns()[1] + 3 * NS
+    recal.publish_diagnostics()
+    diag = published(recal, "/diagnostics")[-1]
+    enc = next(s for s in diag.status if s.name.endswith("encoder stream"))
+    assert enc.level == 3 and "no data" in enc.message  # STALE
+    assert published(ingest, "/generator/event_windows") == []  # windows with the gap are not sent
+    assert any("not usable" in text and "omega" in text for _, text in ingest.get_logger().records)
+
+
+def test_wrong_rate_and_zero_stamps_are_reported(ros):
+    rec = read_recording(BAGS / "validation.mcap")
+    ingest, recal = make_nodes(ros)
+
+    def zero_some_pmu(topic, msg):
+        if topic.endswith("/pmu") and msg.header.stamp.nanosec // 100_000_000 == 3:
+            msg.header.stamp.sec, msg.header.stamp.nanosec = 0, 0
+        if topic.endswith("/excitation"):
+            msg.sample_period = 2e-3  # claims 500 Hz: the stream runs at half the expected rate
+        return msg
+
+    play(ros, rec, ingest, recal, until_s=20, mutate=zero_some_pmu)
+    h = recal.pipeline.health
+    assert h["pmu"].zero_stamps > 0
+    level, message = h["excitation"].status()
+    assert level in ("WARN", "ERROR") and "rate 500 Hz" in message
+
+
+def test_out_of_range_parameter_is_refused_and_the_old_value_kept(ros):
+    from rclpy.node import Parameter
+
+    _, recal = make_nodes(ros)
+    before = recal.pipeline.settings.hamiltonian_rate_hz
+    result = recal.set_parameters([Parameter("hamiltonian_rate_hz", 5000.0)])[-1]
+    assert not result.successful and "outside [0.1, 100.0]" in result.reason
+    assert recal.pipeline.settings.hamiltonian_rate_hz == before
+    result = recal.set_parameters([Parameter("store_path", "/tmp/x.sqlite")])[-1]
+    assert not result.successful and "cannot change while running" in result.reason
+    ok = recal.set_parameters([Parameter("min_interval_s", 60.0)])[-1]
+    assert ok.successful and recal.pipeline.recalibrator.policy.min_interval_s == 60.0
+
+
+def test_a_recalibration_that_throws_keeps_the_node_up(ros, monkeypatch):
+    import phid_ros.stream.recalibration as rc
+    from phid_ros.model.parameters import TABLE1
+
+    def boom(*a, **k):
+        raise RuntimeError("matrix is singular")
+
+    monkeypatch.setattr(rc, "identify", boom)
+    rec = read_recording(BAGS / "catalogue")
+    ingest, recal = make_nodes(ros)
+    recal.pipeline.recalibrator.last_good = TABLE1
+    play(ros, rec, ingest, recal, until_s=200)
+    recal.pipeline.recalibrator.join()
+    recal.process()
+    recal.publish_diagnostics()
+    status = next(s for s in published(recal, "/diagnostics")[-1].status if s.name.endswith("recalibration"))
+    assert status.level == 2 and "matrix is singular" in status.message  # ERROR
+    last = published(recal, "/generator/parameters")[-1]
+    assert dict(zip(last.names, np.asarray(last.values))) == TABLE1.as_dict()  # last good kept
+
+
+def test_main_shuts_down_cleanly(ros):
+    import rclpy
+
+    from phid_ros.nodes import ingest_node
+
+    rclpy.node.OVERRIDES["recalibration_node"] = {"store_path": ":memory:"}
+    ingest_node.main([])
+    assert not rclpy.ok()
+
+
+def test_config_yaml_holds_the_table_defaults():
+    from ruamel.yaml import YAML
+
+    from phid_ros.stream.params import INGEST, RECALIBRATION
+
+    doc = YAML(typ="safe").load((Path(__file__).resolve().parents[2] / "config" / "phid.yaml").read_text())
+    for node, table in (("ingest_node", INGEST), ("recalibration_node", RECALIBRATION)):
+        values = doc[node]["ros__parameters"]
+        assert values == {t.name: t.default for t in table}

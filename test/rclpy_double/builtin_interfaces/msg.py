@@ -1,0 +1,3 @@
+from _types import cls
+
+Time = cls("builtin_interfaces/msg/Time")

@@ -1,0 +1,11 @@
+from _types import cls
+
+PtCtBlock = cls("phid_msgs/msg/PtCtBlock")
+EncoderBlock = cls("phid_msgs/msg/EncoderBlock")
+PmuBlock = cls("phid_msgs/msg/PmuBlock")
+ExcitationBlock = cls("phid_msgs/msg/ExcitationBlock")
+ScenarioMarker = cls("phid_msgs/msg/ScenarioMarker")
+GeneratorParameters = cls("phid_msgs/msg/GeneratorParameters")
+HamiltonianState = cls("phid_msgs/msg/HamiltonianState")
+DisturbanceEvent = cls("phid_msgs/msg/DisturbanceEvent")
+EventWindow = cls("phid_msgs/msg/EventWindow")

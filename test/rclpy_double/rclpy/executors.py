@@ -1,0 +1,2 @@
+class ExternalShutdownException(Exception):
+    """Test double of rclpy.executors.ExternalShutdownException."""

@@ -1,0 +1,3 @@
+from _types import cls
+
+Header = cls("std_msgs/msg/Header")
