@@ -10,6 +10,8 @@ the bag's clock (use_sim_time is forced on), so the whole pipeline runs on recor
 
 import os
 
+import yaml
+
 from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, ExecuteProcess
@@ -18,8 +20,15 @@ from launch.substitutions import LaunchConfiguration, PythonExpression
 from launch_ros.actions import Node
 
 
+def node_parameters(node: str) -> dict:
+    """This node's section of config/phid.yaml, as a dict: parameter-file keys are fully
+    qualified node names, and passing the values directly keeps any namespace working."""
+    path = os.path.join(get_package_share_directory("phid_ros"), "config", "phid.yaml")
+    with open(path, encoding="utf-8") as fh:
+        return yaml.safe_load(fh)[node]["ros__parameters"]
+
+
 def generate_launch_description() -> LaunchDescription:
-    config = os.path.join(get_package_share_directory("phid_ros"), "config", "phid.yaml")
     ns = LaunchConfiguration("namespace")
     play_bag = LaunchConfiguration("play_bag")
     playing = PythonExpression(["'", play_bag, "' != ''"])
