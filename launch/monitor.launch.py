@@ -11,7 +11,6 @@ the bag's clock (use_sim_time is forced on), so the whole pipeline runs on recor
 import os
 
 import yaml
-
 from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, ExecuteProcess
@@ -55,7 +54,7 @@ def generate_launch_description() -> LaunchDescription:
                 executable="ingest_node",
                 name="ingest_node",
                 namespace=ns,
-                parameters=[config, common],
+                parameters=[node_parameters("ingest_node"), common],
                 remappings=remaps,
                 output="screen",
             ),
@@ -64,7 +63,7 @@ def generate_launch_description() -> LaunchDescription:
                 executable="recalibration_node",
                 name="recalibration_node",
                 namespace=ns,
-                parameters=[config, common],
+                parameters=[node_parameters("recalibration_node"), common],
                 remappings=remaps,
                 output="screen",
             ),
