@@ -207,3 +207,23 @@ def test_config_yaml_holds_the_table_defaults():
     for node, table in (("ingest_node", INGEST), ("recalibration_node", RECALIBRATION)):
         values = doc[node]["ros__parameters"]
         assert values == {t.name: t.default for t in table}
+
+
+def test_launch_file_names_the_installed_executables_and_config_sections():
+    import ast
+    import re
+
+    root = Path(__file__).resolve().parents[2]
+    tree = ast.parse((root / "launch" / "monitor.launch.py").read_text())
+    calls = [n for n in ast.walk(tree) if isinstance(n, ast.Call) and getattr(n.func, "id", "") == "Node"]
+    executables = {k.value.value for c in calls for k in c.keywords if k.arg == "executable"}
+    assert executables == {"ingest_node", "recalibration_node"}
+    entry_points = set(re.findall(r'"(\w+) = phid_ros\.nodes\.\w+:main"', (root / "setup.py").read_text()))
+    assert executables <= entry_points
+    sections = {
+        c.args[0].value
+        for n in ast.walk(tree)
+        if isinstance(n, ast.Call) and getattr(n.func, "id", "") == "node_parameters"
+        for c in [n]
+    }
+    assert sections == executables
