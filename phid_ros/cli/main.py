@@ -36,10 +36,10 @@ def _progress(console: Console) -> Progress:
 
 
 # -- simulate ------------------------------------------------------------------
-def _parse_effects(items: Sequence[str]) -> list[str]:
-    if items:
-        raise PhidError(f"plant effects {list(items)} are not available yet; the base model has none switched on")
-    return []
+def _parse_effects(items: Sequence[str]) -> tuple:
+    from phid_ros.sim.effects import parse_effect
+
+    return tuple(parse_effect(item) for item in items)
 
 
 def cmd_simulate(args: argparse.Namespace, console: Console) -> int:
@@ -50,7 +50,9 @@ def cmd_simulate(args: argparse.Namespace, console: Console) -> int:
     from phid_ros.sim.scenarios import find_scenario, paper_catalogue, validation_scenarios
     from phid_ros.sim.sensors import SensorModel
 
-    _parse_effects(args.effect or [])
+    effects = _parse_effects(args.effect or [])
+    if args.ambient and effects:
+        raise PhidError("--effect is not available with --ambient yet (the long-run integrator has no effect hooks)")
     if args.ambient:
         return _simulate_ambient(args, console)
     if args.drift:
@@ -68,7 +70,9 @@ def cmd_simulate(args: argparse.Namespace, console: Console) -> int:
     out = Path(args.out)
     if out.exists():
         raise PhidError(f"{out}: already exists, not overwriting")
-    cfg = SimulationConfig(f_nominal_hz=args.f_nominal, sensors=SensorModel(seed=args.seed, noiseless=args.noiseless))
+    cfg = SimulationConfig(
+        f_nominal_hz=args.f_nominal, sensors=SensorModel(seed=args.seed, noiseless=args.noiseless), effects=effects
+    )
     with _progress(console) as progress:
         task = progress.add_task(f"simulating {len(scenarios)} scenario(s)", total=None)
         runs = simulate_scenarios(scenarios, cfg)

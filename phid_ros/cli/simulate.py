@@ -83,6 +83,7 @@ def truth_document(cfg: SimulationConfig, scenarios: Sequence[Scenario]) -> dict
             "channels": {k: asdict(v) for k, v in cfg.sensors.channels.items()},
         },
         "scenarios": [asdict(s) for s in scenarios],
+        "effects": [e.as_dict() for e in cfg.effects],
     }
 
 

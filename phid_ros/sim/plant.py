@@ -108,6 +108,7 @@ class Plant:
         *,
         f_nominal_hz: float = DEFAULT_F_NOMINAL_HZ,
         r_a: float = 0.0,
+        effects: tuple = (),
     ) -> None:
         if f_nominal_hz <= 0:
             raise SimulationError(f"nominal frequency must be positive, got {f_nominal_hz}")
@@ -115,6 +116,9 @@ class Plant:
         self.network = network or Network()
         self.f_nominal_hz = float(f_nominal_hz)
         self.r_a = float(r_a)
+        self.effects = tuple(effects)
+        for effect in self.effects:
+            effect.configure(self)
 
     # -- steady state ---------------------------------------------------
     def steady_state(self, op: OperatingPoint) -> SteadyState:
@@ -138,7 +142,7 @@ class Plant:
             delta=delta_t - ref,
             e_q=float(e_q),
             e_d=float(e_d),
-            v_f=float(e_q + (p.X_d - p.X_d_prime) * i_d),
+            v_f=float(e_q + (p.X_d - p.X_d_prime) * i_d + self._flux_loss_d(np.asarray(e_q))),
             p_m=float(p_airgap),
             i_d=float(i_d),
             i_q=float(i_q),
@@ -180,10 +184,17 @@ class Plant:
             (
                 self._ws * slip,
                 (p_m - p_airgap - damping * slip) * self._inv_2h,
-                (v_f - e_q - self._xd_diff * i_d) * self._inv_td0,
+                (v_f - e_q - self._xd_diff * i_d - self._flux_loss_d(e_q)) * self._inv_td0,
                 (self._xq_diff * i_q - e_d) * self._inv_tq0,
             )
         )
+
+    def _flux_loss_d(self, e_q: Array) -> Array | float:
+        """Extra losses in the field-flux equation from switched-on effects (0 for the base model)."""
+        total: Array | float = 0.0
+        for effect in self.effects:
+            total = total + effect.flux_loss_d(e_q)
+        return total
 
     @property
     def _ws(self) -> float:

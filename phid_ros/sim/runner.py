@@ -40,9 +40,10 @@ class SimulationConfig:
     sensors: SensorModel = field(default_factory=SensorModel)
     restore_ramp: float = 5.0
     restore_hold: float = 5.0
+    effects: tuple = ()  # PlantEffect instances (phid_ros.sim.effects), none by default
 
     def plant(self) -> Plant:
-        return Plant(self.params, self.network, f_nominal_hz=self.f_nominal_hz)
+        return Plant(self.params, self.network, f_nominal_hz=self.f_nominal_hz, effects=self.effects)
 
 
 @dataclass(frozen=True)
@@ -125,5 +126,7 @@ def simulate_scenarios(
         truth = {k: v[:n, j].copy() for k, v in channels.items()}
         states = {k: getattr(traj, k)[:n, j].copy() for k in ("delta", "omega", "e_q", "e_d")}
         measured = cfg.sensors.measure(truth, stream_seed=seed_offset + j)
+        for effect in cfg.effects:
+            measured = effect.on_measurements(measured, cfg.dt)
         runs.append(ScenarioRun(sc, traj.t[:n].copy(), truth, states, measured, ss))
     return runs
