@@ -10,8 +10,12 @@ by default:
 - ``flux_loss_d(e_q)``: an extra term subtracted in T'_d0 dE'_q/dt (saturation);
 - ``on_measurements(measured, dt)``: act on the sensor outputs (a delayed stream).
 
-Implemented here: ``stator_resistance``, ``magnetic_saturation``, ``sensor_delay``.
-Not yet: ``subtransient_dynamics`` and ``shaft_torsion`` (they need extra states).
+- ``initial_states`` / ``derivatives``: states of its own after the base four;
+- ``emf``: replace the EMF behind the stator reactances (damper windings);
+- ``swing``: replace the rotor's d(omega)/dt (a second mass on the shaft).
+
+Effects: ``stator_resistance``, ``magnetic_saturation``, ``sensor_delay``,
+``subtransient_dynamics``, ``shaft_torsion``.
 """
 
 from __future__ import annotations
@@ -44,6 +48,8 @@ class PlantEffect:
 
     name: ClassVar[str] = ""
     parameters: ClassVar[tuple[EffectParameter, ...]] = ()
+    state_names: ClassVar[tuple[str, ...]] = ()  # states this effect adds after the base four
+    provides_emf: ClassVar[bool] = False  # replaces the EMF behind the stator reactances
 
     def __init__(self, **values: Any) -> None:
         known = {p.name: p for p in self.parameters}
@@ -79,6 +85,21 @@ class PlantEffect:
 
     def on_measurements(self, measured: dict[str, Array], dt: float) -> dict[str, Array]:
         return measured
+
+    def initial_states(self, ctx: dict[str, Any], plant: Any) -> list[float]:
+        """Values of this effect's states at the operating point (dx/dt = 0)."""
+        return []
+
+    def emf(self, states: Array, params: Any) -> tuple[Array, Array, float, float]:
+        raise SimulationError(f"effect {self.name} does not replace the stator EMF")
+
+    def swing(self, states: Array, ctx: dict[str, Any], params: Any) -> Array | None:
+        """A replacement for d(omega)/dt of the generator rotor, or None."""
+        return None
+
+    def derivatives(self, states: Array, ctx: dict[str, Any], params: Any) -> list[Array]:
+        """d/dt of this effect's states."""
+        return []
 
 
 REGISTRY: dict[str, type[PlantEffect]] = {}
@@ -145,14 +166,97 @@ class SensorDelay(PlantEffect):
         return out
 
 
+@register
+class SubtransientDynamics(PlantEffect):
+    """Damper windings: two more flux states behind the subtransient reactances (sixth order).
+
+    T''_d0 dE''_q/dt = E'_q - E''_q - (X'_d - X''_d) I_d
+    T''_q0 dE''_d/dt = E'_d - E''_d + (X'_q - X''_q) I_q
+    V_q = E''_q - X''_d I_d,   V_d = E''_d + X''_q I_q
+    """
+
+    name = "subtransient_dynamics"
+    parameters = (
+        EffectParameter("x_dpp", 0.25, "pu", "d-axis subtransient reactance X''_d", 0.12, 0.4),
+        EffectParameter("x_qpp", 0.30, "pu", "q-axis subtransient reactance X''_q", 0.12, 0.5),
+        EffectParameter("t_d0pp", 0.03, "s", "d-axis subtransient time constant T''_d0", 0.01, 0.1),
+        EffectParameter("t_q0pp", 0.05, "s", "q-axis subtransient time constant T''_q0", 0.01, 0.2),
+    )
+    state_names = ("e_q_pp", "e_d_pp")
+    provides_emf = True
+
+    def configure(self, plant: Any) -> None:
+        p = plant.params
+        if not (self["x_dpp"] < p.X_d_prime and self["x_qpp"] < p.X_q_prime):
+            raise SimulationError("effect subtransient_dynamics: X''_d, X''_q must lie below X'_d, X'_q")
+
+    def initial_states(self, ctx: dict[str, Any], plant: Any) -> list[float]:
+        p = plant.params
+        return [
+            ctx["e_q"] - (p.X_d_prime - self["x_dpp"]) * ctx["i_d"],
+            ctx["e_d"] + (p.X_q_prime - self["x_qpp"]) * ctx["i_q"],
+        ]
+
+    def emf(self, states: Array, params: Any) -> tuple[Array, Array, float, float]:
+        return states[0], states[1], float(self["x_dpp"]), float(self["x_qpp"])
+
+    def derivatives(self, states: Array, ctx: dict[str, Any], params: Any) -> list[Array]:
+        e_qpp, e_dpp = states[0], states[1]
+        return [
+            (ctx["e_q"] - e_qpp - (params.X_d_prime - self["x_dpp"]) * ctx["i_d"]) / self["t_d0pp"],
+            (ctx["e_d"] - e_dpp + (params.X_q_prime - self["x_qpp"]) * ctx["i_q"]) / self["t_q0pp"],
+        ]
+
+
+@register
+class ShaftTorsion(PlantEffect):
+    """Turbine and generator as two masses on an elastic shaft (one torsional mode).
+
+    H splits into H_t = f H (turbine) and H_g = (1 - f) H (generator); the stiffness K
+    follows from the torsional frequency; P_m acts on the turbine; the encoder sees the
+    generator rotor.
+    """
+
+    name = "shaft_torsion"
+    parameters = (
+        EffectParameter("turbine_fraction", 0.6, "", "share of the inertia in the turbine", 0.3, 0.85),
+        EffectParameter("f_torsion_hz", 15.0, "Hz", "torsional mode frequency", 5.0, 40.0),
+        EffectParameter("d_shaft", 0.5, "pu", "damping across the shaft", 0.0, 5.0),
+    )
+    state_names = ("delta_t", "omega_t")
+
+    def _stiffness(self, params: Any, ws: float) -> tuple[float, float, float]:
+        h_t = self["turbine_fraction"] * params.H
+        h_g = params.H - h_t
+        k = (2 * np.pi * self["f_torsion_hz"]) ** 2 / (ws * (1 / (2 * h_t) + 1 / (2 * h_g)))
+        return h_t, h_g, float(k)
+
+    def initial_states(self, ctx: dict[str, Any], plant: Any) -> list[float]:
+        from phid_ros.model.conventions import omega_s
+
+        _, _, k = self._stiffness(plant.params, omega_s(plant.f_nominal_hz))
+        return [ctx["delta"] + ctx["p_m"] / k, 1.0]
+
+    def _shaft(self, states: Array, ctx: dict[str, Any], params: Any) -> tuple[Array, float, float]:
+        h_t, h_g, k = self._stiffness(params, ctx["ws"])
+        torque = k * (states[0] - ctx["delta"]) + self["d_shaft"] * (states[1] - ctx["omega"])
+        return torque, h_t, h_g
+
+    def swing(self, states: Array, ctx: dict[str, Any], params: Any) -> Array:
+        torque, _, h_g = self._shaft(states, ctx, params)
+        return (torque - ctx["p_airgap"] - ctx["damping"] * (ctx["omega"] - 1.0)) / (2 * h_g)
+
+    def derivatives(self, states: Array, ctx: dict[str, Any], params: Any) -> list[Array]:
+        torque, h_t, _ = self._shaft(states, ctx, params)
+        return [ctx["ws"] * (states[1] - 1.0), (ctx["p_m"] - torque) / (2 * h_t)]
+
+
 def parse_effect(spec: str) -> PlantEffect:
     """``NAME`` or ``NAME=k=v,k=v`` (the ``phid simulate --effect`` syntax) -> an effect."""
     name, _, rest = spec.partition("=")
     cls = REGISTRY.get(name.strip())
     if cls is None:
-        planned = {"subtransient_dynamics", "shaft_torsion"}
-        hint = " (planned, not implemented yet)" if name.strip() in planned else ""
-        raise SimulationError(f"unknown effect {name.strip()!r}{hint}; available: {', '.join(sorted(REGISTRY))}")
+        raise SimulationError(f"unknown effect {name.strip()!r}; available: {', '.join(sorted(REGISTRY))}")
     values: dict[str, Any] = {}
     for item in filter(None, (s.strip() for s in rest.split(","))):
         key, sep, value = item.partition("=")

@@ -49,10 +49,11 @@ class SteadyState:
     v_q: float
     theta_t: float
     v_inf: float  # infinite-bus magnitude; its angle is the reference, 0
+    extra: tuple[float, ...] = ()  # states of switched-on effects, after the four base states
 
     @property
     def x(self) -> Array:
-        return np.array([self.delta, 1.0, self.e_q, self.e_d])
+        return np.array([self.delta, 1.0, self.e_q, self.e_d, *self.extra])
 
 
 @dataclass(frozen=True)
@@ -117,8 +118,16 @@ class Plant:
         self.f_nominal_hz = float(f_nominal_hz)
         self.r_a = float(r_a)
         self.effects = tuple(effects)
+        self._slots: list[slice] = []
+        start = 4
         for effect in self.effects:
             effect.configure(self)
+            self._slots.append(slice(start, start + len(effect.state_names)))
+            start += len(effect.state_names)
+        self.n_states = start
+        emf_owners = [e for e in self.effects if e.provides_emf]
+        if len(emf_owners) > 1:
+            raise SimulationError("only one effect may replace the stator EMF")
 
     # -- steady state ---------------------------------------------------
     def steady_state(self, op: OperatingPoint) -> SteadyState:
@@ -138,6 +147,8 @@ class Plant:
         v_inf = v - self.network.z_e * i
         ref = float(np.angle(v_inf))
         p_airgap = e_d * i_d + e_q * i_q + (p.X_q_prime - p.X_d_prime) * i_d * i_q
+        ctx = {"delta": delta_t - ref, "e_q": e_q, "e_d": e_d, "i_d": i_d, "i_q": i_q, "p_m": p_airgap}
+        extra = tuple(float(v) for effect in self.effects for v in effect.initial_states(ctx, self))
         return SteadyState(
             delta=delta_t - ref,
             e_q=float(e_q),
@@ -150,20 +161,40 @@ class Plant:
             v_q=float(v_q),
             theta_t=-ref,
             v_inf=float(abs(v_inf)),
+            extra=extra,
         )
 
     # -- equations --------------------------------------------------------
+    def _emf(self, x: Array) -> tuple[Array, Array, float, float]:
+        """The EMF behind the stator reactances: (E'_q, E'_d, X'_d, X'_q), or an effect's (E''...)."""
+        p = self.params
+        for effect, sl in zip(self.effects, self._slots):
+            if effect.provides_emf:
+                return effect.emf(x[sl], p)
+        return x[2], x[3], p.X_d_prime, p.X_q_prime
+
     def _currents(
-        self, delta: Array, e_q: Array, e_d: Array, v_abs: Array, v_ang: Array, r_th: Array, x_th: Array
+        self,
+        delta: Array,
+        e_q: Array,
+        e_d: Array,
+        v_abs: Array,
+        v_ang: Array,
+        r_th: Array,
+        x_th: Array,
+        x_d_int: float | None = None,
+        x_q_int: float | None = None,
     ) -> tuple[Array, Array, Array, Array]:
         """Solve the stator (11)-(12) and network equations together for I_d, I_q."""
         p = self.params
+        xdi = p.X_d_prime if x_d_int is None else x_d_int
+        xqi = p.X_q_prime if x_q_int is None else x_q_int
         ang = delta - v_ang
         vth_d = v_abs * np.sin(ang)
         vth_q = v_abs * np.cos(ang)
         r = r_th + self.r_a
-        a12 = p.X_q_prime + x_th
-        a21 = p.X_d_prime + x_th
+        a12 = xqi + x_th
+        a21 = xdi + x_th
         det = -(r * r + a12 * a21)
         b1 = vth_d - e_d
         b2 = e_q - vth_q
@@ -174,20 +205,41 @@ class Plant:
     def _rhs(
         self, x: Array, p_m: Array, v_f: Array, v_abs: Array, v_ang: Array, r_th: Array, x_th: Array, damping: Array
     ) -> Array:
-        p = self.params
-        delta, omega, e_q, e_d = x
-        i_d, i_q, _, _ = self._currents(delta, e_q, e_d, v_abs, v_ang, r_th, x_th)
-        # air-gap power; equals terminal P_e (13) when R_a = 0
-        p_airgap = e_d * i_d + e_q * i_q + (p.X_q_prime - p.X_d_prime) * i_d * i_q
-        slip = omega - 1.0
-        return np.stack(
-            (
-                self._ws * slip,
-                (p_m - p_airgap - damping * slip) * self._inv_2h,
-                (v_f - e_q - self._xd_diff * i_d - self._flux_loss_d(e_q)) * self._inv_td0,
-                (self._xq_diff * i_q - e_d) * self._inv_tq0,
-            )
+        delta, omega, e_q, e_d = x[0], x[1], x[2], x[3]
+        eq_i, ed_i, xd_i, xq_i = (
+            self._emf(x) if self.effects else (e_q, e_d, self.params.X_d_prime, self.params.X_q_prime)
         )
+        i_d, i_q, _, _ = self._currents(delta, eq_i, ed_i, v_abs, v_ang, r_th, x_th, xd_i, xq_i)
+        # air-gap power; equals terminal P_e (13) when R_a = 0
+        p_airgap = ed_i * i_d + eq_i * i_q + (xq_i - xd_i) * i_d * i_q
+        slip = omega - 1.0
+        d_omega = (p_m - p_airgap - damping * slip) * self._inv_2h
+        derivs = [
+            self._ws * slip,
+            d_omega,
+            (v_f - e_q - self._xd_diff * i_d - self._flux_loss_d(e_q)) * self._inv_td0,
+            (self._xq_diff * i_q - e_d) * self._inv_tq0,
+        ]
+        if self.effects:
+            ctx = {
+                "x": x,
+                "delta": delta,
+                "omega": omega,
+                "e_q": e_q,
+                "e_d": e_d,
+                "i_d": i_d,
+                "i_q": i_q,
+                "p_m": p_m,
+                "p_airgap": p_airgap,
+                "damping": damping,
+                "ws": self._ws,
+            }
+            for effect, sl in zip(self.effects, self._slots):
+                swing = effect.swing(x[sl], ctx, self.params)
+                if swing is not None:
+                    derivs[1] = swing
+                derivs.extend(effect.derivatives(x[sl], ctx, self.params))
+        return np.stack(derivs)
 
     def _flux_loss_d(self, e_q: Array) -> Array | float:
         """Extra losses in the field-flux equation from switched-on effects (0 for the base model)."""
@@ -236,7 +288,7 @@ class Plant:
 
     # -- integration ------------------------------------------------------
     def simulate(self, x0: Array, inputs: Inputs, dt: float) -> Trajectory:
-        """RK4 from ``x0`` (4, n) over ``inputs``; returns states and terminal quantities."""
+        """RK4 from ``x0`` (n_states, n) over ``inputs``; returns states and terminal quantities."""
         if not 0.0 < dt <= MAX_DT + 1e-15:
             raise SimulationError(f"time step must be in (0, {MAX_DT}] s, got {dt}")
         u = inputs
@@ -260,7 +312,8 @@ class Plant:
         v_abs, v_ang = at_samples(inputs.v_th_abs), at_samples(inputs.v_th_angle)
         r_th, x_th = at_samples(inputs.r_th), at_samples(inputs.x_th)
         delta, omega, e_q, e_d = (states[:, i] for i in range(4))
-        i_d, i_q, vth_d, vth_q = self._currents(delta, e_q, e_d, v_abs, v_ang, r_th, x_th)
+        eq_i, ed_i, xd_i, xq_i = self._emf(np.moveaxis(states, 1, 0))
+        i_d, i_q, vth_d, vth_q = self._currents(delta, eq_i, ed_i, v_abs, v_ang, r_th, x_th, xd_i, xq_i)
         v_d = vth_d + r_th * i_d - x_th * i_q
         v_q = vth_q + r_th * i_q + x_th * i_d
         p_e, q_e = electrical_power(v_d, v_q, i_d, i_q)

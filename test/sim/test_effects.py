@@ -16,12 +16,18 @@ NOISELESS = SimulationConfig(sensors=SensorModel(noiseless=True), restore_ramp=1
 
 
 def test_registry_and_the_simulate_syntax():
-    assert {"stator_resistance", "magnetic_saturation", "sensor_delay"} <= set(REGISTRY)
+    assert set(REGISTRY) == {
+        "stator_resistance",
+        "magnetic_saturation",
+        "sensor_delay",
+        "subtransient_dynamics",
+        "shaft_torsion",
+    }
     e = parse_effect("magnetic_saturation=s10=0.1,s12=0.4")
     assert isinstance(e, MagneticSaturation) and e["s10"] == 0.1 and e["s12"] == 0.4
     assert parse_effect("stator_resistance")["r_a"] == 0.005  # default
-    with pytest.raises(SimulationError, match="unknown effect 'shaft_torsion' \\(planned, not implemented yet\\)"):
-        parse_effect("shaft_torsion")
+    with pytest.raises(SimulationError, match="unknown effect 'windage'; available: magnetic_saturation"):
+        parse_effect("windage")
     with pytest.raises(SimulationError, match=r"r_a=0.5 pu outside \[0.001, 0.02\]"):
         parse_effect("stator_resistance=r_a=0.5")
     with pytest.raises(SimulationError, match="unknown parameter"):
@@ -30,7 +36,15 @@ def test_registry_and_the_simulate_syntax():
         parse_effect("sensor_delay=stream=gps")
 
 
-@pytest.mark.parametrize("effect", [StatorResistance(r_a=0.01), MagneticSaturation(s10=0.1, s12=0.4)])
+@pytest.mark.parametrize(
+    "effect",
+    [
+        StatorResistance(r_a=0.01),
+        MagneticSaturation(s10=0.1, s12=0.4),
+        parse_effect("subtransient_dynamics"),
+        parse_effect("shaft_torsion"),
+    ],
+)
 def test_initialisation_stays_an_equilibrium_with_the_effect(effect):
     cfg = replace(NOISELESS, effects=(effect,))
     plant = cfg.plant()
@@ -89,3 +103,32 @@ def test_simulate_command_records_the_effects(tmp_path):
     )
     truth = json.loads((tmp_path / "sat.mcap.truth.json").read_text())
     assert [e["name"] for e in truth["effects"]] == ["magnetic_saturation", "sensor_delay"]
+
+
+def test_damper_windings_raise_the_first_cycle_fault_current():
+    sc = replace(find_scenario("S14"), duration=3.0)
+    base = simulate_scenarios([sc], NOISELESS)[0]
+    sub = simulate_scenarios([sc], replace(NOISELESS, effects=(parse_effect("subtransient_dynamics"),)))[0]
+    k = int(round(sc.t_event / 1e-3))
+    i_base = np.hypot(base.truth["i_d"], base.truth["i_q"])[k]
+    i_sub = np.hypot(sub.truth["i_d"], sub.truth["i_q"])[k]
+    assert i_sub > 1.15 * i_base  # behind X'' instead of X'
+    # and it decays to the transient behaviour within a few T''_d0
+    assert (
+        abs(
+            np.hypot(sub.truth["i_d"], sub.truth["i_q"])[k + 120]
+            / np.hypot(base.truth["i_d"], base.truth["i_q"])[k + 120]
+            - 1
+        )
+        < 0.1
+    )
+
+
+def test_shaft_torsion_adds_its_mode_to_the_measured_speed():
+    sc = replace(find_scenario("S14"), duration=3.0)
+    run = simulate_scenarios([sc], replace(NOISELESS, effects=(parse_effect("shaft_torsion=f_torsion_hz=18"),)))[0]
+    w = run.truth["omega"][1200:2200] - np.mean(run.truth["omega"][1200:2200])
+    spectrum = np.abs(np.fft.rfft(w * np.hanning(len(w))))
+    freqs = np.fft.rfftfreq(len(w), 1e-3)
+    band = (freqs > 5) & (freqs < 40)
+    assert abs(freqs[band][np.argmax(spectrum[band])] - 18.0) < 1.5
