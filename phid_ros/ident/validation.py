@@ -29,6 +29,11 @@ Array = NDArray[np.float64]
 STEP_SECONDS = 0.004  # RK4 step of the play-in (an even number of samples at 1 kHz)
 
 
+def play_in_samples(scenario: ScenarioData, step: float = STEP_SECONDS) -> np.ndarray:
+    """The sample indices at which play_in reports (every play-in step)."""
+    return np.arange(0, scenario.n, _stride(scenario.dt, step))
+
+
 def _stride(dt: float, step: float = STEP_SECONDS) -> int:
     """Samples per play-in step; even, so the mid-step input is a sample too."""
     return max(2, 2 * int(round(step / dt / 2)))
@@ -46,6 +51,8 @@ class Trajectories:
     e_d: Array
     p_e: Array
     q_e: Array
+    i_d: Array
+    i_q: Array
 
 
 def play_in(
@@ -128,7 +135,19 @@ def play_in(
     out = []
     for j, ii in enumerate(idx):
         c, n = slice(j * m, (j + 1) * m), len(ii)
-        out.append(Trajectories(ii * dt, delta[:n, c], omega[:n, c], e_q[:n, c], e_d[:n, c], p_e[:n, c], q_e[:n, c]))
+        out.append(
+            Trajectories(
+                ii * dt,
+                delta[:n, c],
+                omega[:n, c],
+                e_q[:n, c],
+                e_d[:n, c],
+                p_e[:n, c],
+                q_e[:n, c],
+                i_d[:n, c],
+                i_q[:n, c],
+            )
+        )
     return out
 
 
