@@ -9,7 +9,9 @@ import array
 from typing import Any
 
 import numpy as np
+import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import (
     DurabilityPolicy,
@@ -117,3 +119,17 @@ def msg_types() -> dict[str, Any]:
 
 def now_ns(node: Node) -> int:
     return int(node.get_clock().now().nanoseconds)
+
+
+def spin_until_shutdown(make_node: Any, args: list[str] | None) -> None:
+    """The node skeleton of ros2/demos: init, spin, and a clean exit on Ctrl-C or external shutdown."""
+    rclpy.init(args=args)
+    node = make_node()
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass  # asked to stop: leave quietly, the finally block cleans up
+    finally:
+        node.pipeline.close()
+        node.destroy_node()
+        rclpy.try_shutdown()

@@ -9,12 +9,20 @@ from __future__ import annotations
 
 from typing import Any
 
-import rclpy
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
 from phid_ros.io.topics import STREAMS_BY_NAME
-from phid_ros.nodes.common import SENSOR_TOPICS, declare, float_seq, msg_types, now_ns, on_set, reliable_qos, sensor_qos
+from phid_ros.nodes.common import (
+    SENSOR_TOPICS,
+    declare,
+    float_seq,
+    msg_types,
+    now_ns,
+    on_set,
+    reliable_qos,
+    sensor_qos,
+    spin_until_shutdown,
+)
 from phid_ros.stream import messages as m
 from phid_ros.stream.params import INGEST, apply, pipeline_settings
 from phid_ros.stream.pipeline import MonitorPipeline
@@ -65,16 +73,7 @@ class IngestNode(Node):
 
 
 def main(args: list[str] | None = None) -> None:
-    rclpy.init(args=args)
-    node = IngestNode()
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.pipeline.close()
-        node.destroy_node()
-        rclpy.try_shutdown()
+    spin_until_shutdown(IngestNode, args)
 
 
 if __name__ == "__main__":

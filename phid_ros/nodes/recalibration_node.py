@@ -10,8 +10,6 @@ from __future__ import annotations
 
 from typing import Any
 
-import rclpy
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from std_srvs.srv import Trigger
 
@@ -25,6 +23,7 @@ from phid_ros.nodes.common import (
     on_set,
     reliable_qos,
     sensor_qos,
+    spin_until_shutdown,
 )
 from phid_ros.stream import messages as m
 from phid_ros.stream.params import RECALIBRATION, apply, pipeline_settings
@@ -167,16 +166,7 @@ class RecalibrationNode(Node):
 
 
 def main(args: list[str] | None = None) -> None:
-    rclpy.init(args=args)
-    node = RecalibrationNode()
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.pipeline.close()
-        node.destroy_node()
-        rclpy.try_shutdown()
+    spin_until_shutdown(RecalibrationNode, args)
 
 
 if __name__ == "__main__":
