@@ -429,18 +429,14 @@ def _estimates(data: Stage3Data, fd: AxisFit, fq: AxisFit) -> tuple[Estimate, Es
         (data.q, fq, False, ("X_q_prime", "T_q0_prime")),
     ):
 
-        def resid(xp: float, tau: float) -> tuple[Array, Array]:
-            y, cols, nuisance = _axis_system(ax, tau, fit.x_sync, data.dt, d_axis)
-            y = y - xp * cols[0]
-            sel = (slice(None), ax.keep)
-            # nuisance re-fitted per perturbation (profile residual)
-            fit_i = solve_axis(ax, tau, data.dt, d_axis, fit.x_sync, x_prime=xp, keep_residual=True)
-            return fit_i.residual, cols[0][sel][ax.mask[sel]]  # type: ignore[return-value]
+        def resid(xp: float, tau: float) -> Array:
+            # the nuisance terms are re-fitted at each perturbation (profile residual)
+            return solve_axis(ax, tau, data.dt, d_axis, fit.x_sync, x_prime=xp, keep_residual=True).residual  # type: ignore[return-value]
 
-        r0, _ = resid(fit.x_prime, fit.tau)
+        r0 = resid(fit.x_prime, fit.tau)
         h_x, h_t = 1e-6, 1e-5
-        r_x, _ = resid(fit.x_prime + h_x, fit.tau)
-        r_t, _ = resid(fit.x_prime, fit.tau * (1 + h_t))
+        r_x = resid(fit.x_prime + h_x, fit.tau)
+        r_t = resid(fit.x_prime, fit.tau * (1 + h_t))
         jac = np.column_stack([(r_x - r0) / h_x, (r_t - r0) / (fit.tau * h_t)])
         rows_per_scn = ax.mask[:, ax.keep].sum(axis=1).tolist()
         step = max(1, int(round(BLOCK_SECONDS / (data.dt * (ax.keep.step or 1)))))
