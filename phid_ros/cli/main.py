@@ -226,6 +226,13 @@ def cmd_replay(args: argparse.Namespace, console: Console) -> int:
     return run(args, console)
 
 
+# -- diagnose ------------------------------------------------------------------------
+def cmd_diagnose(args: argparse.Namespace, console: Console) -> int:
+    from phid_ros.cli.diagnose import run
+
+    return run(args, console)
+
+
 # -- track ---------------------------------------------------------------------------
 def cmd_track(args: argparse.Namespace, console: Console) -> int:
     from phid_ros.cli.track import run
@@ -302,6 +309,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="seed of the stochastic optimisers (default 0)")
     p.add_argument("--paper-maxiter", type=int, default=300, help="generations of the paper's DE (default 300)")
     p.set_defaults(func=cmd_identify)
+
+    p = sub.add_parser("diagnose", help="find and name the physics the fourth-order model is missing")
+    p.add_argument("input", help="rosbag2 folder, .mcap file, or CSV manifest.json")
+    p.add_argument("--json", metavar="OUT", help="write the diagnosis JSON here")
+    p.add_argument("--report", metavar="OUT.html", help="write a self-contained HTML report with the figures")
+    p.add_argument("--truth", metavar="TRUTH.json", help="true parameters (e.g. <bag>.truth.json) for errors")
+    p.set_defaults(func=cmd_diagnose)
 
     p = sub.add_parser("replay", help="play a bag through the online pipeline (detection, recalibration, energy)")
     p.add_argument("bag", help="rosbag2 folder or .mcap file")

@@ -14,6 +14,12 @@ from phid_ros.ident.pipeline import IdentificationResult
 from phid_ros.ident.validation import play_in
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, GeneratorParameters, validation_problems
 
+STYLE = (
+    "body{font-family:sans-serif;max-width:1000px;margin:2em auto;color:#222}"
+    "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #bbb;padding:3px 8px;text-align:right}"
+    "td:first-child,th:first-child{text-align:left}img{max-width:100%}"
+)
+
 
 def _png(fig: object) -> str:
     buf = io.BytesIO()
@@ -136,9 +142,7 @@ def write_report(path: str | Path, res: IdentificationResult, truth: GeneratorPa
     problems = "".join(f"<li>{html.escape(p)}</li>" for p in res.problems) or "<li>none</li>"
     against = res.validation.against if res.validation else "—"
     doc = f"""<!doctype html><html><head><meta charset="utf-8"><title>phid identify: {html.escape(source)}</title>
-<style>body{{font-family:sans-serif;max-width:1000px;margin:2em auto;color:#222}}
-table{{border-collapse:collapse;margin:1em 0}}td,th{{border:1px solid #bbb;padding:3px 8px;text-align:right}}
-td:first-child,th:first-child{{text-align:left}}img{{max-width:100%}}</style></head><body>
+<style>{STYLE}</style></head><body>
 <h1>Three-stage identification</h1>
 <p>Input: <code>{html.escape(source)}</code> &middot; method: <b>{html.escape(res.method)}</b> &middot;
 {len(res.scenarios)} scenarios</p>

@@ -42,6 +42,29 @@ def _stride(dt: float, step: float = STEP_SECONDS) -> int:
 MOD026_TOLERANCE_PU = 0.05
 
 
+def staged_samples(
+    scenarios: Sequence[ScenarioData], name: str, m: int, steps: int, half: int, advance: Array | None = None
+) -> Array:
+    """A channel at every half play-in step (2 * steps - 1 rows), one column per (scenario, model) pair.
+
+    Each scenario holds its last sample after its end. ``advance`` (seconds, one per
+    column) reads the channel that much later, undoing a sensor's latency; it is
+    linear between samples, so a fitted latency need not be whole samples.
+    """
+    rows = 2 * steps - 1
+    out = np.empty((rows, len(scenarios) * m))
+    for j, s in enumerate(scenarios):
+        pos = np.minimum(np.arange(rows) * half, s.n - 1)
+        x = s[name]
+        if advance is None:
+            out[:, j * m : (j + 1) * m] = x[pos][:, None]
+            continue
+        for i in range(m):
+            shift = float(advance[j * m + i]) / s.dt
+            out[:, j * m + i] = np.interp(pos + shift, np.arange(s.n), x) if shift else x[pos]
+    return out
+
+
 @dataclass
 class Trajectories:
     t: Array
@@ -74,16 +97,7 @@ def play_in(
     steps = max(len(i) for i in idx)
     half = stride // 2
 
-    def inputs(name: str) -> Array:
-        """Samples at every half step (2 * steps rows), each scenario held after its end."""
-        rows = 2 * steps - 1
-        out = np.empty((rows, len(scenarios) * m))
-        for j, s in enumerate(scenarios):
-            x = s[name][np.minimum(np.arange(rows) * half, s.n - 1)]
-            out[:, j * m : (j + 1) * m] = x[:, None]
-        return out
-
-    v_t, theta, p_m, v_f = (inputs(n) for n in ("v_t", "theta_t", "p_m", "v_f"))
+    v_t, theta, p_m, v_f = (staged_samples(scenarios, n, m, steps, half) for n in ("v_t", "theta_t", "p_m", "v_f"))
     col = lambda name: np.tile([getattr(p, name) for p in params], len(scenarios)).astype(float)  # noqa: E731
     H, D, xd, xq, xdp, xqp, td0, tq0 = (
         col(n) for n in ("H", "D", "X_d", "X_q", "X_d_prime", "X_q_prime", "T_d0_prime", "T_q0_prime")

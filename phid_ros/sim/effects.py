@@ -50,6 +50,7 @@ class PlantEffect:
     parameters: ClassVar[tuple[EffectParameter, ...]] = ()
     state_names: ClassVar[tuple[str, ...]] = ()  # states this effect adds after the base four
     provides_emf: ClassVar[bool] = False  # replaces the EMF behind the stator reactances
+    checked: bool = True  # False for a fitter's trial instance: its values are not user input
 
     def __init__(self, **values: Any) -> None:
         known = {p.name: p for p in self.parameters}
@@ -70,6 +71,18 @@ class PlantEffect:
                     )
             self.values[p.name] = v
 
+    @classmethod
+    def from_arrays(cls, **values: Any) -> PlantEffect:
+        """An instance whose parameters may be arrays (one value per simulated column), unchecked.
+
+        The diagnosis fits a candidate by simulating many parameter sets side by side; the
+        range checks of ``__init__`` are for user input, the fitter keeps to the bounds itself.
+        """
+        self = cls.__new__(cls)
+        self.values = {p.name: values.get(p.name, p.default) for p in cls.parameters}
+        self.checked = False
+        return self
+
     def __getitem__(self, key: str) -> Any:
         return self.values[key]
 
@@ -85,6 +98,10 @@ class PlantEffect:
 
     def on_measurements(self, measured: dict[str, Array], dt: float) -> dict[str, Array]:
         return measured
+
+    def delays(self) -> dict[str, Any]:
+        """Channel -> latency (s) with which this effect makes that channel's sensor report."""
+        return {}
 
     def initial_states(self, ctx: dict[str, Any], plant: Any) -> list[float]:
         """Values of this effect's states at the operating point (dx/dt = 0)."""
@@ -118,7 +135,7 @@ class StatorResistance(PlantEffect):
     parameters = (EffectParameter("r_a", 0.005, "pu", "stator resistance", 0.001, 0.02),)
 
     def configure(self, plant: Any) -> None:
-        plant.r_a = float(self["r_a"])
+        plant.r_a = self["r_a"]
 
 
 @register
@@ -138,11 +155,10 @@ class MagneticSaturation(PlantEffect):
         super().__init__(**values)
         if not self["s12"] > self["s10"]:
             raise SimulationError("effect magnetic_saturation: s12 must exceed s10")
-        self.b = float(np.log(self["s12"] / self["s10"]) / 0.2)
-        self.a = float(self["s10"] * np.exp(-self.b))
 
     def flux_loss_d(self, e_q: Array) -> Array:
-        return self.a * np.exp(self.b * e_q) * e_q
+        b = np.log(self["s12"] / self["s10"]) / 0.2
+        return self["s10"] * np.exp(b * (e_q - 1.0)) * e_q
 
 
 @register
@@ -158,12 +174,17 @@ class SensorDelay(PlantEffect):
     def on_measurements(self, measured: dict[str, Array], dt: float) -> dict[str, Array]:
         from phid_ros.io.topics import STREAMS_BY_NAME
 
-        k = int(round(self["delay_ms"] * 1e-3 / dt))
+        k = int(round(self["delay_ms"] * 1e-3 / dt))  # the simulated latency is whole samples
         out = dict(measured)
         for c in STREAMS_BY_NAME[self["stream"]].channels:
             x = measured[c]
             out[c] = np.concatenate((np.full(k, x[0]), x[:-k])) if k else x
         return out
+
+    def delays(self) -> dict[str, Any]:
+        from phid_ros.io.topics import STREAMS_BY_NAME
+
+        return {c: self["delay_ms"] * 1e-3 for c in STREAMS_BY_NAME[self["stream"]].channels}
 
 
 @register
@@ -187,7 +208,7 @@ class SubtransientDynamics(PlantEffect):
 
     def configure(self, plant: Any) -> None:
         p = plant.params
-        if not (self["x_dpp"] < p.X_d_prime and self["x_qpp"] < p.X_q_prime):
+        if self.checked and not (self["x_dpp"] < p.X_d_prime and self["x_qpp"] < p.X_q_prime):
             raise SimulationError("effect subtransient_dynamics: X''_d, X''_q must lie below X'_d, X'_q")
 
     def initial_states(self, ctx: dict[str, Any], plant: Any) -> list[float]:
@@ -198,7 +219,7 @@ class SubtransientDynamics(PlantEffect):
         ]
 
     def emf(self, states: Array, params: Any) -> tuple[Array, Array, float, float]:
-        return states[0], states[1], float(self["x_dpp"]), float(self["x_qpp"])
+        return states[0], states[1], self["x_dpp"], self["x_qpp"]
 
     def derivatives(self, states: Array, ctx: dict[str, Any], params: Any) -> list[Array]:
         e_qpp, e_dpp = states[0], states[1]
@@ -225,11 +246,11 @@ class ShaftTorsion(PlantEffect):
     )
     state_names = ("delta_t", "omega_t")
 
-    def _stiffness(self, params: Any, ws: float) -> tuple[float, float, float]:
+    def _stiffness(self, params: Any, ws: float) -> tuple[Any, Any, Any]:
         h_t = self["turbine_fraction"] * params.H
         h_g = params.H - h_t
         k = (2 * np.pi * self["f_torsion_hz"]) ** 2 / (ws * (1 / (2 * h_t) + 1 / (2 * h_g)))
-        return h_t, h_g, float(k)
+        return h_t, h_g, k
 
     def initial_states(self, ctx: dict[str, Any], plant: Any) -> list[float]:
         from phid_ros.model.conventions import omega_s

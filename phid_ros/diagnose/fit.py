@@ -1,0 +1,179 @@
+"""Output-error fit of an extended model: base parameters and effect parameters together.
+
+The residual is every output channel (omega, delta, I_d, I_q, P_e, Q_e) of the
+play-in against the measurement, at every play-in step, each divided by its
+sensor-noise standard deviation (so the channels weigh as the data deserve and
+the sum of squares is a chi-square). The base parameters always float: an effect
+is only judged against a base model that was refitted alongside it, or the
+base's compensation for the missing effect would count against the effect.
+
+Jacobians are forward differences computed in *one* vectorised play-in (one
+model column per parameter); trust-region reflective least squares keeps every
+parameter in its bounds (log scale for positive ones).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import least_squares
+
+from phid_ros.diagnose.candidates import Candidate, FreeParameter
+from phid_ros.diagnose.playin import OUTPUTS, PlayIn, play_in
+from phid_ros.ident.scenario import ScenarioData
+from phid_ros.model.conventions import DEFAULT_F_NOMINAL_HZ
+from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME
+
+Array = NDArray[np.float64]
+FD_STEP = 1e-5  # relative (log-scale) finite-difference step; the play-in is deterministic
+
+
+@dataclass
+class ModelSpec:
+    """A base model with zero or more effects: values of every parameter (scalars)."""
+
+    base: dict[str, float]
+    effects: list[tuple[type[Candidate], dict[str, Any]]] = field(default_factory=list)
+
+    @property
+    def names(self) -> list[str]:
+        return [c.name() for c, _ in self.effects]
+
+    def effect_values(self) -> dict[str, dict[str, Any]]:
+        return {c.name(): dict(v) for c, v in self.effects}
+
+    def plant_effects(self) -> list[tuple[type, dict[str, Any]]]:
+        return [(c.effect, v) for c, v in self.effects]
+
+
+@dataclass
+class FitResult:
+    model: ModelSpec
+    chi2: float  # sum of squared noise-normalised residuals on the fit windows
+    n: int  # residual samples
+    k: int  # free parameters
+    nfev: int = 0
+    message: str = ""
+
+    @property
+    def bic(self) -> float:
+        return self.n * math.log(self.chi2 / self.n) + self.k * math.log(self.n)
+
+
+def base_free(start: Mapping[str, float]) -> list[FreeParameter]:
+    """Base parameters free within a factor of 3 of the start (and their physical range)."""
+    out = []
+    for n in PARAMETER_NAMES:
+        s = SPECS_BY_NAME[n]
+        v = float(start[n])
+        if n == "D":  # may be near zero: linear scale
+            out.append(FreeParameter(n, 0.0, max(s.high, 3 * v), log=False))
+        else:
+            out.append(FreeParameter(n, max(s.low, v / 3), min(s.high, 3 * v), log=True))
+    return out
+
+
+def residuals(runs: Sequence[PlayIn], sigma: Mapping[str, float]) -> Array:
+    """Noise-normalised residuals, shape (samples, models)."""
+    return np.concatenate([(r.sim[c] - r.meas[c]) / sigma[c] for r in runs for c in OUTPUTS], axis=0)
+
+
+class Problem:
+    """The least-squares problem of one model structure on a set of windows."""
+
+    def __init__(
+        self,
+        windows: Sequence[ScenarioData],
+        sigma: Mapping[str, float],
+        spec: ModelSpec,
+        f_nominal_hz: float = DEFAULT_F_NOMINAL_HZ,
+    ) -> None:
+        self.windows, self.sigma, self.spec, self.f = list(windows), dict(sigma), spec, f_nominal_hz
+        self.free: list[tuple[int, FreeParameter]] = [(-1, p) for p in base_free(spec.base)]
+        for i, (cand, _) in enumerate(spec.effects):
+            self.free.extend((i, p) for p in cand.free())
+        self.nfev = 0
+
+    def x0(self) -> Array:
+        x = [p.to_x(self._value(i, p.name)) for i, p in self.free]
+        lo, hi = self.bounds()
+        return np.clip(np.array(x, float), lo + 1e-9, hi - 1e-9)
+
+    def bounds(self) -> tuple[Array, Array]:
+        b = np.array([p.x_bounds for _, p in self.free])
+        return b[:, 0], b[:, 1]
+
+    def _value(self, i: int, name: str) -> Any:
+        return self.spec.base[name] if i < 0 else self.spec.effects[i][1][name]
+
+    def columns(self, X: Array) -> tuple[dict[str, Any], list[tuple[type, dict[str, Any]]]]:
+        """Parameter values for the models whose x vectors are the columns of ``X``."""
+        base: dict[str, Any] = dict(self.spec.base)
+        effects = [(c.effect, dict(v)) for c, v in self.spec.effects]
+        for row, (i, p) in enumerate(self.free):
+            v = p.from_x(X[row])
+            if i < 0:
+                base[p.name] = v
+            else:
+                effects[i][1][p.name] = v
+        return base, effects
+
+    def simulate(self, X: Array) -> list[PlayIn]:
+        base, effects = self.columns(X)
+        self.nfev += X.shape[1]
+        return play_in(self.windows, base, effects, m=X.shape[1], f_nominal_hz=self.f)
+
+    def residual_matrix(self, X: Array) -> Array:
+        r = residuals(self.simulate(X), self.sigma)
+        return np.where(np.isfinite(r), r, 1e6)  # a diverged model is simply a very bad one
+
+    def spec_at(self, x: Array) -> ModelSpec:
+        base, effects = self.columns(x[:, None])
+        return ModelSpec(
+            {k: float(np.ravel(v)[0]) for k, v in base.items()},
+            [
+                (cand, {k: (float(np.ravel(v)[0]) if np.asarray(v).dtype.kind == "f" else v) for k, v in vals.items()})
+                for (cand, _), (_, vals) in zip(self.spec.effects, effects)
+            ],
+        )
+
+
+def fit(problem: Problem, max_nfev: int = 12) -> FitResult:
+    """Local least squares from the problem's start values."""
+    cache: dict[bytes, Array] = {}
+    lo, hi = problem.bounds()
+
+    def fun(x: Array) -> Array:
+        key = x.tobytes()
+        if key not in cache:
+            cache.clear()
+            cache[key] = problem.residual_matrix(x[:, None])[:, 0]
+        return cache[key]
+
+    def jac(x: Array) -> Array:
+        n = len(x)
+        steps = FD_STEP * np.maximum(1.0, np.abs(x))
+        steps = np.where(x + steps > hi, -steps, steps)  # stay inside the bounds
+        X = x[:, None] + np.diag(steps)
+        R = problem.residual_matrix(X)
+        return (R - fun(x)[:, None]) / steps[None, :n]
+
+    x0 = problem.x0()
+    sol = least_squares(fun, x0, jac=jac, bounds=(lo, hi), method="trf", x_scale="jac", max_nfev=max_nfev)
+    r = fun(sol.x)
+    k = len(x0) + sum(len(c.searched()) for c, _ in problem.spec.effects)
+    return FitResult(problem.spec_at(sol.x), float(r @ r), len(r), k, sol.nfev, sol.message)
+
+
+def evaluate(
+    windows: Sequence[ScenarioData],
+    sigma: Mapping[str, float],
+    spec: ModelSpec,
+    f_nominal_hz: float = DEFAULT_F_NOMINAL_HZ,
+) -> list[PlayIn]:
+    return play_in(windows, spec.base, spec.plant_effects(), f_nominal_hz=f_nominal_hz)

@@ -1,0 +1,155 @@
+"""The play-in of an extended model: the plant's own equations, driven by the measured terminal.
+
+The identified model (and any candidate effects added to it) is the simulator's
+:class:`~phid_ros.sim.plant.Plant` with a zero-impedance network whose source is
+the *measured* terminal phasor (V_t, theta_t), with measured P_m and V_f: no grid
+model is assumed, as in the validation play-in. Using the plant's equations, not a
+copy, means a candidate effect in the diagnosis is the very effect the simulator
+switches on, one concept in one place.
+
+Many parameter sets run side by side: every parameter (base and effect) may be an
+array with one value per model, and the columns are (scenario, model) pairs, so a
+finite-difference Jacobian or a screening grid costs one vectorised run.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from phid_ros.ident.scenario import ScenarioData
+from phid_ros.ident.validation import _stride, staged_samples
+from phid_ros.model.conventions import DEFAULT_F_NOMINAL_HZ, electrical_power, terminal_to_dq
+from phid_ros.model.parameters import PARAMETER_NAMES
+from phid_ros.numerics import rk4
+from phid_ros.sim.effects import PlantEffect
+from phid_ros.sim.plant import Plant
+
+Array = NDArray[np.float64]
+OUTPUTS = ("omega", "delta", "i_d", "i_q", "p_e", "q_e")
+INPUTS = ("v_t", "theta_t", "p_m", "v_f")
+STEP_SECONDS = 0.002  # finer than validation's 4 ms: torsional modes up to 40 Hz and 10 ms damper constants
+
+
+class ColumnParameters:
+    """The eight base parameters, each a scalar or one value per simulated model (duck-types
+    :class:`~phid_ros.model.parameters.GeneratorParameters` for the plant's equations)."""
+
+    def __init__(self, values: Mapping[str, Any], m: int) -> None:
+        for name in PARAMETER_NAMES:
+            setattr(self, name, np.broadcast_to(np.asarray(values[name], float), (m,)).copy())
+
+
+@dataclass
+class PlayIn:
+    """Model outputs and the matching measurements at every play-in step, per scenario.
+
+    ``sim[c]`` and ``meas[c]`` have shape (steps, models); the measurements are per model
+    too because an effect may re-time a sensor stream (a latency undone differently per model).
+    """
+
+    scenario: ScenarioData
+    t: Array
+    sim: dict[str, Array]
+    meas: dict[str, Array]
+
+
+def play_in(
+    scenarios: Sequence[ScenarioData],
+    base: Mapping[str, Any],
+    effects: Sequence[tuple[type[PlantEffect], Mapping[str, Any]]] = (),
+    m: int = 1,
+    f_nominal_hz: float = DEFAULT_F_NOMINAL_HZ,
+    step: float = STEP_SECONDS,
+) -> list[PlayIn]:
+    """Simulate ``m`` models (base values and effect values scalars or length-``m`` arrays)."""
+    n_s = len(scenarios)
+    cols = n_s * m
+
+    def per_column(v: Any) -> Any:
+        a = np.asarray(v)
+        return np.tile(np.broadcast_to(a, (m,)), n_s) if a.dtype.kind in "fi" else v
+
+    params = ColumnParameters({k: per_column(base[k]) for k in PARAMETER_NAMES}, cols)
+    instances = [cls.from_arrays(**{k: per_column(v) for k, v in values.items()}) for cls, values in effects]
+    plant = Plant(params, f_nominal_hz=f_nominal_hz, effects=tuple(instances))  # type: ignore[arg-type]
+
+    dt = scenarios[0].dt
+    stride = _stride(dt, step)
+    h = stride * dt
+    idx = [np.arange(0, s.n, stride) for s in scenarios]
+    steps = max(len(i) for i in idx)
+    half = stride // 2
+    advance: dict[str, Array] = {}
+    for e in instances:
+        for c, lag in e.delays().items():
+            advance[c] = advance.get(c, np.zeros(cols)) + np.broadcast_to(lag, (cols,))
+
+    cache: dict[str, Array] = {}
+
+    def staged(name: str) -> Array:
+        if name not in cache:
+            cache[name] = staged_samples(scenarios, name, m, steps, half, advance.get(name))
+        return cache[name]
+
+    v_t, theta, p_m, v_f = (staged(n) for n in INPUTS)
+    on = np.repeat([1.0 if s.generator_damping else 0.0 for s in scenarios], m)
+    damping = params.D * on
+    x0 = _initial_state(plant, [staged(c) for c in ("delta", "omega", "i_d", "i_q")], v_t, theta, scenarios, stride, m)
+    states = rk4(
+        plant._rhs,
+        x0,
+        steps - 1,
+        h,
+        lambda k: (),
+        staged=lambda k, j: (p_m[2 * k + j], v_f[2 * k + j], v_t[2 * k + j], theta[2 * k + j], 0.0, 0.0, damping),
+    )
+    v_t, theta = v_t[::2], theta[::2]
+    x = np.moveaxis(states, 1, 0)  # (n_states, steps, cols)
+    eq_i, ed_i, xd_i, xq_i = plant._emf(x)
+    i_d, i_q, v_d, v_q = plant._currents(x[0], eq_i, ed_i, v_t, theta, 0.0, 0.0, xd_i, xq_i)
+    p_e, q_e = electrical_power(v_d, v_q, i_d, i_q)
+    sim_all = {"omega": x[1], "delta": x[0], "i_d": i_d, "i_q": i_q, "p_e": p_e, "q_e": q_e}
+    meas_all = {c: staged(c)[::2] for c in OUTPUTS}
+    out = []
+    for j, (s, ii) in enumerate(zip(scenarios, idx)):
+        c, n = slice(j * m, (j + 1) * m), len(ii)
+        out.append(
+            PlayIn(s, ii * dt, {k: v[:n, c] for k, v in sim_all.items()}, {k: v[:n, c] for k, v in meas_all.items()})
+        )
+    return out
+
+
+def _initial_state(
+    plant: Plant,
+    pre: list[Array],
+    v_t: Array,
+    theta: Array,
+    scenarios: Sequence[ScenarioData],
+    stride: int,
+    m: int,
+) -> Array:
+    """The pre-event steady state each model sees in the (re-timed) measurements."""
+    p = plant.params
+    cols = v_t.shape[1]
+    mean = np.empty((4, cols))
+    vt0, th0 = np.empty(cols), np.empty(cols)
+    for j, s in enumerate(scenarios):
+        rows = 2 * max(1, int(round(s.k_event / stride)))
+        c = slice(j * m, (j + 1) * m)
+        for i, a in enumerate(pre):
+            mean[i, c] = np.mean(a[:rows, c], axis=0)
+        vt0[c] = np.mean(v_t[:rows, c], axis=0)
+        th0[c] = np.mean(theta[:rows, c], axis=0)
+    delta, omega, i_d, i_q = mean
+    v_d, v_q = terminal_to_dq(vt0, delta, th0)
+    e_q = v_q + plant.r_a * i_q + p.X_d_prime * i_d
+    e_d = v_d + plant.r_a * i_d - p.X_q_prime * i_q
+    p_airgap = e_d * i_d + e_q * i_q + (p.X_q_prime - p.X_d_prime) * i_d * i_q
+    ctx = {"delta": delta, "e_q": e_q, "e_d": e_d, "i_d": i_d, "i_q": i_q, "p_m": p_airgap}
+    extra = [np.broadcast_to(v, (cols,)) for e in plant.effects for v in e.initial_states(ctx, plant)]
+    return np.vstack([delta, omega, e_q, e_d, *extra]) if extra else np.vstack([delta, omega, e_q, e_d])

@@ -1,0 +1,95 @@
+"""The diagnosis as JSON (the ``phid diagnose --json`` contract of DESIGN.md and more)."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from phid_ros.diagnose.workflow import Diagnosis, Score, parameter_errors
+from phid_ros.model.parameters import GeneratorParameters
+
+RMSE_DEFINITION = (
+    "held-out scenarios, play-in driven by measured V_t, theta_t, P_m, V_f; per channel the residual's RMS with "
+    "its white-noise share removed (estimated from the residual's first differences), divided by that channel's "
+    "sensor-noise sigma; overall = RMS over omega, delta, i_d, i_q, p_e, q_e. 0 = nothing left but sensor noise."
+)
+
+
+def _channels(before: Score, after: Score) -> dict[str, Any]:
+    return {
+        c: {
+            "rmse_before": before.channels[c].rmse,
+            "rmse_after": after.channels[c].rmse,
+            "unexplained_before": before.channels[c].unexplained,
+            "unexplained_after": after.channels[c].unexplained,
+        }
+        for c in before.channels
+    }
+
+
+def to_json(
+    d: Diagnosis, truth: GeneratorParameters | None = None, truth_effects: list | None = None
+) -> dict[str, Any]:
+    effects = []
+    prev = d.before
+    for (cand, values), (name, sc) in zip(d.final.model.effects, d.steps):
+        trial = next(t for r in d.rounds for t in r.trials if t.accepted and t.candidate == name)
+        effects.append(
+            {
+                "name": name,
+                "parameters": dict(values),
+                "rmse_before": prev.overall,
+                "rmse_after": sc.overall,
+                "delta_bic": trial.delta_bic,
+                "heldout_gain": trial.heldout_gain,
+                "signature": cand.signature,
+            }
+        )
+        prev = sc
+    doc: dict[str, Any] = {
+        "effects": effects,
+        "rmse_before": d.before.overall,
+        "rmse_after": d.after.overall,
+        "rmse_definition": RMSE_DEFINITION,
+        "channels": _channels(d.before, d.after),
+        "parameters": d.final.model.base,
+        "parameters_identified": d.identified,
+        "parameters_base_refit": d.base_fit.model.base,
+        "fit": {"chi2_before": d.base_fit.chi2, "chi2_after": d.final.chi2, "samples": d.final.n},
+        "rounds": [
+            {
+                "named": r.chosen,
+                "trials": [
+                    {
+                        "candidate": t.candidate,
+                        "settings": t.settings,
+                        "parameters": t.fit.model.effect_values().get(t.candidate) if t.fit else None,
+                        "screened_chi2": t.screened_chi2,
+                        "chi2": t.fit.chi2 if t.fit else None,
+                        "delta_bic": None if math.isnan(t.delta_bic) else t.delta_bic,
+                        "heldout_rmse": t.heldout.overall if t.heldout else None,
+                        "heldout_gain": None if math.isnan(t.heldout_gain) else t.heldout_gain,
+                        "accepted": t.accepted,
+                    }
+                    for t in r.trials
+                ],
+            }
+            for r in d.rounds
+        ],
+        "fit_scenarios": [w.name for w in d.fit_windows],
+        "heldout_scenarios": [w.name for w in d.heldout_windows],
+        "noise_sigma": d.sigma,
+        "problems": d.problems,
+        "seconds": d.seconds,
+    }
+    if truth is not None:
+        doc["truth"] = truth.as_dict()
+        doc["errors_pct"] = {
+            "identified": parameter_errors(d.identified, truth),
+            "base_refit": parameter_errors(d.base_fit.model.base, truth),
+            "after": parameter_errors(d.final.model.base, truth),
+        }
+        doc["mean_abs_error_pct"] = {k: sum(abs(v) for v in e.values()) / len(e) for k, e in doc["errors_pct"].items()}
+    if truth_effects is not None:
+        doc["truth_effects"] = truth_effects
+    return doc

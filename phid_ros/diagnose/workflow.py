@@ -1,0 +1,333 @@
+"""Naming the missing physics: greedy forward selection over the candidate library.
+
+Start from the identified fourth-order model, refitted by output error on the
+fit windows (so every later comparison is between models fitted the same way).
+Each round, every candidate not yet in the model is screened (a grid over its
+own parameters with the current model held) and the best few are fitted with
+all base and effect parameters free. A candidate is named only when both
+pieces of evidence agree it is real:
+
+- the Bayesian information criterion on the fit windows improves by more than
+  ``bic_margin`` (the penalty for its extra parameters is already inside BIC;
+  the margin guards against the residual's time correlation, which makes the
+  chi-square differences larger than independent samples would);
+- the unexplained error on scenarios held out of the fit falls by at least
+  ``min_heldout_gain`` (an effect that only fits the noise of the fit windows
+  does not carry over).
+
+The winner becomes the new model and the next round looks for a second effect;
+the search stops when no candidate passes. With nothing missing it names none.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from phid_ros.diagnose.candidates import Candidate, library
+from phid_ros.diagnose.fit import FitResult, ModelSpec, Problem, fit, residuals
+from phid_ros.diagnose.localise import noise_std
+from phid_ros.diagnose.playin import OUTPUTS, PlayIn, play_in
+from phid_ros.ident.scenario import ScenarioData
+from phid_ros.model.conventions import DEFAULT_F_NOMINAL_HZ
+from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, GeneratorParameters
+
+Array = NDArray[np.float64]
+
+
+@dataclass
+class DiagnoseOptions:
+    pre_s: float = 1.0  # window before the event (the play-in's steady start)
+    post_s: float = 6.0  # window after it: several T'_d0, the whole electromechanical swing
+    per_kind: int = 2  # fit scenarios per disturbance kind (the rest and role=validate are held out)
+    bic_margin: float = 200.0
+    min_heldout_gain: float = 0.25
+    shortlist: int = 5  # candidates fitted fully per round, best screened first (the screen holds the
+    # base model fixed, which misranks effects the base had compensated, e.g. saturation via X_d)
+    max_effects: int = 3
+    max_nfev: int = 40
+    f_nominal_hz: float = DEFAULT_F_NOMINAL_HZ
+
+
+@dataclass
+class ChannelError:
+    rmse: float  # against the measurement, in the channel's unit (includes sensor noise)
+    unexplained: float  # the residual with its white-noise share removed, in the channel's unit
+
+
+@dataclass
+class Score:
+    """How well one model explains the held-out scenarios."""
+
+    channels: dict[str, ChannelError]
+    overall: float  # RMS over channels of the unexplained error in units of sensor noise
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"overall": self.overall, "channels": {c: e.__dict__ for c, e in self.channels.items()}}
+
+
+@dataclass
+class Trial:
+    candidate: str
+    settings: dict[str, Any]
+    fit: FitResult | None
+    screened_chi2: float
+    heldout: Score | None = None
+    delta_bic: float = math.nan
+    heldout_gain: float = math.nan
+    accepted: bool = False
+
+
+@dataclass
+class Round:
+    trials: list[Trial]
+    chosen: str | None
+
+
+@dataclass
+class Diagnosis:
+    identified: dict[str, float]  # the fourth-order model as the three-stage identification gave it
+    base_fit: FitResult  # the same structure refitted by output error: the "before" model
+    final: FitResult
+    rounds: list[Round]
+    before: Score
+    after: Score
+    steps: list[tuple[str, Score]]  # the held-out score after adding each named effect
+    fit_windows: list[ScenarioData]
+    heldout_windows: list[ScenarioData]
+    sigma: dict[str, float]
+    seconds: float = 0.0
+    problems: list[str] = field(default_factory=list)
+
+    @property
+    def named(self) -> list[str]:
+        return self.final.model.names
+
+
+def window(s: ScenarioData, pre_s: float, post_s: float) -> ScenarioData:
+    """The scenario cut to [event - pre_s, event + post_s]."""
+    a = max(0, s.k_event - int(round(pre_s / s.dt)))
+    b = min(s.n, s.k_event + int(round(post_s / s.dt)))
+    return ScenarioData(
+        s.name,
+        s.kind,
+        s.role,
+        s.generator_damping,
+        s.dt,
+        {k: v[a:b] for k, v in s.signals.items()},
+        s.k_event - a,
+        None if s.k_clear is None else s.k_clear - a,
+        s.start_ns + int(round(a * s.dt * 1e9)),
+        list(s.notes),
+        [k - a for k in s.extra_switching if a < k < b],
+    )
+
+
+def split(scenarios: Sequence[ScenarioData], per_kind: int) -> tuple[list[ScenarioData], list[ScenarioData]]:
+    """Fit scenarios (per kind the smallest and the largest by name order) and held-out ones."""
+    ident = [s for s in scenarios if s.role == "identify"]
+    fit_set: list[ScenarioData] = []
+    for kind in sorted({s.kind for s in ident}):
+        same = sorted((s for s in ident if s.kind == kind), key=lambda s: s.name)
+        pick = np.unique(np.round(np.linspace(0, len(same) - 1, min(per_kind, len(same)))).astype(int))
+        fit_set.extend(same[i] for i in pick)
+    held = [s for s in scenarios if s.role == "validate"]
+    if not held:
+        held = [s for s in ident if s not in fit_set]
+    return fit_set, held
+
+
+def channel_sigma(scenarios: Sequence[ScenarioData]) -> dict[str, float]:
+    return {c: max(float(np.median([noise_std(s[c]) for s in scenarios])), 1e-12) for c in OUTPUTS}
+
+
+def score(runs: Sequence[PlayIn], sigma: Mapping[str, float], col: int = 0) -> Score:
+    channels = {}
+    for c in OUTPUTS:
+        r = np.concatenate([x.sim[c][:, col] - x.meas[c][:, col] for x in runs])
+        ms = float(np.mean(r**2))
+        white = float(np.mean([noise_std(x.sim[c][:, col] - x.meas[c][:, col]) ** 2 for x in runs]))
+        channels[c] = ChannelError(math.sqrt(ms), math.sqrt(max(ms - white, 0.0)))
+    overall = math.sqrt(np.mean([(channels[c].unexplained / sigma[c]) ** 2 for c in OUTPUTS]))
+    return Score(channels, overall)
+
+
+def screen(
+    cand: type[Candidate], current: ModelSpec, windows: Sequence[ScenarioData], sigma: Mapping[str, float], f_hz: float
+) -> tuple[dict[str, Any], float]:
+    """Best trial values of ``cand`` added to ``current`` (which is held fixed), and their chi-square."""
+    grid = cand.screen()
+    ok = cand.admissible(grid, current.base)
+    grid = {k: v[ok] for k, v in grid.items()}
+    best: tuple[dict[str, Any], float] = ({}, math.inf)
+
+    def trial(grid: dict[str, Array], setting: dict[str, str]) -> tuple[dict[str, Any], float]:
+        m = len(next(iter(grid.values())))
+        effects = current.plant_effects() + [(cand.effect, {**grid, **setting})]
+        r = residuals(play_in(windows, current.base, effects, m=m, f_nominal_hz=f_hz), sigma)
+        chi2 = np.sum(np.where(np.isfinite(r), r, 1e6) ** 2, axis=0)
+        j = int(np.argmin(chi2))
+        return {**{k: float(v[j]) for k, v in grid.items()}, **setting}, float(chi2[j])
+
+    for setting in cand.choices():
+        found = trial(grid, setting)
+        if found[1] < best[1]:
+            best = found
+    finer = cand.refine(best[0])
+    if finer is not None:
+        setting = {k: v for k, v in best[0].items() if isinstance(v, str)}
+        found = trial(finer, setting)
+        if found[1] < best[1]:
+            best = found
+    return best
+
+
+def pre_event(windows: Sequence[ScenarioData]) -> dict[str, float]:
+    """Mean pre-event terminal quantities over the windows (one operating point)."""
+    return {
+        c: float(np.mean([np.mean(w[c][w.pre_slice()]) for w in windows]))
+        for c in ("v_d", "v_q", "i_d", "i_q", "v_f", "p_m")
+    }
+
+
+def screen_jointly(
+    cand: type[Candidate],
+    joint: tuple[dict[str, Array], dict[str, Array]],
+    current: ModelSpec,
+    windows: Sequence[ScenarioData],
+    sigma: Mapping[str, float],
+    f_hz: float,
+) -> tuple[ModelSpec, float]:
+    """The best of the candidate's joint trials (effect and base values per column)."""
+    values, base = joint
+    m = len(next(iter(values.values())))
+    effects = current.plant_effects() + [(cand.effect, values)]
+    r = residuals(play_in(windows, base, effects, m=m, f_nominal_hz=f_hz), sigma)
+    chi2 = np.sum(np.where(np.isfinite(r), r, 1e6) ** 2, axis=0)
+    j = int(np.argmin(chi2))
+    spec = ModelSpec(
+        {k: float(v[j]) for k, v in base.items()},
+        list(current.effects) + [(cand, {k: float(v[j]) for k, v in values.items()})],
+    )
+    return spec, float(chi2[j])
+
+
+def starting_point(values: Mapping[str, float]) -> tuple[dict[str, float], list[str]]:
+    """The identified set moved just inside the physical ranges, with a note for every move.
+
+    A missing effect can push the three-stage estimates out of range (an encoder latency
+    makes D negative); the output-error fit still needs a valid model to start from.
+    """
+    out, notes = {}, []
+    for n in PARAMETER_NAMES:
+        spec = SPECS_BY_NAME[n]
+        v = float(values.get(n, math.nan))
+        fixed = spec.default if not math.isfinite(v) else min(max(v, spec.low), spec.high)
+        if n == "D" and fixed <= spec.low:
+            fixed = 0.05  # the fit is on a linear scale and may return to zero
+        if fixed != v:
+            notes.append(f"start value {n}={v:.4g} outside its physical range: the fit starts from {fixed:.4g}")
+        out[n] = fixed
+    for small, large in (("X_d_prime", "X_d"), ("X_q_prime", "X_q")):
+        if out[small] >= out[large]:
+            notes.append(f"start value {small} not below {large}: the fit starts from 0.5 {large}")
+            out[small] = 0.5 * out[large]
+    return out, notes
+
+
+def diagnose(
+    scenarios: Sequence[ScenarioData],
+    identified: Mapping[str, float],
+    options: DiagnoseOptions | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> Diagnosis:
+    """Name the effects missing from the model ``identified`` (the eight base parameters)."""
+    opt = options or DiagnoseOptions()
+    say = progress or (lambda msg: None)
+    t_start = time.perf_counter()
+    f_hz = opt.f_nominal_hz
+    fit_s, held_s = split(scenarios, opt.per_kind)
+    fit_w = [window(s, opt.pre_s, opt.post_s) for s in fit_s]
+    held_w = [window(s, opt.pre_s, opt.post_s) for s in held_s]
+    sigma = channel_sigma(scenarios)
+
+    def held_score(spec: ModelSpec) -> Score:
+        return score(play_in(held_w, spec.base, spec.plant_effects(), f_nominal_hz=f_hz), sigma)
+
+    say("refitting the fourth-order model by output error")
+    start, problems = starting_point(identified)
+    current = fit(Problem(fit_w, sigma, ModelSpec(start), f_hz), opt.max_nfev)
+    base_fit = current
+    current_score = before = held_score(current.model)
+    rounds: list[Round] = []
+    steps: list[tuple[str, Score]] = []
+    while len(current.model.effects) < opt.max_effects:
+        taken = set(current.model.names)
+        pool = [c for c in library() if c.name() not in taken and not _conflicts(c, current.model)]
+        if not pool:
+            break
+        screened = []
+        for cand in pool:
+            say(f"screening {cand.name()}")
+            values, chi2 = screen(cand, current.model, fit_w, sigma, f_hz)
+            screened.append((chi2, cand, values))
+        screened.sort(key=lambda t: t[0])
+        trials = []
+        for chi2, cand, values in screened[: opt.shortlist]:
+            say(f"fitting {cand.name()} with the base parameters")
+            spec = ModelSpec(dict(current.model.base), list(current.model.effects) + [(cand, values)])
+            joint = cand.joint_screen(current.model.base, pre_event(fit_w))
+            if joint is not None:
+                say(f"screening {cand.name()} with the base parameters it distorts")
+                alt, alt_chi2 = screen_jointly(cand, joint, current.model, fit_w, sigma, f_hz)
+                if alt_chi2 < chi2:
+                    spec, chi2 = alt, alt_chi2
+            res = fit(Problem(fit_w, sigma, spec, f_hz), opt.max_nfev)
+            trial = Trial(cand.name(), {k: v for k, v in values.items() if isinstance(v, str)}, res, chi2)
+            trial.heldout = held_score(res.model)
+            trial.delta_bic = res.bic - current.bic
+            trial.heldout_gain = 1.0 - trial.heldout.overall / max(current_score.overall, 1e-12)
+            trials.append(trial)
+        trials += [Trial(c.name(), {}, None, chi2) for chi2, c, _ in screened[opt.shortlist :]]
+        fitted = [t for t in trials if t.fit is not None]
+        best = min(fitted, key=lambda t: t.delta_bic)
+        if best.delta_bic < -opt.bic_margin and best.heldout_gain >= opt.min_heldout_gain:
+            best.accepted = True
+            assert best.fit is not None and best.heldout is not None
+            current, current_score = best.fit, best.heldout
+            steps.append((best.candidate, best.heldout))
+            rounds.append(Round(trials, best.candidate))
+            say(f"named {best.candidate}: BIC {best.delta_bic:+.0f}, held-out error -{100 * best.heldout_gain:.0f} %")
+        else:
+            rounds.append(Round(trials, None))
+            break
+    return Diagnosis(
+        identified={n: float(identified.get(n, math.nan)) for n in PARAMETER_NAMES},
+        base_fit=base_fit,
+        final=current,
+        rounds=rounds,
+        before=before,
+        after=current_score,
+        steps=steps,
+        fit_windows=fit_w,
+        heldout_windows=held_w,
+        sigma=sigma,
+        seconds=time.perf_counter() - t_start,
+        problems=problems,
+    )
+
+
+def _conflicts(cand: type[Candidate], model: ModelSpec) -> bool:
+    """Two effects that both replace the stator EMF cannot be combined."""
+    return cand.effect.provides_emf and any(c.effect.provides_emf for c, _ in model.effects)
+
+
+def parameter_errors(values: Mapping[str, float], truth: GeneratorParameters) -> dict[str, float]:
+    t = truth.as_dict()
+    return {n: 100.0 * (values[n] / t[n] - 1.0) for n in PARAMETER_NAMES if t[n]}
