@@ -93,3 +93,7 @@ def to_json(
     if truth_effects is not None:
         doc["truth_effects"] = truth_effects
     return doc
+
+
+def _mean_abs(errors: dict[str, float]) -> float:
+    return sum(abs(v) for v in errors.values()) / len(errors)
