@@ -200,7 +200,7 @@ class SensorDelayCandidate(Candidate):
         return ("delay_ms",)
 
     @classmethod
-    def screen(cls) -> dict[str, Array]:
+    def screen(cls, runs: Sequence[Any] = ()) -> dict[str, Array]:
         return {
             "delay_ms": np.concatenate((np.arange(1.0, 10.0), np.arange(10.0, 30.0, 2.0), np.arange(30.0, 100.1, 5.0)))
         }
@@ -233,10 +233,11 @@ class ShaftTorsionCandidate(Candidate):
         # ring-down of seconds is thousands of models; the mode shows as a peak in the speed
         # residual's spectrum, so the grid is placed around that peak (its signature).
         f0 = torsional_peak(runs)
-        f = f0 + np.arange(-1.0, 1.01, 0.1) if f0 is not None else np.arange(5.0, 40.01, 0.5)
+        if f0 is None:  # no mode stands out: a coarse look, for the record
+            f, frac, d = np.arange(5.0, 40.01, 1.0), np.array([0.45, 0.7]), np.array([0.5])
+        else:
+            f, frac, d = f0 + np.arange(-1.0, 1.01, 0.1), np.array([0.3, 0.45, 0.6, 0.75]), np.array([0.3, 1.5])
         f = f[(f >= 5.0) & (f <= 40.0)]
-        frac = np.array([0.3, 0.45, 0.6, 0.75])
-        d = np.array([0.3, 1.5])
         ff, rr, dd = (a.ravel() for a in np.meshgrid(f, frac, d, indexing="ij"))
         return {"f_torsion_hz": ff, "turbine_fraction": rr, "d_shaft": dd}
 

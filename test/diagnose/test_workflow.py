@@ -24,6 +24,10 @@ from test.conftest import scenario_from_run
 
 OBSERVABLE_STREAMS = ("pt_ct", "encoder", "pmu")
 
+# Each diagnosis fits every candidate with all eight base parameters free: 1.5-3 minutes of
+# two cores per data set, about a quarter of an hour for the seven. Run with `pytest -m slow`.
+pytestmark = pytest.mark.slow
+
 
 def hidden(name: str, seed: int) -> PlantEffect:
     """The effect at a random magnitude inside its declared realistic range."""

@@ -1,0 +1,38 @@
+"""`phid diagnose` on the shipped bag with hidden saturation: the README's run, and bad input."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from phid_ros.cli.main import main
+from test.cli.test_identify import BAGS, run_phid
+
+
+@pytest.mark.slow  # the README's run: 2-3 minutes of two cores (see test/diagnose/test_workflow.py)
+def test_diagnose_names_the_hidden_saturation_in_the_shipped_bag(tmp_path, capsys):
+    out, report = tmp_path / "diag.json", tmp_path / "diag.html"
+    bag = BAGS / "saturation"
+    args = ["diagnose", str(bag), "--json", str(out), "--report", str(report)]
+    assert main(args + ["--truth", str(BAGS / "saturation.truth.json")]) == 0
+    doc = json.loads(out.read_text())
+    # the DESIGN.md contract
+    assert [e["name"] for e in doc["effects"]] == ["magnetic_saturation"]
+    effect = doc["effects"][0]
+    assert set(effect) >= {"name", "parameters", "rmse_before", "rmse_after"}
+    assert effect["parameters"]["s10"] == pytest.approx(0.07, rel=0.05)
+    assert effect["parameters"]["s12"] == pytest.approx(0.45, rel=0.05)
+    assert doc["rmse_after"] < 0.05 * doc["rmse_before"]  # README: 21.6 -> 0.31
+    assert abs(doc["errors_pct"]["after"]["T_d0_prime"]) < 1.0 < abs(doc["errors_pct"]["identified"]["T_d0_prime"])
+    assert set(doc["gap_before"]["by_channel"]) == {"omega", "delta", "i_d", "i_q", "p_e", "q_e"}
+    page = report.read_text()
+    assert page.count("data:image/png;base64,") == 2 and "magnetic_saturation" in page
+    assert "missing physics: magnetic_saturation" in capsys.readouterr().out
+
+
+def test_diagnose_without_identification_scenarios_is_a_one_line_error():
+    r = run_phid("diagnose", str(BAGS / "validation.mcap"))
+    assert r.returncode == 2
+    assert r.stderr.strip().startswith("phid: error: ") and "no identification scenarios" in r.stderr
+    assert "Traceback" not in r.stderr

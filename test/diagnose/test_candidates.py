@@ -1,0 +1,103 @@
+"""The candidate library and the extended play-in: each candidate's model explains data with its effect."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from phid_ros.diagnose.candidates import CANDIDATES, Candidate, candidate, library, torsional_peak
+from phid_ros.diagnose.fit import ModelSpec, Problem, fit, residuals
+from phid_ros.diagnose.playin import play_in
+from phid_ros.diagnose.workflow import channel_sigma, window
+from phid_ros.model.parameters import TABLE1
+from phid_ros.sim.effects import REGISTRY, PlantEffect, parse_effect, register
+from phid_ros.sim.runner import SimulationConfig, simulate_scenarios
+from phid_ros.sim.scenarios import paper_catalogue
+from test.conftest import scenario_from_run
+
+EFFECTS = {
+    "stator_resistance": "stator_resistance=r_a=0.005",
+    "magnetic_saturation": "magnetic_saturation=s10=0.08,s12=0.35",
+    "sensor_delay": "sensor_delay=stream=pmu,delay_ms=10",
+    "subtransient_dynamics": "subtransient_dynamics",
+    "shaft_torsion": "shaft_torsion",
+}
+
+
+def data(effect: PlantEffect | None):
+    cat = [replace(s, duration=5.0) for s in paper_catalogue() if s.name[:3] in ("S04", "S10", "S14")]
+    cfg = SimulationConfig(restore_ramp=1.0, restore_hold=1.0, effects=(effect,) if effect else ())
+    scs = [scenario_from_run(r) for r in simulate_scenarios(cat, cfg)]
+    return scs, channel_sigma(scs)
+
+
+def ms(scs, sigma, effects=()) -> float:
+    r = residuals(play_in(scs, TABLE1.as_dict(), effects), sigma)
+    return float(np.mean(r**2))
+
+
+def test_every_plant_effect_is_a_candidate():
+    assert [c.name() for c in library()] == sorted(REGISTRY)
+    for c in library():
+        for p in c.free():
+            assert p.low < p.high and p.x_bounds[0] < p.x_bounds[1]
+
+
+@pytest.mark.parametrize("name", sorted(EFFECTS))
+def test_the_candidate_model_explains_data_with_its_effect(name):
+    effect = parse_effect(EFFECTS[name])
+    scs, sigma = data(effect)
+    without = ms(scs, sigma)
+    with_it = ms(scs, sigma, [(type(effect), effect.values)])
+    assert without > 4.0  # the fourth-order model leaves a gap several times the noise
+    # the extended play-in is back near the noise floor (input noise and 2 ms steps included)
+    assert with_it < min(4.0, without / 3)
+
+
+def test_models_side_by_side_equal_models_one_at_a_time():
+    scs, sigma = data(parse_effect("shaft_torsion"))
+    cls = REGISTRY["shaft_torsion"]
+    f = np.array([10.0, 15.0, 20.0])
+    many = residuals(play_in(scs, TABLE1.as_dict(), [(cls, {"f_torsion_hz": f})], m=3), sigma)
+    for j in range(3):
+        one = residuals(play_in(scs, TABLE1.as_dict(), [(cls, {"f_torsion_hz": f[j]})]), sigma)
+        np.testing.assert_allclose(many[:, j], one[:, 0], rtol=1e-12, atol=1e-12)
+    assert np.argmin(np.sum(many**2, axis=0)) == 1  # the true 15 Hz explains the data best
+
+
+def test_the_torsional_signature_places_the_grid():
+    scs, sigma = data(parse_effect("shaft_torsion=f_torsion_hz=22"))
+    runs = play_in(scs, TABLE1.as_dict())
+    assert torsional_peak(runs) == pytest.approx(22.0, abs=0.5)
+    clean, _ = data(None)
+    assert torsional_peak(play_in(clean, TABLE1.as_dict())) is None
+
+
+def test_a_fit_recovers_stator_resistance_with_the_base_refitted():
+    scs, sigma = data(parse_effect("stator_resistance=r_a=0.008"))
+    windows = [window(s, 0.5, 3.0) for s in scs]
+    start = TABLE1.replace(X_q=2.3, X_d_prime=0.52).as_dict()
+    spec = ModelSpec(start, [(candidate("stator_resistance"), {"r_a": 0.003})])
+    res = fit(Problem(windows, sigma, spec), max_nfev=15)
+    assert res.model.effects[0][1]["r_a"] == pytest.approx(0.008, rel=0.05)
+    assert res.model.base["X_q"] == pytest.approx(TABLE1.X_q, rel=0.01)
+    assert res.chi2 / res.n < 3.0
+
+
+def test_a_new_effect_is_a_candidate_without_touching_the_others():
+    from phid_ros.sim.effects import EffectParameter
+
+    @register
+    class FieldOffset(PlantEffect):  # a test-only effect: a constant error on V_f
+        name = "test_field_offset"
+        parameters = (EffectParameter("dv", 0.01, "pu", "offset", 0.001, 0.1),)
+
+    try:
+        cand = candidate("test_field_offset")
+        assert issubclass(cand, Candidate) and [p.name for p in cand.free()] == ["dv"]
+        assert len(cand.screen()["dv"]) == Candidate.screen_points
+    finally:
+        REGISTRY.pop("test_field_offset")
+        CANDIDATES.pop("test_field_offset", None)
