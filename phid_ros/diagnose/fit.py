@@ -31,6 +31,7 @@ from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME
 
 Array = NDArray[np.float64]
 FD_STEP = 1e-5  # relative (log-scale) finite-difference step; the play-in is deterministic
+SCREEN_CHUNK = 48  # models per play-in run when only their chi-square is kept
 
 
 @dataclass
@@ -83,6 +84,44 @@ def residuals(runs: Sequence[PlayIn], sigma: Mapping[str, float]) -> Array:
     return np.concatenate([(r.sim[c] - r.meas[c]) / sigma[c] for r in runs for c in OUTPUTS], axis=0)
 
 
+def finite(r: Array) -> Array:
+    return np.where(np.isfinite(r), r, 1e6)  # a diverged model is simply a very bad one
+
+
+def chi_square(
+    windows: Sequence[ScenarioData],
+    sigma: Mapping[str, float],
+    base: Mapping[str, Any],
+    effects: Sequence[tuple[type, Mapping[str, Any]]],
+    m: int,
+    f_nominal_hz: float = DEFAULT_F_NOMINAL_HZ,
+) -> Array:
+    """Chi-square of each of ``m`` models (parameters as in :func:`play_in`), in chunks of models.
+
+    A screening grid of hundreds of models in one run held every trajectory at once (1.2 GB
+    for the saturation grid); chunks keep the memory flat at no cost in speed, since a run's
+    overhead is already shared by a chunk's columns.
+    """
+    out = np.empty(m)
+    for a in range(0, m, SCREEN_CHUNK):
+        sl = slice(a, min(a + SCREEN_CHUNK, m))
+        k = sl.stop - sl.start
+        runs = play_in(
+            windows,
+            {n: _columns(v, sl, m) for n, v in base.items()},
+            [(cls, {n: _columns(v, sl, m) for n, v in values.items()}) for cls, values in effects],
+            m=k,
+            f_nominal_hz=f_nominal_hz,
+        )
+        out[sl] = np.sum(finite(residuals(runs, sigma)) ** 2, axis=0)
+    return out
+
+
+def _columns(v: Any, sl: slice, m: int) -> Any:
+    a = np.asarray(v)
+    return a[sl] if a.ndim == 1 and len(a) == m and a.dtype.kind in "fi" else v
+
+
 class Problem:
     """The least-squares problem of one model structure on a set of windows."""
 
@@ -129,8 +168,7 @@ class Problem:
         return play_in(self.windows, base, effects, m=X.shape[1], f_nominal_hz=self.f)
 
     def residual_matrix(self, X: Array) -> Array:
-        r = residuals(self.simulate(X), self.sigma)
-        return np.where(np.isfinite(r), r, 1e6)  # a diverged model is simply a very bad one
+        return finite(residuals(self.simulate(X), self.sigma))
 
     def spec_at(self, x: Array) -> ModelSpec:
         base, effects = self.columns(x[:, None])

@@ -33,7 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from phid_ros.diagnose.candidates import Candidate, library
-from phid_ros.diagnose.fit import FitResult, ModelSpec, Problem, fit, residuals
+from phid_ros.diagnose.fit import FitResult, ModelSpec, Problem, chi_square, fit
 from phid_ros.diagnose.localise import noise_std
 from phid_ros.diagnose.playin import OUTPUTS, PlayIn, play_in
 from phid_ros.ident.scenario import ScenarioData
@@ -181,8 +181,7 @@ def screen(
     def trial(grid: dict[str, Array], setting: dict[str, str]) -> tuple[dict[str, Any], float]:
         m = len(next(iter(grid.values())))
         effects = current.plant_effects() + [(cand.effect, {**grid, **setting})]
-        r = residuals(play_in(windows, current.base, effects, m=m, f_nominal_hz=f_hz), sigma)
-        chi2 = np.sum(np.where(np.isfinite(r), r, 1e6) ** 2, axis=0)
+        chi2 = chi_square(windows, sigma, current.base, effects, m, f_hz)
         j = int(np.argmin(chi2))
         return {**{k: float(v[j]) for k, v in grid.items()}, **setting}, float(chi2[j])
 
@@ -219,8 +218,7 @@ def screen_jointly(
     values, base = joint
     m = len(next(iter(values.values())))
     effects = current.plant_effects() + [(cand.effect, values)]
-    r = residuals(play_in(windows, base, effects, m=m, f_nominal_hz=f_hz), sigma)
-    chi2 = np.sum(np.where(np.isfinite(r), r, 1e6) ** 2, axis=0)
+    chi2 = chi_square(windows, sigma, base, effects, m, f_hz)
     j = int(np.argmin(chi2))
     spec = ModelSpec(
         {k: float(v[j]) for k, v in base.items()},
@@ -362,8 +360,7 @@ def _settle_searched(
         setting = {k: v for k, v in values.items() if isinstance(v, str)}
         m = len(next(iter(finer.values())))
         effects = held.plant_effects() + [(cand.effect, {**values, **finer, **setting})]
-        r = residuals(play_in(windows, held.base, effects, m=m, f_nominal_hz=f_hz), sigma)
-        j = int(np.argmin(np.sum(np.where(np.isfinite(r), r, 1e6) ** 2, axis=0)))
+        j = int(np.argmin(chi_square(windows, sigma, held.base, effects, m, f_hz)))
         new = {k: float(v[j]) for k, v in finer.items()}
         if all(new[k] == values[k] for k in new):
             break
