@@ -8,7 +8,8 @@
    11 separate runs (one model each, as a plain finite-difference loop over a simulator does).
 2. A screening grid (the saturation joint screen: a few hundred models): all models in one
    run against the workflow's chunks (:func:`chi_square`), time and peak memory.
-3. ``diagnose`` end to end (identification excluded), with the time split by phase from its
+3. ``diagnose`` end to end (identification excluded) in one process and with a round's
+   candidates in worker processes (every core), with the time split by phase from its
    progress messages, and its peak memory (traced in one more run; an end-to-end run takes minutes,
    so ``--whole`` defaults to one).
 
@@ -24,6 +25,7 @@ import time
 import tracemalloc
 from collections import defaultdict
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -34,6 +36,7 @@ from common import ROOT, catalogue_scenarios, median_time  # noqa: E402
 
 from phid_ros.diagnose.candidates import candidate  # noqa: E402
 from phid_ros.diagnose.fit import SCREEN_CHUNK, ModelSpec, Problem, chi_square  # noqa: E402
+from phid_ros.diagnose.parallel import default_workers  # noqa: E402
 from phid_ros.diagnose.playin import OUTPUTS, play_in  # noqa: E402
 from phid_ros.diagnose.workflow import (  # noqa: E402
     DiagnoseOptions,
@@ -94,22 +97,36 @@ def main() -> None:
         f"peak {mem_chunk:.0f} MB"
     )
 
-    totals, phases = [], defaultdict(list)
-    for _ in range(args.whole):
-        marks: list[tuple[float, str]] = []
-        t0 = time.perf_counter()
-        d = diagnose(scs, start, opt, progress=lambda msg: marks.append((time.perf_counter(), msg)))
-        t1 = time.perf_counter()
-        totals.append(t1 - t0)
-        spent: dict[str, float] = defaultdict(float)
-        for (ta, msg), (tb, _) in zip(marks, marks[1:] + [(t1, "")]):
-            spent[msg.split(" ")[0]] += tb - ta
-        for k, v in spent.items():
-            phases[k].append(v)
-    print(f"  diagnose end to end ({args.whole} run(s)): median {statistics.median(totals):.1f} s, named {d.named}")
-    for k, v in sorted(phases.items(), key=lambda kv: -statistics.median(kv[1])):
-        print(f"    {k:10s} median {statistics.median(v):6.1f} s")
-    print(f"  diagnose peak traced memory (one more run): {_peak_mb(lambda: diagnose(scs, start, opt)):.0f} MB")
+    whole: dict[int, float] = {}
+    for workers in (1, 0):
+        totals, phases = [], defaultdict(list)
+        for _ in range(args.whole):
+            marks: list[tuple[float, str]] = []
+            t0 = time.perf_counter()
+            d = diagnose(
+                scs,
+                start,
+                replace(opt, workers=workers),
+                progress=lambda msg: marks.append((time.perf_counter(), msg)),
+            )
+            t1 = time.perf_counter()
+            totals.append(t1 - t0)
+            spent: dict[str, float] = defaultdict(float)
+            for (ta, msg), (tb, _) in zip(marks, marks[1:] + [(t1, "")]):
+                spent[msg.split(" ")[0]] += tb - ta
+            for k, v in spent.items():
+                phases[k].append(v)
+        how = "one process" if workers == 1 else f"{default_workers()} worker processes"
+        print(
+            f"  diagnose end to end, {how} ({args.whole} run(s)): "
+            f"median {statistics.median(totals):.1f} s, named {d.named}"
+        )
+        for k, v in sorted(phases.items(), key=lambda kv: -statistics.median(kv[1])):
+            print(f"    {k:10s} median {statistics.median(v):6.1f} s")
+        whole[workers] = statistics.median(totals)
+    print(f"  worker processes against one: {whole[1] / whole[0]:.2f}x")
+    peak = _peak_mb(lambda: diagnose(scs, start, opt))
+    print(f"  diagnose peak traced memory, one process (one more run): {peak:.0f} MB")
 
 
 def _peak_mb(fn: Callable[[], object]) -> float:

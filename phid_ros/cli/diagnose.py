@@ -76,6 +76,8 @@ def rounds_table(doc: dict[str, Any]) -> Table:
 
 def run(args: Any, console: Console) -> int:
     t_start = time.perf_counter()
+    if args.workers < 0:
+        raise PhidError(f"--workers {args.workers}: give 0 (every core) or a positive number of processes")
     rec, source = load_input(args.input)
     truth = load_truth(args.truth, rec) if args.truth else None
     truth_effects = read_json(args.truth).get("effects") if args.truth else None
@@ -92,7 +94,9 @@ def run(args: Any, console: Console) -> int:
         def progress(msg: str) -> None:
             status.update(msg)
 
-        d = diagnose(scenarios, start, DiagnoseOptions(f_nominal_hz=rec.f_nominal_hz), progress=progress)
+        d = diagnose(
+            scenarios, start, DiagnoseOptions(f_nominal_hz=rec.f_nominal_hz, workers=args.workers), progress=progress
+        )
     d.problems[:0] = problems + [p for p in res.problems if "kept the label" not in p]
     doc = to_json(d, truth, truth_effects)
     doc["input"] = source

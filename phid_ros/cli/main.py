@@ -315,6 +315,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", metavar="OUT", help="write the diagnosis JSON here")
     p.add_argument("--report", metavar="OUT.html", help="write a self-contained HTML report with the figures")
     p.add_argument("--truth", metavar="TRUTH.json", help="true parameters (e.g. <bag>.truth.json) for errors")
+    p.add_argument(
+        "--workers", type=int, default=0, help="processes for the candidate fits (default 0: every core; 1: none)"
+    )
     p.set_defaults(func=cmd_diagnose)
 
     p = sub.add_parser("replay", help="play a bag through the online pipeline (detection, recalibration, energy)")

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -35,6 +35,7 @@ from numpy.typing import NDArray
 from phid_ros.diagnose.candidates import Candidate, library
 from phid_ros.diagnose.fit import FitResult, ModelSpec, Problem, chi_square, fit
 from phid_ros.diagnose.localise import noise_std
+from phid_ros.diagnose.parallel import Jobs
 from phid_ros.diagnose.playin import OUTPUTS, PlayIn, play_in
 from phid_ros.ident.scenario import ScenarioData
 from phid_ros.model.conventions import DEFAULT_F_NOMINAL_HZ
@@ -54,6 +55,10 @@ class DiagnoseOptions:
     # base model fixed, which misranks effects the base had compensated, e.g. saturation via X_d)
     max_effects: int = 3
     max_nfev: int = 40
+    # processes for the candidates of a round; 0: every core this process may use. One by default:
+    # worker processes are spawned, which re-imports the calling script, so a script must guard
+    # its entry (``if __name__ == "__main__":``) to use them; `phid diagnose` uses every core
+    workers: int = 1
     f_nominal_hz: float = DEFAULT_F_NOMINAL_HZ
 
 
@@ -266,59 +271,46 @@ def diagnose(
     held_w = [window(s, opt.pre_s, opt.post_s) for s in held_s]
     sigma = channel_sigma(scenarios)
 
-    def held_score(spec: ModelSpec) -> Score:
-        return score(play_in(held_w, spec.base, spec.plant_effects(), f_nominal_hz=f_hz), sigma)
-
     say("refitting the fourth-order model by output error")
     start, problems = starting_point(identified)
     current = fit(Problem(fit_w, sigma, ModelSpec(start), f_hz), opt.max_nfev)
     base_fit = current
-    current_score = before = held_score(current.model)
+    current_score = before = held_score(current.model, held_w, sigma, f_hz)
     rounds: list[Round] = []
     steps: list[tuple[str, Score]] = []
-    while len(current.model.effects) < opt.max_effects:
-        taken = set(current.model.names)
-        pool = [c for c in library() if c.name() not in taken and not _conflicts(c, current.model)]
-        if not pool:
-            break
-        screened = []
-        runs = play_in(fit_w, current.model.base, current.model.plant_effects(), f_nominal_hz=f_hz)
-        for cand in pool:
-            say(f"screening {cand.name()}")
-            values, chi2 = screen(cand, current.model, fit_w, sigma, f_hz, runs)
-            screened.append((chi2, cand, values))
-        screened.sort(key=lambda t: t[0])
-        trials = []
-        for chi2, cand, values in screened[: opt.shortlist]:
-            say(f"fitting {cand.name()} with the base parameters")
-            spec = ModelSpec(dict(current.model.base), list(current.model.effects) + [(cand, values)])
-            joint = cand.joint_screen(current.model.base, pre_event(fit_w))
-            if joint is not None:
-                say(f"screening {cand.name()} with the base parameters it distorts")
-                alt, alt_chi2 = screen_jointly(cand, joint, current.model, fit_w, sigma, f_hz)
-                if alt_chi2 < chi2:
-                    spec, chi2 = alt, alt_chi2
-            res = fit(Problem(fit_w, sigma, spec, f_hz), opt.max_nfev)
-            res = _settle_searched(cand, res, fit_w, sigma, f_hz, opt.max_nfev)
-            trial = Trial(cand.name(), {k: v for k, v in values.items() if isinstance(v, str)}, res, chi2)
-            trial.heldout = held_score(res.model)
-            trial.delta_bic = res.bic - current.bic
-            trial.heldout_gain = 1.0 - trial.heldout.overall / max(current_score.overall, 1e-12)
-            trials.append(trial)
-        trials += [Trial(c.name(), {}, None, chi2) for chi2, c, _ in screened[opt.shortlist :]]
-        fitted = [t for t in trials if t.fit is not None]
-        best = min(fitted, key=lambda t: t.delta_bic)
-        drop = current_score.overall**2 - best.heldout.overall**2 if best.heldout else 0.0
-        if best.delta_bic < -opt.bic_margin and drop >= opt.min_heldout_drop:
-            best.accepted = True
-            assert best.fit is not None and best.heldout is not None
-            current, current_score = best.fit, best.heldout
-            steps.append((best.candidate, best.heldout))
-            rounds.append(Round(trials, best.candidate))
-            say(f"named {best.candidate}: BIC {best.delta_bic:+.0f}, held-out error -{100 * best.heldout_gain:.0f} %")
-        else:
-            rounds.append(Round(trials, None))
-            break
+    with Jobs(opt.workers) as jobs:
+        while len(current.model.effects) < opt.max_effects:
+            taken = set(current.model.names)
+            pool = [c for c in library() if c.name() not in taken and not _conflicts(c, current.model)]
+            if not pool:
+                break
+            say(f"screening {len(pool)} candidates: {_names(pool)}")
+            runs = play_in(fit_w, current.model.base, current.model.plant_effects(), f_nominal_hz=f_hz)
+            found = jobs.map(screen, [(c, current.model, fit_w, sigma, f_hz, runs) for c in pool])
+            screened = sorted(((chi2, c, v) for c, (v, chi2) in zip(pool, found)), key=lambda t: t[0])
+            shortlist = screened[: opt.shortlist]
+            say(f"fitting {len(shortlist)} candidates with the base parameters: {_names(c for _, c, _ in shortlist)}")
+            longest_first = sorted(shortlist, key=lambda t: -_fit_cost(t[1]))
+            trials = jobs.map(
+                _trial,
+                [(c, v, chi2, current, current_score, fit_w, held_w, sigma, opt) for chi2, c, v in longest_first],
+            )
+            trials.sort(key=lambda t: t.screened_chi2)
+            trials += [Trial(c.name(), {}, None, chi2) for chi2, c, _ in screened[opt.shortlist :]]
+            fitted = [t for t in trials if t.fit is not None]
+            best = min(fitted, key=lambda t: t.delta_bic)
+            drop = current_score.overall**2 - best.heldout.overall**2 if best.heldout else 0.0
+            if best.delta_bic < -opt.bic_margin and drop >= opt.min_heldout_drop:
+                best.accepted = True
+                assert best.fit is not None and best.heldout is not None
+                current, current_score = best.fit, best.heldout
+                steps.append((best.candidate, best.heldout))
+                rounds.append(Round(trials, best.candidate))
+                gain = 100 * best.heldout_gain
+                say(f"named {best.candidate}: BIC {best.delta_bic:+.0f}, held-out error -{gain:.0f} %")
+            else:
+                rounds.append(Round(trials, None))
+                break
     return Diagnosis(
         identified={n: float(identified.get(n, math.nan)) for n in PARAMETER_NAMES},
         base_fit=base_fit,
@@ -333,6 +325,38 @@ def diagnose(
         seconds=time.perf_counter() - t_start,
         problems=problems,
     )
+
+
+def held_score(spec: ModelSpec, held: Sequence[ScenarioData], sigma: Mapping[str, float], f_hz: float) -> Score:
+    return score(play_in(held, spec.base, spec.plant_effects(), f_nominal_hz=f_hz), sigma)
+
+
+def _trial(
+    cand: type[Candidate],
+    values: dict[str, Any],
+    chi2: float,
+    current: FitResult,
+    current_score: Score,
+    fit_w: Sequence[ScenarioData],
+    held_w: Sequence[ScenarioData],
+    sigma: Mapping[str, float],
+    opt: DiagnoseOptions,
+) -> Trial:
+    """One candidate added to the current model: fitted with the base and scored (one worker job)."""
+    f_hz = opt.f_nominal_hz
+    spec = ModelSpec(dict(current.model.base), list(current.model.effects) + [(cand, values)])
+    joint = cand.joint_screen(current.model.base, pre_event(fit_w))
+    if joint is not None:
+        alt, alt_chi2 = screen_jointly(cand, joint, current.model, fit_w, sigma, f_hz)
+        if alt_chi2 < chi2:
+            spec, chi2 = alt, alt_chi2
+    res = fit(Problem(fit_w, sigma, spec, f_hz), opt.max_nfev)
+    res = _settle_searched(cand, res, fit_w, sigma, f_hz, opt.max_nfev)
+    trial = Trial(cand.name(), {k: v for k, v in values.items() if isinstance(v, str)}, res, chi2)
+    trial.heldout = held_score(res.model, held_w, sigma, f_hz)
+    trial.delta_bic = res.bic - current.bic
+    trial.heldout_gain = 1.0 - trial.heldout.overall / max(current_score.overall, 1e-12)
+    return trial
 
 
 def _settle_searched(
@@ -367,6 +391,16 @@ def _settle_searched(
         spec = ModelSpec(dict(res.model.base), list(held.effects) + [(cand, {**values, **new})])
         res = fit(Problem(windows, sigma, spec, f_hz), max_nfev)
     return res
+
+
+def _fit_cost(cand: type[Candidate]) -> int:
+    """Rough cost of a candidate's trial, to hand the longest to the workers first."""
+    joint = cand.joint_screen.__func__ is not Candidate.joint_screen.__func__  # type: ignore[attr-defined]
+    return len(cand.free()) + 2 * len(cand.searched()) + (10 if joint else 0)
+
+
+def _names(cands: Iterable[type[Candidate]]) -> str:
+    return ", ".join(c.name() for c in cands)
 
 
 def _conflicts(cand: type[Candidate], model: ModelSpec) -> bool:

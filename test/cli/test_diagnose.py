@@ -10,7 +10,8 @@ from phid_ros.cli.main import main
 from test.cli.test_identify import BAGS, run_phid
 
 
-@pytest.mark.slow  # the README's run: 2-3 minutes of two cores (see test/diagnose/test_workflow.py)
+# The README's run, in the default suite although it takes about 80 s on two cores: it is the one
+# end-to-end diagnosis CI checks (the random-magnitude studies are in test/diagnose/test_workflow.py).
 def test_diagnose_names_the_hidden_saturation_in_the_shipped_bag(tmp_path, capsys):
     out, report = tmp_path / "diag.json", tmp_path / "diag.html"
     bag = BAGS / "saturation"
@@ -36,3 +37,9 @@ def test_diagnose_without_identification_scenarios_is_a_one_line_error():
     assert r.returncode == 2
     assert r.stderr.strip().startswith("phid: error: ") and "no identification scenarios" in r.stderr
     assert "Traceback" not in r.stderr
+
+
+def test_diagnose_with_a_negative_worker_count_is_a_one_line_error():
+    r = run_phid("diagnose", str(BAGS / "saturation"), "--workers", "-1")
+    assert r.returncode == 2
+    assert r.stderr.strip() == "phid: error: --workers -1: give 0 (every core) or a positive number of processes"

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from phid_ros.diagnose.results import to_json
-from phid_ros.diagnose.workflow import diagnose
+from phid_ros.diagnose.workflow import DiagnoseOptions, diagnose
 from phid_ros.ident.pipeline import IdentifyOptions, identify
 from phid_ros.model.parameters import TABLE1
 from phid_ros.sim.effects import REGISTRY, PlantEffect
@@ -24,8 +24,8 @@ from test.conftest import scenario_from_run
 
 OBSERVABLE_STREAMS = ("pt_ct", "encoder", "pmu")
 
-# Each diagnosis fits every candidate with all eight base parameters free: 1.5-3 minutes of
-# two cores per data set, about a quarter of an hour for the seven. Run with `pytest -m slow`.
+# Each diagnosis fits every candidate with all eight base parameters free: 0.6-2.5 minutes on
+# two cores per data set, about ten minutes for the seven. Run with `pytest -m slow`.
 pytestmark = pytest.mark.slow
 
 
@@ -49,7 +49,7 @@ def run(effects: tuple[PlantEffect, ...], seed: int = 0) -> dict:
     cfg = SimulationConfig(restore_ramp=1.0, restore_hold=1.0, effects=effects)
     scs = [scenario_from_run(r) for r in simulate_scenarios(cat, cfg, seed_offset=100 * seed)]
     start = identify(scs, IdentifyOptions(baseline=False, validate=False)).parameters
-    return to_json(diagnose(scs, start), TABLE1, [e.as_dict() for e in effects])
+    return to_json(diagnose(scs, start, DiagnoseOptions(workers=0)), TABLE1, [e.as_dict() for e in effects])
 
 
 @pytest.mark.parametrize(
