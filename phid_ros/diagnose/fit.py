@@ -131,11 +131,15 @@ class Problem:
         sigma: Mapping[str, float],
         spec: ModelSpec,
         f_nominal_hz: float = DEFAULT_F_NOMINAL_HZ,
+        basin: bool = False,
     ) -> None:
+        """``basin``: the last effect's searched parameters are free too (see ``basin_free``)."""
         self.windows, self.sigma, self.spec, self.f = list(windows), dict(sigma), spec, f_nominal_hz
         self.free: list[tuple[int, FreeParameter]] = [(-1, p) for p in base_free(spec.base)]
         for i, (cand, _) in enumerate(spec.effects):
             self.free.extend((i, p) for p in cand.free())
+        if basin and spec.effects:
+            self.free.extend((len(spec.effects) - 1, p) for p in spec.effects[-1][0].basin_free())
         self.nfev = 0
 
     def x0(self) -> Array:

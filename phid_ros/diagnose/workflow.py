@@ -350,8 +350,9 @@ def _trial(
         alt, alt_chi2 = screen_jointly(cand, joint, current.model, fit_w, sigma, f_hz)
         if alt_chi2 < chi2:
             spec, chi2 = alt, alt_chi2
-    res = fit(Problem(fit_w, sigma, spec, f_hz), opt.max_nfev)
-    res = _settle_searched(cand, res, fit_w, sigma, f_hz, opt.max_nfev)
+    basin = bool(cand.basin_free())
+    res = fit(Problem(fit_w, sigma, spec, f_hz, basin=basin), opt.max_nfev)
+    res = _settle_searched(cand, res, fit_w, sigma, f_hz, opt.max_nfev, refit=basin)
     trial = Trial(cand.name(), {k: v for k, v in values.items() if isinstance(v, str)}, res, chi2)
     trial.heldout = held_score(res.model, held_w, sigma, f_hz)
     trial.delta_bic = res.bic - current.bic
@@ -366,12 +367,15 @@ def _settle_searched(
     sigma: Mapping[str, float],
     f_hz: float,
     max_nfev: int,
+    refit: bool = False,
 ) -> FitResult:
     """Alternate the grid search of a candidate's searched parameters with the local fit.
 
     The first search held the base model that had compensated for the missing effect
     (a latency found as 20 ms where 24 ms is true, with D driven to zero); searching
     again around the value with the refitted base, and refitting, removes that.
+    ``refit``: ``res`` came from a basin fit (searched parameters free), so it is refitted
+    with them held whatever the search finds: its chi-square and BIC must be of that model.
     """
     if not cand.searched():
         return res
@@ -386,10 +390,10 @@ def _settle_searched(
         effects = held.plant_effects() + [(cand.effect, {**values, **finer, **setting})]
         j = int(np.argmin(chi_square(windows, sigma, held.base, effects, m, f_hz)))
         new = {k: float(v[j]) for k, v in finer.items()}
-        if all(new[k] == values[k] for k in new):
+        if all(new[k] == values[k] for k in new) and not refit:
             break
         spec = ModelSpec(dict(res.model.base), list(held.effects) + [(cand, {**values, **new})])
-        res = fit(Problem(windows, sigma, spec, f_hz), max_nfev)
+        res, refit = fit(Problem(windows, sigma, spec, f_hz), max_nfev), False
     return res
 
 
