@@ -12,6 +12,7 @@ from phid_ros.io.topics import STREAMS_BY_NAME
 from phid_ros.stream.pipeline import Marker, MonitorPipeline, Outputs
 
 PROCESS_EVERY_NS = NS // 2  # stream time between pipeline runs while feeding
+MAX_PACE_STEP_NS = 60 * NS  # a stamp step beyond this is a clock jump, not time to wait for
 
 
 def markers_of(rec: Recording) -> list[Marker]:
@@ -19,13 +20,27 @@ def markers_of(rec: Recording) -> list[Marker]:
 
 
 def sensor_blocks(rec: Recording, block_size: int = DEFAULT_BLOCK_SIZE) -> list[tuple[int, str, int, int]]:
-    """(stamp of the block's last sample, stream, start, stop), in the order a recorder logged them."""
-    blocks = []
+    """(stamp of the block's last sample, stream, start, stop), in the order a recorder logged them.
+
+    A bag remembers where each message stood in the file: its messages are fed in that
+    order, as a subscriber received them, so a clock that jumps (back, or ahead) reaches
+    the aligner as a jump and a wild stamp as one wild block. Recordings without that
+    order (CSV imports, simulations) have monotonic stamps; their blocks go by stamp.
+    """
+    recorded = all(s.msg_seq is not None and s.msg_offsets is not None for s in rec.streams.values())
+    keyed: list[tuple[int, int, str, int, int]] = []
     for name, s in rec.streams.items():
-        for a, b in block_bounds(s.t_ns, s.period_ns, block_size):
-            blocks.append((int(s.t_ns[b - 1]), name, a, b))
-    blocks.sort(key=lambda x: x[0])
-    return blocks
+        if recorded:
+            starts = s.msg_offsets.tolist()  # type: ignore[union-attr]
+            stops = starts[1:] + [len(s)]
+            for seq, a, b in zip(s.msg_seq.tolist(), starts, stops):  # type: ignore[union-attr]
+                if b > a:
+                    keyed.append((seq, int(s.t_ns[b - 1]), name, a, b))
+        else:
+            for a, b in block_bounds(s.t_ns, s.period_ns, block_size):
+                keyed.append((int(s.t_ns[b - 1]), int(s.t_ns[b - 1]), name, a, b))
+    keyed.sort(key=lambda x: x[0])
+    return [(end, name, a, b) for _, end, name, a, b in keyed]
 
 
 def replay(
@@ -48,19 +63,25 @@ def replay(
     blocks = sensor_blocks(rec, block_size)
     if not blocks:
         return total
-    wall0, stream0 = time.perf_counter(), blocks[0][0]
-    next_process = stream0 + PROCESS_EVERY_NS
+    wall0 = time.perf_counter()
+    played = 0  # stream time played so far: stamps advance it, a clock that jumps does not
+    prev_end = blocks[0][0]
+    next_process = PROCESS_EVERY_NS
     for end_ns, name, a, b in blocks:
         s = rec.streams[name]
         spec = STREAMS_BY_NAME[name]
+        if 0 < end_ns - prev_end <= MAX_PACE_STEP_NS:
+            played += end_ns - prev_end
+        if end_ns > prev_end or end_ns < prev_end - MAX_PACE_STEP_NS:
+            prev_end = end_ns
         if rate:
-            ahead = (end_ns - stream0) / NS / rate - (time.perf_counter() - wall0)
+            ahead = played / NS / rate - (time.perf_counter() - wall0)
             if ahead > 0:
                 time.sleep(ahead)
-        pipeline.ingest(name, int(s.t_ns[a]), s.period_ns, {c: s.channels[c][a:b] for c in spec.channels})
-        if end_ns >= next_process:
+        pipeline.ingest_message(name, int(s.t_ns[a]), s.period_ns, {c: s.channels[c][a:b] for c in spec.channels})
+        if played >= next_process:
             out = pipeline.process()
-            next_process = end_ns + PROCESS_EVERY_NS
+            next_process = played + PROCESS_EVERY_NS
             total.extend(out if keep_arrays else out.light())
             if on_outputs:
                 on_outputs(out)
@@ -127,7 +148,14 @@ class OutputCollector:
                 self._add(
                     "diagnostics",
                     self._next_diag,
-                    m.diagnostics_message(self.types, self._next_diag, self.pipeline.health, self.last_status),
+                    m.diagnostics_message(
+                        self.types,
+                        self._next_diag,
+                        self.pipeline.health,
+                        self.last_status,
+                        stream_now_ns=self.pipeline.aligner.stream_now_ns,
+                        stale_ns=self.pipeline.aligner.stale_ns,
+                    ),
                 )
                 self._next_diag += self._diag_period
 
@@ -204,7 +232,7 @@ def run(args: object, console: object) -> int:
     for col in ("stream", "level", "status", "samples", "dropped", "gaps", "clock jumps"):
         health.add_column(col)
     for name, h in pipeline.health.items():
-        level, msg = h.status()
+        level, msg = pipeline.aligner.status(name)
         health.add_row(name, level, msg, str(h.samples), str(h.dropped), str(h.gaps), str(h.clock_jumps))
     c.print(health)  # type: ignore[attr-defined]
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024

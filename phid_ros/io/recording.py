@@ -34,6 +34,11 @@ class StreamSamples:
     t_ns: NDArray[np.int64]
     period_ns: int
     channels: dict[str, NDArray[np.float64]]
+    # as recorded (bags only): the sample index where each message starts and the message's
+    # position in the file, so a replay feeds messages in recording order even when the
+    # stamps jump (a stamp order would hide a clock that went back)
+    msg_offsets: NDArray[np.int64] | None = None
+    msg_seq: NDArray[np.int64] | None = None
 
     def __post_init__(self) -> None:
         self.t_ns = np.asarray(self.t_ns, dtype=np.int64)
@@ -166,6 +171,7 @@ class _Group:
     t0_ns: NDArray[np.int64]
     period_ns: NDArray[np.int64]
     values: list[NDArray[np.float64]]  # per channel, (rows, n)
+    seq: NDArray[np.int64]  # message position in the whole file, one per row
 
 
 class _Assembler:
@@ -189,6 +195,7 @@ class _Assembler:
         t0_ns: NDArray[np.int64],
         period_s: NDArray[np.float64],
         values: list[NDArray[np.float64]],
+        seq: NDArray[np.int64] | None = None,
     ) -> None:
         self.topics.setdefault(stream, topic)
         period_ns = np.rint(np.asarray(period_s, dtype=np.float64) * NS)
@@ -199,11 +206,24 @@ class _Assembler:
                 f"{self.source}: {topic} message {int(order[i])} has sample_period {period_s[i]}, must be > 0"
             )
         self.groups.setdefault(stream, []).append(
-            _Group(np.asarray(order, np.int64), np.asarray(t0_ns, np.int64), period_ns.astype(np.int64), values)
+            _Group(
+                np.asarray(order, np.int64),
+                np.asarray(t0_ns, np.int64),
+                period_ns.astype(np.int64),
+                values,
+                np.asarray(order if seq is None else seq, np.int64),
+            )
         )
 
     def add_message(
-        self, stream: str, topic: str, index: int, t0_ns: int, period_s: float, arrays: list[NDArray[np.float64]]
+        self,
+        stream: str,
+        topic: str,
+        index: int,
+        t0_ns: int,
+        period_s: float,
+        arrays: list[NDArray[np.float64]],
+        seq: int | None = None,
     ) -> None:
         lengths = {len(a) for a in arrays}
         if len(lengths) != 1:
@@ -215,12 +235,14 @@ class _Assembler:
             np.array([t0_ns]),
             np.array([period_s]),
             [np.asarray(a, np.float64)[None, :] for a in arrays],
+            np.array([index if seq is None else seq]),
         )
 
     def _stream(self, name: str) -> StreamSamples:
         groups = self.groups[name]
         spec = STREAMS_BY_NAME[name]
         order = np.concatenate([g.order for g in groups])
+        seq = np.concatenate([g.seq for g in groups])
         periods = np.concatenate([g.period_ns for g in groups])
         lengths = np.concatenate([np.full(len(g.order), g.values[0].shape[1]) for g in groups])
         rank = np.argsort(order, kind="stable")
@@ -251,7 +273,7 @@ class _Assembler:
             t_ns[o0:o1] = (g.t0_ns[r0:r1, None] + np.arange(n, dtype=np.int64) * first).reshape(-1)
             for c, v in zip(spec.channels, g.values):
                 channels[c][o0:o1] = v[r0:r1].reshape(-1)
-        return StreamSamples(t_ns, first, channels)
+        return StreamSamples(t_ns, first, channels, msg_offsets=offsets[:-1].astype(np.int64), msg_seq=seq[rank])
 
     def finish(self, required: Iterable[str], metadata: dict[str, str] | None) -> Recording:
         missing = [s for s in required if not self.groups.get(s)]
@@ -290,7 +312,7 @@ def recording_from_messages(
     """Assemble a recording from (topic, msgtype, message object); ``source`` names the file in errors."""
     asm = _Assembler(source)
     counts: dict[str, int] = {}
-    for topic, msgtype, msg in items:
+    for seq, (topic, msgtype, msg) in enumerate(items):
         if topic == SCENARIO_TOPIC:
             _check_type(source, topic, msgtype, SCENARIO_MSGTYPE)
             asm.scenarios.append(_scenario_from_msg(msg))
@@ -303,7 +325,7 @@ def recording_from_messages(
         index = counts.get(name, 0)
         counts[name] = index + 1
         arrays = [np.asarray(getattr(msg, c), dtype=np.float64) for c in spec.channels]
-        asm.add_message(name, topic, index, time_to_ns(msg.header.stamp), msg.sample_period, arrays)  # type: ignore[attr-defined]
+        asm.add_message(name, topic, index, time_to_ns(msg.header.stamp), msg.sample_period, arrays, seq)  # type: ignore[attr-defined]
     return asm.finish(required, metadata)
 
 
@@ -319,6 +341,7 @@ def recording_from_raw(
 
     store = typestore()
     raws: dict[str, list[bytes]] = {}
+    seqs: dict[str, list[int]] = {}
     topics: dict[str, str] = {}
 
     def deserialize(raw: bytes, msgtype: str, topic: str) -> object:
@@ -329,12 +352,13 @@ def recording_from_raw(
 
     asm = _Assembler(source)
     routes: dict[tuple[str, str], list[bytes] | None] = {}  # (topic, type) -> where its payloads go
-    for topic, msgtype, raw in items:
+    for position, (topic, msgtype, raw) in enumerate(items):
         dest = routes.get((topic, msgtype), False)
         if dest is False:
             dest = routes[(topic, msgtype)] = _route(source, topic, msgtype, raws, topics)
         if dest is not None:
             dest.append(raw)
+            seqs.setdefault(stream_of_topic(topic) or "", []).append(position)
         elif topic == SCENARIO_TOPIC:
             asm.scenarios.append(_scenario_from_msg(deserialize(raw, msgtype, topic)))
     if not raws and not asm.scenarios:
@@ -342,17 +366,20 @@ def recording_from_raw(
         raise BagError(f"{source}: none of the phid sensor topics found (topics present: {present})")
     for name, msgs in raws.items():
         spec = STREAMS_BY_NAME[name]
+        seq_of = np.asarray(seqs[name], dtype=np.int64)
         groups, rest = group_by_layout(msgs, len(spec.channels))
         for layout, idx in groups.items():
             dec = decode_group([msgs[i] for i in idx], idx, layout, len(spec.channels))
             if dec is None:
                 rest.extend(idx)
                 continue
-            asm.add_group(name, topics[name], dec.order, dec.t0_ns, dec.period_s, dec.values)
+            asm.add_group(name, topics[name], dec.order, dec.t0_ns, dec.period_s, dec.values, seq_of[dec.order])
         for i in rest:
             msg = deserialize(msgs[i], spec.msgtype, topics[name])
             arrays = [np.asarray(getattr(msg, c), dtype=np.float64) for c in spec.channels]
-            asm.add_message(name, topics[name], i, time_to_ns(msg.header.stamp), msg.sample_period, arrays)  # type: ignore[attr-defined]
+            asm.add_message(
+                name, topics[name], i, time_to_ns(msg.header.stamp), msg.sample_period, arrays, int(seq_of[i])  # type: ignore[attr-defined]
+            )
     return asm.finish(required, metadata)
 
 

@@ -58,8 +58,7 @@ class IngestNode(Node):
         return callback
 
     def _apply(self, name: str, value: Any) -> None:
-        self.pipeline.settings = apply(self.pipeline.settings, name, value)
-        self.pipeline.detector.settings = self.pipeline.settings.detector
+        self.pipeline.configure(apply(self.pipeline.settings, name, value))
 
     def process(self) -> None:
         out = self.pipeline.process()

@@ -105,8 +105,7 @@ class RecalibrationNode(Node):
         return response
 
     def _apply(self, name: str, value: Any) -> None:
-        self.pipeline.settings = apply(self.pipeline.settings, name, value)
-        self.pipeline.recalibrator.policy = self.pipeline.settings.policy
+        self.pipeline.configure(apply(self.pipeline.settings, name, value))
         self.values[name] = value
 
     # -- periodic work ---------------------------------------------------------------------

@@ -10,10 +10,19 @@ approximate-time idea of message_filters, for continuous signals), else NaN
 
 Bad input is dropped sample by sample and counted, never written into the
 buffer: non-finite values, values implausible for per unit (a kV or A feed by
-mistake), duplicate stamps, stamps that go backwards a little (out of order).
-A stamp that jumps back by more than ``jump_back_ns`` (a bag looping, simulated
-time reset) starts a new segment: the aligner flushes and restarts, and the
-consumer is told (``segment`` increments) so no window spans the jump.
+mistake), duplicate stamps (a stamp already accepted), stamps that go backwards
+a little (out of order), and zero stamps (an unset clock, not a time).
+
+Clock faults. A block whose stamp jumps back by more than ``jump_back_ns`` or
+ahead by more than ``hold_ahead_ns`` is not trusted at once: it is held until
+the stream's next block says which clock is right. If the next block continues
+the held one, the clock really jumped: back, or ahead by more than
+``max_gap_ns``, starts a new segment (the aligner flushes and restarts, and the
+consumer is told, ``segment`` increments, so no window spans the jump); ahead by
+less is a gap. If the next block continues the old time, the held block was a
+single wild stamp: it is dropped and counted. The grid therefore never spans
+more than ``max_gap_ns`` of missing data, whatever the stamps say, so memory
+stays bounded.
 """
 
 from __future__ import annotations
@@ -56,7 +65,8 @@ class StreamHealth:
     out_of_order: int = 0
     nonfinite: int = 0
     implausible: int = 0
-    zero_stamps: int = 0  # messages stamped 0: an unset clock, not a time
+    zero_stamps: int = 0  # samples of messages stamped 0: an unset clock, not a time
+    wild_stamps: int = 0  # samples of a block whose stamp jumped and came straight back
     gaps: int = 0
     clock_jumps: int = 0
     gap_grid_points: int = 0
@@ -67,7 +77,9 @@ class StreamHealth:
 
     @property
     def dropped(self) -> int:
-        return self.duplicates + self.out_of_order + self.nonfinite + self.implausible + self.zero_stamps
+        return (
+            self.duplicates + self.out_of_order + self.nonfinite + self.implausible + self.zero_stamps + self.wild_stamps
+        )
 
     def rate_hz(self) -> float:
         """Samples per second over the recent blocks, by their stamps."""
@@ -78,13 +90,25 @@ class StreamHealth:
         return n * NS / span if span > 0 else float("nan")
 
     def status(
-        self, now_ns: int | None = None, *, rate_tolerance: float = 0.1, stale_ns: int = 2 * NS, max_lag_ns: int = NS
+        self,
+        now_ns: int | None = None,
+        *,
+        stream_now_ns: int | None = None,
+        rate_tolerance: float = 0.1,
+        stale_ns: int = 2 * NS,
+        max_lag_ns: int = NS,
     ) -> tuple[str, str]:
-        """(level, message): OK, WARN, ERROR or STALE, as diagnostic_updater reports."""
+        """(level, message): OK, WARN, ERROR or STALE, as diagnostic_updater reports.
+
+        ``now_ns`` is the receiver's clock (live nodes); ``stream_now_ns`` the newest stamp of
+        any stream, which also works on a replayed recording where nothing is received late.
+        """
         if self.last_stamp_ns is None:
             return "STALE", "no data yet"
         if now_ns is not None and self.last_receive_ns is not None and now_ns - self.last_receive_ns > stale_ns:
             return "STALE", f"no data for {(now_ns - self.last_receive_ns) / NS:.1f} s"
+        if stream_now_ns is not None and stream_now_ns - self.last_stamp_ns > stale_ns:
+            return "STALE", f"no samples for {(stream_now_ns - self.last_stamp_ns) / NS:.1f} s of stream time"
         rate = self.rate_hz()
         problems = []
         level = "OK"
@@ -97,7 +121,8 @@ class StreamHealth:
         if self.dropped:
             problems.append(
                 f"{self.dropped} samples dropped (dup {self.duplicates}, order {self.out_of_order}, "
-                f"non-finite {self.nonfinite}, implausible {self.implausible})"
+                f"non-finite {self.nonfinite}, implausible {self.implausible}, zero stamp {self.zero_stamps}, "
+                f"wild stamp {self.wild_stamps})"
             )
             level = "WARN" if level == "OK" else level
         if self.samples and self.dropped > 0.5 * self.samples:
@@ -151,6 +176,18 @@ class _Pending:
         return int(self.t[-1][-1]) if self.t else None
 
 
+@dataclass
+class _Held:
+    """A block whose stamp jumped, waiting for the stream's next block to confirm or refute it."""
+
+    t: NDArray[np.int64]
+    x: NDArray[np.float64]
+    period_ns: int
+
+
+RECENT_STAMPS = 20_000  # accepted stamps remembered per stream to tell a duplicate from a late sample
+
+
 class Aligner:
     def __init__(
         self,
@@ -158,24 +195,41 @@ class Aligner:
         *,
         max_bracket_ns: int | None = None,
         jump_back_ns: int = NS,
+        hold_ahead_ns: int = NS,
+        max_gap_ns: int = 60 * NS,
         stale_ns: int = NS,
         expected_rates_hz: Mapping[str, float] | None = None,
     ):
         self.period_ns = int(period_ns)
         self.max_bracket_ns = int(max_bracket_ns if max_bracket_ns is not None else 5 * period_ns)
         self.jump_back_ns = int(jump_back_ns)
+        self.hold_ahead_ns = int(hold_ahead_ns)
+        self.max_gap_ns = int(max_gap_ns)
         self.stale_ns = int(stale_ns)
         rates = dict(expected_rates_hz or {})
         self.health = {s.name: StreamHealth(s.name, rates.get(s.name, NS / period_ns)) for s in STREAMS}
         self._pending = {s.name: _Pending(s.channels) for s in STREAMS}
+        self._held: dict[str, _Held | None] = {s.name: None for s in STREAMS}
+        self._recent_t: dict[str, NDArray[np.int64]] = {s.name: np.zeros(0, np.int64) for s in STREAMS}
         self._col = {c: i for i, c in enumerate(CHANNELS)}
         self._limits = {
             s.name: (np.array([PLAUSIBLE[c][0] for c in s.channels]), np.array([PLAUSIBLE[c][1] for c in s.channels]))
             for s in STREAMS
         }
         self.segment = 0
+        self._max_stamp = 0
         self._next_grid: int | None = None
         self._out: list[AlignedBlock] = []
+
+    @property
+    def stream_now_ns(self) -> int | None:
+        """The newest accepted stamp of any stream: the stream clock that staleness is judged on."""
+        stamps = [h.last_stamp_ns for h in self.health.values() if h.last_stamp_ns is not None]
+        return max(stamps) if stamps else None
+
+    def status(self, name: str, now_ns: int | None = None) -> tuple[str, str]:
+        """One stream's diagnostic level and message, stale judged on both clocks."""
+        return self.health[name].status(now_ns, stream_now_ns=self.stream_now_ns, stale_ns=self.stale_ns)
 
     # -- input -------------------------------------------------------------------------
     def ingest(
@@ -194,22 +248,46 @@ class Aligner:
         h.samples += n
         if n == 0:
             return
+        if int(t0_ns) == 0 and self._max_stamp > self.jump_back_ns:
+            h.zero_stamps += n  # an unset clock in a stream that had real stamps: not a time, not a jump
+            return
         t = int(t0_ns) + np.arange(n, dtype=np.int64) * int(period_ns)
+        self._max_stamp = max(self._max_stamp, int(t[-1]))
         if receive_ns is not None:
             h.last_receive_ns = int(receive_ns)
             h.lag_ns = int(receive_ns) - int(t[-1])
-        # a clock that jumps back by more than the threshold: new segment, flush first
+        held = self._held[stream]
+        if held is not None:
+            self._held[stream] = None
+            if 0 < t[0] - held.t[-1] <= self.hold_ahead_ns + held.period_ns:
+                self._confirm_jump(stream, held)  # the clock really jumped: this block goes on from there
+            else:
+                h.wild_stamps += len(held.t)  # one block off and straight back: a wild stamp
         last = h.last_stamp_ns
-        if last is not None and t[0] < last - self.jump_back_ns:
+        if last is not None and (t[0] < last - self.jump_back_ns or t[0] > last + self.hold_ahead_ns):
+            self._held[stream] = _Held(t, x, int(period_ns))
+            return
+        self._check_and_accept(stream, h, t, x, int(period_ns))
+
+    def _confirm_jump(self, stream: str, held: _Held) -> None:
+        h = self.health[stream]
+        last = h.last_stamp_ns
+        if last is not None and (held.t[0] < last - self.jump_back_ns or held.t[0] > last + self.max_gap_ns):
             h.clock_jumps += 1
-            self._new_segment()
-            last = None
+            self._new_segment()  # back in time, or so far ahead that a grid over the hole makes no sense
+        self._check_and_accept(stream, h, held.t, held.x, held.period_ns)
+
+    def _check_and_accept(
+        self, stream: str, h: StreamHealth, t: NDArray[np.int64], x: NDArray[np.float64], period_ns: int
+    ) -> None:
+        last = h.last_stamp_ns
         lo, hi = self._limits[stream]
         with np.errstate(invalid="ignore"):
             plausible = ((x >= lo) & (x <= hi)).all(axis=1)  # False for NaN too
         if period_ns > 0 and plausible.all() and (last is None or t[0] > last):
             self._accept(stream, h, t, x, period_ns)  # the common case: a clean block in order
             return
+        n = len(t)
         ok = np.ones(n, dtype=bool)
         finite = np.isfinite(x).all(axis=1)
         h.nonfinite += int((~finite).sum())
@@ -217,19 +295,16 @@ class Aligner:
         bad_range = finite & ~plausible
         h.implausible += int(bad_range.sum())
         ok &= plausible
-        # duplicates and out-of-order against the last accepted stamp and within the block
+        # not newer than what came before: a duplicate when that stamp was accepted, else late
         prev = np.maximum.accumulate(np.concatenate(([last if last is not None else np.iinfo(np.int64).min], t)))[:-1]
-        dup = ok & (t == prev)
-        back = ok & (t < prev)
+        stale = ok & (t <= prev)
+        seen = np.isin(t, self._recent_t[stream]) | (t == prev)
+        dup = stale & seen
+        back = stale & ~seen
         h.duplicates += int(dup.sum())
         h.out_of_order += int(back.sum())
-        ok &= ~dup & ~back
-        # a duplicate inside the block shadows later equal stamps too: keep strictly increasing
+        ok &= ~stale
         t_ok, x_ok = t[ok], x[ok]
-        if len(t_ok) > 1:
-            inc = np.concatenate(([True], np.diff(t_ok) > 0))
-            h.duplicates += int((~inc).sum())
-            t_ok, x_ok = t_ok[inc], x_ok[inc]
         if len(t_ok) == 0:
             return
         self._accept(stream, h, t_ok, x_ok, period_ns)
@@ -245,6 +320,8 @@ class Aligner:
         h._recent.append((int(t[-1]), len(t)))
         if len(h._recent) > 50:
             del h._recent[:-50]
+        recent = self._recent_t[stream]
+        self._recent_t[stream] = (np.concatenate((recent, t)) if len(recent) else t)[-RECENT_STAMPS:]
         self._pending[stream].add(t, x)
 
     def _new_segment(self) -> None:
@@ -254,12 +331,20 @@ class Aligner:
         for h in self.health.values():
             h.last_stamp_ns = None
             h._recent.clear()
+        for name in self._recent_t:
+            self._recent_t[name] = np.zeros(0, np.int64)
         self._next_grid = None
         self.segment += 1
 
     # -- output ------------------------------------------------------------------------
     def pull(self, *, final: bool = False) -> list[AlignedBlock]:
         """Grid points that every stream has passed (or, with ``final``, everything left)."""
+        if final:
+            # the input has ended: a held block has no successor to refute it, so it stands
+            for name, held in self._held.items():
+                if held is not None:
+                    self._held[name] = None
+                    self._confirm_jump(name, held)
         self._align(final)
         out, self._out = self._out, []
         return out

@@ -123,14 +123,25 @@ def hamiltonian_messages(types: Types, e: EnergySamples) -> list[Any]:
 
 
 def diagnostics_message(
-    types: Types, now_ns: int, health: Mapping[str, StreamHealth], recalibration_status: str | None, node: str = "phid"
+    types: Types,
+    now_ns: int,
+    health: Mapping[str, StreamHealth],
+    recalibration_status: str | None,
+    node: str = "phid",
+    *,
+    stream_now_ns: int | None = None,
+    stale_ns: int = 2 * NS,
 ) -> Any:
-    """diagnostic_msgs/DiagnosticArray: one status per stream, one for recalibration."""
+    """diagnostic_msgs/DiagnosticArray: one status per stream, one for recalibration.
+
+    ``now_ns`` is the receiver's clock; ``stream_now_ns`` the newest stamp of any stream, so a
+    stream that stopped while the others go on is STALE on a replayed recording too.
+    """
     kv = types["diagnostic_msgs/msg/KeyValue"]
     status_cls = types["diagnostic_msgs/msg/DiagnosticStatus"]
     statuses = []
     for name, h in health.items():
-        level, message = h.status(now_ns)
+        level, message = h.status(now_ns, stream_now_ns=stream_now_ns, stale_ns=stale_ns)
         values = [
             kv(key=k, value=str(v))
             for k, v in (
@@ -144,6 +155,7 @@ def diagnostics_message(
                 ("nonfinite", h.nonfinite),
                 ("implausible", h.implausible),
                 ("zero_stamps", h.zero_stamps),
+                ("wild_stamps", h.wild_stamps),
                 ("gaps", h.gaps),
                 ("clock_jumps", h.clock_jumps),
             )

@@ -96,6 +96,7 @@ def pipeline_settings(values: dict[str, Any], *, detect: bool, store_path: str =
         ring_seconds=float(v["ring_seconds"]),
         detector=DetectorSettings(pre_s=float(v["pre_event_s"]), post_s=float(v["post_event_s"])),
         hamiltonian_rate_hz=float(v["hamiltonian_rate_hz"]),
+        stale_timeout_s=float(v["stale_timeout_s"]),
         store_path=store_path,
         auto_recalibrate=bool(v["auto_recalibrate"]),
         policy=RecalibrationPolicy(
@@ -114,6 +115,6 @@ def apply(settings: PipelineSettings, name: str, value: Any) -> PipelineSettings
         return replace(settings, detector=replace(settings.detector, **{field: float(value)}))
     if name in ("min_interval_s", "latest_per_kind", "max_relative_jump"):
         return replace(settings, policy=replace(settings.policy, **{name: value}))
-    if name in ("hamiltonian_rate_hz", "auto_recalibrate"):
+    if name in ("hamiltonian_rate_hz", "auto_recalibrate", "stale_timeout_s"):
         return replace(settings, **{name: value})
     return settings

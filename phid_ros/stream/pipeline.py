@@ -30,6 +30,7 @@ class PipelineSettings:
     ring_seconds: float = 120.0
     detector: DetectorSettings = field(default_factory=DetectorSettings)
     hamiltonian_rate_hz: float = 10.0
+    stale_timeout_s: float = 2.0  # a stream without samples this long (stream time) is STALE
     store_path: str = ":memory:"
     auto_recalibrate: bool = True
     policy: RecalibrationPolicy = field(default_factory=RecalibrationPolicy)
@@ -45,6 +46,8 @@ class PipelineSettings:
             )
         if self.hamiltonian_rate_hz <= 0:
             raise ValueError("hamiltonian_rate_hz must be positive")
+        if self.stale_timeout_s <= 0:
+            raise ValueError("stale_timeout_s must be positive")
 
 
 @dataclass
@@ -85,7 +88,7 @@ class Outputs:
 class MonitorPipeline:
     def __init__(self, settings: PipelineSettings | None = None) -> None:
         self.settings = s = settings or PipelineSettings()
-        self.aligner = Aligner(s.period_ns)
+        self.aligner = self._new_aligner()
         self.ring = RingBuffer(int(s.ring_seconds * NS // s.period_ns), CHANNELS)
         self.detector = Detector(self.ring, s.period_ns, s.detector)
         self.store = EventStore(s.store_path)
@@ -176,7 +179,7 @@ class MonitorPipeline:
 
     def reset(self) -> None:
         """Forget buffered data and stored events (the ~/reset service); parameters are kept."""
-        self.aligner = Aligner(self.settings.period_ns)
+        self.aligner = self._new_aligner()
         self.ring.clear()
         self.detector = Detector(self.ring, self.settings.period_ns, self.settings.detector)
         self.store.clear()
@@ -190,6 +193,16 @@ class MonitorPipeline:
     @property
     def health(self) -> dict[str, StreamHealth]:
         return self.aligner.health
+
+    def configure(self, settings: PipelineSettings) -> None:
+        """Run-time settings changed (a ROS parameter): hand each part its share."""
+        self.settings = settings
+        self.detector.settings = settings.detector
+        self.recalibrator.policy = settings.policy
+        self.aligner.stale_ns = int(settings.stale_timeout_s * NS)
+
+    def _new_aligner(self) -> Aligner:
+        return Aligner(self.settings.period_ns, stale_ns=int(self.settings.stale_timeout_s * NS))
 
     # -- helpers ----------------------------------------------------------------------------
     def _label(self, e: Event) -> None:

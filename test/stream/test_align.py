@@ -102,16 +102,38 @@ def test_bad_values_are_dropped_and_counted(bad, counter):
     assert np.allclose(x[ok], clean[ok], atol=1e-12)
 
 
-def test_duplicates_and_out_of_order_are_dropped():
+def test_duplicates_and_out_of_order_are_dropped_and_told_apart():
     al = Aligner()
     feed(al, 0, 100)
     spec = next(s for s in STREAMS if s.name == "pt_ct")
-    t = np.arange(50, 60, dtype=np.int64) * MS  # already seen: out of order / duplicate
+    t = np.arange(50, 60, dtype=np.int64) * MS  # stamps already accepted, sent again: duplicates
     al.ingest("pt_ct", 50 * MS, MS, values(spec, t))
     t = np.arange(99, 109, dtype=np.int64) * MS  # first one duplicates the last accepted
     al.ingest("pt_ct", 99 * MS, MS, values(spec, t))
     h = al.health["pt_ct"]
-    assert h.out_of_order == 10 and h.duplicates == 1 and h.accepted == 109
+    assert h.duplicates == 11 and h.out_of_order == 0 and h.accepted == 109
+    # a block that skips ahead, then the skipped samples arrive late: out of order, not duplicates
+    t = np.arange(120, 130, dtype=np.int64) * MS
+    al.ingest("pt_ct", 120 * MS, MS, values(spec, t))
+    t = np.arange(110, 115, dtype=np.int64) * MS
+    al.ingest("pt_ct", 110 * MS, MS, values(spec, t))
+    assert h.out_of_order == 5 and h.duplicates == 11 and h.accepted == 119
+
+
+def test_conflicting_duplicates_keep_the_first_value():
+    """Every 10th encoder block sent twice with another P_m: the second is dropped, never averaged."""
+    al = Aligner()
+    spec = next(s for s in STREAMS if s.name == "encoder")
+    for k in range(20):
+        feed(al, k * 100 * MS, 100)
+        if k % 10 == 0:
+            t = k * 100 * MS + np.arange(100, dtype=np.int64) * MS
+            v = values(spec, t)
+            v["p_m"] = v["p_m"] + 0.05
+            al.ingest("encoder", int(t[0]), MS, v)
+    t, x = collect(al.pull(final=True))
+    assert al.health["encoder"].duplicates == 200 and al.health["encoder"].out_of_order == 0
+    assert np.allclose(x[:, COL["p_m"]], 0.9 + 0.01 * COL["p_m"] + 1e-3 * t / 1e9, atol=1e-12)
 
 
 def test_clock_jump_back_starts_a_new_segment():
