@@ -325,6 +325,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, help="output bag for every published message (.mcap or folder)")
     p.add_argument("--rate", type=float, help="play at R x real time (default: as fast as possible)")
     p.add_argument("--store", metavar="EVENTS.sqlite", help="keep the event store in this file (default: memory)")
+    p.add_argument(
+        "--unit",
+        help="the generating unit the recording is of (default: the recording's 'unit' metadata); "
+        "a store holds one unit's events and refuses another's",
+    )
     p.set_defaults(func=cmd_replay)
 
     p = sub.add_parser("track", help="sliding-window tracking of parameter drift over a recording")

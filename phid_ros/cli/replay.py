@@ -179,7 +179,8 @@ def run(args: object, console: object) -> int:
     if Path(out_path).exists():
         raise PhidError(f"{out_path}: already exists, not overwriting")
     rec = read_recording(args.bag)  # type: ignore[attr-defined]
-    settings = PipelineSettings(store_path=args.store or ":memory:")  # type: ignore[attr-defined]
+    unit = args.unit or rec.metadata.get("unit", "")  # type: ignore[attr-defined]
+    settings = PipelineSettings(store_path=args.store or ":memory:", unit=unit)  # type: ignore[attr-defined]
     pipeline = MonitorPipeline(settings)
     collector = OutputCollector(pipeline)
     t0 = time.perf_counter()

@@ -36,7 +36,12 @@ class RecalibrationNode(Node):
         super().__init__("recalibration_node")
         self.values = declare(self, RECALIBRATION)
         self.reliable = self.declare_parameter("reliable_qos", False).value
-        settings = pipeline_settings(self.values, detect=False, store_path=self.values["store_path"])
+        settings = pipeline_settings(
+            self.values,
+            detect=False,
+            store_path=self.values["store_path"],
+            unit=self.values["unit_id"] or self.get_namespace(),
+        )
         self.pipeline = MonitorPipeline(settings)
         self.types = msg_types()
         self.tracker: SlidingTracker | None = None

@@ -11,8 +11,8 @@ event time has passed.
 
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass, field
+from datetime import datetime, timezone
 
 import numpy as np
 from numpy.typing import NDArray
@@ -48,6 +48,17 @@ class Event:
     generator_damping: bool = True
 
 
+def event_id(kind: str, inception_ns: int) -> str:
+    """An event's identity: what happened and when, by the stream's clock.
+
+    The same disturbance replayed or re-ingested after a restart gets the same id (so the
+    store recognises it); ids never restart per process, unlike a counter would.
+    """
+    sec, ns = divmod(int(inception_ns), NS)
+    stamp = datetime.fromtimestamp(sec, tz=timezone.utc).strftime("%Y-%m-%dT%H:%M:%S")
+    return f"{kind}@{stamp}.{ns:09d}Z"
+
+
 @dataclass
 class EventWindow:
     event: Event
@@ -69,7 +80,6 @@ class Detector:
     _frontier_ns: int | None = None
     _segment: int = 0
     _pending: list[Event] = field(default_factory=list)
-    _ids: itertools.count = field(default_factory=lambda: itertools.count(1))
 
     def reset(self, segment: int) -> None:
         """A new segment (clock jump): nothing before it can be part of a window after it."""
@@ -134,7 +144,7 @@ class Detector:
             x = sig["p_m"] if kind == "torque_step" else sig["v_t"]
             severity = float(np.mean(x[k : k + span]) - np.mean(x[max(0, k - span) : k]))
         return Event(
-            event_id=f"ev{next(self._ids):04d}",
+            event_id=event_id(kind, int(t[k])),
             kind=kind,
             inception_ns=int(t[k]),
             clearing_ns=int(t[k_cl]) if (kind == "fault" and k_cl is not None) else 0,

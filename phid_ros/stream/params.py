@@ -56,6 +56,13 @@ RECALIBRATION: tuple[Tunable, ...] = (
     Tunable("max_relative_jump", float, 0.5, "relative change beyond which a new set is implausible", 0.01, 10.0),
     Tunable("auto_recalibrate", bool, True, "recalibrate automatically when enough events are stored"),
     Tunable("store_path", str, "phid_events.sqlite", "event store file (SQLite); ':memory:' keeps none", runtime=False),
+    Tunable(
+        "unit_id",
+        str,
+        "",
+        "the generating unit watched; the store refuses another unit's events (empty: the node namespace)",
+        runtime=False,
+    ),
     Tunable("tracking_enabled", bool, False, "run the sliding-window tracker too"),
     Tunable("tracking_window_s", float, 300.0, "tracker window", 30.0, 3600.0, runtime=False),
     Tunable("tracking_hop_s", float, 60.0, "tracker hop", 1.0, 3600.0, runtime=False),
@@ -84,7 +91,9 @@ def validate(table: tuple[Tunable, ...], name: str, value: Any, *, running: bool
     return None
 
 
-def pipeline_settings(values: dict[str, Any], *, detect: bool, store_path: str = ":memory:") -> PipelineSettings:
+def pipeline_settings(
+    values: dict[str, Any], *, detect: bool, store_path: str = ":memory:", unit: str = ""
+) -> PipelineSettings:
     """PipelineSettings from parameter values (missing ones take their defaults)."""
     from phid_ros.stream.detector import DetectorSettings
     from phid_ros.stream.recalibration import RecalibrationPolicy
@@ -98,6 +107,7 @@ def pipeline_settings(values: dict[str, Any], *, detect: bool, store_path: str =
         hamiltonian_rate_hz=float(v["hamiltonian_rate_hz"]),
         stale_timeout_s=float(v["stale_timeout_s"]),
         store_path=store_path,
+        unit=unit,
         auto_recalibrate=bool(v["auto_recalibrate"]),
         policy=RecalibrationPolicy(
             latest_per_kind=int(v["latest_per_kind"]),

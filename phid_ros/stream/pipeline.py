@@ -32,6 +32,7 @@ class PipelineSettings:
     hamiltonian_rate_hz: float = 10.0
     stale_timeout_s: float = 2.0  # a stream without samples this long (stream time) is STALE
     store_path: str = ":memory:"
+    unit: str = ""  # the generating unit this pipeline watches; a store holds one unit's events
     auto_recalibrate: bool = True
     policy: RecalibrationPolicy = field(default_factory=RecalibrationPolicy)
     identify: IdentifyOptions = field(default_factory=lambda: IdentifyOptions(baseline=False))
@@ -91,7 +92,7 @@ class MonitorPipeline:
         self.aligner = self._new_aligner()
         self.ring = RingBuffer(int(s.ring_seconds * NS // s.period_ns), CHANNELS)
         self.detector = Detector(self.ring, s.period_ns, s.detector)
-        self.store = EventStore(s.store_path)
+        self.store = EventStore(s.store_path, unit=s.unit or None)
         self.recalibrator = Recalibrator(self.store, s.policy, s.identify)
         self.recalibrator.last_good = s.initial_parameters
         self.markers: list[Marker] = []

@@ -95,9 +95,10 @@ class Recalibrator:
 
     def request(self, stream_time_ns: int, *, force: bool = False) -> str:
         """Ask for a run; returns what happened (started, coalesced, or why not)."""
-        ok, why = self.policy.ready(self.store.counts())
-        if not ok and not force:
-            return f"not ready: {why}"
+        counts = self.store.counts()
+        ok, why = self.policy.ready(counts)
+        if not ok and (not force or not counts):
+            return f"not ready: {why}" if counts else "not ready: the event store holds no usable event"
         if (
             not force
             and self._last_start_ns is not None

@@ -5,10 +5,21 @@ transaction, so after a crash or restart an event is either fully there or not
 at all; "the latest N events per kind" is one indexed query; and it is a single
 file next to the node, with no server. Arrays are stored as little-endian
 float64 / int64 blobs (the stamps as start + period, they are uniform).
+
+A store belongs to one generating unit: the first writer names it, and events of
+another unit are refused, so a recalibration never mixes two machines. An event's
+id is its kind and inception stamp (:func:`~phid_ros.stream.detector.event_id`),
+with a digest of its samples beside it: the same event written again (a restart,
+the same recording replayed) is recognised and kept once; a complete window
+replaces an incomplete one of the same event; a *different* window under the same
+id means two recordings are being mixed under one unit name, and is refused.
+Writers are serialised by SQLite's write lock (``BEGIN IMMEDIATE``, WAL journal),
+so two processes on one store each add their events and lose none.
 """
 
 from __future__ import annotations
 
+import hashlib
 import math
 import sqlite3
 from pathlib import Path
@@ -19,59 +30,158 @@ from phid_ros.errors import PhidError
 from phid_ros.io.topics import CHANNELS
 from phid_ros.stream.detector import Event, EventWindow
 
+SCHEMA_VERSION = "2"
 SCHEMA = """
+CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
 CREATE TABLE IF NOT EXISTS events (
     event_id TEXT PRIMARY KEY, kind TEXT NOT NULL, name TEXT, role TEXT NOT NULL,
     generator_damping INTEGER NOT NULL, inception_ns INTEGER NOT NULL, clearing_ns INTEGER NOT NULL,
     severity REAL, v_prefault REAL, segment INTEGER, start_ns INTEGER NOT NULL, period_ns INTEGER NOT NULL,
-    n INTEGER NOT NULL, usable INTEGER NOT NULL, reason TEXT, channels TEXT NOT NULL, data BLOB NOT NULL);
+    n INTEGER NOT NULL, usable INTEGER NOT NULL, reason TEXT, channels TEXT NOT NULL, data BLOB NOT NULL,
+    digest TEXT NOT NULL);
 CREATE INDEX IF NOT EXISTS events_kind_time ON events (kind, inception_ns);
 """
+COLUMNS = (
+    "event_id, kind, name, role, generator_damping, inception_ns, clearing_ns, severity, v_prefault, segment, "
+    "start_ns, period_ns, n, usable, reason, channels, data"
+)
+BUSY_TIMEOUT_S = 30.0  # how long a writer waits for another process's transaction before giving up
 
 
 class StoreError(PhidError):
-    """The event store file cannot be opened or is not an event store."""
+    """The event store file cannot be opened, is damaged, belongs to another unit, or refuses an event."""
+
+
+def window_digest(w: EventWindow) -> str:
+    """A digest of what was measured: stamps and samples (not labels, which markers may add later)."""
+    h = hashlib.sha256()
+    start = int(w.t_ns[0]) if len(w.t_ns) else w.event.inception_ns
+    h.update(np.array([start, w.period_ns, len(w.t_ns)], dtype="<i8").tobytes())
+    h.update(np.ascontiguousarray(w.values, dtype="<f8").tobytes())
+    return h.hexdigest()
+
+
+def _same_samples(a: EventWindow, b: EventWindow) -> bool:
+    """Do two windows of one event agree wherever both have samples (the same measurement)?"""
+    common, ia, ib = np.intersect1d(a.t_ns, b.t_ns, assume_unique=True, return_indices=True)
+    if common.size == 0:
+        return a.period_ns == b.period_ns
+    return bool(np.array_equal(a.values[ia], b.values[ib], equal_nan=True))
 
 
 class EventStore:
-    def __init__(self, path: str | Path = ":memory:") -> None:
+    def __init__(self, path: str | Path = ":memory:", *, unit: str | None = None) -> None:
         self.path = str(path)
         try:
-            self._db = sqlite3.connect(self.path, check_same_thread=False)
-            self._db.executescript(SCHEMA)
+            self._db = sqlite3.connect(
+                self.path, check_same_thread=False, timeout=BUSY_TIMEOUT_S, isolation_level=None
+            )
+            if self.path != ":memory:":
+                self._db.execute("PRAGMA journal_mode=WAL")
+            ok = self._db.execute("PRAGMA quick_check").fetchone()[0]
+            if ok != "ok":
+                raise StoreError(f"{self.path}: event store is damaged ({ok})")
+            self._migrate()
         except sqlite3.DatabaseError as exc:
             raise StoreError(f"{self.path}: not a usable event store ({exc})") from exc
+        self.unit = self._claim(unit)
+
+    # -- identity ----------------------------------------------------------------------
+    def _migrate(self) -> None:
+        with self._write():
+            cols = [r[1] for r in self._db.execute("PRAGMA table_info(events)")]
+            if cols and "digest" not in cols:  # a store written before events had digests
+                self._db.execute("ALTER TABLE events ADD COLUMN digest TEXT NOT NULL DEFAULT ''")
+            for stmt in SCHEMA.strip().split(";"):
+                if stmt.strip():
+                    self._db.execute(stmt)
+            self._db.execute("INSERT OR IGNORE INTO meta VALUES ('schema_version', ?)", (SCHEMA_VERSION,))
+
+    def _claim(self, unit: str | None) -> str | None:
+        with self._write():
+            row = self._db.execute("SELECT value FROM meta WHERE key = 'unit'").fetchone()
+            if row is None:
+                if unit:
+                    self._db.execute("INSERT INTO meta VALUES ('unit', ?)", (unit,))
+                return unit or None
+        if unit and row[0] != unit:
+            raise StoreError(
+                f"{self.path}: this event store belongs to unit {row[0]!r}, not {unit!r}; "
+                "use another store for another machine"
+            )
+        return str(row[0])
+
+    # -- writing -------------------------------------------------------------------------
+    class _Tx:
+        def __init__(self, db: sqlite3.Connection) -> None:
+            self.db = db
+
+        def __enter__(self) -> None:
+            self.db.execute("BEGIN IMMEDIATE")  # take the write lock now: writers queue, none overwrites
+
+        def __exit__(self, kind: object, exc: object, tb: object) -> None:
+            self.db.execute("COMMIT" if kind is None else "ROLLBACK")
+
+    def _write(self) -> EventStore._Tx:
+        return EventStore._Tx(self._db)
 
     def close(self) -> None:
         self._db.close()
 
-    def add(self, w: EventWindow) -> None:
+    def add(self, w: EventWindow) -> str:
+        """Store a window; returns 'added', 'duplicate' (already there), 'replaced' (a complete window
+        for a stored incomplete one) or 'kept' (an incomplete window for a stored complete one)."""
+        e = w.event
+        digest = window_digest(w)
+        try:
+            with self._write():
+                row = self._db.execute(
+                    f"SELECT digest, {COLUMNS} FROM events WHERE event_id = ?", (e.event_id,)
+                ).fetchone()
+                if row is not None:
+                    if row[0] == digest:
+                        return "duplicate"
+                    stored = self._row(row[1:])
+                    if not _same_samples(stored, w):
+                        raise StoreError(
+                            f"{self.path}: event {e.event_id} is already stored with other samples; two "
+                            f"recordings are being mixed under unit {self.unit!r} (use another store or unit)"
+                        )
+                    if stored.usable or (not w.usable and len(stored.t_ns) >= len(w.t_ns)):
+                        return "kept"  # the stored window is the more complete one of the same event
+                self._db.execute(f"INSERT OR REPLACE INTO events ({COLUMNS}, digest) VALUES ({'?,' * 17}?)", (
+                    *self._values(w),
+                    digest,
+                ))
+                return "added" if row is None else "replaced"
+        except sqlite3.OperationalError as exc:  # the lock was not released within the busy timeout
+            raise StoreError(f"{self.path}: cannot write event {e.event_id}: {exc}") from exc
+
+    @staticmethod
+    def _values(w: EventWindow) -> tuple:
         e = w.event
         start = int(w.t_ns[0]) if len(w.t_ns) else e.inception_ns
-        with self._db:  # one transaction per event
-            self._db.execute(
-                "INSERT OR REPLACE INTO events VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
-                (
-                    e.event_id,
-                    e.kind,
-                    e.name,
-                    e.role,
-                    int(e.generator_damping),
-                    e.inception_ns,
-                    e.clearing_ns,
-                    e.severity,
-                    e.v_prefault,
-                    e.segment,
-                    start,
-                    w.period_ns,
-                    len(w.t_ns),
-                    int(w.usable),
-                    w.reason,
-                    ",".join(CHANNELS),
-                    np.ascontiguousarray(w.values, dtype="<f8").tobytes(),
-                ),
-            )
+        return (
+            e.event_id,
+            e.kind,
+            e.name,
+            e.role,
+            int(e.generator_damping),
+            e.inception_ns,
+            e.clearing_ns,
+            e.severity,
+            e.v_prefault,
+            e.segment,
+            start,
+            w.period_ns,
+            len(w.t_ns),
+            int(w.usable),
+            w.reason,
+            ",".join(CHANNELS),
+            np.ascontiguousarray(w.values, dtype="<f8").tobytes(),
+        )
 
+    # -- reading -------------------------------------------------------------------------
     def __len__(self) -> int:
         return int(self._db.execute("SELECT COUNT(*) FROM events").fetchone()[0])
 
@@ -86,7 +196,7 @@ class EventStore:
         kinds = [kind] if kind else [r[0] for r in self._db.execute("SELECT DISTINCT kind FROM events")]
         out: list[EventWindow] = []
         for k in kinds:
-            q = "SELECT * FROM events WHERE kind = ?"
+            q = f"SELECT {COLUMNS} FROM events WHERE kind = ?"
             args: list[object] = [k]
             if usable_only:
                 q += " AND usable = 1"
@@ -104,8 +214,19 @@ class EventStore:
         return self.latest(usable_only=False)
 
     def clear(self) -> None:
-        with self._db:
+        with self._write():
             self._db.execute("DELETE FROM events")
+
+    def integrity(self) -> str:
+        """SQLite's full integrity check plus ours: every stored blob has the size its row says."""
+        ok = self._db.execute("PRAGMA integrity_check").fetchone()[0]
+        if ok != "ok":
+            return ok
+        bad = self._db.execute(
+            "SELECT event_id FROM events WHERE length(data) != n * 8 * (length(channels) - "
+            "length(replace(channels, ',', '')) + 1)"
+        ).fetchall()
+        return "ok" if not bad else f"events with a wrong data size: {[r[0] for r in bad]}"
 
     @staticmethod
     def _row(r: tuple) -> EventWindow:

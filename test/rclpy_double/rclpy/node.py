@@ -91,6 +91,9 @@ class Node:
         self._logger = Logger()
         rclpy.nodes.append(self)
 
+    def get_namespace(self) -> str:
+        return self.namespace
+
     def resolve(self, name: str) -> str:
         if name.startswith("/"):
             return name
