@@ -12,45 +12,64 @@ PRE_EVENT_S = 1.0
 POST_EVENT_S = 29.0
 
 
-def aligned_channels(rec: Recording, source: str) -> tuple[np.ndarray, float, dict[str, np.ndarray]]:
-    """All ten channels on the PT/CT stream's stamps.
+def aligned_channels(rec: Recording, source: str) -> tuple[np.ndarray, float, dict[str, np.ndarray], list[str]]:
+    """All ten channels on one uniform grid, by the very aligner the online pipeline uses.
 
-    Streams recorded on the same clock and grid are used as they are; others are
-    interpolated, and samples farther than two periods from the nearest sample
-    of their stream become NaN, so a window over a gap is refused, not invented.
+    So ``identify`` sees a recording exactly as ``replay`` does: a hole in the streams is a
+    hole (NaN, and a window over it is skipped by name), not a splice of the samples either
+    side; duplicate stamps keep their first value and are counted; a channel recorded in
+    other units than per unit is refused with the unit it looks like. Returns the grid, the
+    period in s, the channels and notes on what was dropped.
     """
-    if "pt_ct" not in rec.streams:
-        raise PhidError(f"{source}: no PT/CT stream")
-    base = rec.streams["pt_ct"]
-    t = base.t_ns
-    if np.any(np.diff(t) <= 0):
-        raise PhidError(
-            f"{source}: PT/CT stamps are not increasing; replay it through the online pipeline "
-            "(phid replay) which splits segments at clock jumps"
-        )
-    out: dict[str, np.ndarray] = {}
+    from phid_ros.io.recording import block_bounds
+    from phid_ros.io.topics import STREAMS, unit_problem
+    from phid_ros.stream.align import Aligner
+
+    missing_streams = [s.name for s in STREAMS if s.name not in rec.streams]
+    if missing_streams:
+        raise PhidError(f"{source}: no {', '.join(missing_streams)} stream(s)")
     for stream in rec.streams.values():
-        same = len(stream.t_ns) == len(t) and np.array_equal(stream.t_ns, t)
         for c, x in stream.channels.items():
-            if same:
-                out[c] = x
-                continue
-            ts = stream.t_ns
-            y = np.interp(t.astype(float), ts.astype(float), x)
-            j = np.clip(np.searchsorted(ts, t), 1, len(ts) - 1)
-            nearest = np.minimum(np.abs(t - ts[j - 1]), np.abs(ts[j] - t))
-            y[nearest > 2 * stream.period_ns] = np.nan
-            out[c] = y
-    missing = [c for c in CHANNELS if c not in out]
-    if missing:
-        raise PhidError(f"{source}: channels {missing} missing")
-    return t, base.period_ns / NS, out
+            problem = unit_problem(c, x)
+            if problem:
+                raise PhidError(f"{source}: {problem}")
+    period = rec.streams["pt_ct"].period_ns
+    al = Aligner(period, stale_ns=2 * NS)
+    for name, stream in rec.streams.items():
+        # one ingest per run of uniform stamps: vectorised, and a gap or duplicate starts a new run
+        for a, b in block_bounds(stream.t_ns, stream.period_ns, len(stream.t_ns) or 1):
+            al.ingest(name, int(stream.t_ns[a]), stream.period_ns, {c: x[a:b] for c, x in stream.channels.items()})
+    blocks = al.pull(final=True)
+    if not blocks:
+        raise PhidError(f"{source}: the sensor streams do not overlap in time")
+    if any(b.segment != blocks[0].segment for b in blocks):
+        raise PhidError(
+            f"{source}: the stamps jump back in time (clock reset or looped recording); replay it through "
+            "the online pipeline (phid replay), which splits segments at clock jumps"
+        )
+    t = np.concatenate([b.t_ns for b in blocks])
+    values = np.concatenate([b.values for b in blocks])
+    notes = []
+    for name, h in al.health.items():
+        dropped = {
+            "duplicate stamps (the first value of each stamp kept, later ones dropped)": h.duplicates,
+            "out-of-order stamps": h.out_of_order,
+            "non-finite values": h.nonfinite,
+            "values outside the per-unit range": h.implausible,
+            "zero stamps": h.zero_stamps,
+            "wild stamps": h.wild_stamps,
+        }
+        for what, count in dropped.items():
+            if count:
+                notes.append(f"{source}: stream {name}: {count} samples dropped: {what}")
+        if h.gaps:
+            notes.append(f"{source}: stream {name}: {h.gaps} gap(s); windows over a gap are skipped")
+    return t, period / NS, {c: values[:, i] for i, c in enumerate(CHANNELS)}, notes
 
 
 def scenarios_from_recording(rec: Recording, source: str) -> tuple[list[ScenarioData], list[str]]:
     """Scenario windows from the markers, or from detected disturbances when there are none."""
-    t, dt, ch = aligned_channels(rec, source)
-    problems: list[str] = []
+    t, dt, ch, problems = aligned_channels(rec, source)
     out: list[ScenarioData] = []
     windows = []
     if rec.scenarios:
@@ -61,7 +80,9 @@ def scenarios_from_recording(rec: Recording, source: str) -> tuple[list[Scenario
             k_cl = int(np.searchsorted(t, m.clearing_ns)) - a if m.clearing_ns else None
             windows.append((m.name, m.kind, m.role, m.generator_damping, a, b, k_ev, k_cl))
     else:
-        events = find_events(ch, dt)
+        from phid_ros.stream.detector import forward_filled
+
+        events = find_events({c: forward_filled(x) for c, x in ch.items()}, dt)  # as the online detector sees them
         if not events:
             raise PhidError(
                 f"{source}: no scenario markers and no disturbance found (no fault, torque step or voltage step)"
@@ -74,7 +95,7 @@ def scenarios_from_recording(rec: Recording, source: str) -> tuple[list[Scenario
             windows.append(
                 (f"E{i + 1:02d}_{kind}", kind, "identify", True, a, b, k - a, None if k_cl is None else k_cl - a)
             )
-        problems.append(f"no scenario markers: {len(events)} disturbance(s) detected and cut into windows")
+        problems.append(f"{source}: no scenario markers: {len(events)} disturbance(s) detected and cut into windows")
     for name, kind, role, damping, a, b, k_ev, k_cl in windows:
         try:
             out.append(
@@ -91,5 +112,5 @@ def scenarios_from_recording(rec: Recording, source: str) -> tuple[list[Scenario
                 )
             )
         except ScenarioError as exc:
-            problems.append(f"skipped: {exc}")
+            problems.append(f"{source}: skipped {exc}")
     return out, problems

@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 from phid_ros.errors import CsvImportError
 from phid_ros.io.recording import NS, Recording, ScenarioInfo, StreamSamples
 from phid_ros.io.results import read_json
-from phid_ros.io.topics import CHANNELS, STREAMS
+from phid_ros.io.topics import CHANNELS, STREAMS, unit_problem
 
 CSV_COLUMNS: tuple[str, ...] = ("t",) + CHANNELS
 KINDS = ("torque_step", "voltage_step", "fault", "unknown")
@@ -178,6 +178,10 @@ def import_csv_set(
     for k, entry in enumerate(scenarios):
         path, kind, role, damping = _manifest_entry(entry, k, manifest)
         cols, extra = read_scenario_csv(path, strict=strict)
+        for c in CHANNELS:
+            problem = unit_problem(c, cols[c])
+            if problem:
+                raise CsvImportError(f"{path}: {problem}")
         if extra:
             warnings.append(f"{path}: ignored extra column(s) {extra}")
         t = cols["t"]

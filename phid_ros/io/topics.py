@@ -37,5 +37,62 @@ SCENARIO_TOPIC = "/phid/scenarios"
 SCENARIO_MSGTYPE = "phid_msgs/msg/ScenarioMarker"
 
 
+# Plausible ranges in per unit / rad on the machine base: anything outside is a wrong feed (a kV, MW
+# or A signal by mistake), not a disturbance. One table for replay, identify and import-csv.
+PLAUSIBLE: dict[str, tuple[float, float]] = {
+    "v_t": (0.0, 3.0),
+    "i_d": (-25.0, 25.0),
+    "i_q": (-25.0, 25.0),
+    "p_e": (-25.0, 25.0),
+    "q_e": (-25.0, 25.0),
+    "omega": (0.5, 1.5),
+    "p_m": (-5.0, 5.0),
+    "theta_t": (-1e6, 1e6),
+    "delta": (-1e6, 1e6),
+    "v_f": (-30.0, 30.0),
+}
+
+# What a channel's typical magnitude says it was recorded in, when it is not per unit.
+_UNIT_GUESSES: dict[str, tuple[tuple[float, float, str], ...]] = {
+    "v_t": ((3.0, 1000.0, "kV: divide by the machine's rated kV"), (1000.0, 1e7, "V: divide by the rated voltage")),
+    "i_d": ((25.0, 1e7, "A or kA: divide by the rated current"),),
+    "i_q": ((25.0, 1e7, "A or kA: divide by the rated current"),),
+    "p_e": ((25.0, 1e7, "MW: divide by the machine's MVA base"),),
+    "q_e": ((25.0, 1e7, "Mvar: divide by the machine's MVA base"),),
+    "p_m": ((5.0, 1e7, "MW: divide by the machine's MVA base"),),
+    "omega": (
+        (40.0, 70.0, "Hz: divide by the nominal frequency"),
+        (250.0, 400.0, "rad/s: divide by 2π times the nominal frequency"),
+        (400.0, 4000.0, "rpm: divide by the synchronous speed"),
+    ),
+    "v_f": ((30.0, 1e7, "V: divide by the field voltage base"),),
+}
+
+
+def unit_problem(channel: str, values: object, *, share: float = 0.5) -> str | None:
+    """Why ``values`` of ``channel`` are not per unit (with a guess at their unit), or None.
+
+    A channel is refused when at least ``share`` of its finite samples lie outside its
+    plausible per-unit range; isolated wild samples are the aligner's business (dropped, counted).
+    """
+    import numpy as np
+
+    x = np.asarray(values, dtype=float)
+    x = x[np.isfinite(x)]
+    lo, hi = PLAUSIBLE[channel]
+    if x.size == 0:
+        return None
+    outside = float(np.mean((x < lo) | (x > hi)))
+    if outside < share:
+        return None
+    typical = float(np.median(np.abs(x)))
+    guess = next((text for a, b, text in _UNIT_GUESSES.get(channel, ()) if a <= typical < b), None)
+    what = f"looks like {guess}" if guess else "not per unit on the machine base"
+    return (
+        f"channel {channel}: {100 * outside:.0f} % of samples outside the per-unit range {lo:g} to {hi:g} "
+        f"(typical magnitude {typical:.4g}): {what}"
+    )
+
+
 def topic_for(stream: str, namespace: str = DEFAULT_NAMESPACE) -> str:
     return f"{namespace.rstrip('/')}/{stream}"

@@ -107,7 +107,7 @@ class Detector:
             t, x = self.ring.window(self._frontier_ns - int(s.context_s * NS), latest)
             if len(t) > 10:
                 # the batch detector reads V_t and P_m only
-                signals = {c: _ffill(x[:, CHANNELS.index(c)]) for c in ("v_t", "p_m")}
+                signals = {c: forward_filled(x[:, CHANNELS.index(c)]) for c in ("v_t", "p_m")}
                 for kind, k, k_cl in find_events(signals, self.period_ns / NS):
                     if not self._frontier_ns <= t[k] < decided:
                         continue
@@ -174,7 +174,7 @@ class Detector:
         return w
 
 
-def _ffill(x: NDArray[np.float64]) -> NDArray[np.float64]:
+def forward_filled(x: NDArray[np.float64]) -> NDArray[np.float64]:
     """Forward-fill NaN gaps (leading ones take the first finite value) for detection only."""
     bad = ~np.isfinite(x)
     if not bad.any():

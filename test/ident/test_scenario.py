@@ -18,7 +18,7 @@ def test_classify_each_kind_from_the_signals(clean_scenarios):
 def test_find_events_in_a_continuous_recording(short_recording):
     from phid_ros.cli.scenarios import aligned_channels
 
-    t, dt, ch = aligned_channels(short_recording, "test")
+    t, dt, ch, _ = aligned_channels(short_recording, "test")
     events = find_events(ch, dt)
     for marker in short_recording.scenarios:
         hit = [e for e in events if abs(int(t[e[1]]) - marker.event_ns) <= 5_000_000]
