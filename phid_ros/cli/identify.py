@@ -14,8 +14,7 @@ from rich.table import Table
 from phid_ros.cli.scenarios import scenarios_from_recording
 from phid_ros.errors import PhidError, ResultsError
 from phid_ros.ident.pipeline import IdentificationResult, IdentifyOptions, identify
-from phid_ros.io.bags import read_recording
-from phid_ros.io.csv_import import import_csv_set
+from phid_ros.cli.common import read_input, warn
 from phid_ros.io.recording import Recording
 from phid_ros.io.results import read_json, write_json
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, GeneratorParameters
@@ -33,12 +32,8 @@ SYMBOLS = {
 
 
 def load_input(path: str | Path) -> tuple[Recording, str]:
-    """A rosbag2 folder, a single .mcap, or a CSV manifest.json."""
-    p = Path(path)
-    if p.suffix == ".json":
-        rec, _ = import_csv_set(p)
-        return rec, str(p)
-    return read_recording(p), str(p)
+    """A rosbag2 folder, a single .mcap, or a CSV manifest.json (warnings on stderr)."""
+    return read_input(path)
 
 
 def load_truth(path: str | Path, rec: Recording) -> GeneratorParameters:
@@ -151,8 +146,13 @@ def run(args: Any, console: Console) -> int:
         baseline=not args.no_baseline,
         paper_maxiter=args.paper_maxiter,
     )
+    if not any(sc.role == "identify" for sc in scenarios):
+        why = "; ".join(problems[-3:]) or f"{len(scenarios)} scenario(s), all for validation"
+        raise PhidError(f"{source}: nothing to identify from: no usable identification scenario ({why})")
     res = identify(scenarios, options, truth)
     res.problems[:0] = problems
+    if not any(e is not None and math.isfinite(e.value) for e in res.estimates.values()):
+        raise PhidError(f"{source}: nothing identified: " + ("; ".join(res.problems) or "every stage failed"))
     res.timing = {"read": round(t_read, 6), **res.timing}
     doc = res.to_json(truth)
     doc["input"] = source
@@ -175,7 +175,7 @@ def run(args: Any, console: Console) -> int:
             highlight=False,
         )
     for p in res.problems:
-        console.print(f"[yellow]note:[/] {p}", highlight=False)
+        warn(p)
     console.print(
         f"{len(scenarios)} scenarios, {res.timing['total']:.3f} s" + (f", wrote {args.json}" if args.json else ""),
         highlight=False,

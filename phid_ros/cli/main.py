@@ -14,6 +14,7 @@ from pathlib import Path
 
 from rich.console import Console
 from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+from rich.markup import escape
 from rich.table import Table
 
 from phid_ros import __version__
@@ -155,11 +156,24 @@ def _iso(ns: int) -> str:
 
 def cmd_info(args: argparse.Namespace, console: Console) -> int:
     from phid_ros.cli.info import summarise_streams
-    from phid_ros.io.bags import read_recording, topic_table
+    from phid_ros.cli.common import read_input
+    from phid_ros.io.bags import topic_table
     from phid_ros.io.recording import expected_type
+    from phid_ros.io.topics import STREAMS_BY_NAME, topic_for
 
     path = Path(args.bag)
-    topics = topic_table(path)
+    rec = None
+    try:
+        topics = topic_table(path)
+    except PhidError as index_error:
+        # a truncated file has no index at its end: read what is there (the reader warns how much)
+        rec, _ = read_input(path)
+        if not rec.warnings:
+            raise index_error
+        topics = [
+            (topic_for(name), STREAMS_BY_NAME[name].msgtype, len(s.msg_offsets) if s.msg_offsets is not None else 0)
+            for name, s in rec.streams.items()
+        ]
     if not any(expected_type(t) for t, _, _ in topics):
         # an output bag (phid replay) or foreign data: the topic table is all there is to show
         table = Table(title=f"{path} (no sensor streams)", title_justify="left")
@@ -169,8 +183,9 @@ def cmd_info(args: argparse.Namespace, console: Console) -> int:
             table.add_row(topic, msgtype, str(count))
         console.print(table)
         return 0
-    rec = read_recording(path)
-    table = Table(title=f"{path}", title_justify="left")
+    if rec is None:
+        rec, _ = read_input(path)
+    table = Table(title=escape(f"{path}"), title_justify="left")
     for col in ("topic", "type", "messages"):
         table.add_column(col, justify="right" if col == "messages" else "left")
     for topic, msgtype, count in topics:

@@ -169,7 +169,8 @@ def run(args: object, console: object) -> int:
     from rich.table import Table
 
     from phid_ros.errors import PhidError
-    from phid_ros.io.bags import read_recording, write_messages
+    from phid_ros.cli.common import read_input
+    from phid_ros.io.bags import write_messages
     from phid_ros.model.parameters import PARAMETER_NAMES
     from phid_ros.stream.pipeline import PipelineSettings
 
@@ -178,7 +179,7 @@ def run(args: object, console: object) -> int:
 
     if Path(out_path).exists():
         raise PhidError(f"{out_path}: already exists, not overwriting")
-    rec = read_recording(args.bag)  # type: ignore[attr-defined]
+    rec, _ = read_input(args.bag)  # type: ignore[attr-defined]
     unit = args.unit or rec.metadata.get("unit", "")  # type: ignore[attr-defined]
     settings = PipelineSettings(store_path=args.store or ":memory:", unit=unit)  # type: ignore[attr-defined]
     pipeline = MonitorPipeline(settings)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import hashlib
+
 import numpy as np
 
 from phid_ros.errors import PhidError
@@ -96,7 +98,14 @@ def scenarios_from_recording(rec: Recording, source: str) -> tuple[list[Scenario
                 (f"E{i + 1:02d}_{kind}", kind, "identify", True, a, b, k - a, None if k_cl is None else k_cl - a)
             )
         problems.append(f"{source}: no scenario markers: {len(events)} disturbance(s) detected and cut into windows")
+    seen: dict[bytes, str] = {}
     for name, kind, role, damping, a, b, k_ev, k_cl in windows:
+        # the same measurement listed twice would count twice and shrink every std by about sqrt(2)
+        digest = hashlib.sha256(np.ascontiguousarray([ch[c][a:b] for c in CHANNELS]).tobytes()).digest()
+        if digest in seen:
+            problems.append(f"{source}: skipped scenario {name}: the same data as scenario {seen[digest]}")
+            continue
+        seen[digest] = name
         try:
             out.append(
                 make_scenario(

@@ -11,7 +11,8 @@ from typing import Any
 from rich.table import Table
 
 from phid_ros.errors import PhidError
-from phid_ros.io.bags import read_recording, write_messages
+from phid_ros.cli.common import read_input
+from phid_ros.io.bags import write_messages
 from phid_ros.io.recording import NS
 from phid_ros.model.parameters import TABLE1, GeneratorParameters
 from phid_ros.stream.align import Aligner
@@ -59,7 +60,7 @@ def base_parameters(args: Any) -> GeneratorParameters:
 
 
 def run(args: Any, console: Any) -> int:
-    rec = read_recording(args.bag)
+    rec, _ = read_input(args.bag)
     base = base_parameters(args)
     tracker = SlidingTracker(
         base, rec.streams["pt_ct"].period_ns, TrackerSettings(window_s=args.window, hop_s=args.hop)

@@ -150,7 +150,12 @@ def _manifest_entry(entry: Any, k: int, manifest: Path) -> tuple[Path, str, str,
         raise CsvImportError(f"{where}: role {role!r} not one of {ROLES}")
     if not isinstance(damping, bool):
         raise CsvImportError(f"{where}: generator_damping must be true or false")
-    return manifest.parent / str(entry["file"]), kind, role, damping
+    name = str(entry["file"])
+    folder = manifest.parent.resolve()
+    path = (folder / name).resolve()
+    if Path(name).is_absolute() or not path.is_relative_to(folder):
+        raise CsvImportError(f"{where}: file {name!r} is outside the manifest's folder {folder}; refused")
+    return manifest.parent / name, kind, role, damping
 
 
 def import_csv_set(

@@ -18,6 +18,7 @@ from phid_ros.io.recording import (
     checked_payloads,
     is_phid_topic,
     recording_from_raw,
+    describe_span,
     recording_messages,
 )
 from phid_ros.io.topics import DEFAULT_NAMESPACE
@@ -72,17 +73,28 @@ def _write_mcap(
 
 def read_mcap(path: str | Path) -> Recording:
     """Fast record walker first; the ``mcap`` library reader where the walker does not apply."""
-    from phid_ros.io.mcap_raw import McapFormatError, iter_messages
+    from phid_ros.io.mcap_raw import McapFormatError, WalkStatus, iter_messages
 
     path = Path(path)
     source = str(path)
     if not path.is_file():
         raise BagError(f"{source}: no such MCAP file")
+    status = WalkStatus()
     try:
-        metadata = _metadata(path)
-        return recording_from_raw(checked_payloads(iter_messages(path), source), source=source, metadata=metadata)
+        rec = recording_from_raw(checked_payloads(iter_messages(path, status), source), source=source)
     except McapFormatError as exc:
         raise BagError(f"{source}: truncated or corrupt MCAP file: {exc}") from exc
+    except BagError as exc:
+        cut = status.truncation()
+        if cut is None:
+            raise
+        raise BagError(f"{source}: {cut}, and what comes before the cut is not enough: {exc}") from exc
+    cut = status.truncation()
+    if cut is None:
+        rec.metadata = _metadata(path)
+    else:  # the metadata index sits at the end that is missing: the recording is read without it
+        rec.warnings.append(f"{source}: {cut}; {describe_span(rec)}")
+    return rec
 
 
 def _metadata(path: Path) -> dict[str, str]:

@@ -26,6 +26,15 @@ class McapFormatError(Exception):
     """The file is not an MCAP this walker understands (or it is damaged)."""
 
 
+def _tolerant(
+    records: Iterator[tuple[str, str, str, memoryview]], st: WalkStatus
+) -> Iterator[tuple[str, str, str, memoryview]]:
+    try:
+        yield from records
+    except _CutTail:
+        st.complete = False  # the file's tail is cut inside a record: what came before stands, the caller warns
+
+
 def _string(buf: bytes | memoryview, pos: int) -> tuple[str, int]:
     (n,) = _U32.unpack_from(buf, pos)
     pos += 4
@@ -46,8 +55,31 @@ def _decompress(kind: str, data: bytes, size: int) -> bytes:
     raise McapFormatError(f"unsupported chunk compression {kind!r}")
 
 
-def iter_messages(path: str | Path) -> Iterator[tuple[str, str, str, memoryview]]:
+class _CutTail(McapFormatError):
+    """The file ends inside a top-level record: a truncated file, not a damaged one."""
+
+
+class WalkStatus:
+    """What a walk saw of the file's end: a recorder killed mid-write leaves no data-end record."""
+
+    def __init__(self) -> None:
+        self.complete = False
+        self.size = 0
+        self.read_to = 0  # bytes of whole records read
+
+    def truncation(self) -> str | None:
+        if self.complete:
+            return None
+        lost = self.size - self.read_to
+        return f"truncated file: it ends after {self.size} bytes without its end-of-data record" + (
+            f", {lost} bytes into a record that is lost" if lost else ""
+        )
+
+
+def iter_messages(path: str | Path, status: WalkStatus | None = None) -> Iterator[tuple[str, str, str, memoryview]]:
     data = Path(path).read_bytes()
+    st = status if status is not None else WalkStatus()
+    st.size = len(data)
     if not data.startswith(MAGIC):
         raise McapFormatError("not an MCAP file (bad magic)")
     schemas: dict[int, str] = {}
@@ -56,12 +88,12 @@ def iter_messages(path: str | Path) -> Iterator[tuple[str, str, str, memoryview]
     def walk(buf: bytes | memoryview, pos: int, end: int, top: bool) -> Iterator[tuple[str, str, str, memoryview]]:
         while pos < end:
             if pos + 9 > end:
-                raise McapFormatError("truncated record header")
+                raise (_CutTail if top else McapFormatError)("truncated record header")
             op, length = _REC.unpack_from(buf, pos)
             body = pos + 9
             nxt = body + length
             if nxt > end:
-                raise McapFormatError("record runs past the end (truncated file)")
+                raise (_CutTail if top else McapFormatError)("record runs past the end (truncated file)")
             if op == OP_MESSAGE:
                 cid, _, _, _ = _MSG.unpack_from(buf, body)
                 ch = channels.get(cid)
@@ -89,11 +121,18 @@ def iter_messages(path: str | Path) -> Iterator[tuple[str, str, str, memoryview]
                     raise McapFormatError("chunk decompressed to the wrong size")
                 yield from walk(raw, 0, len(raw), False)
             elif op == OP_DATA_END and top:
+                st.complete = True
+                st.read_to = nxt
                 return
             pos = nxt
+            if top:
+                st.read_to = pos
 
     try:
-        yield from walk(data, len(MAGIC), len(data), True)
+        if len(data) > len(MAGIC):
+            # a file cut at a record boundary ends cleanly; one cut inside a record is damaged at its
+            # tail only: read the whole records before it and let the caller warn
+            yield from _tolerant(walk(data, len(MAGIC), len(data), True), st)
     except (struct.error, UnicodeDecodeError) as exc:
         raise McapFormatError(f"damaged record: {exc}") from exc
     except McapFormatError:

@@ -75,6 +75,7 @@ class Recording:
     streams: dict[str, StreamSamples]
     scenarios: list[ScenarioInfo] = field(default_factory=list)
     metadata: dict[str, str] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)  # what the reader noticed (a truncated file, ...)
 
     @property
     def f_nominal_hz(self) -> float:
@@ -86,6 +87,16 @@ class Recording:
         if not starts:
             return 0, 0
         return min(starts), max(ends)
+
+
+def describe_span(rec: Recording) -> str:
+    """How much a reader got: per stream, samples and seconds (for a truncation warning)."""
+    parts = [
+        f"{name} {len(s)} samples ({(int(s.t_ns[-1]) - int(s.t_ns[0])) / NS:.1f} s)"
+        for name, s in rec.streams.items()
+        if len(s)
+    ]
+    return "read " + ", ".join(parts)
 
 
 # -- time stamps -------------------------------------------------------------

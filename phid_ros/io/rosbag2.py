@@ -16,6 +16,7 @@ from phid_ros.io.recording import (
     DEFAULT_BLOCK_SIZE,
     Recording,
     checked_payloads,
+    describe_span,
     expected_type,
     is_phid_topic,
     recording_from_raw,
@@ -85,7 +86,7 @@ def _fast_read(path: Path, source: str) -> Recording | None:
     from rosbags.rosbag2.metadata import ReaderMetadata  # noqa: F401  (import check only)
     from ruamel.yaml import YAML
 
-    from phid_ros.io.mcap_raw import McapFormatError, iter_messages
+    from phid_ros.io.mcap_raw import McapFormatError, WalkStatus, iter_messages
 
     try:
         meta = YAML(typ="safe").load((path / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
@@ -99,14 +100,26 @@ def _fast_read(path: Path, source: str) -> Recording | None:
     custom = meta.get("custom_data") or {}
     metadata = {k[len("phid.") :]: str(v) for k, v in custom.items() if k.startswith("phid.")}
 
+    statuses = {f: WalkStatus() for f in files}
+
     def items() -> Iterator[tuple[str, str, bytes]]:
         for f in files:
-            yield from checked_payloads(iter_messages(f), source)
+            yield from checked_payloads(iter_messages(f, statuses[f]), source)
 
     try:
-        return recording_from_raw(items(), source=source, metadata=metadata)
+        rec = recording_from_raw(items(), source=source, metadata=metadata)
     except McapFormatError as exc:
         raise BagError(f"{source}: truncated or corrupt bag: {exc}") from exc
+    except BagError as exc:
+        cuts = [f"{f}: {st.truncation()}" for f, st in statuses.items() if st.truncation()]
+        if not cuts:
+            raise
+        raise BagError(f"{'; '.join(cuts)}, and what comes before the cut is not enough: {exc}") from exc
+    for f, st in statuses.items():
+        cut = st.truncation()
+        if cut:
+            rec.warnings.append(f"{f}: {cut}; {describe_span(rec)}")
+    return rec
 
 
 def read_rosbag2(path: str | Path) -> Recording:

@@ -94,3 +94,46 @@ def test_import_csv_refuses_a_kv_column(tmp_path, catalogue_runs, capsys):
     err = capsys.readouterr().err
     assert "s0.csv: channel v_t" in err and "looks like kV" in err
     assert not (tmp_path / "b.mcap").exists()
+
+
+@pytest.mark.parametrize("name", ["../outside.csv", "/etc/passwd"])
+def test_manifest_paths_stay_inside_its_folder(tmp_path, catalogue_runs, capsys, name):
+    from test.io.test_csv_import import write_set
+
+    folder = tmp_path / "set"
+    folder.mkdir()
+    manifest = write_set(folder, catalogue_runs[:1])
+    (tmp_path / "outside.csv").write_text((folder / "s0.csv").read_text())
+    doc = json.loads(manifest.read_text())
+    doc["scenarios"][0]["file"] = name
+    manifest.write_text(json.dumps(doc))
+    assert main(["identify", str(manifest)]) == 2
+    assert "outside the manifest's folder" in capsys.readouterr().err
+
+
+def test_the_same_csv_listed_twice_counts_once(tmp_path, catalogue_runs, capsys):
+    from test.io.test_csv_import import write_set
+
+    runs = [r for r in catalogue_runs if r.scenario.name[:3] in ("S04", "S10", "S15")]
+    manifest = write_set(tmp_path, runs)
+    once = tmp_path / "once.json"
+    assert main(["identify", str(manifest), "--json", str(once), "--no-baseline"]) == 0
+    doc = json.loads(manifest.read_text())
+    doc["scenarios"].append(dict(doc["scenarios"][0]))
+    twice_manifest = tmp_path / "twice_manifest.json"
+    twice_manifest.write_text(json.dumps(doc))
+    twice = tmp_path / "twice.json"
+    assert main(["identify", str(twice_manifest), "--json", str(twice), "--no-baseline"]) == 0
+    a, b = json.loads(once.read_text()), json.loads(twice.read_text())
+    assert any("the same data as scenario s0" in p for p in b["problems"])
+    assert a["uncertainty"] == b["uncertainty"] and a["parameters"] == b["parameters"]
+
+
+def test_nothing_to_identify_is_an_error_not_a_json_of_nulls(tmp_path, catalogue_runs, capsys):
+    from test.io.test_csv_import import write_set
+
+    runs = [r for r in catalogue_runs if r.scenario.role == "validate"]
+    manifest = write_set(tmp_path, runs)
+    out = tmp_path / "r.json"
+    assert main(["identify", str(manifest), "--json", str(out)]) == 2
+    assert "nothing to identify from" in capsys.readouterr().err and not out.exists()

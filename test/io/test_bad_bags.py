@@ -5,6 +5,10 @@ from __future__ import annotations
 import shutil
 
 import pytest
+
+from pathlib import Path
+
+BAGS = Path(__file__).resolve().parents[2] / "bags"
 from rosbags.rosbag2 import Writer
 from rosbags.rosbag2.enums import StoragePlugin
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
@@ -32,21 +36,69 @@ def test_not_a_bag_file(tmp_path):
         read_recording(p)
 
 
-@pytest.mark.parametrize("cut", [0.5, 0.9])
-def test_truncated_mcap(tmp_path, short_recording, cut):
-    path = write_recording(tmp_path / "r.mcap", short_recording)
+def test_truncated_mcap_with_nothing_whole_before_the_cut(tmp_path, short_recording):
+    path = write_recording(tmp_path / "r.mcap", short_recording)  # one chunk: a cut inside it leaves nothing
     data = path.read_bytes()
-    path.write_bytes(data[: int(len(data) * cut)])
-    with pytest.raises(BagError, match=r"r\.mcap.*(truncated|corrupt)"):
+    path.write_bytes(data[: len(data) // 2])
+    with pytest.raises(BagError, match=r"r\.mcap: truncated file: it ends after \d+ bytes"):
         read_recording(path)
 
 
-def test_truncated_rosbag2(tmp_path, short_recording):
+def test_truncated_rosbag2_with_nothing_whole_before_the_cut(tmp_path, short_recording):
     path = write_recording(tmp_path / "bag", short_recording)
     inner = path / "bag.mcap"
     inner.write_bytes(inner.read_bytes()[: inner.stat().st_size // 2])
-    with pytest.raises(BagError, match="bag"):
+    with pytest.raises(BagError, match="bag.mcap: truncated file"):
         read_recording(path)
+
+
+def _cut_after_chunks(data: bytes, fraction: float) -> bytes:
+    import struct
+
+    from phid_ros.io.mcap_raw import MAGIC
+
+    pos, ends = len(MAGIC), []
+    while pos < len(data):
+        op, length = struct.unpack_from("<BQ", data, pos)
+        pos += 9 + length
+        if op == 0x06:
+            ends.append(pos)
+        if op == 0x0F:
+            break
+    return data[: ends[int(len(ends) * fraction)]]
+
+
+@pytest.mark.parametrize("form", ["mcap", "rosbag2"])
+def test_a_recording_cut_at_a_chunk_boundary_is_read_with_a_warning_saying_how_much(tmp_path, form):
+    """The bug: 50 of 80 s read as if complete, exit 0. Now the reader says it is truncated, and how much."""
+    import shutil
+
+    from phid_ros.io.bags import read_recording as read
+
+    src = BAGS / "catalogue"
+    data = _cut_after_chunks((src / "catalogue.mcap").read_bytes(), 0.6)
+    if form == "mcap":
+        path = tmp_path / "cut.mcap"
+        path.write_bytes(data)
+    else:
+        path = tmp_path / "cut"
+        shutil.copytree(src, path)
+        (path / "catalogue.mcap").write_bytes(data)
+    rec = read(path)
+    [warning] = rec.warnings
+    assert "truncated file: it ends after" in warning and "without its end-of-data record" in warning
+    n = len(rec.streams["pt_ct"])
+    assert 0 < n < 660_000 and f"pt_ct {n} samples ({(n - 1) / 1000:.1f} s)" in warning
+
+
+def test_the_commands_warn_on_stderr_about_a_cut_recording(tmp_path, capsys):
+    from phid_ros.cli.main import main
+
+    path = tmp_path / "cut.mcap"
+    path.write_bytes(_cut_after_chunks((BAGS / "catalogue" / "catalogue.mcap").read_bytes(), 0.6))
+    assert main(["info", str(path)]) == 0
+    cap = capsys.readouterr()
+    assert cap.err.count("phid: warning:") == 1 and "truncated file" in cap.err and "truncated" not in cap.out
 
 
 def test_corrupt_bytes_in_mcap(tmp_path, short_recording):

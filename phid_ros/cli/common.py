@@ -1,0 +1,29 @@
+"""What every command shares: reading its input and telling the user on stderr what went wrong."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from phid_ros.io.recording import Recording
+
+
+def warn(message: str) -> None:
+    """A warning: on stderr, one line, so that stdout stays the command's result."""
+    print(f"phid: warning: {message}", file=sys.stderr)
+
+
+def read_input(path: str | Path) -> tuple[Recording, str]:
+    """A rosbag2 folder, a single .mcap, or a CSV manifest.json; the reader's warnings go to stderr."""
+    from phid_ros.io.bags import read_recording
+    from phid_ros.io.csv_import import import_csv_set
+
+    p = Path(path)
+    if p.suffix == ".json":
+        rec, notes = import_csv_set(p)
+        rec.warnings.extend(notes)
+    else:
+        rec = read_recording(p)
+    for w in rec.warnings:
+        warn(w)
+    return rec, str(p)
