@@ -8,6 +8,7 @@ from typing import Any
 from rich.console import Console
 from rich.table import Table
 
+from phid_ros.cli.common import warn
 from phid_ros.cli.identify import SYMBOLS, load_input, load_truth
 from phid_ros.cli.scenarios import scenarios_from_recording
 from phid_ros.diagnose.localise import localise
@@ -78,6 +79,9 @@ def run(args: Any, console: Console) -> int:
     t_start = time.perf_counter()
     if args.workers < 0:
         raise PhidError(f"--workers {args.workers}: give 0 (every core) or a positive number of processes")
+    from phid_ros.io.outputs import refuse_inputs
+
+    refuse_inputs([args.json, args.report], [args.input, args.truth])
     rec, source = load_input(args.input)
     truth = load_truth(args.truth, rec) if args.truth else None
     truth_effects = read_json(args.truth).get("effects") if args.truth else None
@@ -121,7 +125,7 @@ def run(args: Any, console: Console) -> int:
             highlight=False,
         )
     for p in d.problems:
-        console.print(f"[yellow]note:[/] {p}", highlight=False)
+        warn(p)
     console.print(f"{doc['seconds']:.1f} s" + (f", wrote {args.json}" if args.json else ""), highlight=False)
     if args.report:
         from phid_ros.cli.diagnose_report import write_report

@@ -12,6 +12,7 @@ from phid_ros.cli.report import STYLE, _png
 from phid_ros.diagnose.fit import evaluate
 from phid_ros.diagnose.playin import OUTPUTS, PlayIn
 from phid_ros.diagnose.workflow import Diagnosis
+from phid_ros.io.outputs import write_text
 from phid_ros.model.parameters import PARAMETER_NAMES
 
 SHOWN = ("omega", "delta", "i_d", "q_e")
@@ -159,7 +160,7 @@ def write_report(path: str | Path, d: Diagnosis, doc: dict[str, Any], source: st
 </body></html>"""
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(page, encoding="utf-8")
+    write_text(out, page)
     return out
 
 

@@ -10,11 +10,12 @@ from typing import Any
 from rich.console import Console
 from rich.table import Table
 
+from phid_ros.cli.common import read_input, warn
+
 # imported here, with the command, so that their import is start-up and not "reading"
 from phid_ros.cli.scenarios import scenarios_from_recording
 from phid_ros.errors import PhidError, ResultsError
 from phid_ros.ident.pipeline import IdentificationResult, IdentifyOptions, identify
-from phid_ros.cli.common import read_input, warn
 from phid_ros.io.recording import Recording
 from phid_ros.io.results import read_json, write_json
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, GeneratorParameters
@@ -134,6 +135,9 @@ def validation_table(res: IdentificationResult) -> Table | None:
 
 
 def run(args: Any, console: Console) -> int:
+    from phid_ros.io.outputs import refuse_inputs
+
+    refuse_inputs([args.json, args.report], [args.input, args.truth])
     t_start = time.perf_counter()
     rec, source = load_input(args.input)
     t_read = time.perf_counter() - t_start

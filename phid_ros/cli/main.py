@@ -13,15 +13,45 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 from rich.console import Console
-from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 from rich.markup import escape
+from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
 from phid_ros import __version__
+from phid_ros.cli.common import warn
 from phid_ros.errors import PhidError
+from phid_ros.io.outputs import atomic_output, refuse_inputs
 from phid_ros.io.recording import DEFAULT_BLOCK_SIZE
 
 EXIT_USER_ERROR = 2
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse with the one error format of the tool: ``phid: error: ...`` on one line, exit 2."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        print(f"phid: error: {self.prog.removeprefix('phid ')}: {message} (see {self.prog} --help)", file=sys.stderr)
+        raise SystemExit(EXIT_USER_ERROR)
+
+
+def _number(kind: type, *, low: float, inclusive: bool = False) -> object:
+    """An argparse type: a number above ``low`` (or at it, with ``inclusive``), refused at parse time."""
+
+    def parse(text: str) -> float | int:
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a {'whole ' if kind is int else ''}number") from None
+        if value != value or value in (float("inf"), float("-inf")) or value < low or (value == low and not inclusive):
+            raise argparse.ArgumentTypeError(f"{text} must be {'at least' if inclusive else 'greater than'} {low:g}")
+        return value
+
+    parse.__name__ = kind.__name__  # argparse names the type in its messages
+    return parse
+
+
+POSITIVE = _number(float, low=0.0)
+POSITIVE_INT = _number(int, low=1, inclusive=True)
 
 
 def _progress(console: Console) -> Progress:
@@ -68,9 +98,7 @@ def cmd_simulate(args: argparse.Namespace, console: Console) -> int:
         from phid_ros.sim.scenarios import with_duration
 
         scenarios = [with_duration(s, args.duration) for s in scenarios]
-    out = Path(args.out)
-    if out.exists():
-        raise PhidError(f"{out}: already exists, not overwriting")
+    out = _simulation_output(args)
     cfg = SimulationConfig(
         f_nominal_hz=args.f_nominal, sensors=SensorModel(seed=args.seed, noiseless=args.noiseless), effects=effects
     )
@@ -79,11 +107,24 @@ def cmd_simulate(args: argparse.Namespace, console: Console) -> int:
         runs = simulate_scenarios(scenarios, cfg)
         progress.update(task, description=f"writing {out}")
         rec = recording_from_runs(runs, cfg)
-        write_recording(out, rec, block_size=args.block_size)
+        with atomic_output(out) as tmp:  # a kill leaves no half-written bag that looks complete
+            write_recording(tmp, rec, block_size=args.block_size)
     truth = write_json(truth_path_for(out), truth_document(cfg, scenarios))
     start, end = rec.span_ns()
     console.print(f"wrote {out} ({len(scenarios)} scenarios, {(end - start) / 1e9:.1f} s of data) and {truth}")
     return 0
+
+
+def _simulation_output(args: argparse.Namespace) -> Path:
+    from phid_ros.io.outputs import refuse_inputs
+    from phid_ros.io.results import truth_path_for
+
+    out = Path(args.out)
+    refuse_inputs([out, truth_path_for(out)], [])
+    for p in (out, truth_path_for(out)):
+        if p.exists() and not args.force:
+            raise PhidError(f"{p}: already exists, not overwriting (--force to replace it)")
+    return out
 
 
 def _parse_drift(text: str) -> object:
@@ -110,9 +151,7 @@ def _simulate_ambient(args: argparse.Namespace, console: Console) -> int:
     from phid_ros.sim.runner import SimulationConfig
     from phid_ros.sim.sensors import SensorModel
 
-    out = Path(args.out)
-    if out.exists():
-        raise PhidError(f"{out}: already exists, not overwriting")
+    out = _simulation_output(args)
     drifts = tuple(_parse_drift(d) for d in (args.drift or []))
     settings = AmbientSettings(duration_s=args.ambient, drifts=drifts, seed=args.seed)  # type: ignore[arg-type]
     cfg = SimulationConfig(f_nominal_hz=args.f_nominal, sensors=SensorModel(seed=args.seed, noiseless=args.noiseless))
@@ -122,7 +161,8 @@ def _simulate_ambient(args: argparse.Namespace, console: Console) -> int:
         dt_ns = int(round(cfg.dt * NS))
         t_ns = DEFAULT_START_NS + np.arange(len(run.t), dtype=np.int64) * dt_ns
         streams = {s.name: StreamSamples(t_ns.copy(), dt_ns, {c: run.measured[c] for c in s.channels}) for s in STREAMS}
-        write_recording(out, Recording(streams, [], recording_metadata(cfg)), block_size=args.block_size)
+        with atomic_output(out) as tmp:
+            write_recording(tmp, Recording(streams, [], recording_metadata(cfg)), block_size=args.block_size)
     truth = truth_document(cfg, [])
     truth["ambient"] = {"duration_s": args.ambient, "seed": args.seed, "drifts": [d.__dict__ for d in drifts]}  # type: ignore[attr-defined]
     truth["drifting_parameters_every_s"] = {name: v[:: int(1 / cfg.dt)].tolist() for name, v in run.parameters.items()}
@@ -137,14 +177,16 @@ def cmd_import_csv(args: argparse.Namespace, console: Console) -> int:
     from phid_ros.io.csv_import import import_csv_set
 
     out = Path(args.out)
+    refuse_inputs([out], [args.manifest, Path(args.manifest).parent])
     if out.exists():
         raise PhidError(f"{out}: already exists, not overwriting")
     with _progress(console) as progress:
         progress.add_task(f"importing {args.manifest}", total=None)
         rec, warnings = import_csv_set(args.manifest, strict=args.strict)
-        write_recording(out, rec, block_size=args.block_size)
+        with atomic_output(out) as tmp:
+            write_recording(tmp, rec, block_size=args.block_size)
     for w in warnings:
-        console.print(f"[yellow]warning:[/] {w}", highlight=False)
+        warn(w)
     console.print(f"wrote {out} ({len(rec.scenarios)} scenarios)")
     return 0
 
@@ -156,35 +198,32 @@ def _iso(ns: int) -> str:
 
 def cmd_info(args: argparse.Namespace, console: Console) -> int:
     from phid_ros.cli.info import summarise_streams
-    from phid_ros.cli.common import read_input
-    from phid_ros.io.bags import topic_table
+    from phid_ros.io.bags import read_recording, topic_table, walked_topic_table
     from phid_ros.io.recording import expected_type
-    from phid_ros.io.topics import STREAMS_BY_NAME, topic_for
 
     path = Path(args.bag)
-    rec = None
     try:
         topics = topic_table(path)
     except PhidError as index_error:
-        # a truncated file has no index at its end: read what is there (the reader warns how much)
-        rec, _ = read_input(path)
-        if not rec.warnings:
-            raise index_error
-        topics = [
-            (topic_for(name), STREAMS_BY_NAME[name].msgtype, len(s.msg_offsets) if s.msg_offsets is not None else 0)
-            for name, s in rec.streams.items()
-        ]
+        # a file cut short has no index at its end: walk what is there and say how much it was
+        try:
+            topics, cut = walked_topic_table(path)
+        except PhidError:
+            raise index_error from None
+        if not cut:
+            raise
+        for w in cut:
+            warn(w)
     if not any(expected_type(t) for t, _, _ in topics):
         # an output bag (phid replay) or foreign data: the topic table is all there is to show
-        table = Table(title=f"{path} (no sensor streams)", title_justify="left")
+        table = Table(title=escape(f"{path} (no sensor streams)"), title_justify="left")
         for col in ("topic", "type", "messages"):
             table.add_column(col, justify="right" if col == "messages" else "left")
         for topic, msgtype, count in topics:
             table.add_row(topic, msgtype, str(count))
         console.print(table)
         return 0
-    if rec is None:
-        rec, _ = read_input(path)
+    rec = read_recording(path)  # its own warnings were said above, with the topic table
     table = Table(title=escape(f"{path}"), title_justify="left")
     for col in ("topic", "type", "messages"):
         table.add_column(col, justify="right" if col == "messages" else "left")
@@ -214,16 +253,18 @@ def cmd_info(args: argparse.Namespace, console: Console) -> int:
         for sc in rec.scenarios:
             ev = f"{(sc.event_ns - t0) / 1e9:.3f}" if sc.event_ns else "?"
             sc_table.add_row(
-                sc.name,
-                sc.kind,
-                sc.role,
+                escape(sc.name),
+                escape(sc.kind),
+                escape(sc.role),
                 "yes" if sc.generator_damping else "no",
                 ev,
                 f"{(sc.end_ns - sc.start_ns) / 1e9:.1f}",
             )
         console.print(sc_table)
     if rec.metadata:
-        console.print("metadata: " + ", ".join(f"{k}={v}" for k, v in sorted(rec.metadata.items())), highlight=False)
+        console.print(
+            escape("metadata: " + ", ".join(f"{k}={v}" for k, v in sorted(rec.metadata.items()))), highlight=False
+        )
     return 0
 
 
@@ -257,7 +298,7 @@ def cmd_track(args: argparse.Namespace, console: Console) -> int:
 
 # -- entry point -----------------------------------------------------------------
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="phid", description="Port-Hamiltonian generator identification.")
+    parser = Parser(prog="phid", description="Port-Hamiltonian generator identification.")
     parser.add_argument("--version", action="version", version=f"phid_ros {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
 
@@ -272,20 +313,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--scenario", action="append", metavar="NAME", help="one scenario by name or id (S04, V3, ...); repeatable"
     )
-    p.add_argument("--duration", type=float, help="override every scenario's analysis window, s")
+    p.add_argument("--duration", type=POSITIVE, help="override every scenario's analysis window, s")
     p.add_argument("--seed", type=int, default=0, help="sensor noise seed (default 0)")
     p.add_argument("--noiseless", action="store_true", help="write the true signals, no sensor noise")
-    p.add_argument("--f-nominal", type=float, default=50.0, help="nominal frequency, Hz (default 50)")
+    p.add_argument("--f-nominal", type=POSITIVE, default=50.0, help="nominal frequency, Hz (default 50)")
     p.add_argument(
         "--block-size",
-        type=int,
+        type=POSITIVE_INT,
         default=DEFAULT_BLOCK_SIZE,
         help=f"samples per sensor message (default {DEFAULT_BLOCK_SIZE})",
     )
     p.add_argument("--effect", action="append", metavar="NAME[=k=v,...]", help="switch on a plant effect")
+    p.add_argument("--force", action="store_true", help="replace existing outputs (the bag and its .truth.json)")
     p.add_argument(
         "--ambient",
-        type=float,
+        type=POSITIVE,
         metavar="SECONDS",
         help="instead of the catalogue: one long run with ambient load/voltage noise and small steps",
     )
@@ -303,7 +345,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--strict", action="store_true", help="refuse extra columns instead of ignoring them")
     p.add_argument(
         "--block-size",
-        type=int,
+        type=POSITIVE_INT,
         default=DEFAULT_BLOCK_SIZE,
         help=f"samples per sensor message (default {DEFAULT_BLOCK_SIZE})",
     )
@@ -322,7 +364,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--report", metavar="OUT.html", help="write a self-contained HTML report")
     p.add_argument("--no-baseline", action="store_true", help="skip the IEEE 115 baseline column")
     p.add_argument("--seed", type=int, default=0, help="seed of the stochastic optimisers (default 0)")
-    p.add_argument("--paper-maxiter", type=int, default=300, help="generations of the paper's DE (default 300)")
+    p.add_argument(
+        "--paper-maxiter", type=POSITIVE_INT, default=300, help="generations of the paper's DE (default 300)"
+    )
     p.set_defaults(func=cmd_identify)
 
     p = sub.add_parser("diagnose", help="find and name the physics the fourth-order model is missing")
@@ -338,8 +382,13 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("replay", help="play a bag through the online pipeline (detection, recalibration, energy)")
     p.add_argument("bag", help="rosbag2 folder or .mcap file")
     p.add_argument("--out", required=True, help="output bag for every published message (.mcap or folder)")
-    p.add_argument("--rate", type=float, help="play at R x real time (default: as fast as possible)")
+    p.add_argument("--rate", type=POSITIVE, help="play at R x real time (default: as fast as possible)")
     p.add_argument("--store", metavar="EVENTS.sqlite", help="keep the event store in this file (default: memory)")
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="replace an existing OUT_BAG even if phid replay did not write it (its own outputs are replaced anyway)",
+    )
     p.add_argument(
         "--unit",
         help="the generating unit the recording is of (default: the recording's 'unit' metadata); "
@@ -349,8 +398,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("track", help="sliding-window tracking of parameter drift over a recording")
     p.add_argument("bag", help="rosbag2 folder or .mcap file")
-    p.add_argument("--window", type=float, default=300.0, help="window length, s (default 300)")
-    p.add_argument("--hop", type=float, default=60.0, help="hop between estimates, s (default 60)")
+    p.add_argument("--window", type=POSITIVE, default=300.0, help="window length, s (default 300)")
+    p.add_argument("--hop", type=POSITIVE, default=60.0, help="hop between estimates, s (default 60)")
     p.add_argument("--base", metavar="PARAMS.json", help="base parameters (X_d, X_q); default Table 1")
     p.add_argument("--out", help="write the tracked parameters to this bag (.mcap or folder)")
     p.set_defaults(func=cmd_track)

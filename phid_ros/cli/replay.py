@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 
@@ -109,21 +110,39 @@ OUTPUT_TOPICS = {
 class OutputCollector:
     """Turns pipeline outputs into (log time, topic, type, message) for the output bag."""
 
-    def __init__(self, pipeline: MonitorPipeline, diagnostics_period_ns: int = NS) -> None:
+    def __init__(
+        self,
+        pipeline: MonitorPipeline,
+        diagnostics_period_ns: int = NS,
+        sink: Callable[[int, str, str, object], None] | None = None,
+    ) -> None:
         from phid_ros.io.msg_schemas import typestore
 
         self.types = typestore().types
         self.pipeline = pipeline
+        self.sink = sink  # each batch goes out as it is made (to a bag writer); else kept in .messages
         self.messages: list[tuple[int, str, str, object]] = []
+        self.counts: dict[str, int] = {}
         self.last_status: str | None = None
         self._diag_period = diagnostics_period_ns
         self._next_diag: int | None = None
+        self._batch: list[tuple[int, str, str, object]] = []
 
     def _add(self, key: str, log_ns: int, msg: object) -> None:
         topic, msgtype = OUTPUT_TOPICS[key]
-        self.messages.append((int(log_ns), topic, msgtype, msg))
+        self._batch.append((int(log_ns), topic, msgtype, msg))
+        self.counts[topic] = self.counts.get(topic, 0) + 1
 
     def __call__(self, out: Outputs) -> None:
+        self._collect(out)
+        batch, self._batch = sorted(self._batch, key=lambda x: x[0]), []
+        if self.sink is None:
+            self.messages.extend(batch)
+        else:
+            for item in batch:
+                self.sink(*item)
+
+    def _collect(self, out: Outputs) -> None:
         from phid_ros.stream import messages as m
 
         for e in out.events:
@@ -163,31 +182,50 @@ class OutputCollector:
         return sorted(self.messages, key=lambda x: x[0])
 
 
+def check_output(out: Path, force: bool) -> None:
+    """An existing output is replaced only with --force or when an earlier phid replay wrote it."""
+    from phid_ros.errors import PhidError
+    from phid_ros.io.bags import recording_source
+
+    if out.exists() and not force and not (recording_source(out) or "").startswith("phid replay"):
+        raise PhidError(f"{out}: already exists and was not written by phid replay; not overwriting (--force to)")
+
+
 def run(args: object, console: object) -> int:
     import resource
 
+    from rich.markup import escape
     from rich.table import Table
 
-    from phid_ros.errors import PhidError
-    from phid_ros.cli.common import read_input
-    from phid_ros.io.bags import write_messages
+    from phid_ros.cli.common import read_input, warn
+    from phid_ros.io.bags import open_message_writer
+    from phid_ros.io.outputs import atomic_output, partial_path, refuse_inputs
     from phid_ros.model.parameters import PARAMETER_NAMES
     from phid_ros.stream.pipeline import PipelineSettings
 
-    out_path = args.out  # type: ignore[attr-defined]
-    from pathlib import Path
-
-    if Path(out_path).exists():
-        raise PhidError(f"{out_path}: already exists, not overwriting")
+    out_path = Path(args.out)  # type: ignore[attr-defined]
+    refuse_inputs([out_path, args.store], [args.bag])  # type: ignore[attr-defined]
+    refuse_inputs([out_path], [args.store])  # type: ignore[attr-defined]
+    check_output(out_path, args.force)  # type: ignore[attr-defined]
     rec, _ = read_input(args.bag)  # type: ignore[attr-defined]
     unit = args.unit or rec.metadata.get("unit", "")  # type: ignore[attr-defined]
     settings = PipelineSettings(store_path=args.store or ":memory:", unit=unit)  # type: ignore[attr-defined]
     pipeline = MonitorPipeline(settings)
-    collector = OutputCollector(pipeline)
     t0 = time.perf_counter()
-    outputs = replay(rec, pipeline, rate=args.rate, on_outputs=collector, keep_arrays=False)  # type: ignore[attr-defined]
+    # outputs go to OUT.partial as they are made and become OUT at the end: an interruption
+    # leaves what was published so far, readable, and the events already in the store
+    with atomic_output(out_path, keep_partial=True) as tmp:
+        writer = open_message_writer(tmp, {"source": f"phid replay {args.bag}"})  # type: ignore[attr-defined]
+        collector = OutputCollector(pipeline, sink=writer.write)  # type: ignore[attr-defined]
+        try:
+            outputs = replay(rec, pipeline, rate=args.rate, on_outputs=collector, keep_arrays=False)  # type: ignore[attr-defined]
+        except BaseException:
+            writer.close()  # type: ignore[attr-defined]
+            pipeline.close()
+            warn(f"replay stopped: what was published so far is in {partial_path(out_path)}")
+            raise
+        writer.close()  # type: ignore[attr-defined]
     wall = time.perf_counter() - t0
-    write_messages(out_path, collector.sorted(), metadata={"source": f"phid replay {args.bag}"})  # type: ignore[attr-defined]
     start, end = rec.span_ns()
     span = (end - start) / NS
     c = console
@@ -197,19 +235,19 @@ def run(args: object, console: object) -> int:
     usable = {w.event.event_id: ("ok" if w.usable else w.reason) for w in outputs.windows}
     for e in outputs.events:
         ev.add_row(
-            e.event_id,
+            escape(e.event_id),
             e.kind,
-            e.name or "—",
+            escape(e.name or "—"),
             f"{(e.inception_ns - start) / NS:.3f}",
             f"{(e.clearing_ns - start) / NS:.3f}" if e.clearing_ns else "",
             f"{e.severity:+.3f}",
-            usable.get(e.event_id, "pending"),
+            escape(usable.get(e.event_id, "pending")),
         )
     c.print(ev)  # type: ignore[attr-defined]
     for r in outputs.recalibrations:
         c.print(
             f"recalibration at {(r.stream_time_ns - start) / NS:.1f} s with {len(r.event_ids)} events: "  # type: ignore[attr-defined]
-            f"{'accepted' if r.accepted else 'rejected'} — {r.status} ({r.seconds:.2f} s)",
+            f"{'accepted' if r.accepted else 'rejected'} — {escape(r.status)} ({r.seconds:.2f} s)",
             highlight=False,
         )
     p = pipeline.parameters
@@ -223,7 +261,7 @@ def run(args: object, console: object) -> int:
     if pipeline.recalibrator.last_good is not None and outputs.energy:
         last = outputs.energy[-1]
         # the running summary keeps one sample per batch: count what was published instead
-        n_energy = sum(1 for _, topic, _, _ in collector.messages if topic == OUTPUT_TOPICS["hamiltonian"][0])
+        n_energy = collector.counts.get(OUTPUT_TOPICS["hamiltonian"][0], 0)
         c.print(
             f"Hamiltonian at the end: {last.value[-1]:.5f} (kinetic {last.kinetic[-1]:.2e}, "  # type: ignore[attr-defined]
             f"magnetic d {last.magnetic_d[-1]:.4f}, q {last.magnetic_q[-1]:.4f}); "
@@ -241,7 +279,7 @@ def run(args: object, console: object) -> int:
     c.print(
         f"replayed {span:.1f} s in {wall:.2f} s ({span / wall:.0f}x real time), "  # type: ignore[attr-defined]
         f"{pipeline.samples_in / wall / 1e6:.2f} M channel-samples/s, peak memory {peak:.0f} MB; "
-        f"wrote {len(collector.messages)} messages to {out_path}",
+        f"wrote {sum(collector.counts.values())} messages to {out_path}",
         highlight=False,
     )
     pipeline.close()

@@ -12,6 +12,7 @@ import numpy as np
 
 from phid_ros.ident.pipeline import IdentificationResult
 from phid_ros.ident.validation import play_in
+from phid_ros.io.outputs import write_text
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, GeneratorParameters, validation_problems
 
 STYLE = (
@@ -157,5 +158,5 @@ def write_report(path: str | Path, res: IdentificationResult, truth: GeneratorPa
 </body></html>"""
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
-    p.write_text(doc, encoding="utf-8")
+    write_text(p, doc)
     return p

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import math
 import time
 from pathlib import Path
@@ -10,10 +9,12 @@ from typing import Any
 
 from rich.table import Table
 
-from phid_ros.errors import PhidError
 from phid_ros.cli.common import read_input
+from phid_ros.errors import PhidError
 from phid_ros.io.bags import write_messages
+from phid_ros.io.outputs import atomic_output
 from phid_ros.io.recording import NS
+from phid_ros.io.results import read_json
 from phid_ros.model.parameters import TABLE1, GeneratorParameters
 from phid_ros.stream.align import Aligner
 from phid_ros.stream.tracker import TRACKED, SlidingTracker, TrackerSettings, TrackPoint
@@ -55,13 +56,24 @@ def _ingest_blocks(aligner: Aligner, name: str, s: Any) -> None:
 def base_parameters(args: Any) -> GeneratorParameters:
     if not args.base:
         return TABLE1
-    doc = json.loads(Path(args.base).read_text())
-    return GeneratorParameters.from_mapping(doc.get("parameters", doc), source=args.base)
+    doc = read_json(args.base)
+    values = doc.get("parameters", doc)
+    if not isinstance(values, dict):
+        raise PhidError(f"{args.base}: 'parameters' must be an object of the eight parameters")
+    return GeneratorParameters.from_mapping(values, source=args.base)
 
 
 def run(args: Any, console: Any) -> int:
+    if args.hop > args.window:
+        raise PhidError(f"--hop {args.hop:g} s is longer than --window {args.window:g} s: samples would be skipped")
+    if args.out:
+        from phid_ros.io.outputs import refuse_inputs
+
+        refuse_inputs([args.out], [args.bag, args.base])
+        if Path(args.out).exists():
+            raise PhidError(f"{args.out}: already exists, not overwriting")
+    base = base_parameters(args)  # checked before the recording is read
     rec, _ = read_input(args.bag)
-    base = base_parameters(args)
     tracker = SlidingTracker(
         base, rec.streams["pt_ct"].period_ns, TrackerSettings(window_s=args.window, hop_s=args.hop)
     )
@@ -120,6 +132,7 @@ def run(args: Any, console: Any) -> int:
                     ),
                 )
             )
-        write_messages(args.out, msgs)
+        with atomic_output(args.out) as tmp:
+            write_messages(tmp, msgs)
         console.print(f"wrote {len(msgs)} messages to {args.out}", highlight=False)
     return 0

@@ -39,12 +39,61 @@ def write_messages(
     return write_rosbag2_messages(p, messages, metadata)
 
 
+def open_message_writer(path: str | Path, metadata: dict[str, str] | None = None) -> object:
+    """A writer with ``write(log_ns, topic, msgtype, msg)``, ``close()`` and ``abort()``:
+    ``*.mcap`` -> single MCAP file, anything else -> rosbag2 folder."""
+    from phid_ros.io.mcap_file import McapMessageWriter
+    from phid_ros.io.rosbag2 import Rosbag2MessageWriter
+
+    p = Path(path)
+    return McapMessageWriter(p, metadata) if p.suffix == ".mcap" else Rosbag2MessageWriter(p, metadata)
+
+
+def recording_source(path: str | Path) -> str | None:
+    """The ``source`` a phid tool wrote into a bag's metadata (who made it), or None."""
+    p = Path(path)
+    try:
+        if p.is_dir():
+            from ruamel.yaml import YAML
+
+            meta = YAML(typ="safe").load((p / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+            return (meta.get("custom_data") or {}).get("phid.source")
+        from phid_ros.io.mcap_file import _metadata
+
+        return _metadata(p).get("source")
+    except Exception:  # not a bag, damaged, foreign: then it is not ours
+        return None
+
+
 def write_recording(path: str | Path, rec: Recording, **kwargs: object) -> Path:
     """``*.mcap`` -> single MCAP file; anything else -> rosbag2 folder (MCAP storage)."""
     p = Path(path)
     if p.suffix == ".mcap":
         return write_mcap(p, rec, **kwargs)  # type: ignore[arg-type]
     return write_rosbag2(p, rec, **kwargs)  # type: ignore[arg-type]
+
+
+def walked_topic_table(path: str | Path) -> tuple[list[tuple[str, str, int]], list[str]]:
+    """(topic, type, count) by walking every record, for a file whose index is missing (cut short),
+    with a warning per file that was truncated; raises BagError when not even that works."""
+    from phid_ros.io.mcap_raw import McapFormatError, WalkStatus, iter_messages
+
+    p = Path(path)
+    files = sorted(p.glob("*.mcap")) if p.is_dir() else [p]
+    counts: dict[tuple[str, str], int] = {}
+    warnings = []
+    for f in files:
+        st = WalkStatus()
+        try:
+            for topic, schema, _, _ in iter_messages(f, st):
+                counts[(topic, schema)] = counts.get((topic, schema), 0) + 1
+        except McapFormatError as exc:
+            raise BagError(f"{f}: truncated or corrupt MCAP file: {exc}") from exc
+        cut = st.truncation()
+        if cut:
+            total = sum(counts.values())
+            warnings.append(f"{f}: {cut}; read {total} whole messages before the cut")
+    return sorted((t, s or "?", n) for (t, s), n in counts.items()), warnings
 
 
 def topic_table(path: str | Path) -> list[tuple[str, str, int]]:

@@ -16,9 +16,9 @@ from phid_ros.io.recording import (
     DEFAULT_BLOCK_SIZE,
     Recording,
     checked_payloads,
+    describe_span,
     is_phid_topic,
     recording_from_raw,
-    describe_span,
     recording_messages,
 )
 from phid_ros.io.topics import DEFAULT_NAMESPACE
@@ -34,41 +34,55 @@ def write_mcap(
     )
 
 
+class McapMessageWriter:
+    """Messages into a new .mcap file as they come; chunks reach the disk as they fill, so a
+    process killed mid-way leaves a file that reads up to its last whole chunk (with a warning)."""
+
+    def __init__(self, path: str | Path, metadata: dict[str, str] | None = None) -> None:
+        self.path = Path(path)
+        if self.path.exists():
+            raise BagError(f"{self.path}: already exists, not overwriting")
+        self.store = typestore()
+        self.metadata = metadata
+        self._fh = self.path.open("wb")
+        self._writer = Writer(self._fh, compression=CompressionType.ZSTD)
+        self._writer.start(profile="ros2", library="phid_ros")
+        self._schemas: dict[str, int] = {}
+        self._channels: dict[str, int] = {}
+
+    def write(self, log_ns: int, topic: str, msgtype: str, msg: object) -> None:
+        if msgtype not in self._schemas:
+            msgdef, _ = self.store.generate_msgdef(msgtype, ros_version=2)  # type: ignore[attr-defined]
+            self._schemas[msgtype] = self._writer.register_schema(msgtype, "ros2msg", msgdef.encode())
+        if topic not in self._channels:
+            self._channels[topic] = self._writer.register_channel(topic, "cdr", self._schemas[msgtype])
+        data = bytes(self.store.serialize_cdr(msg, msgtype))  # type: ignore[attr-defined]
+        self._writer.add_message(self._channels[topic], log_time=log_ns, data=data, publish_time=log_ns)
+
+    def close(self) -> Path:
+        if self.metadata:
+            self._writer.add_metadata(METADATA_NAME, {k: str(v) for k, v in self.metadata.items()})
+        self._writer.finish()
+        self._fh.close()
+        return self.path
+
+    def abort(self) -> None:
+        self._fh.close()
+        self.path.unlink(missing_ok=True)
+
+
 def write_mcap_messages(
     path: str | Path, messages: Iterable[tuple[int, str, str, object]], metadata: dict[str, str] | None = None
 ) -> Path:
     """Any (log time ns, topic, msgtype, message) stream, in that order, into a new .mcap file."""
-    path = Path(path)
-    if path.exists():
-        raise BagError(f"{path}: already exists, not overwriting")
-    store = typestore()
+    writer = McapMessageWriter(path, metadata)
     try:
-        _write_mcap(path, messages, metadata, store)
+        for item in messages:
+            writer.write(*item)
     except BaseException:
-        path.unlink(missing_ok=True)  # never leave a truncated file that looks like a recording
+        writer.abort()  # never leave a truncated file that looks like a recording
         raise
-    return path
-
-
-def _write_mcap(
-    path: Path, messages: Iterable[tuple[int, str, str, object]], metadata: dict[str, str] | None, store: object
-) -> None:
-    with path.open("wb") as fh:
-        writer = Writer(fh, compression=CompressionType.ZSTD)
-        writer.start(profile="ros2", library="phid_ros")
-        schemas: dict[str, int] = {}
-        channels: dict[str, int] = {}
-        for log_ns, topic, msgtype, msg in messages:
-            if msgtype not in schemas:
-                msgdef, _ = store.generate_msgdef(msgtype, ros_version=2)  # type: ignore[attr-defined]
-                schemas[msgtype] = writer.register_schema(msgtype, "ros2msg", msgdef.encode())
-            if topic not in channels:
-                channels[topic] = writer.register_channel(topic, "cdr", schemas[msgtype])
-            data = bytes(store.serialize_cdr(msg, msgtype))  # type: ignore[attr-defined]
-            writer.add_message(channels[topic], log_time=log_ns, data=data, publish_time=log_ns)
-        if metadata:
-            writer.add_metadata(METADATA_NAME, {k: str(v) for k, v in metadata.items()})
-        writer.finish()
+    return writer.close()
 
 
 def read_mcap(path: str | Path) -> Recording:

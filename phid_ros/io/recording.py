@@ -389,7 +389,13 @@ def recording_from_raw(
             msg = deserialize(msgs[i], spec.msgtype, topics[name])
             arrays = [np.asarray(getattr(msg, c), dtype=np.float64) for c in spec.channels]
             asm.add_message(
-                name, topics[name], i, time_to_ns(msg.header.stamp), msg.sample_period, arrays, int(seq_of[i])  # type: ignore[attr-defined]
+                name,
+                topics[name],
+                i,
+                time_to_ns(msg.header.stamp),
+                msg.sample_period,
+                arrays,
+                int(seq_of[i]),  # type: ignore[attr-defined]
             )
     return asm.finish(required, metadata)
 

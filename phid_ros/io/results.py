@@ -25,10 +25,11 @@ def _clean(obj: Any) -> Any:
 
 
 def write_json(path: str | Path, data: Mapping[str, Any]) -> Path:
+    from phid_ros.io.outputs import write_text
+
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
-    p.write_text(json.dumps(_clean(data), indent=2, sort_keys=False) + "\n", encoding="utf-8")
-    return p
+    return write_text(p, json.dumps(_clean(data), indent=2, sort_keys=False) + "\n")
 
 
 def read_json(path: str | Path) -> dict[str, Any]:

@@ -35,35 +35,54 @@ def write_rosbag2(
     )
 
 
+class Rosbag2MessageWriter:
+    """Messages into a new rosbag2 folder (MCAP storage, zstd) as they come."""
+
+    def __init__(self, path: str | Path, metadata: dict[str, str] | None = None) -> None:
+        self.path = Path(path)
+        if self.path.exists():
+            raise BagError(f"{self.path}: already exists, not overwriting")
+        self.store = typestore()
+        self._writer = Writer(self.path, version=ROSBAG2_VERSION, storage_plugin=StoragePlugin.MCAP)
+        self._writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
+        for key, value in (metadata or {}).items():
+            self._writer.set_custom_data(f"phid.{key}", str(value))
+        try:
+            self._writer.open()
+        except WriterError as exc:
+            raise BagError(f"{self.path}: cannot write bag: {exc}") from exc
+        self._connections: dict[str, object] = {}
+
+    def write(self, log_ns: int, topic: str, msgtype: str, msg: object) -> None:
+        conn = self._connections.get(topic)
+        if conn is None:
+            conn = self._connections[topic] = self._writer.add_connection(topic, msgtype, typestore=self.store)
+        self._writer.write(conn, log_ns, self.store.serialize_cdr(msg, msgtype))  # type: ignore[arg-type]
+
+    def close(self) -> Path:
+        self._writer.close()
+        return self.path
+
+    def abort(self) -> None:
+        if self._writer.storage is not None:
+            self._writer.storage.abort()  # close the file without index and footer
+        shutil.rmtree(self.path, ignore_errors=True)  # never leave a half-written bag behind
+
+
 def write_rosbag2_messages(
     path: str | Path, messages: Iterable[tuple[int, str, str, object]], metadata: dict[str, str] | None = None
 ) -> Path:
     """Any (log time ns, topic, msgtype, message) stream, in that order, into a new rosbag2 folder."""
-    path = Path(path)
-    if path.exists():
-        raise BagError(f"{path}: already exists, not overwriting")
-    store = typestore()
-    writer = Writer(path, version=ROSBAG2_VERSION, storage_plugin=StoragePlugin.MCAP)
-    writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
-    for key, value in (metadata or {}).items():
-        writer.set_custom_data(f"phid.{key}", str(value))
+    writer = Rosbag2MessageWriter(path, metadata)
     try:
-        writer.open()
-        connections: dict[str, object] = {}
-        for log_ns, topic, msgtype, msg in messages:
-            conn = connections.get(topic)
-            if conn is None:
-                conn = connections[topic] = writer.add_connection(topic, msgtype, typestore=store)
-            writer.write(conn, log_ns, store.serialize_cdr(msg, msgtype))  # type: ignore[arg-type]
+        for item in messages:
+            writer.write(*item)
     except BaseException as exc:
-        if writer.storage is not None:
-            writer.storage.abort()  # close the file without index and footer
-        shutil.rmtree(path, ignore_errors=True)  # never leave a half-written bag behind
+        writer.abort()
         if isinstance(exc, WriterError):
             raise BagError(f"{path}: cannot write bag: {exc}") from exc
         raise
-    writer.close()
-    return path
+    return writer.close()
 
 
 def _iter_raw(reader: Reader, source: str) -> Iterator[tuple[str, str, bytes]]:

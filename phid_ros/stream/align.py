@@ -37,6 +37,7 @@ from phid_ros.io.topics import CHANNELS, PLAUSIBLE, STREAMS, STREAMS_BY_NAME
 
 NS = 1_000_000_000
 
+
 @dataclass
 class StreamHealth:
     """Counters and rate of one input stream (diagnostic_updater's frequency and stamp status)."""
@@ -63,7 +64,12 @@ class StreamHealth:
     @property
     def dropped(self) -> int:
         return (
-            self.duplicates + self.out_of_order + self.nonfinite + self.implausible + self.zero_stamps + self.wild_stamps
+            self.duplicates
+            + self.out_of_order
+            + self.nonfinite
+            + self.implausible
+            + self.zero_stamps
+            + self.wild_stamps
         )
 
     def rate_hz(self) -> float:

@@ -73,9 +73,7 @@ class EventStore:
     def __init__(self, path: str | Path = ":memory:", *, unit: str | None = None) -> None:
         self.path = str(path)
         try:
-            self._db = sqlite3.connect(
-                self.path, check_same_thread=False, timeout=BUSY_TIMEOUT_S, isolation_level=None
-            )
+            self._db = sqlite3.connect(self.path, check_same_thread=False, timeout=BUSY_TIMEOUT_S, isolation_level=None)
             if self.path != ":memory:":
                 self._db.execute("PRAGMA journal_mode=WAL")
             ok = self._db.execute("PRAGMA quick_check").fetchone()[0]
@@ -149,10 +147,13 @@ class EventStore:
                         )
                     if stored.usable or (not w.usable and len(stored.t_ns) >= len(w.t_ns)):
                         return "kept"  # the stored window is the more complete one of the same event
-                self._db.execute(f"INSERT OR REPLACE INTO events ({COLUMNS}, digest) VALUES ({'?,' * 17}?)", (
-                    *self._values(w),
-                    digest,
-                ))
+                self._db.execute(
+                    f"INSERT OR REPLACE INTO events ({COLUMNS}, digest) VALUES ({'?,' * 17}?)",
+                    (
+                        *self._values(w),
+                        digest,
+                    ),
+                )
                 return "added" if row is None else "replaced"
         except sqlite3.OperationalError as exc:  # the lock was not released within the busy timeout
             raise StoreError(f"{self.path}: cannot write event {e.event_id}: {exc}") from exc

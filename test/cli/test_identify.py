@@ -134,5 +134,7 @@ def test_a_nan_window_is_skipped_by_name_and_the_rest_identified(tmp_path, short
     assert main(["identify", str(path), "--json", str(out), "--no-baseline"]) == 0
     doc = json.loads(out.read_text())
     # the aligner drops a stream's sample as a whole, so both PMU channels carry the hole
-    assert any(f"skipped scenario {sc.name}: channel theta_t has 20 NaN" in p and str(path) in p for p in doc["problems"])
+    assert any(
+        f"skipped scenario {sc.name}: channel theta_t has 20 NaN" in p and str(path) in p for p in doc["problems"]
+    )
     assert [e["name"] for e in doc["events"]] == [short_recording.scenarios[0].name, short_recording.scenarios[2].name]

@@ -6,12 +6,11 @@ from __future__ import annotations
 import dataclasses
 import json
 
-import numpy as np
 import pytest
 
 from phid_ros.cli.main import main
 from phid_ros.io.bags import write_messages, write_recording
-from phid_ros.io.recording import NS, Recording, StreamSamples, ns_to_time, recording_messages, time_to_ns
+from phid_ros.io.recording import Recording, StreamSamples, recording_messages
 
 
 def _identify(path, tmp_path, capsys):
@@ -28,7 +27,9 @@ def test_a_hole_in_every_stream_after_an_event_is_not_spliced(tmp_path, short_re
     for name, s in short_recording.streams.items():
         keep = (s.t_ns < cut[0]) | (s.t_ns >= cut[1])
         streams[name] = StreamSamples(s.t_ns[keep], s.period_ns, {c: v[keep] for c, v in s.channels.items()})
-    bag = write_recording(tmp_path / "hole.mcap", Recording(streams, short_recording.scenarios, short_recording.metadata))
+    bag = write_recording(
+        tmp_path / "hole.mcap", Recording(streams, short_recording.scenarios, short_recording.metadata)
+    )
     code, doc, cap = _identify(bag, tmp_path, capsys)
     assert code == 0
     skipped = [p for p in doc["problems"] if f"skipped scenario {fault.name}" in p]
@@ -66,10 +67,14 @@ def test_a_channel_in_physical_units_is_refused_with_its_likely_unit(
     tmp_path, short_recording, capsys, channel, factor, unit
 ):
     streams = {
-        name: StreamSamples(s.t_ns, s.period_ns, {c: v * (factor if c == channel else 1.0) for c, v in s.channels.items()})
+        name: StreamSamples(
+            s.t_ns, s.period_ns, {c: v * (factor if c == channel else 1.0) for c, v in s.channels.items()}
+        )
         for name, s in short_recording.streams.items()
     }
-    bag = write_recording(tmp_path / "units.mcap", Recording(streams, short_recording.scenarios, short_recording.metadata))
+    bag = write_recording(
+        tmp_path / "units.mcap", Recording(streams, short_recording.scenarios, short_recording.metadata)
+    )
     code, doc, cap = _identify(bag, tmp_path, capsys)
     assert code == 2 and doc is None
     assert f"channel {channel}: 100 % of samples outside the per-unit range" in cap.err

@@ -3,12 +3,9 @@
 from __future__ import annotations
 
 import shutil
-
-import pytest
-
 from pathlib import Path
 
-BAGS = Path(__file__).resolve().parents[2] / "bags"
+import pytest
 from rosbags.rosbag2 import Writer
 from rosbags.rosbag2.enums import StoragePlugin
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
@@ -16,6 +13,8 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from phid_ros.errors import BagError
 from phid_ros.io.bags import read_recording, write_recording
 from phid_ros.io.recording import Recording
+
+BAGS = Path(__file__).resolve().parents[2] / "bags"
 
 
 def test_missing_path(tmp_path):

@@ -1,0 +1,84 @@
+"""Output files: never half-written, never over an input, replaced only when that is safe.
+
+Every file or bag a command writes goes first to a ``.partial`` name beside its final
+place and is renamed when complete (a rename within one folder is atomic), so a crash
+or Ctrl-C leaves either the old file or the new one, never a torn one. An output that
+is also one of the command's inputs (``--json`` over the ``--truth`` file, a report over
+the manifest) is refused before any work starts.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+from phid_ros.errors import PhidError
+
+
+class OutputError(PhidError):
+    """An output path cannot be written as asked."""
+
+
+def partial_path(path: str | Path) -> Path:
+    """Where an output is built: ``x.mcap`` -> ``x.partial.mcap``, a folder ``x`` -> ``x.partial``."""
+    p = Path(path)
+    return p.with_name(p.stem + ".partial" + p.suffix) if p.suffix else p.with_name(p.name + ".partial")
+
+
+def _same(a: Path, b: Path) -> bool:
+    try:
+        return a.resolve() == b.resolve() or (a.exists() and b.exists() and os.path.samefile(a, b))
+    except OSError:
+        return False
+
+
+def refuse_inputs(outputs: Iterable[str | Path | None], inputs: Iterable[str | Path | None]) -> None:
+    """An output that is an input, or lies inside an input folder, is refused (before any work)."""
+    ins = [Path(i) for i in inputs if i]
+    for o in outputs:
+        if not o:
+            continue
+        out = Path(o)
+        for i in ins:
+            inside = i.is_dir() and out.resolve().is_relative_to(i.resolve())
+            if _same(out, i) or inside:
+                raise OutputError(f"{out}: is an input of this command ({i}); refusing to overwrite it")
+        if not out.resolve().parent.is_dir():
+            raise OutputError(f"{out}: the folder {out.parent} does not exist")
+
+
+def remove(path: Path) -> None:
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path)
+    elif path.exists() or path.is_symlink():
+        path.unlink()
+
+
+@contextmanager
+def atomic_output(path: str | Path, *, keep_partial: bool = False) -> Iterator[Path]:
+    """Yield the ``.partial`` path to write; on success it replaces ``path``.
+
+    On failure the partial output is removed, or kept with ``keep_partial`` (a replay's
+    output up to an interruption is worth keeping; the caller says where it is).
+    """
+    final = Path(path)
+    tmp = partial_path(final)
+    remove(tmp)  # a leftover of an earlier killed run of ours
+    try:
+        yield tmp
+    except BaseException:
+        if not keep_partial:
+            remove(tmp)
+        raise
+    if final.is_dir() and not final.is_symlink():
+        shutil.rmtree(final)
+    os.replace(tmp, final)
+
+
+def write_text(path: str | Path, text: str) -> Path:
+    with atomic_output(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+    return Path(path)
