@@ -177,7 +177,7 @@ def cmd_import_csv(args: argparse.Namespace, console: Console) -> int:
     from phid_ros.io.csv_import import import_csv_set
 
     out = Path(args.out)
-    refuse_inputs([out], [args.manifest, Path(args.manifest).parent])
+    refuse_inputs([out], [args.manifest])
     if out.exists():
         raise PhidError(f"{out}: already exists, not overwriting")
     with _progress(console) as progress:

@@ -108,6 +108,9 @@ def steady_points(scenarios: Sequence[ScenarioData], problems: list[str] | None 
     return out
 
 
+MIN_STEADY_POINTS = 3  # a slope and its scatter need at least one point more than the slope alone
+
+
 def _r2(y: np.ndarray, fit: np.ndarray) -> float:
     ss_tot = float(np.sum((y - y.mean()) ** 2))
     return 1.0 - float(np.sum((y - fit) ** 2)) / ss_tot if ss_tot > 0 else math.nan
@@ -198,11 +201,19 @@ def identify_reactances(
     d_share = np.abs(i_d) / np.abs(i_d).sum()
     q_share = np.abs(i_q) / np.abs(i_q).sum()
     top = lambda share: [names[i] for i in np.argsort(share)[::-1][:3]]  # noqa: E731
-    if len(pts) < 2:
-        problems.append("only one steady state: X_d and X_q rest on a single operating point")
+    x_d_est = flag(Estimate(xd, se_d, drivers=top(d_share)), "X_d")
+    x_q_est = flag(Estimate(xq, se_q, drivers=top(q_share)), "X_q")
+    if len(pts) < MIN_STEADY_POINTS:
+        problems.append(f"only {len(pts)} steady state(s): X_d and X_q rest on too few operating points")
+        for est, name in ((x_d_est, "X_d"), (x_q_est, "X_q")):
+            if est.identifiable:
+                est.identifiable = False
+                est.note = (est.note + "; " if est.note else "") + (
+                    f"{name} from {len(pts)} steady state(s): a line through so few points has no honest error bar"
+                )
     return Stage2Result(
-        X_d=flag(Estimate(xd, se_d, drivers=top(d_share)), "X_d"),
-        X_q=flag(Estimate(xq, se_q, drivers=top(q_share)), "X_q"),
+        X_d=x_d_est,
+        X_q=x_q_est,
         r2_d=r2_d,
         r2_q=r2_q,
         points=pts,

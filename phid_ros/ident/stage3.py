@@ -40,7 +40,7 @@ from scipy.optimize import differential_evolution, minimize, minimize_scalar
 from scipy.signal import lfilter
 
 from phid_ros.errors import PhidError
-from phid_ros.ident.results import Estimate, flag
+from phid_ros.ident.results import STD_CALIBRATION, Estimate, flag
 from phid_ros.ident.scenario import ScenarioData
 from phid_ros.ident.uncertainty import block_ids, cluster_robust_cov, information_share
 from phid_ros.numerics import first_order_response, lowpass2
@@ -444,8 +444,13 @@ def _estimates(data: Stage3Data, fd: AxisFit, fq: AxisFit) -> tuple[Estimate, Es
         share_x = information_share(jac, rows_per_scn, 0)
         share_t = information_share(jac, rows_per_scn, 1)
         top = lambda s: [ax.names[i] for i in np.argsort(s)[::-1][:3] if s[i] > 0.05]  # noqa: E731
-        xp_est = flag(Estimate(fit.x_prime, math.sqrt(max(cov[0, 0], 0.0)), drivers=top(share_x)), names[0])
         att = attenuation(ax, fit.tau, data.dt, d_axis, fit.x_sync)
+        # errors in variables bias X' toward zero by about 1.7 times the attenuation and move T'
+        # by about as much (coverage study); the bias is not in the sandwich, so it is added to it
+        sd_x = STD_CALIBRATION * math.hypot(math.sqrt(max(cov[0, 0], 0.0)), EIV_ALLOWANCE_X * att * fit.x_prime)
+        sd_t = STD_CALIBRATION * math.hypot(math.sqrt(max(cov[1, 1], 0.0)), EIV_ALLOWANCE_T * att * fit.tau)
+        xp_est = flag(Estimate(fit.x_prime, sd_x, drivers=top(share_x)), names[0])
+        xp_est.std_random = STD_CALIBRATION * math.sqrt(max(cov[0, 0], 0.0))
         if att > MAX_ATTENUATION:
             xp_est.identifiable = False
             current = "I_d" if d_axis else "I_q"
@@ -454,7 +459,8 @@ def _estimates(data: Stage3Data, fd: AxisFit, fq: AxisFit) -> tuple[Estimate, Es
                 f"about {-100 * att:.0f} %); larger disturbances would fix it"
             )
         out.append(xp_est)
-        tau_est = flag(Estimate(fit.tau, math.sqrt(max(cov[1, 1], 0.0)), drivers=top(share_t)), names[1])
+        tau_est = flag(Estimate(fit.tau, sd_t, drivers=top(share_t)), names[1])
+        tau_est.std_random = STD_CALIBRATION * math.sqrt(max(cov[1, 1], 0.0))
         if att > MAX_ATTENUATION_TAU:
             tau_est.identifiable = False
             tau_est.note = (tau_est.note + "; " if tau_est.note else "") + (
@@ -466,6 +472,8 @@ def _estimates(data: Stage3Data, fd: AxisFit, fq: AxisFit) -> tuple[Estimate, Es
 
 
 MAX_ATTENUATION = 0.02  # errors-in-variables bias of X' above which it is flagged
+EIV_ALLOWANCE_X = 2.0  # bias of X' per unit attenuation, rounded up from the 1.6-1.7 measured
+EIV_ALLOWANCE_T = 1.0  # bias of T' per unit attenuation (0.7-0.9 measured on the q axis)
 MAX_ATTENUATION_TAU = 0.10  # ... and above which the axis's time constant is no longer trusted either
 
 

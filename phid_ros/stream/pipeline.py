@@ -99,6 +99,10 @@ class MonitorPipeline:
         self.samples_in = 0
         self._segment = 0
         self._energy_slot: int | None = None
+        self._energy_done_ns: int | None = None  # stream time up to which the Hamiltonian is computed
+        self._energy_params = s.initial_parameters  # the set in force, as polled (never mid-run)
+        self._energy_applied: set[int] = set()  # outcomes (by start time) already taken over
+        self._hold_limit_ns = int((s.ring_seconds - s.detector.context_s) * NS)
         self.latest_ns: int | None = None
 
     # -- input ---------------------------------------------------------------------------
@@ -139,9 +143,18 @@ class MonitorPipeline:
                 for w in pending:
                     w.usable, w.reason = False, "the clock jumped (new segment) before the window was complete"
                 self._store(pending, out)
+                self._energy_upto(self.latest_ns, out)  # what the old segment still owes, if in hand
                 self.ring.clear()
                 self.detector.reset(block.segment)
                 self._energy_slot = None
+                self._energy_done_ns = None
+            held = self.recalibrator.open_since_ns
+            if held is not None and int(block.t_ns[-1]) - held >= self._hold_limit_ns:
+                # the Hamiltonian's held samples would leave the ring before the run's outcome
+                # arrives (playback far faster than real time): wait for it, start nothing new
+                self.recalibrator.join()
+                out.recalibrations += self.recalibrator.poll(None)
+                self._energy_upto(self.latest_ns, out)
             self.ring.append(block.t_ns, block.values)
             self.latest_ns = int(block.t_ns[-1])
             events, windows = self.detector.update() if self.settings.detect else ([], [])
@@ -149,7 +162,6 @@ class MonitorPipeline:
                 self._label(e)
             out.events += events
             self._store(windows, out)
-            self._energy(block.t_ns, block.values, out)
         if final and self.settings.detect:
             late_events, rest = self.detector.flush()
             for e in late_events:
@@ -164,6 +176,7 @@ class MonitorPipeline:
                 out.recalibrations += self.recalibrator.finish(self.latest_ns)
         else:
             out.recalibrations += self.recalibrator.poll(self.latest_ns)
+        self._energy_upto(self.latest_ns, out)
         return out
 
     def add_window(self, window: EventWindow) -> Outputs:
@@ -186,6 +199,7 @@ class MonitorPipeline:
         self.store.clear()
         self._segment = 0
         self._energy_slot = None
+        self._energy_done_ns = None
 
     def close(self) -> None:
         self.recalibrator.shutdown()
@@ -219,9 +233,37 @@ class MonitorPipeline:
             if w.usable and self.settings.auto_recalibrate and w.event.role == "identify":
                 self.recalibrator.request(int(w.t_ns[-1]) if len(w.t_ns) else w.event.inception_ns)
 
-    def _energy(self, t_ns: np.ndarray, values: np.ndarray, out: Outputs) -> None:
-        params = self.parameters
+    def _energy_upto(self, latest_ns: int | None, out: Outputs) -> None:
+        """The Hamiltonian at the set rate, each sample with the set in force at its stamp.
+
+        A recalibration runs in a worker; its outcome applies from the stream time it was
+        started, as if it were instantaneous. So samples from that time on wait (in the ring)
+        until the outcome is polled: the published values and their count do not depend on how
+        fast the machine or the playback is.
+        """
+        if latest_ns is None:
+            return
+        held = self.recalibrator.open_since_ns
+        limit = latest_ns if held is None else min(latest_ns, held - 1)
+        # each polled outcome takes over at the stream time its run started
+        for r in sorted((r for r in out.recalibrations if r.accepted), key=lambda r: r.stream_time_ns):
+            if r.stream_time_ns in self._energy_applied:
+                continue
+            self._energy_applied.add(r.stream_time_ns)
+            self._energy_span(min(limit, r.stream_time_ns - 1), out)
+            self._energy_params = r.parameters
+        self._energy_span(limit, out)
+
+    def _energy_span(self, limit: int, out: Outputs) -> None:
+        start = self._energy_done_ns + 1 if self._energy_done_ns is not None else self.ring.oldest_ns
+        if start is None or limit < start:
+            return
+        params = self._energy_params
+        self._energy_done_ns = limit
         if params is None:
+            return
+        t_ns, values = self.ring.window(start, limit)
+        if len(t_ns) == 0:
             return
         interval = int(NS / self.settings.hamiltonian_rate_hz)
         slots = t_ns // interval

@@ -90,6 +90,7 @@ class Recalibrator:
     _future: Future | None = None
     _dirty: bool = False
     _last_start_ns: int | None = None
+    _unpolled: list[int] = field(default_factory=list)  # start times of runs not yet polled
     _done: list[RecalibrationOutcome] = field(default_factory=list)
     _lock: threading.Lock = field(default_factory=threading.Lock)
 
@@ -106,23 +107,37 @@ class Recalibrator:
         ):
             self._dirty = True
             return "deferred: minimum interval since the last run"
-        if self._future is not None and not self._future.done():
-            self._dirty = True
-            return "coalesced: a run is in progress"
         self._start(stream_time_ns)
         return "started"
 
+    @property
+    def open_since_ns(self) -> int | None:
+        """Stream time at which the earliest run whose outcome has not been polled was started.
+
+        A consumer that must behave as if recalibrations were instantaneous (the Hamiltonian)
+        holds back its work from this stream time until the outcome is polled.
+        """
+        return min(self._unpolled) if self._unpolled else None
+
     def _start(self, stream_time_ns: int) -> None:
+        # Runs start when stream time says so, never when the previous one happens to finish: a
+        # run still going is waited for (at the policy's intervals a run is long done, except in
+        # playback much faster than real time). So the sequence of runs, their inputs and their
+        # outcomes are the same at any playback speed.
+        self.join()
         windows = self.store.latest(n=self.policy.latest_per_kind)
         self._dirty = False
         self._last_start_ns = stream_time_ns
+        self._unpolled.append(stream_time_ns)
         self._future = self._executor.submit(self._run, windows, stream_time_ns)
 
     def poll(self, stream_time_ns: int | None = None) -> list[RecalibrationOutcome]:
         """Finished runs since the last poll; starts a coalesced rerun when one is owed."""
         with self._lock:
             done, self._done = self._done, []
-        if self._dirty and stream_time_ns is not None and (self._future is None or self._future.done()):
+        for outcome in done:
+            self._unpolled.remove(outcome.stream_time_ns)
+        if self._dirty and stream_time_ns is not None:
             if self._last_start_ns is None or stream_time_ns - self._last_start_ns >= self.policy.min_interval_s * NS:
                 self.request(stream_time_ns)
         return done

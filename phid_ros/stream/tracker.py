@@ -151,7 +151,8 @@ class SlidingTracker:
             if ref is None:
                 self.reference[name] = est
                 continue
-            band = self.settings.drift_sigmas * math.hypot(est.std, ref.std)
+            # the same plant under the same conditions: a common (errors-in-variables) bias cancels
+            band = self.settings.drift_sigmas * math.hypot(est.random_std, ref.random_std)
             if abs(est.value - ref.value) > band:
                 self._beyond[name] = self._beyond.get(name, 0) + 1
             else:

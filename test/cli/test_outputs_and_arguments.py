@@ -57,7 +57,17 @@ def test_replay_does_not_overwrite_a_file_it_did_not_write(tmp_path, small_bag, 
 
 def test_replay_killed_leaves_a_readable_partial_output(tmp_path):
     out = tmp_path / "o.mcap"
-    cmd = [sys.executable, "-m", "phid_ros.cli.main", "replay", str(BAGS / "catalogue"), "--out", str(out), "--rate", "60"]
+    cmd = [
+        sys.executable,
+        "-m",
+        "phid_ros.cli.main",
+        "replay",
+        str(BAGS / "catalogue"),
+        "--out",
+        str(out),
+        "--rate",
+        "60",
+    ]
     p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     partial = tmp_path / "o.partial.mcap"
     deadline = time.time() + 60

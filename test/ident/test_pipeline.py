@@ -39,3 +39,19 @@ def test_no_identification_scenarios(noisy_scenarios):
     res = identify([s for s in noisy_scenarios if s.role == "validate"])
     assert res.problems == ["no identification scenarios: nothing to identify"]
     assert all(math.isnan(v) for v in res.parameters.values())
+
+
+def test_a_single_torque_step_flags_what_it_cannot_support(noisy_scenarios):
+    """One torque step gave D +19 % (2.9 sigma) and X_d, X_q with a zero std, all 'identifiable'."""
+    from phid_ros.ident.pipeline import IdentifyOptions, identify
+
+    one = [s for s in noisy_scenarios if s.name.startswith("S04")]
+    res = identify(one, IdentifyOptions(baseline=False, validate=False))
+    for name, why in (
+        ("D", ("single swing", "poorly identified")),
+        ("X_d", ("steady state",)),
+        ("X_q", ("steady state",)),
+    ):
+        est = res.estimates[name]
+        assert not est.identifiable and any(w in est.note for w in why), (name, est.note)
+    assert res.estimates["H"].identifiable and res.estimates["H"].std > 0

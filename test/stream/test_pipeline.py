@@ -137,3 +137,30 @@ def test_unknown_severity_survives_the_store():
     store.add(EventWindow(ev, np.arange(3, dtype=np.int64), np.zeros((3, len(CHANNELS))), 1))
     back = store.all()[0].event
     assert math.isnan(back.severity) and math.isnan(back.v_prefault)
+
+
+def test_the_hamiltonian_does_not_depend_on_how_fast_recalibrations_run(catalogue, replayed, monkeypatch):
+    """Two identical replays once published different numbers of Hamiltonian samples (1540 vs 1695):
+    the set in force depended on when the worker finished. Now a slow worker gives the same samples."""
+    import time as _time
+
+    import phid_ros.stream.recalibration as rc
+
+    real = rc.identify
+
+    def slow(*a, **k):
+        _time.sleep(1.5)  # ~450 s of stream time at this replay's speed
+        return real(*a, **k)
+
+    monkeypatch.setattr(rc, "identify", slow)
+    p = MonitorPipeline(PipelineSettings())
+    out = replay(catalogue, p)
+    p.close()
+    _, fast, _ = replayed
+    t_fast = np.concatenate([e.t_ns for e in fast.energy])
+    t_slow = np.concatenate([e.t_ns for e in out.energy])
+    assert np.array_equal(t_fast, t_slow)
+    assert np.array_equal(np.concatenate([e.value for e in fast.energy]), np.concatenate([e.value for e in out.energy]))
+    assert [(r.stream_time_ns, r.accepted) for r in out.recalibrations] == [
+        (r.stream_time_ns, r.accepted) for r in fast.recalibrations
+    ]

@@ -35,7 +35,9 @@ def test_tracked_t_d0_follows_the_drift_and_raises_the_alarm(drifting_stream):
     assert max(abs(e) for e in errors) < 0.02
     assert "T_d0_prime" in tracker.alarmed
     first_alarm = next(p for p in points if p.alarms)
-    assert first_alarm.t_ns / 1e9 < 900  # within a few hops of the drift becoming measurable
+    # within a few hops of the drift becoming measurable (one hop later since the std is calibrated
+    # to cover the truth: benchmarks/bench_coverage.py)
+    assert first_alarm.t_ns / 1e9 <= 900
     assert not points[0].alarms and not points[1].alarms
     # what ambient data cannot deliver is flagged, not reported as if it were known
     assert not points[-1].estimates["X_q_prime"].identifiable
