@@ -49,8 +49,8 @@ def test_a_single_torque_step_flags_what_it_cannot_support(noisy_scenarios):
     res = identify(one, IdentifyOptions(baseline=False, validate=False))
     for name, why in (
         ("D", ("single swing", "poorly identified")),
-        ("X_d", ("steady state",)),
-        ("X_q", ("steady state",)),
+        ("X_d", ("steady state", "no standard deviation")),
+        ("X_q", ("steady state", "no standard deviation")),
     ):
         est = res.estimates[name]
         assert not est.identifiable and any(w in est.note for w in why), (name, est.note)
