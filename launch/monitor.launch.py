@@ -2,10 +2,14 @@
 
     ros2 launch phid_ros monitor.launch.py
     ros2 launch phid_ros monitor.launch.py namespace:=/unit2 pt_ct_topic:=/unit2/ptct use_sim_time:=true
-    ros2 launch phid_ros monitor.launch.py play_bag:=/path/to/phid_ros/bags/catalogue
+    ros2 launch phid_ros monitor.launch.py play_bag:=/path/to/phid_ros/bags/catalogue play_rate:=20
 
-With play_bag set, the launch also runs `ros2 bag play --clock <bag>` and the nodes use
-the bag's clock (use_sim_time is forced on), so the whole pipeline runs on recorded time.
+With play_bag set, the launch also runs `ros2 bag play <bag> --clock 200 --rate <play_rate>`
+and the nodes use the bag's clock (use_sim_time is forced on), so the whole pipeline runs on
+recorded time. (On Jazzy `--clock` takes an optional frequency, so the bag must come first.)
+Every node option a user sets at start-up is a launch argument here, passed to the nodes
+typed (a 'true' string is not a bool): reliable_qos, queue_depth, store_path, unit_id,
+sample_rate_hz, hamiltonian_rate_hz, min_interval_s.
 """
 
 import os
@@ -17,6 +21,18 @@ from launch.actions import DeclareLaunchArgument, ExecuteProcess
 from launch.conditions import IfCondition
 from launch.substitutions import LaunchConfiguration, PythonExpression
 from launch_ros.actions import Node
+from launch_ros.parameter_descriptions import ParameterValue
+
+# launch argument -> (type, which nodes take it); defaults come from config/phid.yaml
+PASSED = {
+    "reliable_qos": (bool, ("ingest_node", "recalibration_node")),
+    "queue_depth": (int, ("ingest_node", "recalibration_node")),
+    "sample_rate_hz": (float, ("ingest_node",)),
+    "store_path": (str, ("recalibration_node",)),
+    "unit_id": (str, ("recalibration_node",)),
+    "hamiltonian_rate_hz": (float, ("recalibration_node",)),
+    "min_interval_s": (float, ("recalibration_node",)),
+}
 
 
 def node_parameters(node: str) -> dict:
@@ -39,8 +55,18 @@ def generate_launch_description() -> LaunchDescription:
         ("excitation", LaunchConfiguration("excitation_topic")),
     ]
     common = {"use_sim_time": sim_time}
+    sections = {n: node_parameters(n) for n in ("ingest_node", "recalibration_node")}
+    passed = {n: {} for n in sections}
+    declared = []
+    for arg, (kind, nodes) in PASSED.items():
+        default = sections[nodes[0]][arg]
+        text = str(default).lower() if kind is bool else str(default)
+        declared.append(DeclareLaunchArgument(arg, default_value=text, description=f"node parameter {arg}"))
+        for n in nodes:
+            passed[n][arg] = ParameterValue(LaunchConfiguration(arg), value_type=kind)
     return LaunchDescription(
-        [
+        declared
+        + [
             DeclareLaunchArgument("namespace", default_value="/generator", description="namespace of both nodes"),
             DeclareLaunchArgument("use_sim_time", default_value="false", description="use the /clock topic"),
             DeclareLaunchArgument("play_bag", default_value="", description="a bag to play with --clock (optional)"),
@@ -54,7 +80,7 @@ def generate_launch_description() -> LaunchDescription:
                 executable="ingest_node",
                 name="ingest_node",
                 namespace=ns,
-                parameters=[node_parameters("ingest_node"), common],
+                parameters=[sections["ingest_node"], passed["ingest_node"], common],
                 remappings=remaps,
                 output="screen",
             ),
@@ -63,12 +89,14 @@ def generate_launch_description() -> LaunchDescription:
                 executable="recalibration_node",
                 name="recalibration_node",
                 namespace=ns,
-                parameters=[node_parameters("recalibration_node"), common],
+                parameters=[sections["recalibration_node"], passed["recalibration_node"], common],
                 remappings=remaps,
                 output="screen",
             ),
             ExecuteProcess(
-                cmd=["ros2", "bag", "play", "--clock", play_bag], condition=IfCondition(playing), output="screen"
+                cmd=["ros2", "bag", "play", play_bag, "--clock", "200", "--rate", LaunchConfiguration("play_rate")],
+                condition=IfCondition(playing),
+                output="screen",
             ),
         ]
     )

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+from rclpy.clock import Clock, ClockType
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import (
@@ -26,10 +27,27 @@ from phid_ros.stream.params import Tunable, validate
 SENSOR_TOPICS = ("pt_ct", "encoder", "pmu", "excitation")
 
 
-def sensor_qos(reliable: bool) -> QoSProfile:
-    if not reliable:
-        return qos_profile_sensor_data
-    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50, reliability=ReliabilityPolicy.RELIABLE)
+def sensor_qos(reliable: bool, depth: int) -> QoSProfile:
+    """The sensor-data profile (best effort, volatile), with a queue sized for the stream rate:
+    the profile's own depth of 5 drops blocks whenever a callback is late at playback rates."""
+    profile = QoSProfile(
+        history=HistoryPolicy.KEEP_LAST,
+        depth=depth,
+        reliability=ReliabilityPolicy.RELIABLE if reliable else qos_profile_sensor_data.reliability,
+        durability=qos_profile_sensor_data.durability,
+    )
+    return profile
+
+
+def steady_timer(node: Node, period_s: float, callback: Any) -> Any:
+    """A timer on the steady clock: work and publishing go on when a simulated /clock stops
+    (a bag that ended), which a timer on the node's clock would not."""
+    return node.create_timer(period_s, callback, clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+
+def byte_level(value: int) -> bytes:
+    """diagnostic_msgs' ``byte`` field as rclpy wants it."""
+    return bytes([value])
 
 
 def latched_qos() -> QoSProfile:

@@ -22,6 +22,7 @@ from phid_ros.nodes.common import (
     reliable_qos,
     sensor_qos,
     spin_until_shutdown,
+    steady_timer,
 )
 from phid_ros.stream import messages as m
 from phid_ros.stream.params import INGEST, apply, pipeline_settings
@@ -36,7 +37,7 @@ class IngestNode(Node):
         settings.auto_recalibrate = False  # recalibration is the other node's job
         self.pipeline = MonitorPipeline(settings)
         self.types = msg_types()
-        qos = sensor_qos(self.values["reliable_qos"])
+        qos = sensor_qos(self.values["reliable_qos"], self.values["queue_depth"])
         for name in SENSOR_TOPICS:
             cls = self.types[STREAMS_BY_NAME[name].msgtype]
             self.create_subscription(cls, name, self._sensor_callback(name), qos)
@@ -45,7 +46,7 @@ class IngestNode(Node):
             self.types["phid_msgs/msg/EventWindow"], "event_windows", reliable_qos()
         )
         self.add_on_set_parameters_callback(on_set(INGEST, self._apply))
-        self.create_timer(self.values["process_period_s"], self.process)
+        steady_timer(self, self.values["process_period_s"], self.process)
 
     def _sensor_callback(self, stream: str) -> Any:
         channels = STREAMS_BY_NAME[stream].channels

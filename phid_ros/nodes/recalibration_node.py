@@ -8,6 +8,7 @@ tracking_enabled, tracked_parameters. Services (std_srvs/Trigger): ~/recalibrate
 
 from __future__ import annotations
 
+import time
 from typing import Any
 
 from rclpy.node import Node
@@ -16,6 +17,7 @@ from std_srvs.srv import Trigger
 from phid_ros.io.topics import SCENARIO_TOPIC, STREAMS_BY_NAME
 from phid_ros.nodes.common import (
     SENSOR_TOPICS,
+    byte_level,
     declare,
     float_seq,
     latched_qos,
@@ -24,6 +26,7 @@ from phid_ros.nodes.common import (
     reliable_qos,
     sensor_qos,
     spin_until_shutdown,
+    steady_timer,
 )
 from phid_ros.stream import messages as m
 from phid_ros.stream.params import RECALIBRATION, apply, pipeline_settings
@@ -35,7 +38,6 @@ class RecalibrationNode(Node):
     def __init__(self) -> None:
         super().__init__("recalibration_node")
         self.values = declare(self, RECALIBRATION)
-        self.reliable = self.declare_parameter("reliable_qos", False).value
         settings = pipeline_settings(
             self.values,
             detect=False,
@@ -47,7 +49,7 @@ class RecalibrationNode(Node):
         self.tracker: SlidingTracker | None = None
         self._tracked_to: int | None = None  # the last sample handed to the tracker
         self.last_status: str | None = None
-        qos = sensor_qos(self.reliable)
+        qos = sensor_qos(self.values["reliable_qos"], self.values["queue_depth"])
         for name in SENSOR_TOPICS:
             cls = self.types[STREAMS_BY_NAME[name].msgtype]
             self.create_subscription(cls, name, self._sensor_callback(name), qos)
@@ -72,14 +74,17 @@ class RecalibrationNode(Node):
         self.create_service(Trigger, "~/recalibrate", self._recalibrate)
         self.create_service(Trigger, "~/reset", self._reset)
         self.add_on_set_parameters_callback(on_set(RECALIBRATION, self._apply))
-        self.create_timer(1.0 / self.values["hamiltonian_rate_hz"], self.process)
-        self.create_timer(self.values["diagnostics_period_s"], self.publish_diagnostics)
+        self._last_data = time.monotonic()
+        self._ended = True  # nothing owed before the first data
+        steady_timer(self, 1.0 / self.values["hamiltonian_rate_hz"], self.process)
+        steady_timer(self, self.values["diagnostics_period_s"], self.publish_diagnostics)
 
     # -- callbacks ------------------------------------------------------------------------
     def _sensor_callback(self, stream: str) -> Any:
         channels = STREAMS_BY_NAME[stream].channels
 
         def callback(msg: Any) -> None:
+            self._last_data, self._ended = time.monotonic(), False
             period = int(round(float(msg.sample_period) * 1e9))
             self.pipeline.ingest_message(
                 stream,
@@ -115,7 +120,12 @@ class RecalibrationNode(Node):
 
     # -- periodic work ---------------------------------------------------------------------
     def process(self) -> None:
-        self._publish(self.pipeline.process())
+        # the input ended (a bag finished, a feed stopped): do now what replay does at its end,
+        # the owed recalibration, so the last set is published without waiting for more data
+        ended = not self._ended and time.monotonic() - self._last_data > self.values["end_of_data_s"]
+        if ended:
+            self._ended = True
+        self._publish(self.pipeline.process(final=ended))
 
     def _publish(self, out: Outputs) -> None:
         for r in out.recalibrations:
@@ -166,7 +176,17 @@ class RecalibrationNode(Node):
 
     def publish_diagnostics(self) -> None:
         now = int(self.get_clock().now().nanoseconds)
-        self.diag_pub.publish(m.diagnostics_message(self.types, now, self.pipeline.health, self.last_status))
+        self.diag_pub.publish(
+            m.diagnostics_message(
+                self.types,
+                now,
+                self.pipeline.health,
+                self.last_status,
+                stream_now_ns=self.pipeline.aligner.stream_now_ns,
+                stale_ns=self.pipeline.aligner.stale_ns,
+                level=byte_level,
+            )
+        )
 
 
 def main(args: list[str] | None = None) -> None:

@@ -54,6 +54,7 @@ class StreamHealth:
     zero_stamps: int = 0  # samples of messages stamped 0: an unset clock, not a time
     wild_stamps: int = 0  # samples of a block whose stamp jumped and came straight back
     gaps: int = 0
+    missing: int = 0  # samples absent in those gaps (by the stamps): what was lost on the way
     clock_jumps: int = 0
     gap_grid_points: int = 0
     last_stamp_ns: int | None = None
@@ -115,6 +116,9 @@ class StreamHealth:
                 f"non-finite {self.nonfinite}, implausible {self.implausible}, zero stamp {self.zero_stamps}, "
                 f"wild stamp {self.wild_stamps})"
             )
+            level = "WARN" if level == "OK" else level
+        if self.missing:
+            problems.append(f"{self.missing} samples missing in {self.gaps} gap(s)")
             level = "WARN" if level == "OK" else level
         if self.samples and self.dropped > 0.5 * self.samples:
             level = "ERROR"
@@ -308,9 +312,11 @@ class Aligner:
     def _accept(
         self, stream: str, h: StreamHealth, t: NDArray[np.int64], x: NDArray[np.float64], period_ns: int
     ) -> None:
-        if h.last_stamp_ns is not None:
-            first_gap = t[0] - h.last_stamp_ns > 1.5 * period_ns
-            h.gaps += int(first_gap) + (int((np.diff(t) > 1.5 * period_ns).sum()) if len(t) > 1 else 0)
+        steps = np.diff(t) if h.last_stamp_ns is None else np.diff(np.concatenate(([h.last_stamp_ns], t)))
+        holes = steps[steps > 1.5 * period_ns]
+        if holes.size:
+            h.gaps += int(holes.size)
+            h.missing += int(np.sum(np.rint(holes / period_ns).astype(np.int64) - 1))
         h.accepted += len(t)
         h.last_stamp_ns = int(t[-1])
         h._recent.append((int(t[-1]), len(t)))

@@ -131,17 +131,19 @@ def diagnostics_message(
     *,
     stream_now_ns: int | None = None,
     stale_ns: int = 2 * NS,
+    level: Callable[[int], Any] = int,
 ) -> Any:
     """diagnostic_msgs/DiagnosticArray: one status per stream, one for recalibration.
 
     ``now_ns`` is the receiver's clock; ``stream_now_ns`` the newest stamp of any stream, so a
-    stream that stopped while the others go on is STALE on a replayed recording too.
+    stream that stopped while the others go on is STALE on a replayed recording too. ``level``
+    makes the message's ``byte`` field: an int for the rosbags typestore, ``bytes([v])`` for rclpy.
     """
     kv = types["diagnostic_msgs/msg/KeyValue"]
     status_cls = types["diagnostic_msgs/msg/DiagnosticStatus"]
     statuses = []
     for name, h in health.items():
-        level, message = h.status(now_ns, stream_now_ns=stream_now_ns, stale_ns=stale_ns)
+        name_level, message = h.status(now_ns, stream_now_ns=stream_now_ns, stale_ns=stale_ns)
         values = [
             kv(key=k, value=str(v))
             for k, v in (
@@ -154,6 +156,7 @@ def diagnostics_message(
                 ("out_of_order", h.out_of_order),
                 ("nonfinite", h.nonfinite),
                 ("implausible", h.implausible),
+                ("missing", h.missing),
                 ("zero_stamps", h.zero_stamps),
                 ("wild_stamps", h.wild_stamps),
                 ("gaps", h.gaps),
@@ -162,7 +165,7 @@ def diagnostics_message(
         ]
         statuses.append(
             status_cls(
-                level=LEVELS[level],
+                level=level(LEVELS[name_level]),
                 name=f"{node}: {name} stream",
                 message=message,
                 hardware_id="generator",
@@ -170,10 +173,10 @@ def diagnostics_message(
             )
         )
     if recalibration_status is not None:
-        level = 0 if recalibration_status.startswith("ok") else (2 if "failed" in recalibration_status else 1)
+        recal_level = 0 if recalibration_status.startswith("ok") else (2 if "failed" in recalibration_status else 1)
         statuses.append(
             status_cls(
-                level=level,
+                level=level(recal_level),
                 name=f"{node}: recalibration",
                 message=recalibration_status,
                 hardware_id="generator",

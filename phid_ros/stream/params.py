@@ -26,7 +26,22 @@ class Tunable:
     runtime: bool = True  # can change while running
 
 
-INGEST: tuple[Tunable, ...] = (
+SENSORS: tuple[Tunable, ...] = (  # how both nodes subscribe to the sensor topics
+    Tunable(
+        "reliable_qos", bool, False, "subscribe with reliable QoS instead of the sensor-data profile", runtime=False
+    ),
+    Tunable(
+        "queue_depth",
+        int,
+        2000,
+        "sensor messages queued per topic (2000: 200 s of 100-sample blocks at 1 kHz, 10 s at 20x playback)",
+        10,
+        100000,
+        runtime=False,
+    ),
+)
+
+INGEST: tuple[Tunable, ...] = SENSORS + (
     Tunable(
         "sample_rate_hz",
         float,
@@ -35,9 +50,6 @@ INGEST: tuple[Tunable, ...] = (
         10.0,
         100000.0,
         runtime=False,
-    ),
-    Tunable(
-        "reliable_qos", bool, False, "subscribe with reliable QoS instead of the sensor-data profile", runtime=False
     ),
     Tunable("ring_seconds", float, 120.0, "length of the ring buffer of aligned samples", 40.0, 3600.0, runtime=False),
     Tunable("pre_event_s", float, 1.0, "event window before the disturbance", 0.2, 10.0),
@@ -48,13 +60,21 @@ INGEST: tuple[Tunable, ...] = (
     Tunable("stale_timeout_s", float, 2.0, "a stream silent this long is reported STALE", 0.1, 60.0),
 )
 
-RECALIBRATION: tuple[Tunable, ...] = (
+RECALIBRATION: tuple[Tunable, ...] = SENSORS + (
     Tunable("hamiltonian_rate_hz", float, 10.0, "rate of the Hamiltonian output", 0.1, 100.0),
     Tunable("diagnostics_period_s", float, 1.0, "period of /diagnostics", 0.1, 60.0, runtime=False),
     Tunable("min_interval_s", float, 300.0, "least stream time between automatic recalibrations", 0.0, 86400.0),
     Tunable("latest_per_kind", int, 10, "events per kind a recalibration uses (the newest)", 1, 100),
     Tunable("max_relative_jump", float, 0.5, "relative change beyond which a new set is implausible", 0.01, 10.0),
     Tunable("auto_recalibrate", bool, True, "recalibrate automatically when enough events are stored"),
+    Tunable(
+        "end_of_data_s",
+        float,
+        3.0,
+        "wall time without sensor data after which the input counts as ended: the owed recalibration runs",
+        0.5,
+        3600.0,
+    ),
     Tunable("store_path", str, "phid_events.sqlite", "event store file (SQLite); ':memory:' keeps none", runtime=False),
     Tunable(
         "unit_id",

@@ -21,16 +21,24 @@ DOUBLED = (
 )
 
 
-def _purge() -> None:
+def _purge() -> dict[str, object]:
+    """Take the doubled packages out of sys.modules; returns what was there."""
+    taken = {}
     for name in list(sys.modules):
         if any(name == d or name.startswith(d + ".") for d in DOUBLED):
-            del sys.modules[name]
+            taken[name] = sys.modules.pop(name)
+    return taken
 
 
 @pytest.fixture
 def ros(monkeypatch):
-    """The double's rclpy module, with a clean bus; the nodes imported against it."""
-    _purge()
+    """The double's rclpy module, with a clean bus; the nodes imported against it.
+
+    Under colcon test the real rclpy is importable and may already be loaded (the launch
+    test imports it): its modules are put back afterwards, so the double never leaks into a
+    test that uses the real one ("No module named 'rclpy.parameter'" otherwise).
+    """
+    real = _purge()
     monkeypatch.syspath_prepend(str(DOUBLE))
     import rclpy
     import rclpy.node
@@ -41,3 +49,4 @@ def ros(monkeypatch):
     rclpy.init()
     yield rclpy
     _purge()
+    sys.modules.update(real)

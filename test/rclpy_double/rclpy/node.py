@@ -140,8 +140,9 @@ class Node:
         self.services[svc.name] = svc
         return svc
 
-    def create_timer(self, period: float, callback: Callable[[], None]) -> Timer:
+    def create_timer(self, period: float, callback: Callable[[], None], clock: Any = None) -> Timer:
         t = Timer(period, callback)
+        t.clock = clock  # type: ignore[attr-defined]
         self.timers.append(t)
         return t
 
