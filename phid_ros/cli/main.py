@@ -206,12 +206,16 @@ def cmd_info(args: argparse.Namespace, console: Console) -> int:
         topics = topic_table(path)
     except PhidError as index_error:
         # a file cut short has no index at its end: walk what is there and say how much it was
+        if not path.exists():
+            raise
         try:
             topics, cut = walked_topic_table(path)
-        except PhidError:
+        except (PhidError, OSError):
             raise index_error from None
         if not cut:
             raise
+        if not topics:  # cut before the first whole message: nothing to show
+            raise PhidError(cut[0]) from None
         for w in cut:
             warn(w)
     if not any(expected_type(t) for t, _, _ in topics):
