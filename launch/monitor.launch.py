@@ -4,7 +4,8 @@
     ros2 launch phid_ros monitor.launch.py namespace:=/unit2 pt_ct_topic:=/unit2/ptct use_sim_time:=true
     ros2 launch phid_ros monitor.launch.py play_bag:=/path/to/phid_ros/bags/catalogue play_rate:=20
 
-With play_bag set, the launch also runs `ros2 bag play <bag> --clock 200 --rate <play_rate>`
+With play_bag set, the launch also runs `ros2 bag play <bag> --clock 200 --rate <play_rate>
+--delay <play_delay>`
 and the nodes use the bag's clock (use_sim_time is forced on), so the whole pipeline runs on
 recorded time. (On Jazzy `--clock` takes an optional frequency, so the bag must come first.)
 Every node option a user sets at start-up is a launch argument here, passed to the nodes
@@ -71,6 +72,9 @@ def generate_launch_description() -> LaunchDescription:
             DeclareLaunchArgument("use_sim_time", default_value="false", description="use the /clock topic"),
             DeclareLaunchArgument("play_bag", default_value="", description="a bag to play with --clock (optional)"),
             DeclareLaunchArgument("play_rate", default_value="1.0", description="rate of the bag playback"),
+            DeclareLaunchArgument(
+                "play_delay", default_value="8.0", description="seconds before playback starts (the nodes start first)"
+            ),
             DeclareLaunchArgument("pt_ct_topic", default_value="pt_ct", description="PT/CT block topic"),
             DeclareLaunchArgument("encoder_topic", default_value="encoder", description="speed encoder block topic"),
             DeclareLaunchArgument("pmu_topic", default_value="pmu", description="PMU angle block topic"),
@@ -94,7 +98,20 @@ def generate_launch_description() -> LaunchDescription:
                 output="screen",
             ),
             ExecuteProcess(
-                cmd=["ros2", "bag", "play", play_bag, "--clock", "200", "--rate", LaunchConfiguration("play_rate")],
+                cmd=[
+                    "ros2",
+                    "bag",
+                    "play",
+                    play_bag,
+                    "--clock",
+                    "200",
+                    "--rate",
+                    LaunchConfiguration("play_rate"),
+                    # the nodes need a few seconds to start (numpy, scipy): data sent before they
+                    # subscribe is lost, and at 20x three seconds are a minute of recording
+                    "--delay",
+                    LaunchConfiguration("play_delay"),
+                ],
                 condition=IfCondition(playing),
                 output="screen",
             ),

@@ -47,6 +47,10 @@ class IngestNode(Node):
         )
         self.add_on_set_parameters_callback(on_set(INGEST, self._apply))
         steady_timer(self, self.values["process_period_s"], self.process)
+        self.get_logger().info(
+            f"ready: {', '.join(SENSOR_TOPICS)} ({'reliable' if self.values['reliable_qos'] else 'best effort'}, "
+            f"depth {self.values['queue_depth']})"
+        )
 
     def _sensor_callback(self, stream: str) -> Any:
         channels = STREAMS_BY_NAME[stream].channels

@@ -78,6 +78,10 @@ class RecalibrationNode(Node):
         self._ended = True  # nothing owed before the first data
         steady_timer(self, 1.0 / self.values["hamiltonian_rate_hz"], self.process)
         steady_timer(self, self.values["diagnostics_period_s"], self.publish_diagnostics)
+        self.get_logger().info(
+            f"ready: {', '.join(SENSOR_TOPICS)} ({'reliable' if self.values['reliable_qos'] else 'best effort'}, "
+            f"depth {self.values['queue_depth']})"
+        )
 
     # -- callbacks ------------------------------------------------------------------------
     def _sensor_callback(self, stream: str) -> Any:

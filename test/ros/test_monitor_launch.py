@@ -1,7 +1,9 @@
-"""launch_testing: the launched nodes, fed by a shipped bag, publish parameters and the Hamiltonian.
+"""launch_testing: the README's launch command, fed the shipped bag at 20x, gives what `phid replay` gives.
 
 Runs on a ROS 2 Jazzy machine (colcon test, after building phid_msgs and phid_ros). Where
 rclpy is absent it is skipped with that reason: rclpy is neither on PyPI nor in Debian.
+The nodes run with ROS_PYTHON_CHECK_FIELDS=1, so a message field of the wrong type (the
+diagnostics level once was) crashes them and fails this test.
 """
 
 import os
@@ -21,10 +23,12 @@ pytest.importorskip("launch_testing", reason="launch_testing comes with ROS 2")
 import launch  # noqa: E402
 import launch_testing.actions  # noqa: E402
 from ament_index_python.packages import get_package_share_directory  # noqa: E402
-from launch.actions import ExecuteProcess, IncludeLaunchDescription  # noqa: E402
+from launch.actions import IncludeLaunchDescription, SetEnvironmentVariable  # noqa: E402
 from launch.launch_description_sources import PythonLaunchDescriptionSource  # noqa: E402
 
 BAG = str(Path(__file__).resolve().parents[2] / "bags" / "catalogue")
+STORE = f"/tmp/phid_launch_test_{os.getpid()}.sqlite"
+SAMPLES = 660_000  # per stream in the catalogue bag
 
 
 @pytest.mark.launch_test
@@ -32,13 +36,26 @@ def generate_test_description():
     share = get_package_share_directory("phid_ros")
     monitor = IncludeLaunchDescription(
         PythonLaunchDescriptionSource(os.path.join(share, "launch", "monitor.launch.py")),
-        launch_arguments={"use_sim_time": "true"}.items(),
+        launch_arguments={"play_bag": BAG, "play_rate": "20", "store_path": STORE}.items(),
     )
-    play = ExecuteProcess(cmd=["ros2", "bag", "play", "--clock", "--rate", "20", BAG], output="screen")
-    return launch.LaunchDescription([monitor, play, launch_testing.actions.ReadyToTest()])
+    return launch.LaunchDescription(
+        [SetEnvironmentVariable("ROS_PYTHON_CHECK_FIELDS", "1"), monitor, launch_testing.actions.ReadyToTest()]
+    )
 
 
-class TestParametersAndHamiltonianArrive(unittest.TestCase):
+def replay_reference():
+    """What `phid replay` publishes for the same bag: the final set and the usable windows."""
+    from phid_ros.cli.replay import replay
+    from phid_ros.io.bags import read_recording
+    from phid_ros.stream.pipeline import MonitorPipeline
+
+    p = MonitorPipeline()
+    out = replay(read_recording(BAG), p)
+    p.close()
+    return p.parameters.as_dict(), sorted(w.event.event_id for w in out.windows if w.usable), len(out.events)
+
+
+class TestTheMonitorEqualsReplay(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
         rclpy.init()
@@ -49,20 +66,57 @@ class TestParametersAndHamiltonianArrive(unittest.TestCase):
         cls.node.destroy_node()
         rclpy.shutdown()
 
-    def test_parameters_and_hamiltonian(self):
-        from phid_msgs.msg import GeneratorParameters, HamiltonianState
+    def test_parameters_windows_hamiltonian_and_diagnostics(self):
+        from diagnostic_msgs.msg import DiagnosticArray
+        from phid_msgs.msg import DisturbanceEvent, EventWindow, GeneratorParameters, HamiltonianState
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
-        got = {"parameters": [], "hamiltonian": []}
+        expect, usable_ids, n_events = replay_reference()
+        got = {"parameters": [], "hamiltonian": 0, "events": 0, "windows": [], "levels": set(), "diag": {}}
+
+        def on_diag(msg):
+            for s in msg.status:
+                got["levels"].add(bytes(s.level))
+                got["diag"][s.name] = {kv.key: kv.value for kv in s.values}
+
         latched = QoSProfile(
             depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
         )
-        self.node.create_subscription(GeneratorParameters, "/generator/parameters", got["parameters"].append, latched)
-        self.node.create_subscription(HamiltonianState, "/generator/hamiltonian", got["hamiltonian"].append, 10)
-        deadline = time.time() + 120.0
-        while time.time() < deadline and not (got["parameters"] and len(got["hamiltonian"]) > 10):
-            rclpy.spin_once(self.node, timeout_sec=0.5)
-        self.assertTrue(got["parameters"], "no parameters published within 120 s")
-        self.assertGreater(len(got["hamiltonian"]), 10)
-        p = dict(zip(got["parameters"][-1].names, got["parameters"][-1].values))
-        self.assertAlmostEqual(p["H"], 3.48, delta=0.1)
+        n = self.node
+        n.create_subscription(
+            GeneratorParameters, "/generator/parameters", lambda m: got["parameters"].append(m), latched
+        )
+        n.create_subscription(
+            HamiltonianState,
+            "/generator/hamiltonian",
+            lambda m: got.__setitem__("hamiltonian", got["hamiltonian"] + 1),
+            100,
+        )
+        n.create_subscription(
+            DisturbanceEvent, "/generator/events", lambda m: got.__setitem__("events", got["events"] + 1), 50
+        )
+        n.create_subscription(EventWindow, "/generator/event_windows", lambda m: got["windows"].append(m.event_id), 50)
+        n.create_subscription(DiagnosticArray, "/diagnostics", on_diag, 10)
+
+        def final():
+            return got["parameters"] and dict(zip(got["parameters"][-1].names, got["parameters"][-1].values)) == expect
+
+        deadline = time.time() + 240.0  # 8 s start delay + 33 s of playback + the final run, on a loaded machine
+        while time.time() < deadline and not final():
+            rclpy.spin_once(n, timeout_sec=0.2)
+        for _ in range(15):  # the last diagnostics after the final set
+            rclpy.spin_once(n, timeout_sec=0.2)
+
+        self.assertTrue(got["parameters"], "no parameters published within 240 s")
+        last = dict(zip(got["parameters"][-1].names, got["parameters"][-1].values))
+        self.assertEqual(last, expect, "the final set differs from phid replay's")
+        self.assertEqual(got["events"], n_events)
+        self.assertEqual(sorted(got["windows"]), usable_ids, "every event window replay finds usable, and no other")
+        self.assertGreater(got["hamiltonian"], 1000)
+        self.assertTrue(got["levels"] <= {b"\x00", b"\x01", b"\x02", b"\x03"}, got["levels"])
+        streams = {k: v for k, v in got["diag"].items() if k.endswith("stream")}
+        self.assertEqual(len(streams), 4)
+        for name, values in streams.items():
+            self.assertEqual(int(values["samples"]), SAMPLES, name)
+            self.assertEqual(int(values["missing"]), 0, name)
+            self.assertEqual(int(values["dropped"]), 0, name)
