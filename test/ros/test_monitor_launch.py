@@ -31,8 +31,14 @@ STORE = f"/tmp/phid_launch_test_{os.getpid()}.sqlite"
 SAMPLES = 660_000  # per stream in the catalogue bag
 
 
+REFERENCE = {}
+
+
 @pytest.mark.launch_test
 def generate_test_description():
+    # The reference is computed before the nodes start: computed later, the first events
+    # would be published before this test subscribes to them.
+    REFERENCE["expect"], REFERENCE["usable_ids"], REFERENCE["n_events"] = replay_reference()
     share = get_package_share_directory("phid_ros")
     monitor = IncludeLaunchDescription(
         PythonLaunchDescriptionSource(os.path.join(share, "launch", "monitor.launch.py")),
@@ -71,7 +77,7 @@ class TestTheMonitorEqualsReplay(unittest.TestCase):
         from phid_msgs.msg import DisturbanceEvent, EventWindow, GeneratorParameters, HamiltonianState
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
-        expect, usable_ids, n_events = replay_reference()
+        expect, usable_ids, n_events = REFERENCE["expect"], REFERENCE["usable_ids"], REFERENCE["n_events"]
         got = {"parameters": [], "hamiltonian": 0, "events": 0, "windows": [], "levels": set(), "diag": {}}
 
         def on_diag(msg):
