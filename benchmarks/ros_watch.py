@@ -1,4 +1,4 @@
-"""Watch the monitor's outputs until the parameters stop changing; print a summary as JSON.
+"""Watch the monitor's outputs until every sample is in and the parameters settle; print a summary as JSON.
 
 Used by bench_ros_playback.sh on a ROS 2 Jazzy machine: python3 ros_watch.py [LIMIT_S]
 """
@@ -24,7 +24,7 @@ node.create_subscription(
     latched,
 )
 node.create_subscription(
-    HamiltonianState, "/generator/hamiltonian", lambda m: got.__setitem__("hamiltonian", got["hamiltonian"] + 1), 100
+    HamiltonianState, "/generator/hamiltonian", lambda m: got.__setitem__("hamiltonian", got["hamiltonian"] + 1), 5000
 )
 node.create_subscription(
     DisturbanceEvent, "/generator/events", lambda m: got.__setitem__("events", got["events"] + 1), 50
@@ -41,18 +41,28 @@ def diag(m):
 
 
 node.create_subscription(DiagnosticArray, "/diagnostics", diag, 10)
+SENT = 660_000  # samples per stream in the catalogue bag
 t0 = time.time()
 last_change = t0
+first_data = complete_at = None
 n = 0
 while time.time() - t0 < limit:
     rclpy.spin_once(node, timeout_sec=0.2)
     if len(got["parameters"]) != n:
         n = len(got["parameters"])
         last_change = time.time()
-    if n and time.time() - last_change > 25:
+    counts = [int(v["samples"]) for k, v in (got["diag"] or {}).items() if k.endswith("stream")]
+    if first_data is None and any(counts):
+        first_data = time.time()
+    if complete_at is None and len(counts) == 4 and min(counts) >= SENT:
+        complete_at = time.time()
+    # a reliable subscription slows the player to what the nodes take, so the end is when
+    # every sample has arrived and the final set (end_of_data_s later) has settled
+    if complete_at is not None and n and time.time() - max(last_change, complete_at) > 15:
         break
 out = {
     "wall_s": round(time.time() - t0, 1),
+    "playback_s": round(complete_at - first_data, 1) if complete_at and first_data else None,
     "parameters": got["parameters"][-1] if got["parameters"] else None,
     "n_parameter_sets": n,
     "hamiltonian": got["hamiltonian"],

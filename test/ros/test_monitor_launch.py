@@ -38,7 +38,7 @@ REFERENCE = {}
 def generate_test_description():
     # The reference is computed before the nodes start: computed later, the first events
     # would be published before this test subscribes to them.
-    REFERENCE["expect"], REFERENCE["usable_ids"], REFERENCE["n_events"] = replay_reference()
+    REFERENCE["expect"], REFERENCE["usable_ids"], REFERENCE["n_events"], REFERENCE["n_energy"] = replay_reference()
     share = get_package_share_directory("phid_ros")
     monitor = IncludeLaunchDescription(
         PythonLaunchDescriptionSource(os.path.join(share, "launch", "monitor.launch.py")),
@@ -58,7 +58,8 @@ def replay_reference():
     p = MonitorPipeline()
     out = replay(read_recording(BAG), p)
     p.close()
-    return p.parameters.as_dict(), sorted(w.event.event_id for w in out.windows if w.usable), len(out.events)
+    usable = sorted(w.event.event_id for w in out.windows if w.usable)
+    return p.parameters.as_dict(), usable, len(out.events), sum(len(e.t_ns) for e in out.energy)
 
 
 class TestTheMonitorEqualsReplay(unittest.TestCase):
@@ -77,7 +78,9 @@ class TestTheMonitorEqualsReplay(unittest.TestCase):
         from phid_msgs.msg import DisturbanceEvent, EventWindow, GeneratorParameters, HamiltonianState
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
-        expect, usable_ids, n_events = REFERENCE["expect"], REFERENCE["usable_ids"], REFERENCE["n_events"]
+        expect, usable_ids, n_events, n_energy = (
+            REFERENCE[k] for k in ("expect", "usable_ids", "n_events", "n_energy")
+        )
         got = {"parameters": [], "hamiltonian": 0, "events": 0, "windows": [], "levels": set(), "diag": {}}
 
         def on_diag(msg):
@@ -96,7 +99,7 @@ class TestTheMonitorEqualsReplay(unittest.TestCase):
             HamiltonianState,
             "/generator/hamiltonian",
             lambda m: got.__setitem__("hamiltonian", got["hamiltonian"] + 1),
-            100,
+            5000,
         )
         n.create_subscription(
             DisturbanceEvent, "/generator/events", lambda m: got.__setitem__("events", got["events"] + 1), 50
@@ -110,15 +113,17 @@ class TestTheMonitorEqualsReplay(unittest.TestCase):
         deadline = time.time() + 240.0  # 8 s start delay + 33 s of playback + the final run, on a loaded machine
         while time.time() < deadline and not final():
             rclpy.spin_once(n, timeout_sec=0.2)
-        for _ in range(15):  # the last diagnostics after the final set
-            rclpy.spin_once(n, timeout_sec=0.2)
+        drain = time.time() + 5.0  # the Hamiltonian released with the final set, the last diagnostics
+        while time.time() < drain:
+            rclpy.spin_once(n, timeout_sec=0.05)
 
         self.assertTrue(got["parameters"], "no parameters published within 240 s")
         last = dict(zip(got["parameters"][-1].names, got["parameters"][-1].values))
         self.assertEqual(last, expect, "the final set differs from phid replay's")
         self.assertEqual(got["events"], n_events)
         self.assertEqual(sorted(got["windows"]), usable_ids, "every event window replay finds usable, and no other")
-        self.assertGreater(got["hamiltonian"], 1000)
+        # measured 3288 of replay's 3301 at 20x (the 13 not yet explained; see README)
+        self.assertGreaterEqual(got["hamiltonian"], 0.99 * n_energy)
         self.assertTrue(got["levels"] <= {b"\x00", b"\x01", b"\x02", b"\x03"}, got["levels"])
         streams = {k: v for k, v in got["diag"].items() if k.endswith("stream")}
         self.assertEqual(len(streams), 4)
