@@ -20,7 +20,7 @@ import time
 import numpy as np
 
 from phid_ros.ident.pipeline import IdentifyOptions, identify
-from phid_ros.ident.scenario import make_scenario
+from phid_ros.ident.scenario import scenario_from_simulation
 from phid_ros.model.parameters import PARAMETER_NAMES, TABLE1
 from phid_ros.sim.runner import SimulationConfig, simulate_scenarios
 from phid_ros.sim.scenarios import paper_catalogue
@@ -31,22 +31,6 @@ SETS = {
     "torque steps only": lambda sc: sc.kind == "torque_step",
     "one torque step": lambda sc: sc.name.startswith("S04"),
 }
-
-
-def scenario_data(run, measured):
-    sc = run.scenario
-    n = run.n_analysis
-    dt = float(run.t[1] - run.t[0])
-    return make_scenario(
-        sc.name,
-        {k: v[:n] for k, v in measured.items()},
-        dt,
-        kind=sc.kind,
-        role=sc.role,
-        generator_damping=sc.generator_damping,
-        k_event=int(round(sc.t_event / dt)),
-        k_clear=None if sc.t_clear is None else int(round(sc.t_clear / dt)),
-    )
 
 
 def main() -> None:
@@ -64,7 +48,7 @@ def main() -> None:
     zs = {s: {n: [] for n in PARAMETER_NAMES} for s in SETS}
     for seed in range(args.seeds):
         sensors = SensorModel(seed=1000 + seed)
-        noisy = [scenario_data(r, sensors.measure(r.truth, stream_seed=j)) for j, r in enumerate(runs)]
+        noisy = [scenario_from_simulation(r, sensors.measure(r.truth, stream_seed=j)) for j, r in enumerate(runs)]
         for set_name, keep in SETS.items():
             res = identify([s for s, r in zip(noisy, runs) if keep(r.scenario)], opts)
             for n in PARAMETER_NAMES:

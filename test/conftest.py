@@ -40,24 +40,9 @@ def short_recording(short_runs: list[ScenarioRun], short_config: SimulationConfi
 
 def scenario_from_run(run: ScenarioRun, *, noisy: bool = True):
     """ScenarioData straight from a simulated run (analysis window only)."""
-    from phid_ros.ident.scenario import make_scenario
+    from phid_ros.ident.scenario import scenario_from_simulation
 
-    n = run.n_analysis
-    source = run.measured if noisy else run.truth
-    sc = run.scenario
-    dt = float(run.t[1] - run.t[0])
-    k_ev = int(round(sc.t_event / dt))
-    k_cl = None if sc.t_clear is None else int(round(sc.t_clear / dt))
-    return make_scenario(
-        sc.name,
-        {k: v[:n] for k, v in source.items()},
-        dt,
-        kind=sc.kind,
-        role=sc.role,
-        generator_damping=sc.generator_damping,
-        k_event=k_ev,
-        k_clear=k_cl,
-    )
+    return scenario_from_simulation(run, run.measured if noisy else run.truth)
 
 
 @pytest.fixture(scope="session")

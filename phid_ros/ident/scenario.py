@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -192,6 +193,25 @@ def make_scenario(
         k_clear=None if k_clear is None else int(k_clear),
         start_ns=start_ns,
         notes=notes,
+    )
+
+
+def scenario_from_simulation(run: Any, signals: Mapping[str, Array]) -> ScenarioData:
+    """A simulated run's analysis window (``run``: a ``sim.runner.ScenarioRun``, duck-typed so
+    identification does not import the simulator), labelled with the scenario's known kind and
+    event samples; ``signals`` is its truth or a measured (noisy) draw."""
+    sc = run.scenario
+    n = run.n_analysis
+    dt = float(run.t[1] - run.t[0])
+    return make_scenario(
+        sc.name,
+        {k: v[:n] for k, v in signals.items()},
+        dt,
+        kind=sc.kind,
+        role=sc.role,
+        generator_damping=sc.generator_damping,
+        k_event=int(round(sc.t_event / dt)),
+        k_clear=None if sc.t_clear is None else int(round(sc.t_clear / dt)),
     )
 
 
