@@ -36,6 +36,12 @@ setup(
         "zstandard>=0.21",
         "rich>=13.0",
         "matplotlib>=3.6",
+        # one engine for parallel work (phid fleet, a diagnosis round's candidates): a local
+        # cluster on a laptop, an existing cluster by its scheduler address
+        "dask>=2024.1",
+        "distributed>=2024.1",
+        "bokeh>=3.1",  # the Dask dashboard phid fleet prints the address of
+        "pyyaml>=6.0",  # fleet inventories as YAML lists
     ],
     extras_require={"test": ["pytest>=7.4"]},
     zip_safe=True,

@@ -34,9 +34,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from common import ROOT, catalogue_scenarios, median_time  # noqa: E402
 
+from phid_ros.cluster import default_workers  # noqa: E402
 from phid_ros.diagnose.candidates import candidate  # noqa: E402
 from phid_ros.diagnose.fit import SCREEN_CHUNK, ModelSpec, Problem, chi_square  # noqa: E402
-from phid_ros.diagnose.parallel import default_workers  # noqa: E402
 from phid_ros.diagnose.playin import OUTPUTS, play_in  # noqa: E402
 from phid_ros.diagnose.workflow import (  # noqa: E402
     DiagnoseOptions,

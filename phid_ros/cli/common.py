@@ -13,8 +13,8 @@ def warn(message: str) -> None:
     print(f"phid: warning: {message}", file=sys.stderr)
 
 
-def read_input(path: str | Path) -> tuple[Recording, str]:
-    """A rosbag2 folder, a single .mcap, or a CSV manifest.json; the reader's warnings go to stderr."""
+def load_recording(path: str | Path) -> Recording:
+    """A rosbag2 folder, a single .mcap, or a CSV manifest.json; the reader's warnings in ``warnings``."""
     from phid_ros.io.bags import read_recording
     from phid_ros.io.csv_import import import_csv_set
 
@@ -22,8 +22,13 @@ def read_input(path: str | Path) -> tuple[Recording, str]:
     if p.suffix == ".json":
         rec, notes = import_csv_set(p)
         rec.warnings.extend(notes)
-    else:
-        rec = read_recording(p)
+        return rec
+    return read_recording(p)
+
+
+def read_input(path: str | Path) -> tuple[Recording, str]:
+    """:func:`load_recording`, its warnings on stderr."""
+    rec = load_recording(path)
     for w in rec.warnings:
         warn(w)
-    return rec, str(p)
+    return rec, str(path)

@@ -99,7 +99,10 @@ def run(args: Any, console: Console) -> int:
             status.update(msg)
 
         d = diagnose(
-            scenarios, start, DiagnoseOptions(f_nominal_hz=rec.f_nominal_hz, workers=args.workers), progress=progress
+            scenarios,
+            start,
+            DiagnoseOptions(f_nominal_hz=rec.f_nominal_hz, workers=args.workers, scheduler=args.scheduler),
+            progress=progress,
         )
     d.problems[:0] = problems + [p for p in res.problems if "kept the label" not in p]
     doc = to_json(d, truth, truth_effects)

@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from phid_ros.cli.report import STYLE, _png
+from phid_ros.cli.report import STYLE, png_data_uri
 from phid_ros.diagnose.fit import evaluate
 from phid_ros.diagnose.playin import OUTPUTS, PlayIn
 from phid_ros.diagnose.workflow import Diagnosis
@@ -49,7 +49,7 @@ def _traces(before: list[PlayIn], after: list[PlayIn], worst: list[int]) -> str:
     axes[0][0].legend(fontsize=7)
     fig.suptitle("Worst held-out scenarios: measured vs model before and after adding the named effects")
     fig.tight_layout()
-    return _png(fig)
+    return png_data_uri(fig)
 
 
 def _spectra(before: list[PlayIn], after: list[PlayIn], sigma: dict[str, float]) -> str:
@@ -73,7 +73,7 @@ def _spectra(before: list[PlayIn], after: list[PlayIn], sigma: dict[str, float])
         ax.set_xlabel("Hz")
     fig.suptitle("Residual spectra on the held-out scenarios (in units of sensor-noise power; 1 = white noise)")
     fig.tight_layout()
-    return _png(fig)
+    return png_data_uri(fig)
 
 
 def write_report(path: str | Path, d: Diagnosis, doc: dict[str, Any], source: str) -> Path:

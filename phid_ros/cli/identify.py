@@ -16,6 +16,7 @@ from phid_ros.cli.common import read_input, warn
 from phid_ros.cli.scenarios import scenarios_from_recording
 from phid_ros.errors import PhidError, ResultsError
 from phid_ros.ident.pipeline import IdentificationResult, IdentifyOptions, identify
+from phid_ros.ident.scenario import ScenarioData
 from phid_ros.io.recording import Recording
 from phid_ros.io.results import read_json, write_json
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, GeneratorParameters
@@ -134,6 +135,21 @@ def validation_table(res: IdentificationResult) -> Table | None:
     return table
 
 
+def identify_recording(
+    rec: Recording, source: str, options: IdentifyOptions, truth: GeneratorParameters | None = None
+) -> tuple[list[ScenarioData], IdentificationResult]:
+    """A recording's scenarios and their identification; PhidError when nothing could be identified."""
+    scenarios, problems = scenarios_from_recording(rec, source)
+    if not any(sc.role == "identify" for sc in scenarios):
+        why = "; ".join(problems[-3:]) or f"{len(scenarios)} scenario(s), all for validation"
+        raise PhidError(f"{source}: nothing to identify from: no usable identification scenario ({why})")
+    res = identify(scenarios, options, truth)
+    res.problems[:0] = problems
+    if not any(e is not None and math.isfinite(e.value) for e in res.estimates.values()):
+        raise PhidError(f"{source}: nothing identified: " + ("; ".join(res.problems) or "every stage failed"))
+    return scenarios, res
+
+
 def run(args: Any, console: Console) -> int:
     from phid_ros.io.outputs import refuse_inputs
 
@@ -142,7 +158,6 @@ def run(args: Any, console: Console) -> int:
     rec, source = load_input(args.input)
     t_read = time.perf_counter() - t_start
     truth = load_truth(args.truth, rec) if args.truth else None
-    scenarios, problems = scenarios_from_recording(rec, source)
     options = IdentifyOptions(
         method=args.method,
         f_nominal_hz=rec.f_nominal_hz,
@@ -150,13 +165,7 @@ def run(args: Any, console: Console) -> int:
         baseline=not args.no_baseline,
         paper_maxiter=args.paper_maxiter,
     )
-    if not any(sc.role == "identify" for sc in scenarios):
-        why = "; ".join(problems[-3:]) or f"{len(scenarios)} scenario(s), all for validation"
-        raise PhidError(f"{source}: nothing to identify from: no usable identification scenario ({why})")
-    res = identify(scenarios, options, truth)
-    res.problems[:0] = problems
-    if not any(e is not None and math.isfinite(e.value) for e in res.estimates.values()):
-        raise PhidError(f"{source}: nothing identified: " + ("; ".join(res.problems) or "every stage failed"))
+    scenarios, res = identify_recording(rec, source, options, truth)
     res.timing = {"read": round(t_read, 6), **res.timing}
     doc = res.to_json(truth)
     doc["input"] = source

@@ -20,6 +20,7 @@ from rich.table import Table
 from phid_ros import __version__
 from phid_ros.cli.common import warn
 from phid_ros.errors import PhidError
+from phid_ros.fleet.history import DRIFT_SIGMAS
 from phid_ros.io.outputs import atomic_output, refuse_inputs
 from phid_ros.io.recording import DEFAULT_BLOCK_SIZE
 
@@ -300,6 +301,20 @@ def cmd_track(args: argparse.Namespace, console: Console) -> int:
     return run(args, console)
 
 
+# -- fleet, history ---------------------------------------------------------------------
+def cmd_fleet(args: argparse.Namespace, console: Console) -> int:
+    from phid_ros.cli.fleet import run
+
+    return run(args, console)
+
+
+def cmd_history(args: argparse.Namespace, console: Console) -> int:
+    from phid_ros.cli.fleet import run_history
+
+    refuse_inputs([args.report], [Path(args.fleet) / "history.sqlite"])
+    return run_history(args, console)
+
+
 # -- entry point -----------------------------------------------------------------
 def build_parser() -> argparse.ArgumentParser:
     parser = Parser(prog="phid", description="Port-Hamiltonian generator identification.")
@@ -381,6 +396,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--workers", type=int, default=0, help="processes for the candidate fits (default 0: every core; 1: none)"
     )
+    p.add_argument(
+        "--scheduler", metavar="tcp://HOST:8786", help="fit the candidates on an existing Dask cluster instead"
+    )
     p.set_defaults(func=cmd_diagnose)
 
     p = sub.add_parser("replay", help="play a bag through the online pipeline (detection, recalibration, energy)")
@@ -407,6 +425,36 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--base", metavar="PARAMS.json", help="base parameters (X_d, X_q); default Table 1")
     p.add_argument("--out", help="write the tracked parameters to this bag (.mcap or folder)")
     p.set_defaults(func=cmd_track)
+
+    p = sub.add_parser("fleet", help="identify every recording of many units on a Dask cluster, into a history")
+    p.add_argument(
+        "inventory",
+        help="a folder of unit folders (UNIT/.../*.mcap, bag folders, CSV manifests) or a YAML/CSV list of "
+        "(unit, recording)",
+    )
+    p.add_argument("--out", required=True, metavar="FLEET_DIR", help="fleet folder: history.sqlite lives here")
+    p.add_argument("--scheduler", metavar="tcp://HOST:8786", help="an existing Dask cluster (default: a local one)")
+    p.add_argument("--workers", type=int, default=0, help="local cluster worker processes (default 0: one per core)")
+    p.add_argument("--diagnose", action="store_true", help="also diagnose each recording (missing physics)")
+    p.add_argument(
+        "--retry-failed", action="store_true", help="run again the recordings that failed with this phid version"
+    )
+    p.add_argument("--summary", action="store_true", help="print one row per unit with its latest set and flags")
+    p.set_defaults(func=cmd_fleet)
+
+    p = sub.add_parser("history", help="one unit's parameters over time from a fleet history, changes flagged")
+    p.add_argument("unit")
+    p.add_argument(
+        "--fleet", default=".", metavar="FLEET_DIR", help="the fleet folder of phid fleet --out (default: here)"
+    )
+    p.add_argument("--report", metavar="OUT.html", help="write an HTML report with the parameters over time")
+    p.add_argument(
+        "--sigmas",
+        type=POSITIVE,
+        default=DRIFT_SIGMAS,
+        help=f"flag a change between consecutive well-identified sets beyond this many σ (default {DRIFT_SIGMAS:g})",
+    )
+    p.set_defaults(func=cmd_history)
 
     p = sub.add_parser("info", help="topics, message counts, rates, time span and gaps of a bag")
     p.add_argument("bag")

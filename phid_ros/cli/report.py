@@ -22,7 +22,7 @@ STYLE = (
 )
 
 
-def _png(fig: object) -> str:
+def png_data_uri(fig: object) -> str:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")  # type: ignore[attr-defined]
     import matplotlib.pyplot as plt
@@ -55,7 +55,7 @@ def _scenario_figure(res: IdentificationResult) -> str | None:
     axes[0].legend(fontsize=7)
     axes[-1].set_xlabel("time after fault inception (s)")
     fig.suptitle("Fault scenarios: measured signals (cf. paper Fig. 1)")
-    return _png(fig)
+    return png_data_uri(fig)
 
 
 def _validation_figures(res: IdentificationResult, truth: GeneratorParameters | None) -> list[tuple[str, str]]:
@@ -98,7 +98,7 @@ def _validation_figures(res: IdentificationResult, truth: GeneratorParameters | 
             ax.grid(alpha=0.3)
         axes[0].legend(fontsize=8)
         fig.suptitle(f"Validation: {s.name} (cf. paper Figs. 4-6)")
-        out.append((s.name, _png(fig)))
+        out.append((s.name, png_data_uri(fig)))
     return out
 
 

@@ -32,10 +32,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from phid_ros.cluster import Jobs
 from phid_ros.diagnose.candidates import Candidate, library
 from phid_ros.diagnose.fit import FitResult, ModelSpec, Problem, chi_square, fit
 from phid_ros.diagnose.localise import noise_std
-from phid_ros.diagnose.parallel import Jobs
 from phid_ros.diagnose.playin import OUTPUTS, PlayIn, play_in
 from phid_ros.ident.scenario import ScenarioData
 from phid_ros.model.conventions import DEFAULT_F_NOMINAL_HZ
@@ -55,10 +55,12 @@ class DiagnoseOptions:
     # base model fixed, which misranks effects the base had compensated, e.g. saturation via X_d)
     max_effects: int = 3
     max_nfev: int = 40
-    # processes for the candidates of a round; 0: every core this process may use. One by default:
-    # worker processes are spawned, which re-imports the calling script, so a script must guard
-    # its entry (``if __name__ == "__main__":``) to use them; `phid diagnose` uses every core
+    # Dask worker processes for the candidates of a round (phid_ros.cluster); 0: one per core.
+    # One by default: worker processes are spawned, which re-imports the calling script, so a
+    # script must guard its entry (``if __name__ == "__main__":``) to use them; `phid diagnose`
+    # uses every core. Inside a fleet task any value but 1 sends them to the fleet's cluster.
     workers: int = 1
+    scheduler: str | None = None  # an existing Dask cluster instead of a local one
     f_nominal_hz: float = DEFAULT_F_NOMINAL_HZ
 
 
@@ -278,7 +280,7 @@ def diagnose(
     current_score = before = held_score(current.model, held_w, sigma, f_hz)
     rounds: list[Round] = []
     steps: list[tuple[str, Score]] = []
-    with Jobs(opt.workers) as jobs:
+    with Jobs(opt.workers, opt.scheduler) as jobs:
         while len(current.model.effects) < opt.max_effects:
             taken = set(current.model.names)
             pool = [c for c in library() if c.name() not in taken and not _conflicts(c, current.model)]

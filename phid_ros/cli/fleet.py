@@ -1,0 +1,178 @@
+"""``phid fleet`` and ``phid history``: the batch side, and what it learned about each unit."""
+
+from __future__ import annotations
+
+import math
+import time
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+from rich import box
+from rich.console import Console
+from rich.markup import escape
+from rich.table import Table
+
+from phid_ros.cli.common import warn
+from phid_ros.cli.identify import SYMBOLS
+from phid_ros.errors import PhidError
+from phid_ros.fleet.history import Change, History, Row, changes, iter_units
+from phid_ros.fleet.run import HISTORY_FILE, FleetOptions, run_fleet
+from phid_ros.model.parameters import PARAMETER_NAMES
+
+
+def run(args: Any, console: Console) -> int:
+    if args.workers < 0:
+        raise PhidError(f"--workers {args.workers}: give 0 (one per core) or a positive number of processes")
+    if args.scheduler and args.workers:
+        raise PhidError("--workers sizes the local cluster; an existing cluster (--scheduler) has its own workers")
+    options = FleetOptions(args.scheduler, args.workers, args.diagnose, args.retry_failed)
+    t0 = time.perf_counter()
+    plain = not console.is_terminal  # a log file gets one plain line per recording, no live bar
+
+    def on_cluster(client: Any) -> None:
+        from phid_ros.cluster import describe
+
+        info = describe(client)
+        where = "local cluster" if info.local else "cluster"
+        dash = f", dashboard {info.dashboard}" if info.dashboard else ", no dashboard (bokeh not installed)"
+        console.print(f"{where} {info.scheduler}: {info.workers} worker(s){dash}", highlight=False)
+
+    def on_row(row: Row, done: int, total: int) -> None:
+        what = "ok" if row.status == "ok" else f"FAILED: {row.error}"
+        console.print(
+            escape(f"[{done}/{total}] {row.unit} {Path(row.recording).name}: {what} ({row.wall_s:.1f} s)"),
+            highlight=False,
+            soft_wrap=True,
+        )
+
+    def on_hashing(k: int, n: int) -> None:
+        if plain and k == 0:
+            console.print(f"checking {n} recording(s) against the history", highlight=False)
+
+    result = run_fleet(args.inventory, args.out, options, on_cluster=on_cluster, on_row=on_row, on_hashing=on_hashing)
+    for w in result.warnings:
+        warn(w)
+    console.print(
+        f"{result.recordings} recording(s): {result.skipped} already in the history, {result.submitted} run, "
+        f"{result.failed} failed; {time.perf_counter() - t0:.1f} s; history {Path(args.out) / HISTORY_FILE}",
+        highlight=False,
+    )
+    if args.summary:
+        with History(Path(args.out) / HISTORY_FILE, create=False) as h:
+            console.print(summary_table(h.rows()))
+    return 0
+
+
+def _iso(ns: int | None) -> str:
+    if ns is None:
+        return "—"
+    return datetime.fromtimestamp(ns / 1e9, tz=timezone.utc).strftime("%Y-%m-%d %H:%M")
+
+
+def concise(value: float, std: float) -> str:
+    """``1.4430(55)`` for 1.4430 ± 0.0055: the metrologists' short form, two digits of the std."""
+    if not math.isfinite(value):
+        return "—"
+    if not math.isfinite(std) or std <= 0:
+        return f"{value:.4g}"
+    decimals = max(0, 1 - math.floor(math.log10(std)))
+    digits = round(std * 10**decimals)
+    if decimals == 0:
+        return f"{value:.0f}({digits})"
+    return f"{value:.{decimals}f}({digits})"
+
+
+def _value(row: Row, name: str) -> str:
+    text = concise(row.values.get(name, math.nan), row.stds.get(name, math.nan))
+    return text if row.identifiable.get(name) or text == "—" else text + " ?"
+
+
+def summary_table(rows: list[Row]) -> Table:
+    """One row per unit: its latest identified set, how many recordings, and what is flagged."""
+    table = Table(
+        title="fleet: latest identified set per unit; 1.4430(55) = 1.4430 ± 0.0055, ? not identified",
+        title_justify="left",
+        box=box.SIMPLE_HEAD,
+        padding=(0, 1, 0, 0),  # the eight values and the flags fit a 140-column log
+    )
+    for c in ["unit", "latest", "sets", "fail"] + [SYMBOLS[n] for n in PARAMETER_NAMES] + ["flags"]:
+        left = c in ("unit", "latest", "flags")
+        table.add_column(c, justify="left" if left else "right", overflow="fold", no_wrap=c == "latest")
+    for unit, unit_rows in iter_units(rows):
+        good = [r for r in unit_rows if r.status == "ok"]
+        failed = len(unit_rows) - len(good)
+        flags = [f"{SYMBOLS[c.parameter]} {c.relative:+.1%} ({c.sigmas:.0f}σ)" for c in changes(unit_rows)]
+        if failed:
+            flags.append(f"{failed} failed")
+        latest = good[-1] if good else None
+        cells = [_value(latest, n) if latest else "—" for n in PARAMETER_NAMES]
+        effects = ", ".join(e["name"] for e in latest.effects) if latest and latest.effects else ""
+        table.add_row(
+            escape(unit),
+            _iso(latest.start_ns)[:10] if latest else "—",
+            str(len(good)),
+            str(failed),
+            *cells,
+            escape("; ".join(flags + ([effects] if effects else [])) or "—"),
+        )
+        _keep_whole(table, 4, cells)
+    return table
+
+
+def _keep_whole(table: Table, first: int, cells: list[str]) -> None:
+    """Numbers are never folded: a column is at least as wide as its widest value (the text columns fold)."""
+    for col, text in zip(table.columns[first:], cells):
+        col.min_width = max(col.min_width or 0, len(text))
+
+
+def history_table(unit: str, rows: list[Row], flagged: list[Change]) -> Table:
+    table = Table(
+        title=f"unit {escape(unit)}: parameter history; 1.4430(55) = 1.4430 ± 0.0055, ? not identified, ! flagged",
+        title_justify="left",
+        box=box.SIMPLE_HEAD,
+        padding=(0, 1, 0, 0),
+    )
+    for c in ["recorded (UTC)"] + [SYMBOLS[n] for n in PARAMETER_NAMES] + ["recording / error"]:
+        left = c in ("recorded (UTC)", "recording / error")
+        table.add_column(c, justify="left" if left else "right", overflow="fold", no_wrap=c == "recorded (UTC)")
+    marks = {(id(c.after), c.parameter) for c in flagged}
+    for r in rows:
+        cells = []
+        for n in PARAMETER_NAMES:
+            text = _value(r, n) if r.status == "ok" else ""
+            cells.append(f"[bold red]{escape(text)}![/]" if (id(r), n) in marks else escape(text))
+        effects = ", ".join(e["name"] for e in r.effects)
+        note = (
+            f"FAILED {r.error}"
+            if r.status == "failed"
+            else Path(r.recording).name + (f" ({effects})" if effects else "")
+        )
+        table.add_row(_iso(r.start_ns), *cells, escape(note))
+        _keep_whole(table, 1, [(_value(r, n) if r.status == "ok" else "") + "!" for n in PARAMETER_NAMES])
+    return table
+
+
+def run_history(args: Any, console: Console) -> int:
+    path = Path(args.fleet) / HISTORY_FILE
+    with History(path, create=False) as h:
+        rows = h.rows(args.unit)
+        if not rows:
+            known = ", ".join(h.units()) or "none"
+            raise PhidError(f"{path}: no recordings of unit {args.unit!r} (units in this history: {known})")
+    flagged = changes(rows, args.sigmas)
+    console.print(history_table(args.unit, rows, flagged))
+    for c in flagged:
+        console.print(
+            f"{SYMBOLS[c.parameter]} changed {c.relative:+.2%} ({c.sigmas:.1f} σ) between "
+            f"{_iso(c.before.start_ns)} and {_iso(c.after.start_ns)}",
+            highlight=False,
+        )
+    if not flagged:
+        console.print(f"no change beyond {args.sigmas:g} σ between consecutive well-identified sets", highlight=False)
+    if args.report:
+        from phid_ros.cli.history_report import write_report
+
+        write_report(args.report, args.unit, rows, flagged)
+        console.print(f"wrote {args.report}", highlight=False)
+    return 0

@@ -1,0 +1,98 @@
+"""``phid history --report``: one unit's parameters over time, ±2σ bands, flagged changes marked."""
+
+from __future__ import annotations
+
+import html
+import math
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numpy as np
+
+from phid_ros.cli.identify import SYMBOLS
+from phid_ros.cli.report import STYLE, png_data_uri
+from phid_ros.fleet.history import Change, Row
+from phid_ros.io.outputs import write_text
+from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME
+
+
+def _when(ns: int | None) -> datetime | None:
+    return None if ns is None else datetime.fromtimestamp(ns / 1e9, tz=timezone.utc)
+
+
+def _figure(rows: list[Row], flagged: list[Change]) -> str:
+    import matplotlib.pyplot as plt
+
+    ok = [r for r in rows if r.status == "ok" and r.start_ns is not None]
+    fig, axes = plt.subplots(4, 2, figsize=(10, 10), sharex=True)
+    for ax, name in zip(axes.flat, PARAMETER_NAMES):
+        t = [_when(r.start_ns) for r in ok]
+        v = np.array([r.values.get(name, math.nan) for r in ok])
+        s = np.array([r.stds.get(name, math.nan) for r in ok])
+        good = np.array([r.well_identified(name) for r in ok], dtype=bool)
+        if good.any():
+            tg = [x for x, g in zip(t, good) if g]
+            ax.fill_between(tg, v[good] - 2 * s[good], v[good] + 2 * s[good], color="C0", alpha=0.25, label="±2σ")
+            ax.plot(tg, v[good], "o-", color="C0", label="identified")
+        if (~good).any():
+            ax.plot([x for x, g in zip(t, good) if not g], v[~good], "x", color="0.4", label="not well identified")
+        for c in flagged:
+            if c.parameter == name:
+                ax.plot([_when(c.after.start_ns)], [c.after.values[name]], "o", ms=12, mfc="none", mec="red", mew=2)
+                ax.annotate(
+                    f"{c.relative:+.1%}",
+                    (_when(c.after.start_ns), c.after.values[name]),
+                    color="red",
+                    textcoords="offset points",
+                    xytext=(6, 6),
+                )
+        unit = SPECS_BY_NAME[name].unit
+        ax.set_ylabel(f"{SYMBOLS[name]} ({unit})" if unit else SYMBOLS[name])
+        ax.ticklabel_format(axis="y", useOffset=False)  # "+2.41" above an axis reads as a value
+        ax.grid(alpha=0.3)
+    axes.flat[0].legend(fontsize=8, loc="best")
+    fig.autofmt_xdate()
+    fig.suptitle("identified parameters per recording (red ring: change beyond the threshold)")
+    fig.tight_layout()
+    return png_data_uri(fig)
+
+
+def write_report(path: str | Path, unit: str, rows: list[Row], flagged: list[Change]) -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    head = "".join(f"<th>{html.escape(SYMBOLS[n])}</th>" for n in PARAMETER_NAMES)
+    body = []
+    for r in rows:
+        cells = "".join(
+            f"<td>{r.values[n]:.5g} ± {r.stds[n]:.2g}{'' if r.identifiable.get(n) else ' ?'}</td>"
+            if r.status == "ok" and math.isfinite(r.values.get(n, math.nan))
+            else "<td>—</td>"
+            for n in PARAMETER_NAMES
+        )
+        when = _when(r.start_ns)
+        note = r.error if r.status == "failed" else ", ".join(e["name"] for e in r.effects)
+        body.append(
+            f"<tr><td>{when.strftime('%Y-%m-%d %H:%M') if when else '—'}</td><td>{r.status}</td>{cells}"
+            f"<td>{html.escape(Path(r.recording).name)}</td><td>{html.escape(note)}</td></tr>"
+        )
+    alarms = (
+        "".join(
+            f"<li>{html.escape(SYMBOLS[c.parameter])} {c.relative:+.2%} ({c.sigmas:.1f} σ) between "
+            f"{_when(c.before.start_ns):%Y-%m-%d %H:%M} and {_when(c.after.start_ns):%Y-%m-%d %H:%M}</li>"
+            for c in flagged
+        )
+        or "<li>none</li>"
+    )
+    figure = _figure(rows, flagged)
+    doc = f"""<!doctype html><html><head><meta charset="utf-8"><title>phid history: {html.escape(unit)}</title>
+<style>{STYLE}</style></head><body>
+<h1>Parameter history of unit {html.escape(unit)}</h1>
+<h2>Flagged changes</h2><ul>{alarms}</ul>
+<img src="{figure}" alt="parameters over time">
+<h2>Recordings</h2>
+<table><tr><th>recorded (UTC)</th><th>status</th>{head}<th>recording</th><th>note</th></tr>{"".join(body)}</table>
+</body></html>"""
+    p = Path(path)
+    write_text(p, doc)
+    return p

@@ -1,0 +1,170 @@
+"""The one way phid runs work in parallel: Dask distributed.
+
+A local cluster (one single-threaded worker *process* per core: a play-in or a
+stage-3 fit is a Python loop over time steps whose numpy calls are too small to
+release the GIL for long, so threads would not help) when no scheduler is named,
+or an existing cluster by its scheduler address. The fleet runs one recording per
+task on it; a diagnosis runs a round's candidates on it, and when that diagnosis is
+itself a fleet task its candidates go to the same cluster (``worker_client``), so
+nothing here ever starts a second pool inside a worker.
+
+Worker processes are spawned, not forked (Dask's default): the caller may hold
+threads (a terminal progress display does) and a forked child can inherit their locks.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import AbstractContextManager, ExitStack, contextmanager
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, TypeVar
+
+from phid_ros.errors import PhidError
+
+if TYPE_CHECKING:
+    from distributed import Client
+
+T = TypeVar("T")
+
+CONNECT_TIMEOUT_S = 5.0  # an unreachable scheduler is an error within seconds, not a hang
+
+
+class ClusterError(PhidError):
+    """The Dask cluster could not be reached or started."""
+
+
+def default_workers() -> int:
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+
+
+@dataclass(frozen=True)
+class ClusterInfo:
+    scheduler: str
+    workers: int
+    local: bool
+    dashboard: str | None  # None: not served (bokeh missing, or a remote cluster without one)
+
+
+@contextmanager
+def cluster(scheduler: str | None = None, workers: int = 0, *, dashboard: bool = False) -> Iterator[Client]:
+    """A Dask client: on the scheduler at ``scheduler``, or on a new local cluster of ``workers`` processes.
+
+    ``workers`` 0 means one per core. The local cluster's dashboard is served on a free
+    port when ``dashboard`` is set and bokeh is installed. The client and a local
+    cluster are closed on leaving.
+    """
+    from distributed import Client, LocalCluster
+
+    with ExitStack() as stack:
+        if scheduler:
+            try:
+                client = Client(scheduler, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
+            except (OSError, TimeoutError, ValueError) as exc:
+                raise ClusterError(
+                    f"--scheduler {scheduler}: no Dask scheduler answered within {CONNECT_TIMEOUT_S:g} s "
+                    f"({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else 'no detail'})"
+                ) from None
+            stack.callback(client.close)
+        else:
+            n = workers if workers > 0 else default_workers()
+            serve = dashboard and _bokeh_available()
+            local = LocalCluster(
+                n_workers=n,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=":0" if serve else None,
+                silence_logs=logging.ERROR,
+            )
+            stack.callback(local.close)
+            client = Client(local, set_as_default=False)
+            stack.callback(client.close)
+        yield client
+
+
+def describe(client: Client) -> ClusterInfo:
+    """Where the work goes, for the user: scheduler address, worker count, dashboard link."""
+    info = client.scheduler_info()
+    local = client.cluster is not None
+    link: str | None = None
+    if "dashboard" in info.get("services", {}):
+        link = client.dashboard_link
+    return ClusterInfo(info.get("address", str(client.scheduler)), len(info.get("workers", {})), local, link)
+
+
+def _bokeh_available() -> bool:
+    try:
+        import bokeh  # noqa: F401  (the dashboard's only extra requirement)
+    except ImportError:
+        return False
+    return True
+
+
+def in_worker() -> bool:
+    """Whether this code runs inside a Dask worker (a fleet task)."""
+    try:
+        from distributed import get_worker
+    except ImportError:
+        return False
+    try:
+        get_worker()
+    except ValueError:
+        return False
+    return True
+
+
+class Jobs(AbstractContextManager["Jobs"]):
+    """Independent calls of one function, on a Dask cluster when that pays and is possible.
+
+    ``workers`` 1 runs everything here. Otherwise: inside a Dask worker the calls go to
+    that worker's own cluster (the worker secedes while it waits, so a two-worker cluster
+    cannot deadlock on its own tasks); elsewhere to ``scheduler``, or to a local cluster of
+    ``workers`` processes (0: one per core) started on first use and kept until the
+    context is left. A call whose arguments cannot be sent to another interpreter runs
+    here; the answer is the same, only slower.
+    """
+
+    def __init__(self, workers: int, scheduler: str | None = None) -> None:
+        self.workers = workers
+        self.scheduler = scheduler
+        self._stack: ExitStack | None = None
+        self._client: Client | None = None
+
+    def map(self, fn: Callable[..., T], calls: Sequence[tuple[Any, ...]]) -> list[T]:
+        """``[fn(*args) for args in calls]``, in call order."""
+        if self.workers == 1 or len(calls) <= 1 or not _portable(fn, calls):
+            return [fn(*args) for args in calls]
+        if in_worker():
+            from distributed import worker_client
+
+            with worker_client() as client:
+                return _gather(client, fn, calls)
+        if self._client is None:
+            self._stack = ExitStack()
+            self._client = self._stack.enter_context(cluster(self.scheduler, self.workers))
+        return _gather(self._client, fn, calls)
+
+    def __exit__(self, *exc: object) -> None:
+        if self._stack is not None:
+            self._stack.close()
+        self._stack = None
+        self._client = None
+
+
+def _gather(client: Client, fn: Callable[..., T], calls: Sequence[tuple[Any, ...]]) -> list[T]:
+    # pure=False: two calls with equal arguments are still two calls (a candidate's screen
+    # depends on state the arguments do not show, e.g. a random start)
+    futures = [client.submit(fn, *args, pure=False) for args in calls]
+    return client.gather(futures)
+
+
+def _portable(fn: Callable[..., Any], calls: Sequence[tuple[Any, ...]]) -> bool:
+    """Whether another interpreter can rebuild the call (Dask sends it with cloudpickle)."""
+    import cloudpickle
+
+    try:
+        cloudpickle.dumps((fn, calls))
+    except Exception:  # cloudpickle raises whatever the object's __reduce__ raises
+        return False
+    return True

@@ -1,0 +1,208 @@
+"""The parameter history of a fleet: one SQLite row per (unit, recording, phid version).
+
+Only the process that runs ``phid fleet`` writes (tasks return rows, they do not open the
+database), one row per finished task in its own transaction, so an interrupted run keeps every
+row it finished and a rerun skips them. WAL lets ``phid history`` read while a run writes.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sqlite3
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field, fields
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+from phid_ros.errors import PhidError
+from phid_ros.model.parameters import PARAMETER_NAMES
+
+SCHEMA_VERSION = 1
+DRIFT_SIGMAS = 4.0  # a change between consecutive well-identified sets beyond this many σ is flagged
+STATUSES = ("ok", "failed")
+
+
+class HistoryError(PhidError):
+    """The history database cannot be used."""
+
+
+@dataclass
+class Row:
+    """One task's outcome: the identified set, or the one-line reason it failed."""
+
+    unit: str
+    recording: str
+    content_hash: str
+    status: str
+    phid_version: str
+    start_ns: int | None = None
+    end_ns: int | None = None
+    values: dict[str, float] = field(default_factory=dict)
+    stds: dict[str, float] = field(default_factory=dict)
+    identifiable: dict[str, bool] = field(default_factory=dict)
+    flags: list[str] = field(default_factory=list)  # notes of the identification (e.g. one steady state)
+    effects: list[dict[str, Any]] = field(default_factory=list)  # named by the diagnosis, with parameters
+    method: str = ""
+    wall_s: float = math.nan
+    error: str = ""
+    worker: str = ""
+    finished_utc: str = ""
+
+    def well_identified(self, name: str) -> bool:
+        v, s = self.values.get(name, math.nan), self.stds.get(name, math.nan)
+        return (
+            self.status == "ok"
+            and bool(self.identifiable.get(name))
+            and math.isfinite(v)
+            and math.isfinite(s)
+            and s > 0
+        )
+
+
+_SCALARS = [f.name for f in fields(Row) if f.name not in ("values", "stds", "identifiable", "flags", "effects")]
+_PARAM_COLUMNS = [c for n in PARAMETER_NAMES for c in (n, f"{n}_std", f"{n}_identifiable")]
+_COLUMNS = _SCALARS + _PARAM_COLUMNS + ["flags", "effects"]
+
+
+def _create_sql() -> str:
+    types = {"start_ns": "INTEGER", "end_ns": "INTEGER", "wall_s": "REAL"}
+    cols = [f"{c} {types.get(c, 'TEXT')}" for c in _SCALARS]
+    cols += [f"{c} {'INTEGER' if c.endswith('_identifiable') else 'REAL'}" for c in _PARAM_COLUMNS]
+    cols += ["flags TEXT", "effects TEXT"]
+    return (
+        "CREATE TABLE IF NOT EXISTS runs (id INTEGER PRIMARY KEY AUTOINCREMENT, "
+        + ", ".join(cols)
+        + ", UNIQUE (unit, content_hash, phid_version))"
+    )
+
+
+class History:
+    """``FLEET_DIR/history.sqlite``."""
+
+    def __init__(self, path: str | Path, *, create: bool = True) -> None:
+        self.path = Path(path)
+        if not create and not self.path.exists():
+            raise HistoryError(f"{self.path}: no fleet history here (run phid fleet ... --out {self.path.parent})")
+        try:
+            self.db = sqlite3.connect(self.path, timeout=30.0, isolation_level=None)
+            self.db.execute("PRAGMA journal_mode=WAL")
+            self.db.execute("PRAGMA busy_timeout=30000")
+            self._migrate()
+        except sqlite3.DatabaseError as exc:
+            raise HistoryError(f"{self.path}: not a usable fleet history ({exc})") from None
+
+    def _migrate(self) -> None:
+        self.db.execute("CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT)")
+        found = self.db.execute("SELECT value FROM meta WHERE key='schema'").fetchone()
+        if found is not None and int(found[0]) > SCHEMA_VERSION:
+            raise HistoryError(f"{self.path}: written by a newer phid (schema {found[0]} > {SCHEMA_VERSION})")
+        self.db.execute(_create_sql())
+        self.db.execute("CREATE INDEX IF NOT EXISTS runs_unit ON runs (unit, start_ns)")
+        self.db.execute("CREATE TABLE IF NOT EXISTS hash_cache (path TEXT PRIMARY KEY, stat_key TEXT, sha256 TEXT)")
+        self.db.execute("INSERT OR REPLACE INTO meta VALUES ('schema', ?)", (str(SCHEMA_VERSION),))
+
+    def close(self) -> None:
+        self.db.close()
+
+    def __enter__(self) -> History:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # -- what is done ---------------------------------------------------------------------
+    def done(self, unit: str, content_hash: str, version: str) -> bool:
+        q = "SELECT 1 FROM runs WHERE unit=? AND content_hash=? AND phid_version=?"
+        return self.db.execute(q, (unit, content_hash, version)).fetchone() is not None
+
+    def failed(self, unit: str, content_hash: str, version: str) -> bool:
+        q = "SELECT 1 FROM runs WHERE unit=? AND content_hash=? AND phid_version=? AND status='failed'"
+        return self.db.execute(q, (unit, content_hash, version)).fetchone() is not None
+
+    def cached_hash(self, path: Path, stat_key: str) -> str | None:
+        found = self.db.execute("SELECT stat_key, sha256 FROM hash_cache WHERE path=?", (str(path),)).fetchone()
+        return found[1] if found and found[0] == stat_key else None
+
+    def cache_hash(self, path: Path, stat_key: str, sha256: str) -> None:
+        self.db.execute("INSERT OR REPLACE INTO hash_cache VALUES (?, ?, ?)", (str(path), stat_key, sha256))
+
+    # -- rows -----------------------------------------------------------------------------
+    def add(self, row: Row) -> None:
+        """Store one outcome; a rerun's row (``--retry-failed``) replaces the failure it retried."""
+        if row.status not in STATUSES:
+            raise ValueError(f"status {row.status!r}")
+        row.finished_utc = row.finished_utc or datetime.now(timezone.utc).isoformat(timespec="seconds")
+        values: list[Any] = [getattr(row, c) for c in _SCALARS]
+        for n in PARAMETER_NAMES:
+            values += [_real(row.values.get(n)), _real(row.stds.get(n)), int(bool(row.identifiable.get(n)))]
+        values += [json.dumps(row.flags), json.dumps(row.effects)]
+        marks = ", ".join("?" * len(_COLUMNS))
+        self.db.execute(f"INSERT OR REPLACE INTO runs ({', '.join(_COLUMNS)}) VALUES ({marks})", values)
+
+    def rows(self, unit: str | None = None) -> list[Row]:
+        """Rows of one unit (or all), in recording time order (failures without a time last)."""
+        where, args = ("WHERE unit=?", (unit,)) if unit is not None else ("", ())
+        order = "ORDER BY unit, start_ns IS NULL, start_ns, id"
+        cur = self.db.execute(f"SELECT {', '.join(_COLUMNS)} FROM runs {where} {order}", args)
+        return [_row(dict(zip(_COLUMNS, r))) for r in cur]
+
+    def units(self) -> list[str]:
+        return [u for (u,) in self.db.execute("SELECT DISTINCT unit FROM runs ORDER BY unit")]
+
+
+def _real(v: float | None) -> float | None:
+    return None if v is None or not math.isfinite(v) else float(v)
+
+
+def _row(r: dict[str, Any]) -> Row:
+    row = Row(**{c: r[c] for c in _SCALARS})
+    row.wall_s = math.nan if row.wall_s is None else row.wall_s
+    for n in PARAMETER_NAMES:
+        row.values[n] = math.nan if r[n] is None else r[n]
+        row.stds[n] = math.nan if r[f"{n}_std"] is None else r[f"{n}_std"]
+        row.identifiable[n] = bool(r[f"{n}_identifiable"])
+    row.flags = json.loads(r["flags"] or "[]")
+    row.effects = json.loads(r["effects"] or "[]")
+    return row
+
+
+@dataclass(frozen=True)
+class Change:
+    """A parameter moved by more than ``DRIFT_SIGMAS`` between two consecutive well-identified sets."""
+
+    unit: str
+    parameter: str
+    before: Row
+    after: Row
+    sigmas: float  # |after − before| / sqrt(σ_before² + σ_after²)
+
+    @property
+    def relative(self) -> float:
+        return self.after.values[self.parameter] / self.before.values[self.parameter] - 1.0
+
+
+def changes(rows: Sequence[Row], sigmas: float = DRIFT_SIGMAS) -> list[Change]:
+    """Per parameter, compare each well-identified set with the previous well-identified one.
+
+    The σ are the reported total standard deviations (noise and model-bias allowance), so a
+    bias both sets share makes the test conservative, never alarming.
+    """
+    found: list[Change] = []
+    for _, unit_rows in iter_units(rows):
+        timed = sorted((r for r in unit_rows if r.status == "ok" and r.start_ns is not None), key=lambda r: r.start_ns)
+        for name in PARAMETER_NAMES:
+            good = [r for r in timed if r.well_identified(name)]
+            for a, b in zip(good, good[1:]):
+                z = abs(b.values[name] - a.values[name]) / math.hypot(a.stds[name], b.stds[name])
+                if z > sigmas:
+                    found.append(Change(b.unit, name, a, b, z))
+    return sorted(found, key=lambda c: (c.unit, c.after.start_ns or 0, c.parameter))
+
+
+def iter_units(rows: Sequence[Row]) -> Iterator[tuple[str, list[Row]]]:
+    units: dict[str, list[Row]] = {}
+    for r in rows:
+        units.setdefault(r.unit, []).append(r)
+    yield from units.items()

@@ -1,0 +1,181 @@
+"""Which recordings belong to which unit: a folder tree or a YAML/CSV list, and each recording's identity.
+
+A folder tree is ``INVENTORY/UNIT/…``: every ``*.mcap`` file, rosbag2 folder (a folder with
+``metadata.yaml``) and CSV scenario-set manifest (a ``*.json`` with a ``scenarios`` list, not a
+``*.truth.json``) anywhere under a unit's folder is one recording of that unit. A list is a
+YAML file (a list of ``{unit, recording}`` or a mapping unit → list of recordings) or a CSV
+file with the header ``unit,recording``; relative paths are relative to the list's folder.
+
+A recording's identity is the SHA-256 of its content (every file of a rosbag2 folder, the
+manifest and its CSVs for a scenario set), so a renamed or copied recording is still known
+and a rewritten one is new.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import json
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+
+from phid_ros.errors import PhidError
+
+LIST_SUFFIXES = (".yaml", ".yml", ".csv")
+_CHUNK = 1 << 20
+
+
+class InventoryError(PhidError):
+    """The inventory cannot be read."""
+
+
+@dataclass(frozen=True)
+class Item:
+    unit: str
+    path: Path  # absolute: a remote worker reads the same path (a shared file system)
+
+
+def discover(inventory: str | Path) -> tuple[list[Item], list[str]]:
+    """The recordings of every unit, sorted by unit and path, and warnings (empty units, stray files)."""
+    root = Path(inventory)
+    if not root.exists():
+        raise InventoryError(f"{root}: no such inventory folder or list")
+    if root.is_dir():
+        items, warnings = _from_tree(root)
+    elif root.suffix.lower() in LIST_SUFFIXES:
+        items, warnings = _from_list(root)
+    else:
+        raise InventoryError(f"{root}: an inventory is a folder of unit folders, or a .yaml/.yml/.csv list")
+    if not items:
+        raise InventoryError(f"{root}: no recordings found (" + ("; ".join(warnings) or "empty") + ")")
+    return sorted(items, key=lambda i: (i.unit, str(i.path))), warnings
+
+
+def _from_tree(root: Path) -> tuple[list[Item], list[str]]:
+    items: list[Item] = []
+    warnings: list[str] = []
+    for entry in sorted(root.iterdir()):
+        if entry.name.startswith("."):
+            continue
+        if not entry.is_dir():
+            if _is_recording(entry):
+                warnings.append(f"{entry}: not inside a unit folder ({root}/UNIT/...); skipped")
+            continue
+        found = list(_recordings_under(entry))
+        if not found:
+            warnings.append(f"unit {entry.name}: no recordings under {entry}")
+        items += [Item(entry.name, p.resolve()) for p in found]
+    return items, warnings
+
+
+def _recordings_under(folder: Path) -> Iterable[Path]:
+    if (folder / "metadata.yaml").exists():
+        yield folder  # a rosbag2 folder: one recording, its .mcap files are its parts
+        return
+    for entry in sorted(folder.iterdir()):
+        if entry.name.startswith("."):
+            continue
+        if entry.is_dir():
+            yield from _recordings_under(entry)
+        elif _is_recording(entry):
+            yield entry
+
+
+def _is_recording(path: Path) -> bool:
+    if path.suffix == ".mcap" and not path.name.endswith(".partial.mcap"):
+        return True
+    return path.suffix == ".json" and not path.name.endswith(".truth.json") and _is_manifest(path)
+
+
+def _is_manifest(path: Path) -> bool:
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        return False
+    scenarios = doc.get("scenarios") if isinstance(doc, dict) else None
+    return isinstance(scenarios, list) and all(isinstance(s, dict) and "file" in s for s in scenarios)
+
+
+def _from_list(path: Path) -> tuple[list[Item], list[str]]:
+    pairs = _read_yaml_list(path) if path.suffix.lower() in (".yaml", ".yml") else _read_csv_list(path)
+    items: list[Item] = []
+    for k, (unit, rec) in enumerate(pairs):
+        if not unit or not rec:
+            raise InventoryError(f"{path}: entry {k + 1}: needs both a unit and a recording")
+        p = Path(rec)
+        items.append(Item(unit, (p if p.is_absolute() else path.parent / p).resolve()))
+    return items, []
+
+
+def _read_yaml_list(path: Path) -> list[tuple[str, str]]:
+    import yaml
+
+    try:
+        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except (OSError, yaml.YAMLError) as exc:
+        raise InventoryError(f"{path}: not readable YAML ({str(exc).splitlines()[0]})") from None
+    if isinstance(doc, dict):  # unit: [recordings]
+        pairs = []
+        for unit, recs in doc.items():
+            if not isinstance(recs, list):
+                raise InventoryError(f"{path}: unit {unit}: expected a list of recordings, got {type(recs).__name__}")
+            pairs += [(str(unit), str(r)) for r in recs]
+        return pairs
+    if isinstance(doc, list) and all(isinstance(e, dict) for e in doc):
+        return [(str(e.get("unit") or ""), str(e.get("recording") or "")) for e in doc]
+    raise InventoryError(f"{path}: expected a list of {{unit, recording}} or a mapping unit -> recordings")
+
+
+def _read_csv_list(path: Path) -> list[tuple[str, str]]:
+    try:
+        with path.open(newline="", encoding="utf-8") as f:
+            rows = list(csv.DictReader(f))
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise InventoryError(f"{path}: not a readable CSV list ({exc})") from None
+    if rows and not {"unit", "recording"} <= set(rows[0]):
+        raise InventoryError(f"{path}: header must name 'unit' and 'recording', got {sorted(rows[0])}")
+    return [((r.get("unit") or "").strip(), (r.get("recording") or "").strip()) for r in rows]
+
+
+def recording_files(path: Path) -> list[Path]:
+    """The files whose bytes are the recording, in a fixed order."""
+    if path.is_dir():
+        return sorted(p for p in path.rglob("*") if p.is_file())
+    if path.suffix == ".json":
+        files = [path]
+        try:
+            doc = json.loads(path.read_text(encoding="utf-8"))
+            files += [path.parent / str(s["file"]) for s in doc.get("scenarios", []) if isinstance(s, dict)]
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError, KeyError):
+            pass  # the import names the problem; the manifest's own bytes still identify it
+        return files
+    return [path]
+
+
+def content_hash(path: Path) -> str:
+    """SHA-256 over the recording's files (relative names and bytes)."""
+    h = hashlib.sha256()
+    base = path if path.is_dir() else path.parent
+    for f in recording_files(path):
+        h.update(str(f.relative_to(base) if f.is_relative_to(base) else f.name).encode() + b"\0")
+        try:
+            with f.open("rb") as fh:
+                while chunk := fh.read(_CHUNK):
+                    h.update(chunk)
+        except OSError:
+            h.update(b"<missing>")
+        h.update(b"\0")
+    return h.hexdigest()
+
+
+def stat_key(path: Path) -> str:
+    """Size and modification time of every file: a rehash is needed only when this changes."""
+    parts = []
+    for f in recording_files(path):
+        try:
+            st = f.stat()
+            parts.append(f"{f}:{st.st_size}:{st.st_mtime_ns}")
+        except OSError:
+            parts.append(f"{f}:missing")
+    return hashlib.sha256("\n".join(parts).encode()).hexdigest()

@@ -1,0 +1,166 @@
+"""``phid fleet``: every recording of an inventory as one task on a Dask cluster, into the history.
+
+The driver alone touches the history: it skips what is already there (same unit, content and
+phid version, so an interrupted run resumes), submits the rest, and stores each row the moment
+its task ends. One driver per fleet folder at a time (an exclusive lock), so two runs cannot
+interleave their rows or do the same work twice.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import os
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from phid_ros import __version__
+from phid_ros.errors import PhidError
+from phid_ros.fleet.history import History, Row
+from phid_ros.fleet.inventory import Item, content_hash, discover, stat_key
+from phid_ros.fleet.task import one_line, process_recording
+
+if TYPE_CHECKING:
+    from distributed import Client
+
+HISTORY_FILE = "history.sqlite"
+LOCK_FILE = ".phid-fleet.lock"
+
+
+@dataclass(frozen=True)
+class FleetOptions:
+    scheduler: str | None = None  # an existing cluster; None: a local one
+    workers: int = 0  # local cluster processes, 0: one per core
+    diagnose: bool = False
+    retry_failed: bool = False  # run again what failed with this version (a worker lost, a file fixed in place)
+    dashboard: bool = True
+
+
+@dataclass
+class FleetRun:
+    recordings: int = 0
+    skipped: int = 0
+    submitted: int = 0
+    rows: list[Row] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def failed(self) -> int:
+        return sum(r.status == "failed" for r in self.rows)
+
+
+@contextmanager
+def fleet_lock(fleet_dir: Path) -> Iterator[None]:
+    """The fleet folder for this process alone, or a one-line refusal naming the holder."""
+    path = fleet_dir / LOCK_FILE
+    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.pread(fd, 64, 0).decode(errors="replace").strip() or "?"
+            raise PhidError(
+                f"{fleet_dir}: another phid fleet run (pid {holder}) is using this folder; "
+                "wait for it or give another --out"
+            ) from None
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, str(os.getpid()).encode(), 0)
+        yield
+    finally:
+        os.close(fd)  # releases the lock, also when the process is killed
+
+
+def run_fleet(
+    inventory: str | Path,
+    fleet_dir: str | Path,
+    options: FleetOptions = FleetOptions(),
+    *,
+    on_cluster: Callable[[Client], None] | None = None,
+    on_row: Callable[[Row, int, int], None] | None = None,
+    on_hashing: Callable[[int, int], None] | None = None,
+) -> FleetRun:
+    """Run the inventory's new recordings; ``on_row(row, done, total)`` after each stored row."""
+    items, warnings = discover(inventory)
+    out = Path(fleet_dir)
+    if not out.parent.is_dir():
+        raise PhidError(f"--out {out}: its parent folder {out.parent} does not exist")
+    out.mkdir(exist_ok=True)
+    result = FleetRun(recordings=len(items), warnings=warnings)
+    with fleet_lock(out), History(out / HISTORY_FILE) as history:
+        todo: list[tuple[Item, str]] = []
+        for k, item in enumerate(items):
+            if on_hashing:
+                on_hashing(k, len(items))
+            if not item.path.exists():
+                h = f"missing:{item.path}"
+                if not history.done(item.unit, h, __version__):
+                    row = Row(item.unit, str(item.path), h, "failed", __version__, error=f"{item.path}: no such file")
+                    _store(history, result, row, on_row, len(items))
+                continue
+            h = _hash(history, item.path)
+            if history.done(item.unit, h, __version__) and not (
+                options.retry_failed and history.failed(item.unit, h, __version__)
+            ):
+                result.skipped += 1
+                continue
+            todo.append((item, h))
+        if todo:
+            _run_tasks(todo, history, result, options, on_cluster, on_row)
+    return result
+
+
+def _hash(history: History, path: Path) -> str:
+    key = stat_key(path)
+    cached = history.cached_hash(path, key)
+    if cached is None:
+        cached = content_hash(path)
+        history.cache_hash(path, key, cached)
+    return cached
+
+
+def _run_tasks(
+    todo: list[tuple[Item, str]],
+    history: History,
+    result: FleetRun,
+    options: FleetOptions,
+    on_cluster: Callable[[Client], None] | None,
+    on_row: Callable[[Row, int, int], None] | None,
+) -> None:
+    from distributed import as_completed
+
+    from phid_ros.cluster import cluster
+
+    with cluster(options.scheduler, options.workers, dashboard=options.dashboard) as client:
+        if on_cluster:
+            on_cluster(client)
+        futures = {}
+        for item, h in todo:
+            fut = client.submit(process_recording, item.unit, str(item.path), h, options.diagnose, pure=False)
+            futures[fut] = (item, h)
+        result.submitted = len(futures)
+        for fut in as_completed(futures, loop=client.loop):
+            item, h = futures[fut]
+            try:
+                row = fut.result()
+            except Exception as exc:  # a task that could not finish: the worker died under it every time
+                row = Row(item.unit, str(item.path), h, "failed", __version__, error=_lost(exc))
+            _store(history, result, row, on_row, result.recordings - result.skipped)
+
+
+def _lost(exc: BaseException) -> str:
+    from distributed import KilledWorker
+
+    if isinstance(exc, KilledWorker):
+        return "a Dask worker died under this task each time it was tried (memory? a crash?); rerun with --retry-failed"
+    return one_line(exc)
+
+
+def _store(
+    history: History, result: FleetRun, row: Row, on_row: Callable[[Row, int, int], None] | None, total: int
+) -> None:
+    history.add(row)
+    result.rows.append(row)
+    if on_row:
+        on_row(row, len(result.rows), total)

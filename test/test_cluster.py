@@ -1,0 +1,66 @@
+"""The Dask engine (phid_ros.cluster): same answers as one process, a safe fallback, clear errors."""
+
+from __future__ import annotations
+
+import math
+import os
+import threading
+import time
+
+import pytest
+
+from phid_ros.cluster import ClusterError, Jobs, cluster
+
+
+def test_jobs_on_dask_workers_give_the_answers_of_one_process_in_call_order():
+    calls = [(float(a), float(b)) for a, b in ((3, 4), (5, 12), (8, 15), (7, 24))]
+    with Jobs(2) as jobs:
+        assert jobs.map(math.hypot, calls) == [5.0, 13.0, 17.0, 25.0]
+        pids = jobs.map(os.getpid, [(), (), (), ()])
+        assert os.getpid() not in pids  # really in other processes
+        assert jobs._client is not None
+        offset = 10.0  # a closure travels too (cloudpickle)
+        assert jobs.map(lambda x: x + offset, [(1.0,), (2.0,)]) == [11.0, 12.0]
+    assert jobs._client is None  # cluster shut down on leaving
+
+
+def _locked(lock: object, x: float) -> float:
+    return x + 1.0
+
+
+def test_a_job_that_cannot_be_sent_to_a_worker_runs_here():
+    lock = threading.Lock()  # no interpreter but this one can have it
+    with Jobs(2) as jobs:
+        assert jobs.map(_locked, [(lock, 1.0), (lock, 2.0)]) == [2.0, 3.0]
+        assert jobs._client is None  # no cluster was started for it
+
+
+def test_one_worker_or_one_job_starts_no_cluster():
+    with Jobs(1) as one:
+        assert one.map(math.hypot, [(3.0, 4.0), (6.0, 8.0)]) == [5.0, 10.0]
+        assert one._client is None
+    with Jobs(2) as two:
+        assert two.map(math.hypot, [(3.0, 4.0)]) == [5.0]
+        assert two._client is None
+
+
+def test_an_unreachable_scheduler_is_a_clear_error_within_seconds():
+    t0 = time.perf_counter()
+    with pytest.raises(ClusterError, match=r"--scheduler tcp://127\.0\.0\.1:9: no Dask scheduler answered within 5 s"):
+        with cluster("tcp://127.0.0.1:9"):
+            pass
+    assert time.perf_counter() - t0 < 15.0
+
+
+def test_jobs_and_the_cluster_context_use_an_existing_cluster_by_its_address():
+    from distributed import LocalCluster
+
+    from phid_ros.cluster import describe
+
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None) as existing:
+        with cluster(existing.scheduler_address) as client:
+            info = describe(client)
+            assert (info.scheduler, info.workers, info.local) == (existing.scheduler_address, 1, False)
+        with Jobs(0, scheduler=existing.scheduler_address) as jobs:
+            assert jobs.map(math.hypot, [(3.0, 4.0), (5.0, 12.0)]) == [5.0, 13.0]
+        assert len(existing.scheduler.workers) == 1  # the cluster outlives its clients
