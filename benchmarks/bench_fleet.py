@@ -5,8 +5,10 @@
 1. Baseline: the same task (``process_recording``: read, three-stage identification,
    validation) in a plain Python loop in this process, no Dask.
 2. ``run_fleet`` on a LocalCluster of 1 and of 2 worker processes, each on a fresh fleet
-   folder: throughput from the first submission to the last stored row (cluster start-up,
-   which a long fleet run pays once, printed apart), and the ratio to the baseline.
+   folder: throughput from the first submission to the last stored row, and the ratio to
+   the baseline. Start-up (the cluster, and each worker importing phid, which a long fleet
+   run pays once) is printed apart. The baseline's process is warm after its first run,
+   and the median of ``--runs`` is taken, so both sides compare warm.
 3. Scheduling overhead per task: 400 empty tasks through the two-worker cluster.
 4. Memory: RSS of the largest worker after its tasks, peak RSS of this process.
 5. Extrapolation: units a cluster of N workers serves at one recording per unit per day,
@@ -33,7 +35,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from phid_ros.fleet.inventory import content_hash, discover  # noqa: E402
+from phid_ros.fleet.inventory import content_hash, discover, recording_files  # noqa: E402
 from phid_ros.fleet.run import FleetOptions, run_fleet  # noqa: E402
 from phid_ros.fleet.task import process_recording  # noqa: E402
 
@@ -117,13 +119,16 @@ def main() -> None:
         n = len(items)
         print(f"{n} recordings of {len({i.unit for i in items})} units, {os.cpu_count()} cores")
 
-        base = []
+        base, spans = [], []
         for _ in range(args.runs):
             t0 = time.perf_counter()
             for it in items:
                 row = process_recording(it.unit, str(it.path), content_hash(it.path))
                 assert row.status == "ok", row.error
+                spans.append((row.end_ns - row.start_ns) / 1e9)
             base.append(time.perf_counter() - t0)
+        size = statistics.mean(sum(f.stat().st_size for f in recording_files(it.path)) for it in items) / 2**20
+        print(f"a recording: {statistics.mean(spans):.0f} s of data, {size:.1f} MB (the units figures scale with this)")
         t_base = statistics.median(base)
         rpm_base = 60 * n / t_base
         print(f"baseline, plain loop in one process: {t_base:.1f} s, {rpm_base:.1f} recordings/min")

@@ -11,6 +11,7 @@ from typing import Any
 from rich import box
 from rich.console import Console
 from rich.markup import escape
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
 from phid_ros.cli.common import warn
@@ -28,7 +29,20 @@ def run(args: Any, console: Console) -> int:
         raise PhidError("--workers sizes the local cluster; an existing cluster (--scheduler) has its own workers")
     options = FleetOptions(args.scheduler, args.workers, args.diagnose, args.retry_failed)
     t0 = time.perf_counter()
-    plain = not console.is_terminal  # a log file gets one plain line per recording, no live bar
+    # on a terminal a live bar (rich) above the per-recording lines; in a log file the lines alone
+    progress = Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=console,
+        transient=True,
+        disable=not console.is_terminal,
+    )
+    bar = progress.add_task("checking the history", total=None)
+
+    def on_hashing(k: int, n: int) -> None:
+        progress.update(bar, description="checking the history", completed=k, total=n)
 
     def on_cluster(client: Any) -> None:
         from phid_ros.cluster import describe
@@ -37,6 +51,7 @@ def run(args: Any, console: Console) -> int:
         where = "local cluster" if info.local else "cluster"
         dash = f", dashboard {info.dashboard}" if info.dashboard else ", no dashboard (bokeh not installed)"
         console.print(f"{where} {info.scheduler}: {info.workers} worker(s){dash}", highlight=False)
+        progress.update(bar, description="recordings", completed=0, total=None)
 
     def on_row(row: Row, done: int, total: int) -> None:
         what = "ok" if row.status == "ok" else f"FAILED: {row.error}"
@@ -45,12 +60,14 @@ def run(args: Any, console: Console) -> int:
             highlight=False,
             soft_wrap=True,
         )
+        progress.update(bar, description="recordings", completed=done, total=total)
 
-    def on_hashing(k: int, n: int) -> None:
-        if plain and k == 0:
-            console.print(f"checking {n} recording(s) against the history", highlight=False)
-
-    result = run_fleet(args.inventory, args.out, options, on_cluster=on_cluster, on_row=on_row, on_hashing=on_hashing)
+    if not console.is_terminal:
+        console.print("checking the inventory against the history", highlight=False)
+    with progress:
+        result = run_fleet(
+            args.inventory, args.out, options, on_cluster=on_cluster, on_row=on_row, on_hashing=on_hashing
+        )
     for w in result.warnings:
         warn(w)
     console.print(

@@ -133,6 +133,7 @@ def _run_tasks(
     from phid_ros.cluster import cluster
 
     with cluster(options.scheduler, options.workers, dashboard=options.dashboard) as client:
+        _check_workers(client)
         if on_cluster:
             on_cluster(client)
         futures = {}
@@ -147,6 +148,37 @@ def _run_tasks(
             except Exception as exc:  # a task that could not finish: the worker died under it every time
                 row = Row(item.unit, str(item.path), h, "failed", __version__, error=_lost(exc))
             _store(history, result, row, on_row, result.recordings - result.skipped)
+
+
+def _check_workers(client: Client) -> None:
+    """Every worker imports the task's code now, and runs this very phid version.
+
+    On a remote cluster a worker with another phid (or none) would fill the history with rows
+    a rerun cannot tell apart; refused before any task. On a local one this only moves the
+    imports (about two seconds a worker) out of the first tasks.
+    """
+    try:
+        versions = client.run(_worker_version)
+    except Exception as exc:  # the worker cannot even unpickle the check: no phid_ros there
+        raise PhidError(f"a Dask worker cannot run phid tasks: {one_line(exc)}") from None
+    if not versions:
+        raise PhidError(f"the Dask cluster at {client.scheduler.address} has no workers")
+    wrong = {w: v for w, v in versions.items() if v != __version__}
+    if wrong:
+        w, v = next(iter(wrong.items()))
+        raise PhidError(
+            f"Dask worker {w} runs {v}, this phid is {__version__}: install the same phid_ros on every worker "
+            f"({len(wrong)} of {len(versions)} differ)"
+        )
+
+
+def _worker_version() -> str:
+    try:
+        import phid_ros
+        import phid_ros.cli.identify  # noqa: F401 - what every task needs, imported once per worker
+    except ImportError as exc:
+        return f"no usable phid_ros ({exc})"
+    return phid_ros.__version__
 
 
 def _lost(exc: BaseException) -> str:

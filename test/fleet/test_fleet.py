@@ -225,3 +225,25 @@ def test_history_command_flags_a_jump_and_writes_its_report(tmp_path: Path, caps
     assert html.count('<img src="data:image/png;base64,') == 1
     assert "T&#x27;_d0 +9.92% (100.9 σ)" in html or "T'_d0 +9.92% (100.9 σ)" in html
     assert html.count("<tr>") == 1 + 5  # header + four sets + the failure
+
+
+def test_a_csv_scenario_set_and_a_rosbag2_folder_are_one_recording_each(tmp_path: Path):
+    from phid_ros.fleet.inventory import content_hash
+
+    unit = tmp_path / "tree" / "G1"
+    (unit / "set").mkdir(parents=True)
+    (unit / "set" / "manifest.json").write_text('{"scenarios": [{"file": "s1.csv", "kind": "fault"}]}')
+    (unit / "set" / "s1.csv").write_text("t,v_t\n0,1\n")
+    (unit / "set" / "result.json").write_text('{"parameters": {}}')  # a results JSON is not a recording
+    (unit / "bag").mkdir()
+    (unit / "bag" / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n")
+    (unit / "bag" / "bag_0.mcap").write_bytes(b"x")
+    (unit / "x.mcap.truth.json").write_text('{"scenarios": [{"file": "a"}]}')
+    found, _ = discover(tmp_path / "tree")
+    assert [i.path.relative_to(unit).as_posix() for i in found] == ["bag", "set/manifest.json"]
+    before = content_hash(found[1].path)
+    (unit / "set" / "s1.csv").write_text("t,v_t\n0,1.01\n")  # a CSV of the set changed: another recording
+    assert content_hash(found[1].path) != before
+    bag = content_hash(found[0].path)
+    (unit / "bag" / "bag_0.mcap").write_bytes(b"y")
+    assert content_hash(found[0].path) != bag
