@@ -6,11 +6,11 @@ import time
 from typing import Any
 
 from rich.console import Console
-from rich.table import Table
 
 from phid_ros.cli.common import warn
-from phid_ros.cli.identify import SYMBOLS, load_input, load_truth
+from phid_ros.cli.identify import load_input, load_truth
 from phid_ros.cli.scenarios import scenarios_from_recording
+from phid_ros.cli.tables import CHANNEL_LABELS, Col, fmt, pct, print_table
 from phid_ros.diagnose.localise import localise
 from phid_ros.diagnose.playin import OUTPUTS
 from phid_ros.diagnose.results import to_json
@@ -18,61 +18,64 @@ from phid_ros.diagnose.workflow import DiagnoseOptions, diagnose
 from phid_ros.errors import PhidError
 from phid_ros.ident.pipeline import IdentifyOptions, identify
 from phid_ros.io.results import read_json, write_json
-from phid_ros.model.parameters import PARAMETER_NAMES
-
-UNITS = {"omega": "pu", "delta": "rad", "i_d": "pu", "i_q": "pu", "p_e": "pu", "q_e": "pu"}
+from phid_ros.model.parameters import PARAMETER_NAMES, SYMBOLS
 
 
-def before_after_table(doc: dict[str, Any]) -> Table:
-    t = Table(title="Held-out scenarios: model vs measurement, before and after adding the named effects")
-    for col in ("channel", "unit", "RMSE before", "RMSE after", "unexplained before", "unexplained after", "change"):
-        t.add_column(col, justify="left" if col in ("channel", "unit") else "right")
+def print_before_after(console: Console, doc: dict[str, Any]) -> None:
+    cols = [Col("channel", "left"), Col("unit", "left"), Col("RMSE before", keep=3), Col("RMSE after", keep=3)]
+    cols += [Col("unexpl. before"), Col("unexpl. after"), Col("change")]
+    rows = []
     for c in OUTPUTS:
         e = doc["channels"][c]
         ub, ua = e["unexplained_before"], e["unexplained_after"]
-        change = f"{100 * (ua / ub - 1):+.0f} %" if ub > 0 else "-"
-        t.add_row(c, UNITS[c], f"{e['rmse_before']:.3g}", f"{e['rmse_after']:.3g}", f"{ub:.3g}", f"{ua:.3g}", change)
+        symbol, unit = CHANNEL_LABELS[c]
+        change = pct(100 * (ua / ub - 1), 0) if ub > 0 else "-"
+        rows.append([symbol, unit, fmt(e["rmse_before"], 3), fmt(e["rmse_after"], 3), fmt(ub, 3), fmt(ua, 3), change])
     b, a = doc["rmse_before"], doc["rmse_after"]
-    t.add_row("overall", "σ", "", "", f"{b:.3g}", f"{a:.3g}", f"{100 * (a / b - 1):+.0f} %" if b > 0 else "-")
-    return t
-
-
-def parameter_table(doc: dict[str, Any]) -> Table:
-    truth = doc.get("truth")
-    t = Table(title="Base parameters")
-    cols = ["parameter", "identified", "refit (4th order)", "after"] + (
-        ["truth", "err identified", "err after"] if truth else []
+    rows.append(["overall", "σ", "", "", fmt(b, 3), fmt(a, 3), pct(100 * (a / b - 1), 0) if b > 0 else "-"])
+    print_table(
+        console,
+        "held-out scenarios: model vs measurement, before and after adding the named effects",
+        cols,
+        rows,
+        "unexpl. = the residual with its white-noise share removed; overall in units of the sensor noise σ",
     )
-    for col in cols:
-        t.add_column(col, justify="left" if col == "parameter" else "right")
+
+
+def print_parameters(console: Console, doc: dict[str, Any]) -> None:
+    truth = doc.get("truth")
+    cols = [Col("param", "left"), Col("identified"), Col("refit 4th", keep=3), Col("after")]
+    if truth:
+        cols += [Col("truth"), Col("err ident."), Col("err after")]
+    rows = []
     for n in PARAMETER_NAMES:
-        row = [SYMBOLS[n], f"{doc['parameters_identified'][n]:.4g}", f"{doc['parameters_base_refit'][n]:.4g}"]
-        row.append(f"{doc['parameters'][n]:.4g}")
+        row = [SYMBOLS[n], fmt(doc["parameters_identified"][n]), fmt(doc["parameters_base_refit"][n])]
+        row.append(fmt(doc["parameters"][n]))
         if truth:
             e = doc["errors_pct"]
-            row += [f"{truth[n]:.4g}", f"{e['identified'][n]:+.2f} %", f"{e['after'][n]:+.2f} %"]
-        t.add_row(*row)
-    return t
+            row += [fmt(truth[n]), pct(e["identified"][n]), pct(e["after"][n])]
+        rows.append(row)
+    print_table(console, "base parameters", cols, rows)
 
 
-def rounds_table(doc: dict[str, Any]) -> Table:
-    t = Table(title="Candidates (each fitted with the base parameters refitted)")
-    for col in ("round", "candidate", "ΔBIC", "held-out change", "named", "fitted values"):
-        t.add_column(col, justify="right" if col in ("ΔBIC", "held-out change") else "left")
+def print_rounds(console: Console, doc: dict[str, Any]) -> None:
+    cols = [Col("rnd"), Col("candidate", "left"), Col("ΔBIC"), Col("held-out"), Col("named", "left")]
+    cols.append(Col("fitted values", "left", keep=4, text=True))
+    rows = []
     for i, r in enumerate(doc["rounds"], start=1):
         for tr in r["trials"]:
-            vals = tr["parameters"] or {}
-            text = ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in vals.items())
             gain = tr["heldout_gain"]
-            t.add_row(
-                str(i),
-                tr["candidate"],
-                "-" if tr["delta_bic"] is None else f"{tr['delta_bic']:+.0f}",
-                "-" if gain is None else f"{-100 * gain:+.0f} %",
-                "yes" if tr["accepted"] else "",
-                text,
+            rows.append(
+                [
+                    str(i),
+                    tr["candidate"],
+                    "-" if tr["delta_bic"] is None else fmt(tr["delta_bic"]),
+                    "-" if gain is None else pct(-100 * gain, 0),
+                    "yes" if tr["accepted"] else "",
+                    _fmt_values(tr["parameters"] or {}),
+                ]
             )
-    return t
+    print_table(console, "candidates (each fitted with the base parameters refitted)", cols, rows)
 
 
 def run(args: Any, console: Console) -> int:
@@ -112,9 +115,9 @@ def run(args: Any, console: Console) -> int:
     doc["seconds"] = time.perf_counter() - t_start
     if args.json:
         write_json(args.json, doc)
-    console.print(rounds_table(doc))
-    console.print(before_after_table(doc))
-    console.print(parameter_table(doc))
+    print_rounds(console, doc)
+    print_before_after(console, doc)
+    print_parameters(console, doc)
     if doc["effects"]:
         named = ", ".join(f"{e['name']} ({_fmt_values(e['parameters'])})" for e in doc["effects"])
         console.print(f"missing physics: {named}", highlight=False)
@@ -129,7 +132,10 @@ def run(args: Any, console: Console) -> int:
         )
     for p in d.problems:
         warn(p)
-    console.print(f"{doc['seconds']:.1f} s" + (f", wrote {args.json}" if args.json else ""), highlight=False)
+    console.print(
+        f"diagnosed in {doc['seconds']:.1f} s (wall time)" + (f"; wrote {args.json}" if args.json else ""),
+        highlight=False,
+    )
     if args.report:
         from phid_ros.cli.diagnose_report import write_report
 

@@ -8,12 +8,13 @@ from typing import Any
 
 import numpy as np
 
-from phid_ros.cli.report import STYLE, png_data_uri
+from phid_ros.cli.report import STYLE, html_table, png_data_uri
+from phid_ros.cli.tables import CHANNEL_LABELS, axis_label, fmt, pct
 from phid_ros.diagnose.fit import evaluate
 from phid_ros.diagnose.playin import OUTPUTS, PlayIn
 from phid_ros.diagnose.workflow import Diagnosis
 from phid_ros.io.outputs import write_text
-from phid_ros.model.parameters import PARAMETER_NAMES
+from phid_ros.model.parameters import PARAMETER_NAMES, SYMBOLS
 
 SHOWN = ("omega", "delta", "i_d", "q_e")
 
@@ -32,7 +33,9 @@ def _worst(before: list[PlayIn], sigma: dict[str, float], k: int = 2) -> list[in
 def _traces(before: list[PlayIn], after: list[PlayIn], worst: list[int]) -> str:
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(len(SHOWN), len(worst), figsize=(5.2 * len(worst), 2.3 * len(SHOWN)), squeeze=False)
+    fig, axes = plt.subplots(
+        len(SHOWN), len(worst), figsize=(5.2 * len(worst), 2.3 * len(SHOWN)), squeeze=False, layout="constrained"
+    )
     for col, j in enumerate(worst):
         b, a = before[j], after[j]
         t = b.t - b.scenario.k_event * b.scenario.dt
@@ -41,38 +44,43 @@ def _traces(before: list[PlayIn], after: list[PlayIn], worst: list[int]) -> str:
             ax.plot(t, b.meas[c][:, 0], color="0.6", lw=0.6, label="measured")
             ax.plot(t, b.sim[c][:, 0], color="tab:red", lw=0.9, label="before")
             ax.plot(t, a.sim[c][:, 0], color="tab:blue", lw=0.9, ls="--", label="after")
-            ax.set_ylabel(c)
+            ax.set_ylabel(axis_label(c))
             ax.grid(alpha=0.3)
             if row == 0:
                 ax.set_title(b.scenario.name, fontsize=9)
         axes[-1][col].set_xlabel("time after the event (s)")
     axes[0][0].legend(fontsize=7)
     fig.suptitle("Worst held-out scenarios: measured vs model before and after adding the named effects")
-    fig.tight_layout()
     return png_data_uri(fig)
 
 
 def _spectra(before: list[PlayIn], after: list[PlayIn], sigma: dict[str, float]) -> str:
+    """Welch spectra of the held-out residuals in units of the sensor noise: white noise sits at 1."""
     import matplotlib.pyplot as plt
+    from scipy.signal import welch
 
-    fig, axes = plt.subplots(2, 3, figsize=(12, 6))
+    fig, axes = plt.subplots(2, 3, figsize=(12, 6), layout="constrained")
     for ax, c in zip(axes.ravel(), OUTPUTS):
         for runs, label, color in ((before, "before", "tab:red"), (after, "after", "tab:blue")):
-            n = min(len(r.t) for r in runs)
             h = float(runs[0].t[1] - runs[0].t[0])
-            spec = np.mean(
-                [np.abs(np.fft.rfft((r.sim[c][:n, 0] - r.meas[c][:n, 0]) / sigma[c])) ** 2 / n for r in runs], axis=0
-            )
-            f = np.fft.rfftfreq(n, h)
-            ax.loglog(f[1:], spec[1:], lw=0.8, color=color, label=label)
-        ax.axhline(1.0, color="0.5", lw=0.6, ls=":")
-        ax.set_title(c, fontsize=9)
+            n = min(len(r.t) for r in runs)
+            seg = min(n, 1024)
+            psd = []
+            for r in runs:
+                f, p = welch((r.sim[c][:n, 0] - r.meas[c][:n, 0]) / sigma[c], fs=1.0 / h, nperseg=seg)
+                psd.append(p)
+            # one-sided density of unit-variance white noise is 2/fs: scale so that it reads 1
+            ax.loglog(f[1:], np.mean(psd, axis=0)[1:] / (2.0 * h), lw=1.0, color=color, label=label)
+        ax.axhline(1.0, color="0.3", lw=1.0, ls="--", label="sensor-noise floor")
+        symbol, unit = CHANNEL_LABELS[c]
+        ax.set_title(f"{symbol} residual", fontsize=9)
         ax.grid(alpha=0.3, which="both")
     axes[0][0].legend(fontsize=7)
     for ax in axes[-1]:
-        ax.set_xlabel("Hz")
-    fig.suptitle("Residual spectra on the held-out scenarios (in units of sensor-noise power; 1 = white noise)")
-    fig.tight_layout()
+        ax.set_xlabel("frequency (Hz)")
+    for ax in axes[:, 0]:
+        ax.set_ylabel("power / noise power")
+    fig.suptitle("Residual spectra on the held-out scenarios (Welch; 1 = the sensors' white noise)")
     return png_data_uri(fig)
 
 
@@ -82,56 +90,77 @@ def write_report(path: str | Path, d: Diagnosis, doc: dict[str, Any], source: st
     matplotlib.use("Agg")
     before, after = _runs(d)
     worst = _worst(before, d.sigma)
-    eff_rows = (
-        "".join(
-            f"<tr><td>{html.escape(e['name'])}</td><td>{html.escape(_values(e['parameters']))}</td>"
-            f"<td>{e['rmse_before']:.3g}</td><td>{e['rmse_after']:.3g}</td><td>{e['delta_bic']:+.0f}</td>"
-            f"<td>{html.escape(e['signature'])}</td></tr>"
+    eff_table = html_table(
+        ["effect", "fitted parameters", "held-out RMSE before (σ)", "held-out RMSE after (σ)", "ΔBIC", "signature"],
+        [
+            [
+                e["name"],
+                _values(e["parameters"]),
+                fmt(e["rmse_before"], 3),
+                fmt(e["rmse_after"], 3),
+                fmt(e["delta_bic"]),
+                e["signature"],
+            ]
             for e in doc["effects"]
-        )
-        or '<tr><td colspan="6">nothing is missing</td></tr>'
+        ]
+        or [["nothing is missing", "", "", "", "", ""]],
+        text_columns=(1, 5),
     )
-    ch_rows = "".join(
-        f"<tr><td>{c}</td><td>{v['rmse_before']:.3g}</td><td>{v['rmse_after']:.3g}</td>"
-        f"<td>{v['unexplained_before']:.3g}</td><td>{v['unexplained_after']:.3g}</td></tr>"
-        for c, v in doc["channels"].items()
+    ch_table = html_table(
+        ["channel", "unit", "RMSE before", "RMSE after", "unexplained before", "unexplained after"],
+        [
+            [
+                *CHANNEL_LABELS[c],
+                fmt(v["rmse_before"], 3),
+                fmt(v["rmse_after"], 3),
+                fmt(v["unexplained_before"], 3),
+                fmt(v["unexplained_after"], 3),
+            ]
+            for c, v in doc["channels"].items()
+        ],
     )
     truth = doc.get("truth")
-    p_rows = "".join(
-        f"<tr><td>{n}</td><td>{doc['parameters_identified'][n]:.4g}</td><td>{doc['parameters_base_refit'][n]:.4g}</td>"
-        f"<td><b>{doc['parameters'][n]:.4g}</b></td>"
-        + (
-            f"<td>{truth[n]:.4g}</td><td>{doc['errors_pct']['identified'][n]:+.2f} %</td>"
-            f"<td>{doc['errors_pct']['after'][n]:+.2f} %</td>"
-            if truth
-            else ""
-        )
-        + "</tr>"
-        for n in PARAMETER_NAMES
-    )
-    t_rows = "".join(
-        f"<tr><td>{i}</td><td>{html.escape(t['candidate'])}</td>"
-        f"<td>{'-' if t['delta_bic'] is None else format(t['delta_bic'], '+.0f')}</td>"
-        f"<td>{'-' if t['heldout_gain'] is None else format(-100 * t['heldout_gain'], '+.0f') + ' %'}</td>"
-        f"<td>{'named' if t['accepted'] else ''}</td><td>{html.escape(_values(t['parameters'] or {}))}</td></tr>"
-        for i, r in enumerate(doc["rounds"], start=1)
-        for t in r["trials"]
+    p_head = ["parameter", "identified", "4th-order refit", "after"]
+    p_head += ["truth", "err identified", "err after"] if truth else []
+    p_rows = []
+    for n in PARAMETER_NAMES:
+        row = [
+            SYMBOLS[n],
+            fmt(doc["parameters_identified"][n]),
+            fmt(doc["parameters_base_refit"][n]),
+            fmt(doc["parameters"][n]),
+        ]
+        if truth:
+            row += [fmt(truth[n]), pct(doc["errors_pct"]["identified"][n]), pct(doc["errors_pct"]["after"][n])]
+        p_rows.append(row)
+    t_table = html_table(
+        ["round", "candidate", "ΔBIC", "held-out change", "named", "fitted values"],
+        [
+            [
+                str(i),
+                t["candidate"],
+                "-" if t["delta_bic"] is None else fmt(t["delta_bic"]),
+                "-" if t["heldout_gain"] is None else pct(-100 * t["heldout_gain"], 0),
+                "yes" if t["accepted"] else "",
+                _values(t["parameters"] or {}),
+            ]
+            for i, r in enumerate(doc["rounds"], start=1)
+            for t in r["trials"]
+        ],
+        text_columns=(5,),
     )
     gap = doc.get("gap_before")
     gap_html = ""
     if gap:
-        parts = []
-        for part in ("by_kind", "by_phase", "by_channel", "by_band"):
-            items = sorted(gap[part].items(), key=lambda kv: -kv[1])
-            parts.append(
-                f"<tr><td>{part[3:]}</td><td>"
-                + ", ".join(f"{html.escape(k)}: {v:.3g}" for k, v in items)
-                + "</td></tr>"
-            )
+        rows = [
+            [part[3:], ", ".join(f"{k}: {fmt(v, 3)}" for k, v in sorted(gap[part].items(), key=lambda kv: -kv[1]))]
+            for part in ("by_kind", "by_phase", "by_channel", "by_band")
+        ]
         gap_html = (
             "<h2>Where the identified fourth-order model and the measurement disagree</h2>"
-            "<p>Unexplained residual power (noise variances) of the three-stage model, all scenarios.</p>"
-            f"<table>{''.join(parts)}</table>"
+            "<p>Unexplained residual power of the three-stage model over all scenarios, in sensor-noise "
+            "variances, largest first.</p>"
+            + html_table(["split by", "unexplained power (noise variances)"], rows, text_columns=(1,))
         )
     problems = "".join(f"<li>{html.escape(p)}</li>" for p in doc["problems"]) or "<li>none</li>"
     page = f"""<!doctype html><html><head><meta charset="utf-8"><title>phid diagnose: {html.escape(source)}</title>
@@ -140,22 +169,20 @@ def write_report(path: str | Path, d: Diagnosis, doc: dict[str, Any], source: st
 <p>Input: <code>{html.escape(source)}</code> &middot; fit on {", ".join(map(html.escape, doc["fit_scenarios"]))}
 &middot; held out: {", ".join(map(html.escape, doc["heldout_scenarios"]))}</p>
 <h2>Named effects</h2>
-<table><tr><th>effect</th><th>fitted parameters</th><th>RMSE before</th><th>RMSE after</th><th>ΔBIC</th>
-<th>signature</th></tr>{eff_rows}</table>
-<p>Overall held-out RMSE {doc["rmse_before"]:.3g} &rarr; <b>{doc["rmse_after"]:.3g}</b>.
-{html.escape(doc["rmse_definition"])}</p>
+{eff_table}
+<p>Overall held-out RMSE, in units of the sensor noise σ: {doc["rmse_before"]:.3g} &rarr;
+<b>{doc["rmse_after"]:.3g}</b>. {html.escape(doc["rmse_definition"])}</p>
 <h2>Per channel (held-out)</h2>
-<table><tr><th>channel</th><th>RMSE before</th><th>RMSE after</th><th>unexplained before</th>
-<th>unexplained after</th></tr>{ch_rows}</table>
+{ch_table}
 <h2>Base parameters</h2>
-<table><tr><th>parameter</th><th>identified</th><th>4th-order refit</th><th>after</th>
-{"<th>truth</th><th>err identified</th><th>err after</th>" if truth else ""}</tr>{p_rows}</table>
+{html_table(p_head, p_rows)}
 <h2>Candidates</h2>
-<table><tr><th>round</th><th>candidate</th><th>ΔBIC</th><th>held-out change</th><th></th><th>fitted values</th></tr>
-{t_rows}</table>
+{t_table}
 {gap_html}
 <h2>Notes</h2><ul>{problems}</ul>
+<h2>Worst held-out scenarios</h2>
 <img src="{_traces(before, after, worst)}" alt="worst scenarios before and after">
+<h2>Residual spectra</h2>
 <img src="{_spectra(before, after, d.sigma)}" alt="residual spectra">
 </body></html>"""
     out = Path(path)

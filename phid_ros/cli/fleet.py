@@ -8,18 +8,16 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
-from rich import box
 from rich.console import Console
 from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-from rich.table import Table
 
 from phid_ros.cli.common import warn
-from phid_ros.cli.identify import SYMBOLS
+from phid_ros.cli.tables import CONCISE_LEGEND, Col, estimate_text, print_table
 from phid_ros.errors import PhidError
 from phid_ros.fleet.history import Change, History, Row, changes, iter_units
 from phid_ros.fleet.run import HISTORY_FILE, FleetOptions, run_fleet
-from phid_ros.model.parameters import PARAMETER_NAMES
+from phid_ros.model.parameters import PARAMETER_NAMES, SYMBOLS
 
 
 def run(args: Any, console: Console) -> int:
@@ -77,7 +75,7 @@ def run(args: Any, console: Console) -> int:
     )
     if args.summary:
         with History(Path(args.out) / HISTORY_FILE, create=False) as h:
-            console.print(summary_table(h.rows()))
+            print_summary(console, h.rows())
     return 0
 
 
@@ -87,35 +85,15 @@ def _iso(ns: int | None) -> str:
     return datetime.fromtimestamp(ns / 1e9, tz=timezone.utc).strftime("%Y-%m-%d %H:%M")
 
 
-def concise(value: float, std: float) -> str:
-    """``1.4430(55)`` for 1.4430 ± 0.0055: the metrologists' short form, two digits of the std."""
-    if not math.isfinite(value):
-        return "—"
-    if not math.isfinite(std) or std <= 0:
-        return f"{value:.4g}"
-    decimals = max(0, 1 - math.floor(math.log10(std)))
-    digits = round(std * 10**decimals)
-    if decimals == 0:
-        return f"{value:.0f}({digits})"
-    return f"{value:.{decimals}f}({digits})"
-
-
 def _value(row: Row, name: str) -> str:
-    text = concise(row.values.get(name, math.nan), row.stds.get(name, math.nan))
-    return text if row.identifiable.get(name) or text == "—" else text + " ?"
+    return estimate_text(row.values.get(name, math.nan), row.stds.get(name, math.nan), bool(row.identifiable.get(name)))
 
 
-def summary_table(rows: list[Row]) -> Table:
+def print_summary(console: Console, rows: list[Row]) -> None:
     """One row per unit: its latest identified set, how many recordings, and what is flagged."""
-    table = Table(
-        title="fleet: latest identified set per unit; 1.4430(55) = 1.4430 ± 0.0055, ? not identified",
-        title_justify="left",
-        box=box.SIMPLE_HEAD,
-        padding=(0, 1, 0, 0),  # the eight values and the flags fit a 140-column log
-    )
-    for c in ["unit", "latest", "sets", "fail"] + [SYMBOLS[n] for n in PARAMETER_NAMES] + ["flags"]:
-        left = c in ("unit", "latest", "flags")
-        table.add_column(c, justify="left" if left else "right", overflow="fold", no_wrap=c == "latest")
+    cols = [Col("unit", "left", key=True), Col("latest", "left"), Col("sets"), Col("fail")]
+    cols += [Col(SYMBOLS[n]) for n in PARAMETER_NAMES] + [Col("flags", "left", text=True)]
+    table = []
     for unit, unit_rows in iter_units(rows):
         good = [r for r in unit_rows if r.status == "ok"]
         failed = len(unit_rows) - len(good)
@@ -123,51 +101,32 @@ def summary_table(rows: list[Row]) -> Table:
         if failed:
             flags.append(f"{failed} failed")
         latest = good[-1] if good else None
-        cells = [_value(latest, n) if latest else "—" for n in PARAMETER_NAMES]
         effects = ", ".join(e["name"] for e in latest.effects) if latest and latest.effects else ""
-        table.add_row(
-            escape(unit),
-            _iso(latest.start_ns)[:10] if latest else "—",
-            str(len(good)),
-            str(failed),
-            *cells,
-            escape("; ".join(flags + ([effects] if effects else [])) or "—"),
+        table.append(
+            [unit, _iso(latest.start_ns)[:10] if latest else "—", str(len(good)), str(failed)]
+            + [_value(latest, n) if latest else "—" for n in PARAMETER_NAMES]
+            + ["; ".join(flags + ([effects] if effects else [])) or "—"]
         )
-        _keep_whole(table, 4, cells)
-    return table
+    print_table(console, "fleet: latest identified set per unit", cols, table, CONCISE_LEGEND)
 
 
-def _keep_whole(table: Table, first: int, cells: list[str]) -> None:
-    """Numbers are never folded: a column is at least as wide as its widest value (the text columns fold)."""
-    for col, text in zip(table.columns[first:], cells):
-        col.min_width = max(col.min_width or 0, len(text))
-
-
-def history_table(unit: str, rows: list[Row], flagged: list[Change]) -> Table:
-    table = Table(
-        title=f"unit {escape(unit)}: parameter history; 1.4430(55) = 1.4430 ± 0.0055, ? not identified, ! flagged",
-        title_justify="left",
-        box=box.SIMPLE_HEAD,
-        padding=(0, 1, 0, 0),
-    )
-    for c in ["recorded (UTC)"] + [SYMBOLS[n] for n in PARAMETER_NAMES] + ["recording / error"]:
-        left = c in ("recorded (UTC)", "recording / error")
-        table.add_column(c, justify="left" if left else "right", overflow="fold", no_wrap=c == "recorded (UTC)")
+def print_history(console: Console, unit: str, rows: list[Row], flagged: list[Change]) -> None:
+    cols = [Col("recorded (UTC)", "left", key=True)] + [Col(SYMBOLS[n]) for n in PARAMETER_NAMES]
+    cols.append(Col("recording / error", "left", text=True))
     marks = {(id(c.after), c.parameter) for c in flagged}
+    table = []
     for r in rows:
-        cells = []
-        for n in PARAMETER_NAMES:
-            text = _value(r, n) if r.status == "ok" else ""
-            cells.append(f"[bold red]{escape(text)}![/]" if (id(r), n) in marks else escape(text))
+        cells = [
+            (_value(r, n) + ("!" if (id(r), n) in marks else "")) if r.status == "ok" else "" for n in PARAMETER_NAMES
+        ]
         effects = ", ".join(e["name"] for e in r.effects)
         note = (
             f"FAILED {r.error}"
             if r.status == "failed"
             else Path(r.recording).name + (f" ({effects})" if effects else "")
         )
-        table.add_row(_iso(r.start_ns), *cells, escape(note))
-        _keep_whole(table, 1, [(_value(r, n) if r.status == "ok" else "") + "!" for n in PARAMETER_NAMES])
-    return table
+        table.append([_iso(r.start_ns), *cells, note])
+    print_table(console, f"unit {unit}: parameter history", cols, table, CONCISE_LEGEND + "; ! = flagged change")
 
 
 def run_history(args: Any, console: Console) -> int:
@@ -178,7 +137,7 @@ def run_history(args: Any, console: Console) -> int:
             known = ", ".join(h.units()) or "none"
             raise PhidError(f"{path}: no recordings of unit {args.unit!r} (units in this history: {known})")
     flagged = changes(rows, args.sigmas)
-    console.print(history_table(args.unit, rows, flagged))
+    print_history(console, args.unit, rows, flagged)
     for c in flagged:
         console.print(
             f"{SYMBOLS[c.parameter]} changed {c.relative:+.2%} ({c.sigmas:.1f} σ) between "

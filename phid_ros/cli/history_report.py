@@ -9,11 +9,10 @@ from pathlib import Path
 
 import numpy as np
 
-from phid_ros.cli.identify import SYMBOLS
 from phid_ros.cli.report import STYLE, png_data_uri
 from phid_ros.fleet.history import Change, Row
 from phid_ros.io.outputs import write_text
-from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME
+from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, SYMBOLS
 
 
 def _when(ns: int | None) -> datetime | None:

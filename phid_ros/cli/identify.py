@@ -8,29 +8,18 @@ from pathlib import Path
 from typing import Any
 
 from rich.console import Console
-from rich.table import Table
 
 from phid_ros.cli.common import read_input, warn
 
 # imported here, with the command, so that their import is start-up and not "reading"
 from phid_ros.cli.scenarios import scenarios_from_recording
-from phid_ros.errors import PhidError, ResultsError
+from phid_ros.cli.tables import Col, fmt, pct, print_table
+from phid_ros.errors import PhidError
 from phid_ros.ident.pipeline import IdentificationResult, IdentifyOptions, identify
 from phid_ros.ident.scenario import ScenarioData
 from phid_ros.io.recording import Recording
 from phid_ros.io.results import read_json, write_json
-from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, GeneratorParameters
-
-SYMBOLS = {
-    "H": "H",
-    "D": "D",
-    "X_d": "X_d",
-    "X_q": "X_q",
-    "X_d_prime": "X'_d",
-    "X_q_prime": "X'_q",
-    "T_d0_prime": "T'_d0",
-    "T_q0_prime": "T'_q0",
-}
+from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, SYMBOLS, GeneratorParameters
 
 
 def load_input(path: str | Path) -> tuple[Recording, str]:
@@ -38,12 +27,17 @@ def load_input(path: str | Path) -> tuple[Recording, str]:
     return read_input(path)
 
 
+def load_parameters(path: str | Path) -> GeneratorParameters:
+    """The eight parameters of a results or truth file; other keys ignored with a note on stderr."""
+    params, notes = GeneratorParameters.from_document(read_json(path), source=str(path))
+    for n in notes:
+        warn(n)
+    return params
+
+
 def load_truth(path: str | Path, rec: Recording) -> GeneratorParameters:
     doc = read_json(path)
-    values = doc.get("parameters", doc)
-    if not isinstance(values, dict):
-        raise ResultsError(f"{path}: 'parameters' must be an object of the eight parameters")
-    truth = GeneratorParameters.from_mapping(values, source=str(path))
+    truth = load_parameters(path)
     f_truth = doc.get("f_nominal_hz")
     if f_truth is not None and "f_nominal_hz" in rec.metadata and abs(float(f_truth) - rec.f_nominal_hz) > 1e-9:
         raise PhidError(f"{path}: nominal frequency {f_truth} Hz differs from the recording's {rec.f_nominal_hz} Hz")
@@ -57,82 +51,86 @@ def load_truth(path: str | Path, rec: Recording) -> GeneratorParameters:
     return truth
 
 
-def _fmt(v: float, digits: int = 4) -> str:
-    return "—" if v is None or not math.isfinite(v) else f"{v:.{digits}g}"
-
-
 def _err(v: float, t: float | None) -> str:
     if t is None or not math.isfinite(v) or t == 0:
         return ""
-    return f"{100 * (v / t - 1):+.2f} %"
+    return pct(100 * (v / t - 1))
 
 
-def parameter_table(res: IdentificationResult, truth: GeneratorParameters | None) -> Table:
-    table = Table(title=f"identified parameters (method: {res.method})", title_justify="left")
-    cols = (
-        ["parameter", "unit", "IEEE 115"]
-        + (["err"] if truth else [])
-        + ["proposed", "± std"]
-        + (["err", "truth"] if truth else [])
-        + ["note"]
-    )
-    for c in cols:
-        table.add_column(c, justify="left" if c in ("parameter", "unit", "note") else "right")
+def print_parameters(console: Console, res: IdentificationResult, truth: GeneratorParameters | None) -> None:
     t = truth.as_dict() if truth else {}
+    cols = [Col("param", "left"), Col("unit", "left"), Col("IEEE 115", keep=3), Col("err 115", keep=2)]
+    cols += [Col("proposed"), Col("± std"), Col("err"), Col("truth", keep=4), Col("note", "left", keep=5, text=True)]
+    rows = []
     for name in PARAMETER_NAMES:
         est = res.estimates.get(name)
         base = res.baseline.get(name)
         v = est.value if est else math.nan
-        row = [
-            SYMBOLS[name],
-            SPECS_BY_NAME[name].unit,
-            _fmt(base.value if base else math.nan) + (" (bound)" if base and base.at_bound else ""),
-        ]
-        if truth:
-            row.append(_err(base.value, t[name]) if base else "")
-        row += [_fmt(v, 5), _fmt(est.std if est else math.nan, 2)]
-        if truth:
-            row += [_err(v, t[name]), _fmt(t[name])]
-        note = "" if est is None else ("not identified" if not est.identifiable else "")
-        row.append(note if est is not None else "missing")
-        table.add_row(*row)
-    return table
+        note = "missing" if est is None else ("" if est.identifiable else "not identified")
+        rows.append(
+            [
+                SYMBOLS[name],
+                SPECS_BY_NAME[name].unit,
+                fmt(base.value if base else math.nan) + ("*" if base and base.at_bound else ""),
+                _err(base.value, t.get(name)) if base else "",
+                fmt(v, 5),
+                fmt(est.std if est else math.nan, 2),
+                _err(v, t.get(name)),
+                fmt(t[name]) if truth else "",
+                note,
+            ]
+        )
+    if not truth:
+        cols, rows = _without(cols, rows, ("err 115", "err", "truth"))
+    if not res.baseline:
+        cols, rows = _without(cols, rows, ("IEEE 115", "err 115"))
+    legend = "err = (estimate / truth - 1); IEEE 115: the standard's test-based method; * = at its search bound"
+    print_table(console, f"identified parameters (method: {res.method})", cols, rows, legend if truth else "")
 
 
-def validation_table(res: IdentificationResult) -> Table | None:
+def _without(cols: list[Col], rows: list[list[str]], names: tuple[str, ...]) -> tuple[list[Col], list[list[str]]]:
+    keep = [i for i, c in enumerate(cols) if c.header not in names]
+    return [cols[i] for i in keep], [[r[i] for i in keep] for r in rows]
+
+
+def print_validation(console: Console, res: IdentificationResult) -> None:
     if res.validation is None:
-        return None
+        return
     v = res.validation
-    table = Table(
-        title=f"validation against the {v.against} (Tables 8, 9; MOD-026 ±0.05 pu on P, Q)", title_justify="left"
-    )
-    for c in (
-        "scenario",
-        "RMS δ °",
-        "max δ °",
-        "RMS ω %",
-        "RMSE pu",
-        "MAE pu",
-        "STD pu",
-        "max ΔP",
-        "max ΔQ",
-        "MOD-026",
-    ):
-        table.add_column(c, justify="left" if c == "scenario" else "right")
-    for m in v.scenarios:
-        table.add_row(
+    cols = [
+        Col("scenario", "left"),
+        Col("RMS δ°"),
+        Col("max δ°", keep=4),
+        Col("RMS ω%"),
+        Col("RMSE", keep=2),
+        Col("MAE", keep=1),
+        Col("STD", keep=1),
+        Col("max ΔP"),
+        Col("max ΔQ"),
+        Col("MOD-026", "left"),
+    ]
+    rows = [
+        [
             m.scenario,
             f"{m.rms_delta_deg:.4f}",
             f"{m.max_delta_deg:.4f}",
             f"{m.rms_omega_pct:.5f}",
-            f"{m.rmse:.2e}",
-            f"{m.mae:.2e}",
-            f"{m.std:.2e}",
+            f"{m.rmse:.1e}",
+            f"{m.mae:.1e}",
+            f"{m.std:.1e}",
             f"{m.max_dp:.4f}",
             f"{m.max_dq:.4f}",
             "pass" if m.mod026_pass else "FAIL",
-        )
-    return table
+        ]
+        for m in v.scenarios
+    ]
+    print_table(
+        console,
+        f"validation against the {v.against} (Tables 8, 9)",
+        cols,
+        rows,
+        "RMSE, MAE, STD of the state-trajectory error and max ΔP, ΔQ in pu; MOD-026: |ΔP|, |ΔQ| ≤ 0.05 pu",
+    )
 
 
 def identify_recording(
@@ -177,10 +175,8 @@ def run(args: Any, console: Console) -> int:
     if args.json:  # the JSON carries the final timing too
         doc["timing_s"] = res.timing
         write_json(args.json, doc)
-    console.print(parameter_table(res, truth))
-    vt = validation_table(res)
-    if vt is not None:
-        console.print(vt)
+    print_parameters(console, res, truth)
+    print_validation(console, res)
     if res.stage1_paper is not None:
         console.print(
             f"paper's differential damping (stage 1a): H = {res.stage1_paper.H.value:.4f} s, "
@@ -190,7 +186,8 @@ def run(args: Any, console: Console) -> int:
     for p in res.problems:
         warn(p)
     console.print(
-        f"{len(scenarios)} scenarios, {res.timing['total']:.3f} s" + (f", wrote {args.json}" if args.json else ""),
+        f"identified from {len(scenarios)} scenarios in {res.timing['total']:.3f} s (wall time)"
+        + (f"; wrote {args.json}" if args.json else ""),
         highlight=False,
     )
     if args.report:

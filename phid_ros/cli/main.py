@@ -19,6 +19,7 @@ from rich.table import Table
 
 from phid_ros import __version__
 from phid_ros.cli.common import warn
+from phid_ros.cli.tables import make_console
 from phid_ros.errors import PhidError
 from phid_ros.fleet.history import DRIFT_SIGMAS
 from phid_ros.io.outputs import atomic_output, refuse_inputs
@@ -318,7 +319,7 @@ def cmd_history(args: argparse.Namespace, console: Console) -> int:
 # -- entry point -----------------------------------------------------------------
 def build_parser() -> argparse.ArgumentParser:
     parser = Parser(prog="phid", description="Port-Hamiltonian generator identification.")
-    parser.add_argument("--version", action="version", version=f"phid_ros {__version__}")
+    parser.add_argument("-V", "--version", action="version", version=f"phid_ros {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
 
     p = sub.add_parser("simulate", help="simulate the scenario catalogue (or some scenarios) into a bag")
@@ -342,7 +343,12 @@ def build_parser() -> argparse.ArgumentParser:
         default=DEFAULT_BLOCK_SIZE,
         help=f"samples per sensor message (default {DEFAULT_BLOCK_SIZE})",
     )
-    p.add_argument("--effect", action="append", metavar="NAME[=k=v,...]", help="switch on a plant effect")
+    p.add_argument(
+        "--effect",
+        action="append",
+        metavar="NAME[=k=v,...]",
+        help=f"switch on a plant effect, repeatable; NAME is one of: {', '.join(_effect_names())}",
+    )
     p.add_argument("--force", action="store_true", help="replace existing outputs (the bag and its .truth.json)")
     p.add_argument(
         "--ambient",
@@ -359,7 +365,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_simulate)
 
     p = sub.add_parser("import-csv", help="turn a CSV scenario set (manifest.json) into a bag")
-    p.add_argument("manifest")
+    p.add_argument("manifest", help="the set's manifest.json (scenarios, their CSV files, kinds and roles)")
     p.add_argument("--out", required=True, help="output: a rosbag2 folder, or a file ending in .mcap")
     p.add_argument("--strict", action="store_true", help="refuse extra columns instead of ignoring them")
     p.add_argument(
@@ -416,14 +422,25 @@ def build_parser() -> argparse.ArgumentParser:
         help="the generating unit the recording is of (default: the recording's 'unit' metadata); "
         "a store holds one unit's events and refuses another's",
     )
+    p.add_argument(
+        "--report", metavar="OUT.html", help="write an HTML report: events, parameters and stream health over time"
+    )
     p.set_defaults(func=cmd_replay)
 
     p = sub.add_parser("track", help="sliding-window tracking of parameter drift over a recording")
     p.add_argument("bag", help="rosbag2 folder or .mcap file")
     p.add_argument("--window", type=POSITIVE, default=300.0, help="window length, s (default 300)")
     p.add_argument("--hop", type=POSITIVE, default=60.0, help="hop between estimates, s (default 60)")
-    p.add_argument("--base", metavar="PARAMS.json", help="base parameters (X_d, X_q); default Table 1")
+    p.add_argument(
+        "--base",
+        metavar="PARAMS.json",
+        help="this machine's parameters (phid identify --json), for X_d and X_q, which ambient data cannot give; "
+        "without it the paper's Table 1 values are used, with a warning",
+    )
     p.add_argument("--out", help="write the tracked parameters to this bag (.mcap or folder)")
+    p.add_argument(
+        "--report", metavar="OUT.html", help="write an HTML report: parameters over time with ±2σ, alarms, health"
+    )
     p.set_defaults(func=cmd_track)
 
     p = sub.add_parser("fleet", help="identify every recording of many units on a Dask cluster, into a history")
@@ -457,15 +474,23 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_history)
 
     p = sub.add_parser("info", help="topics, message counts, rates, time span and gaps of a bag")
-    p.add_argument("bag")
+    p.add_argument("bag", help="rosbag2 folder or .mcap file (a bag cut short is read as far as it goes)")
     p.set_defaults(func=cmd_info)
+    for p in sub.choices.values():
+        p.add_argument("--wide", action="store_true", help="print tables at full width (default: fit the terminal)")
     return parser
+
+
+def _effect_names() -> list[str]:
+    from phid_ros.sim.effects import REGISTRY
+
+    return sorted(REGISTRY)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    console = Console() if sys.stdout.isatty() else Console(width=140, soft_wrap=True)
+    console = make_console(wide=args.wide)
     try:
         return int(args.func(args, console))
     except PhidError as exc:

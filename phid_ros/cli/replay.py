@@ -5,12 +5,16 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from phid_ros.io.recording import DEFAULT_BLOCK_SIZE, NS, Recording, block_bounds
 from phid_ros.io.topics import STREAMS_BY_NAME
 from phid_ros.stream.pipeline import Marker, MonitorPipeline, Outputs
+
+if TYPE_CHECKING:
+    from rich.console import Console
 
 PROCESS_EVERY_NS = NS // 2  # stream time between pipeline runs while feeding
 MAX_PACE_STEP_NS = 60 * NS  # a stamp step beyond this is a clock jump, not time to wait for
@@ -127,6 +131,9 @@ class OutputCollector:
         self._diag_period = diagnostics_period_ns
         self._next_diag: int | None = None
         self._batch: list[tuple[int, str, str, object]] = []
+        # each stream's health at every diagnostics stamp, for the report: (stamp, {stream: (level, dropped,
+        # gaps, clock jumps)})
+        self.health_log: list[tuple[int, dict[str, tuple[str, int, int, int]]]] = []
 
     def _add(self, key: str, log_ns: int, msg: object) -> None:
         topic, msgtype = OUTPUT_TOPICS[key]
@@ -164,6 +171,15 @@ class OutputCollector:
             if self._next_diag is None:
                 self._next_diag = now
             while now >= self._next_diag:
+                self.health_log.append(
+                    (
+                        self._next_diag,
+                        {
+                            n: (self.pipeline.aligner.status(n)[0], h.dropped, h.gaps, h.clock_jumps)
+                            for n, h in self.pipeline.health.items()
+                        },
+                    )
+                )
                 self._add(
                     "diagnostics",
                     self._next_diag,
@@ -191,20 +207,97 @@ def check_output(out: Path, force: bool) -> None:
         raise PhidError(f"{out}: already exists and was not written by phid replay; not overwriting (--force to)")
 
 
+def severity_text(kind: str, severity: float) -> str:
+    """An event's size in its own terms: a fault's dip of V_t, a step's change of P_m or V_t."""
+    if kind == "fault":
+        return f"V_t -{100 * severity:.0f}%"
+    return f"{'ΔP_m' if kind == 'torque_step' else 'ΔV_t'} {severity:+.3f} pu"
+
+
+def print_summary(
+    console: Console, rec: Recording, pipeline: MonitorPipeline, outputs: Outputs, collector: OutputCollector
+) -> None:
+    """What a replay found, in the same words on every run of the same bag (no wall times)."""
+    from phid_ros.cli.tables import CONCISE_LEGEND, Col, estimate_text, print_table
+    from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, SYMBOLS
+
+    start = rec.span_ns()[0]
+    usable = {w.event.event_id: ("ok" if w.usable else w.reason) for w in outputs.windows}
+    cols = [
+        Col("t s"),
+        Col("kind", "left"),
+        Col("scenario", "left", keep=5, text=True),
+        Col("clearing s", keep=3),
+        Col("severity", "left"),
+        Col("window", "left", text=True),
+    ]
+    rows = [
+        [
+            f"{(e.inception_ns - start) / NS:.3f}",
+            e.kind,
+            e.name or "—",
+            f"{(e.clearing_ns - start) / NS:.3f}" if e.clearing_ns else "",
+            severity_text(e.kind, e.severity),
+            usable.get(e.event_id, "pending"),
+        ]
+        for e in outputs.events
+    ]
+    print_table(console, f"events found ({len(outputs.events)}); t from the start of the recording", cols, rows)
+    for r in outputs.recalibrations:
+        console.print(
+            f"recalibration at {(r.stream_time_ns - start) / NS:.1f} s with {len(r.event_ids)} events: "
+            f"{'accepted' if r.accepted else 'rejected'}: {r.status}",
+            highlight=False,
+            markup=False,
+        )
+    last = next((r for r in reversed(outputs.recalibrations) if r.accepted and r.result is not None), None)
+    if last is not None and last.result is not None:
+        est = last.result.estimates
+        prows = [
+            [
+                SYMBOLS[n],
+                SPECS_BY_NAME[n].unit,
+                estimate_text(est[n].value, est[n].std, est[n].identifiable) if n in est else "—",
+            ]
+            for n in PARAMETER_NAMES
+        ]
+        print_table(
+            console,
+            f"parameters in force at the end (recalibration at {(last.stream_time_ns - start) / NS:.1f} s)",
+            [Col("param", "left"), Col("unit", "left"), Col("value(std)")],
+            prows,
+            CONCISE_LEGEND,
+        )
+    elif pipeline.parameters is None:
+        console.print("parameters in force at the end: none (not enough events for a recalibration)")
+    if pipeline.recalibrator.last_good is not None and outputs.energy:
+        e = outputs.energy[-1]
+        n_energy = collector.counts.get(OUTPUT_TOPICS["hamiltonian"][0], 0)
+        console.print(
+            f"Hamiltonian at the end: {e.value[-1]:.5f} pu·s (MJ per MVA of rating): kinetic {e.kinetic[-1]:.2e}, "
+            f"magnetic d {e.magnetic_d[-1]:.4f}, q {e.magnetic_q[-1]:.4f} pu·s; "
+            f"{n_energy} samples published at {pipeline.settings.hamiltonian_rate_hz:g} Hz",
+            highlight=False,
+        )
+    hrows = []
+    for name, h in pipeline.health.items():
+        level, msg = pipeline.aligner.status(name)
+        hrows.append([name, level, msg, str(h.samples), str(h.dropped), str(h.gaps), str(h.clock_jumps)])
+    hcols = [Col("stream", "left"), Col("level", "left"), Col("status", "left", text=True), Col("samples")]
+    hcols += [Col("dropped"), Col("gaps"), Col("clock jumps")]
+    print_table(console, "stream health", hcols, hrows)
+
+
 def run(args: object, console: object) -> int:
     import resource
-
-    from rich.markup import escape
-    from rich.table import Table
 
     from phid_ros.cli.common import read_input, warn
     from phid_ros.io.bags import open_message_writer
     from phid_ros.io.outputs import atomic_output, partial_path, refuse_inputs
-    from phid_ros.model.parameters import PARAMETER_NAMES
     from phid_ros.stream.pipeline import PipelineSettings
 
     out_path = Path(args.out)  # type: ignore[attr-defined]
-    refuse_inputs([out_path, args.store], [args.bag])  # type: ignore[attr-defined]
+    refuse_inputs([out_path, args.store, args.report], [args.bag])  # type: ignore[attr-defined]
     refuse_inputs([out_path], [args.store])  # type: ignore[attr-defined]
     check_output(out_path, args.force)  # type: ignore[attr-defined]
     rec, _ = read_input(args.bag)  # type: ignore[attr-defined]
@@ -226,60 +319,20 @@ def run(args: object, console: object) -> int:
             raise
         writer.close()  # type: ignore[attr-defined]
     wall = time.perf_counter() - t0
+    print_summary(console, rec, pipeline, outputs, collector)  # type: ignore[arg-type]
+    if args.report:  # type: ignore[attr-defined]
+        from phid_ros.cli.monitor_report import write_replay_report
+
+        write_replay_report(args.report, rec, outputs, collector, source=str(args.bag))  # type: ignore[attr-defined]
+        console.print(f"wrote {args.report}", highlight=False)  # type: ignore[attr-defined]
     start, end = rec.span_ns()
     span = (end - start) / NS
-    c = console
-    ev = Table(title=f"events found ({len(outputs.events)})", title_justify="left")
-    for col in ("id", "kind", "scenario", "t s", "clearing s", "severity", "window"):
-        ev.add_column(col)
-    usable = {w.event.event_id: ("ok" if w.usable else w.reason) for w in outputs.windows}
-    for e in outputs.events:
-        ev.add_row(
-            escape(e.event_id),
-            e.kind,
-            escape(e.name or "—"),
-            f"{(e.inception_ns - start) / NS:.3f}",
-            f"{(e.clearing_ns - start) / NS:.3f}" if e.clearing_ns else "",
-            f"{e.severity:+.3f}",
-            escape(usable.get(e.event_id, "pending")),
-        )
-    c.print(ev)  # type: ignore[attr-defined]
-    for r in outputs.recalibrations:
-        c.print(
-            f"recalibration at {(r.stream_time_ns - start) / NS:.1f} s with {len(r.event_ids)} events: "  # type: ignore[attr-defined]
-            f"{'accepted' if r.accepted else 'rejected'} — {escape(r.status)} ({r.seconds:.2f} s)",
-            highlight=False,
-        )
-    p = pipeline.parameters
-    if p is not None:
-        c.print(
-            "final parameters: " + ", ".join(f"{n} = {getattr(p, n):.5g}" for n in PARAMETER_NAMES),  # type: ignore[attr-defined]
-            highlight=False,
-        )
-    else:
-        c.print("final parameters: none (not enough events for a recalibration)")  # type: ignore[attr-defined]
-    if pipeline.recalibrator.last_good is not None and outputs.energy:
-        last = outputs.energy[-1]
-        # the running summary keeps one sample per batch: count what was published instead
-        n_energy = collector.counts.get(OUTPUT_TOPICS["hamiltonian"][0], 0)
-        c.print(
-            f"Hamiltonian at the end: {last.value[-1]:.5f} (kinetic {last.kinetic[-1]:.2e}, "  # type: ignore[attr-defined]
-            f"magnetic d {last.magnetic_d[-1]:.4f}, q {last.magnetic_q[-1]:.4f}); "
-            f"{n_energy} samples published at {settings.hamiltonian_rate_hz:g} Hz",
-            highlight=False,
-        )
-    health = Table(title="stream health", title_justify="left")
-    for col in ("stream", "level", "status", "samples", "dropped", "gaps", "clock jumps"):
-        health.add_column(col)
-    for name, h in pipeline.health.items():
-        level, msg = pipeline.aligner.status(name)
-        health.add_row(name, level, msg, str(h.samples), str(h.dropped), str(h.gaps), str(h.clock_jumps))
-    c.print(health)  # type: ignore[attr-defined]
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    c.print(
-        f"replayed {span:.1f} s in {wall:.2f} s ({span / wall:.0f}x real time), "  # type: ignore[attr-defined]
-        f"{pipeline.samples_in / wall / 1e6:.2f} M channel-samples/s, peak memory {peak:.0f} MB; "
-        f"wrote {sum(collector.counts.values())} messages to {out_path}",
+    # the one line that differs between two replays of the same bag: it is measured, not replayed
+    console.print(  # type: ignore[attr-defined]
+        f"wrote {sum(collector.counts.values())} messages to {out_path}; "
+        f"timing: {span:.1f} s replayed in {wall:.2f} s wall time ({span / wall:.0f}x real time), "
+        f"{pipeline.samples_in / wall / 1e6:.2f} M channel-samples/s, peak memory {peak:.0f} MB",
         highlight=False,
     )
     pipeline.close()

@@ -6,20 +6,50 @@ import base64
 import html
 import io
 import math
+import re
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
+from phid_ros.cli.tables import pct
 from phid_ros.ident.pipeline import IdentificationResult
 from phid_ros.ident.validation import play_in
 from phid_ros.io.outputs import write_text
-from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, GeneratorParameters, validation_problems
+from phid_ros.model.parameters import (
+    PARAMETER_NAMES,
+    SPECS_BY_NAME,
+    SYMBOLS,
+    GeneratorParameters,
+    validation_problems,
+)
 
 STYLE = (
-    "body{font-family:sans-serif;max-width:1000px;margin:2em auto;color:#222}"
-    "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #bbb;padding:3px 8px;text-align:right}"
-    "td:first-child,th:first-child{text-align:left}img{max-width:100%}"
+    "body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222}"
+    "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #bbb;padding:3px 8px;text-align:right;"
+    "white-space:nowrap}td.text{white-space:normal;text-align:left;max-width:40em}td.name{text-align:left}"
+    "td:first-child,th:first-child{text-align:left}th{background:#f2f2f2}img{max-width:100%;display:block}"
+    "h2,h3{margin:1.2em 0 0.3em}"
 )
+
+
+NUMERIC = re.compile(r"^[-+]?[0-9][0-9.,]*(e[-+]?[0-9]+)?(\([0-9]+\))?\s?(%|\*|\s\(bound\))?$")
+
+
+def html_table(headers: Sequence[str], rows: Sequence[Sequence[str]], text_columns: Sequence[int] = ()) -> str:
+    """A table with every header filled; cells escaped; numbers right-aligned and never wrapped.
+
+    ``text_columns`` (and any long prose cell) may wrap over lines.
+    """
+    head = "".join(f"<th>{html.escape(h)}</th>" for h in headers)
+
+    def cell(i: int, c: str) -> str:
+        if i in text_columns or (len(c) > 30 and " " in c):
+            return f'<td class="text">{html.escape(c)}</td>'
+        return f'<td class="{"num" if NUMERIC.match(c) else "name"}">{html.escape(c)}</td>'
+
+    body = "".join("<tr>" + "".join(cell(i, c) for i, c in enumerate(r)) + "</tr>" for r in rows)
+    return f"<table><tr>{head}</tr>{body}</table>"
 
 
 def png_data_uri(fig: object) -> str:
@@ -31,42 +61,79 @@ def png_data_uri(fig: object) -> str:
     return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
 
 
+SIGNALS = (
+    ("v_t", "V_t (pu)"),
+    ("omega", "Δω (pu)"),
+    ("p_e", "P_e (pu)"),
+    ("q_e", "Q_e (pu)"),
+    ("i_d", "I_d (pu)"),
+    ("i_q", "I_q (pu)"),
+)
+
+
 def _scenario_figure(res: IdentificationResult) -> str | None:
-    """Figure 1 of the paper: the fault scenarios' signals."""
+    """Figure 1 of the paper, for every kind of identification scenario (one column per kind)."""
     import matplotlib.pyplot as plt
 
-    faults = [s for s in res.scenarios if s.kind == "fault" and s.role == "identify"]
-    if not faults:
+    used = [s for s in res.scenarios if s.role == "identify"]
+    kinds = sorted(
+        {s.kind for s in used},
+        key=lambda k: (
+            ("torque_step", "voltage_step", "fault").index(k) if k in ("torque_step", "voltage_step", "fault") else 9
+        ),
+    )
+    if not kinds:
         return None
-    fig, axes = plt.subplots(5, 1, figsize=(9, 11), sharex=True)
-    for s in faults:
-        k0 = max(0, s.k_event - int(0.5 / s.dt))
-        k1 = min(s.n, s.k_event + int(5.0 / s.dt))
-        t = (np.arange(k0, k1) - s.k_event) * s.dt
-        label = s.name
-        axes[0].plot(t, np.hypot(s["i_d"], s["i_q"])[k0:k1], lw=0.8, label=label)
-        axes[1].plot(t, s["v_t"][k0:k1], lw=0.8)
-        axes[2].plot(t, s["omega"][k0:k1] - 1.0, lw=0.8)
-        axes[3].plot(t, s["i_d"][k0:k1], lw=0.8)
-        axes[4].plot(t, s["i_q"][k0:k1], lw=0.8)
-    for ax, lab in zip(axes, ("I (pu)", "V_t (pu)", "Δω (pu)", "I_d (pu)", "I_q (pu)")):
-        ax.set_ylabel(lab)
-        ax.grid(alpha=0.3)
-    axes[0].legend(fontsize=7)
-    axes[-1].set_xlabel("time after fault inception (s)")
-    fig.suptitle("Fault scenarios: measured signals (cf. paper Fig. 1)")
+    fig, axes = plt.subplots(
+        len(SIGNALS), len(kinds), figsize=(4.2 * len(kinds) + 1, 11), sharex="col", squeeze=False, layout="constrained"
+    )
+    for col, kind in enumerate(kinds):
+        for s in (s for s in used if s.kind == kind):
+            k0 = max(0, s.k_event - int(0.5 / s.dt))
+            k1 = min(s.n, s.k_event + int(5.0 / s.dt))
+            t = (np.arange(k0, k1) - s.k_event) * s.dt
+            for row, (name, _) in enumerate(SIGNALS):
+                x = s[name][k0:k1] - (1.0 if name == "omega" else 0.0)
+                axes[row][col].plot(t, x, lw=0.8, label=s.name)
+        axes[0][col].set_title(kind.replace("_", " ") + " scenarios", fontsize=10)
+        axes[0][col].legend(fontsize=6)
+        axes[-1][col].set_xlabel("time after the event (s)")
+    for row, (_, label) in enumerate(SIGNALS):
+        axes[row][0].set_ylabel(label)
+        for ax in axes[row]:
+            ax.grid(alpha=0.3)
+    fig.suptitle("Identification scenarios: measured signals (cf. paper Fig. 1)")
     return png_data_uri(fig)
 
 
+VALIDATED = (
+    ("delta", "δ (deg)", True),
+    ("omega", "ω (pu)", False),
+    ("p_e", "P_e (pu)", False),
+    ("q_e", "Q_e (pu)", False),
+)
+STYLES = {
+    "reference": dict(ls="--", color="#1f5fbf", lw=1.0, zorder=3),
+    "IEEE 115": dict(ls=":", color="#c0392b", lw=1.0, zorder=2),
+    "proposed": dict(ls="-", color="#e67e00", lw=2.2, zorder=5, alpha=0.9),  # drawn last, on top
+}
+
+
 def _validation_figures(res: IdentificationResult, truth: GeneratorParameters | None) -> list[tuple[str, str]]:
-    """Figures 4-6: rotor angle and speed of identified, reference and IEEE 115 models."""
+    """Figures 4-6 extended: δ, ω, P and Q of each model against the measurement, residuals beneath.
+
+    The proposed (identified) model is the thick line on top; P and Q carry the MOD-026
+    ±0.05 pu band around the measurement.
+    """
     import matplotlib.pyplot as plt
+
+    from phid_ros.ident.validation import MOD026_TOLERANCE_PU, play_in_samples
 
     model = res.complete()
     if model is None:
         return []
     chosen = [s for s in res.scenarios if s.role == "validate"] or res.scenarios[:3]
-    sets: list[tuple[str, GeneratorParameters]] = [("proposed", model)]
+    sets: list[tuple[str, GeneratorParameters]] = []
     if truth is not None:
         sets.append(("reference", truth))
     base = {n: e.value for n, e in res.baseline.items()}
@@ -76,28 +143,46 @@ def _validation_figures(res: IdentificationResult, truth: GeneratorParameters | 
         and not validation_problems(base)
     ):
         sets.append(("IEEE 115", GeneratorParameters(**base)))
+    sets.append(("proposed", model))
     trajs = play_in(chosen, [p for _, p in sets])
     out = []
-    styles = {
-        "proposed": dict(ls="-.", color="#d8a200"),
-        "reference": dict(ls="-", color="#1f5fbf"),
-        "IEEE 115": dict(ls="--", color="#c0392b"),
-    }
     for s, tr in zip(chosen, trajs):
-        fig, axes = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
-        idx = np.arange(0, s.n, max(1, int(round((tr.t[1] - tr.t[0]) / s.dt))))[: len(tr.t)]
-        axes[0].plot(tr.t, np.degrees(s["delta"][idx]), color="0.6", lw=0.6, label="measured")
-        axes[1].plot(tr.t, s["omega"][idx], color="0.6", lw=0.6, label="measured")
-        for j, (name, _) in enumerate(sets):
-            axes[0].plot(tr.t, np.degrees(tr.delta[:, j]), lw=1.2, label=name, **styles[name])
-            axes[1].plot(tr.t, tr.omega[:, j], lw=1.2, label=name, **styles[name])
-        axes[0].set_ylabel("δ (deg)")
-        axes[1].set_ylabel("ω (pu)")
-        axes[1].set_xlabel("time (s)")
-        for ax in axes:
-            ax.grid(alpha=0.3)
-        axes[0].legend(fontsize=8)
-        fig.suptitle(f"Validation: {s.name} (cf. paper Figs. 4-6)")
+        fig, axes = plt.subplots(
+            2 * len(VALIDATED),
+            1,
+            figsize=(9, 13),
+            sharex=True,
+            layout="constrained",
+            gridspec_kw={"height_ratios": [3, 1] * len(VALIDATED)},
+        )
+        idx = play_in_samples(s)[: len(tr.t)]
+        t = tr.t - s.k_event * s.dt
+        for i, (name, label, degrees) in enumerate(VALIDATED):
+            ax, rax = axes[2 * i], axes[2 * i + 1]
+            scale = np.degrees if degrees else (lambda x: x)  # noqa: E731
+            meas = scale(s[name][idx])
+            if name in ("p_e", "q_e"):
+                ax.fill_between(
+                    t,
+                    meas - MOD026_TOLERANCE_PU,
+                    meas + MOD026_TOLERANCE_PU,
+                    color="0.85",
+                    lw=0,
+                    label="MOD-026 ±0.05 pu",
+                )
+                rax.axhspan(-MOD026_TOLERANCE_PU, MOD026_TOLERANCE_PU, color="0.88", lw=0)
+            ax.plot(t, meas, color="0.45", lw=0.6, label="measured", zorder=1)
+            for j, (set_name, _) in enumerate(sets):
+                sim = scale(getattr(tr, name)[:, j])
+                ax.plot(t, sim, label=set_name, **STYLES[set_name])
+                rax.plot(t, sim - meas, **STYLES[set_name])
+            ax.set_ylabel(label)
+            rax.set_ylabel("model −\nmeasured", fontsize=8)
+            for a in (ax, rax):
+                a.grid(alpha=0.3)
+        axes[0].legend(fontsize=8, ncol=5, loc="best")
+        axes[-1].set_xlabel("time after the event (s)")
+        fig.suptitle(f"Validation: {s.name} (cf. paper Figs. 4-6); residual beneath each signal")
         out.append((s.name, png_data_uri(fig)))
     return out
 
@@ -116,30 +201,56 @@ def write_report(path: str | Path, res: IdentificationResult, truth: GeneratorPa
         e = res.estimates.get(n)
         b = res.baseline.get(n)
         v = e.value if e else math.nan
-        err = f"{100 * (v / t[n] - 1):+.2f} %" if truth and math.isfinite(v) else ""
-        berr = f"{100 * (b.value / t[n] - 1):+.2f} %" if truth and b and math.isfinite(b.value) else ""
-        rows.append(
-            f"<tr><td>{html.escape(n)}</td><td>{SPECS_BY_NAME[n].unit}</td>"
-            f"<td>{_cell(b.value if b else math.nan, 4)}{' (bound)' if b and b.at_bound else ''}</td><td>{berr}</td>"
-            f"<td><b>{_cell(v)}</b></td><td>{_cell(e.std if e else math.nan, 2)}</td><td>{err}</td>"
-            f"<td>{_cell(t.get(n, math.nan), 4)}</td>"
-            f"<td>{html.escape(', '.join(e.drivers) if e else '')}</td>"
-            f"<td>{'' if e is None or e.identifiable else 'not identified'}</td></tr>"
-        )
-    vrows = []
-    if res.validation:
-        for m in res.validation.scenarios:
-            vrows.append(
-                f"<tr><td>{html.escape(m.scenario)}</td><td>{m.rms_delta_deg:.4f}</td><td>{m.max_delta_deg:.4f}</td>"
-                f"<td>{m.rms_omega_pct:.5f}</td><td>{m.rmse:.2e}</td><td>{m.mae:.2e}</td><td>{m.std:.2e}</td>"
-                f"<td>{m.max_dp:.4f}</td><td>{m.max_dq:.4f}</td><td>{'pass' if m.mod026_pass else 'FAIL'}</td></tr>"
-            )
+        row = [SYMBOLS[n], SPECS_BY_NAME[n].unit]
+        if res.baseline:
+            row.append(_cell(b.value if b else math.nan, 4) + (" (bound)" if b and b.at_bound else ""))
+            if truth:
+                row.append(pct(100 * (b.value / t[n] - 1)) if b and math.isfinite(b.value) else "")
+        row += [_cell(v), _cell(e.std if e else math.nan, 2)]
+        if truth:
+            row += [pct(100 * (v / t[n] - 1)) if math.isfinite(v) else "", _cell(t[n], 4)]
+        row += [
+            ", ".join(e.drivers) if e else "",
+            "missing" if e is None else ("" if e.identifiable else "not identified"),
+        ]
+        rows.append(row)
+    head = ["parameter", "unit"]
+    if res.baseline:
+        head += ["IEEE 115"] + (["err IEEE 115"] if truth else [])
+    head += ["proposed", "± std"] + (["err proposed", "truth"] if truth else []) + ["driven by", "note"]
+    vrows = [
+        [
+            m.scenario,
+            f"{m.rms_delta_deg:.4f}",
+            f"{m.max_delta_deg:.4f}",
+            f"{m.rms_omega_pct:.5f}",
+            f"{m.rmse:.2e}",
+            f"{m.mae:.2e}",
+            f"{m.std:.2e}",
+            f"{m.max_dp:.4f}",
+            f"{m.max_dq:.4f}",
+            "pass" if m.mod026_pass else "FAIL",
+        ]
+        for m in (res.validation.scenarios if res.validation else [])
+    ]
+    vhead = [
+        "scenario",
+        "RMS δ (°)",
+        "max δ (°)",
+        "RMS ω (%)",
+        "RMSE (pu)",
+        "MAE (pu)",
+        "STD (pu)",
+        "max ΔP (pu)",
+        "max ΔQ (pu)",
+        "MOD-026",
+    ]
     figs = []
     f1 = _scenario_figure(res)
     if f1:
-        figs.append(f'<h2>Scenario signals</h2><img src="{f1}" alt="fault scenario signals">')
+        figs.append(f'<h2>Scenario signals</h2><img src="{f1}" alt="identification scenario signals">')
     for name, img in _validation_figures(res, truth):
-        figs.append(f'<h3>{html.escape(name)}</h3><img src="{img}" alt="validation {html.escape(name)}">')
+        figs.append(f'<h3>Validation: {html.escape(name)}</h3><img src="{img}" alt="validation {html.escape(name)}">')
     problems = "".join(f"<li>{html.escape(p)}</li>" for p in res.problems) or "<li>none</li>"
     against = res.validation.against if res.validation else "—"
     doc = f"""<!doctype html><html><head><meta charset="utf-8"><title>phid identify: {html.escape(source)}</title>
@@ -148,11 +259,13 @@ def write_report(path: str | Path, res: IdentificationResult, truth: GeneratorPa
 <p>Input: <code>{html.escape(source)}</code> &middot; method: <b>{html.escape(res.method)}</b> &middot;
 {len(res.scenarios)} scenarios</p>
 <h2>Parameters</h2>
-<table><tr><th>parameter</th><th>unit</th><th>IEEE 115</th><th>err</th><th>proposed</th><th>± std</th><th>err</th>
-<th>truth</th><th>driven by</th><th></th></tr>{"".join(rows)}</table>
+{html_table(head, rows, text_columns=(len(head) - 2,))}
+<p>err = estimate / truth − 1. IEEE 115: the standard's test-based method (the paper's baseline);
+"(bound)": at its search bound.</p>
 <h2>Validation against the {against}</h2>
-<table><tr><th>scenario</th><th>RMS δ °</th><th>max δ °</th><th>RMS ω %</th><th>RMSE pu</th><th>MAE pu</th>
-<th>STD pu</th><th>max ΔP</th><th>max ΔQ</th><th>MOD-026</th></tr>{"".join(vrows)}</table>
+{html_table(vhead, vrows)}
+<p>RMSE, MAE and STD of the combined state-trajectory error (Table 9); MOD-026: simulated P and Q within
+±0.05 pu of the measurement.</p>
 <h2>Notes</h2><ul>{problems}</ul>
 {"".join(figs)}
 </body></html>"""

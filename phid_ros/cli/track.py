@@ -4,24 +4,32 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from rich.table import Table
+from rich.markup import escape
 
-from phid_ros.cli.common import read_input
+from phid_ros.cli.common import read_input, warn
+from phid_ros.cli.identify import load_parameters
+from phid_ros.cli.monitor_report import HealthLog
+from phid_ros.cli.tables import CONCISE_LEGEND, estimate_text
 from phid_ros.errors import PhidError
 from phid_ros.io.bags import write_messages
 from phid_ros.io.outputs import atomic_output
 from phid_ros.io.recording import NS
-from phid_ros.io.results import read_json
-from phid_ros.model.parameters import TABLE1, GeneratorParameters
+from phid_ros.model.parameters import SYMBOLS, TABLE1, GeneratorParameters
 from phid_ros.stream.align import Aligner
 from phid_ros.stream.tracker import TRACKED, SlidingTracker, TrackerSettings, TrackPoint
 
 
-def track_recording(rec: Any, tracker: SlidingTracker) -> list[TrackPoint]:
-    """Align the recording's streams and feed the tracker in one pass (segments respected)."""
+def track_recording(
+    rec: Any, tracker: SlidingTracker, on_point: Callable[[TrackPoint], None] | None = None
+) -> list[TrackPoint]:
+    """Align the recording's streams and feed the tracker in one pass (segments respected).
+
+    ``on_point`` sees each hop's estimates as soon as they are made.
+    """
     aligner = Aligner(rec.streams["pt_ct"].period_ns)
     for name, s in rec.streams.items():
         if _uniform(s):
@@ -36,8 +44,46 @@ def track_recording(rec: Any, tracker: SlidingTracker) -> list[TrackPoint]:
             segment = block.segment
             tracker.reset()
         for k in range(0, len(block.t_ns), chunk):
-            points += tracker.update(block.t_ns[k : k + chunk], block.values[k : k + chunk])
+            new = tracker.update(block.t_ns[k : k + chunk], block.values[k : k + chunk])
+            points += new
+            for p in new if on_point else ():
+                on_point(p)  # type: ignore[misc]
     return points
+
+
+def health_over_time(rec: Any, bin_s: float) -> HealthLog:
+    """Each stream's completeness per ``bin_s`` of the recording, from its stamps.
+
+    Level per bin: OK with 99 % of the expected samples, WARN with 90 %, ERROR below,
+    STALE with none; the counters are the samples missing, the gaps and the backward
+    stamps since the start.
+    """
+    import numpy as np
+
+    start, end = rec.span_ns()
+    edges = np.arange(start, end + int(bin_s * NS), int(bin_s * NS))
+    log = HealthLog(t_s=[float(t) for t in (edges[1:] - start) / NS])
+    for name, s in rec.streams.items():
+        got = np.histogram(s.t_ns, edges)[0]
+        share = got / (bin_s * NS / s.period_ns)
+        step = np.diff(s.t_ns)
+        gap_at = s.t_ns[1:][step > 1.5 * s.period_ns]
+        back_at = s.t_ns[1:][step <= 0]
+        missing = np.cumsum(np.maximum(0, np.round(bin_s * NS / s.period_ns) - got)).astype(int)
+        gaps = np.cumsum(np.histogram(gap_at, edges)[0])
+        jumps = np.cumsum(np.histogram(back_at, edges)[0])
+        levels = np.where(share >= 0.99, "OK", np.where(share >= 0.9, "WARN", np.where(share > 0, "ERROR", "STALE")))
+        log.streams[name] = [(str(lv), int(m), int(g), int(j)) for lv, m, g, j in zip(levels, missing, gaps, jumps)]
+    return log
+
+
+def hop_line(start_ns: int, p: TrackPoint) -> str:
+    """One hop on one line of at most 80 columns: the window's end, then the six tracked values."""
+    cells = []
+    for n in TRACKED:
+        e = p.estimates.get(n)
+        cells.append(f"{estimate_text(e.value, e.std, e.identifiable) if e else '—':>11}")
+    return f"{(p.t_ns - start_ns) / NS:>7.0f} " + " ".join(cells)
 
 
 def _uniform(s: Any) -> bool:
@@ -55,21 +101,22 @@ def _ingest_blocks(aligner: Aligner, name: str, s: Any) -> None:
 
 def base_parameters(args: Any) -> GeneratorParameters:
     if not args.base:
+        warn(
+            f"no --base: X_d and X_q are the paper's Table 1 values ({TABLE1.X_d:g}, {TABLE1.X_q:g} pu), "
+            "not this machine's; "
+            "give --base PARAMS.json (phid identify --json) for real data"
+        )
         return TABLE1
-    doc = read_json(args.base)
-    values = doc.get("parameters", doc)
-    if not isinstance(values, dict):
-        raise PhidError(f"{args.base}: 'parameters' must be an object of the eight parameters")
-    return GeneratorParameters.from_mapping(values, source=args.base)
+    return load_parameters(args.base)
 
 
 def run(args: Any, console: Any) -> int:
     if args.hop > args.window:
         raise PhidError(f"--hop {args.hop:g} s is longer than --window {args.window:g} s: samples would be skipped")
-    if args.out:
-        from phid_ros.io.outputs import refuse_inputs
+    from phid_ros.io.outputs import refuse_inputs
 
-        refuse_inputs([args.out], [args.bag, args.base])
+    refuse_inputs([args.out, args.report], [args.bag, args.base])
+    if args.out:
         if Path(args.out).exists():
             raise PhidError(f"{args.out}: already exists, not overwriting")
     base = base_parameters(args)  # checked before the recording is read
@@ -77,32 +124,41 @@ def run(args: Any, console: Any) -> int:
     tracker = SlidingTracker(
         base, rec.streams["pt_ct"].period_ns, TrackerSettings(window_s=args.window, hop_s=args.hop)
     )
+    start = rec.span_ns()[0]
+    console.print(f"sliding-window tracking ({args.window:g} s window, {args.hop:g} s hop)", highlight=False)
+    console.print(escape(CONCISE_LEGEND), style="dim", highlight=False)
+    console.print(f"{'t s':>7} " + " ".join(f"{SYMBOLS[n]:>11}" for n in TRACKED), highlight=False)
+
+    def show(p: TrackPoint) -> None:
+        console.print(hop_line(start, p), highlight=False)
+        for a in p.alarms:
+            console.print(f"{'':>8}alarm: {a}", style="bold red", highlight=False, markup=False)
+
     t0 = time.perf_counter()
-    points = track_recording(rec, tracker)
+    points = track_recording(rec, tracker, show)
     wall = time.perf_counter() - t0
     if not points:
         raise PhidError(f"{args.bag}: shorter than one tracking window ({args.window:g} s)")
-    start = rec.span_ns()[0]
-    table = Table(title=f"sliding-window tracking ({args.window:g} s window, {args.hop:g} s hop)", title_justify="left")
-    table.add_column("t s", justify="right")
-    for n in TRACKED:
-        table.add_column(n, justify="right")
-    table.add_column("alarm")
-    for p in points:
-        cells = []
-        for n in TRACKED:
-            e = p.estimates.get(n)
-            if e is None or not math.isfinite(e.value):
-                cells.append("—")
-            else:
-                cells.append(f"{e.value:.4g}±{e.std:.1g}" + ("" if e.identifiable else " ?"))
-        table.add_row(f"{(p.t_ns - start) / NS:.0f}", *cells, "; ".join(p.alarms)[:60])
-    console.print(table)
     console.print(
-        f"{len(points)} hops in {wall:.1f} s; alarms raised for: {', '.join(sorted(tracker.alarmed)) or 'none'}"
-        " ('?' = not identifiable in that window)",
+        f"{len(points)} hops; alarms raised for: {', '.join(SYMBOLS[n] for n in sorted(tracker.alarmed)) or 'none'}; "
+        f"tracked in {wall:.1f} s (wall time)",
         highlight=False,
     )
+    if args.report:
+        from phid_ros.cli.monitor_report import write_track_report
+
+        notes = [] if args.base else ["X_d and X_q: the paper's Table 1 values (no --base given)"]
+        notes += sorted({q for p in points for q in p.problems})
+        write_track_report(
+            args.report,
+            rec,
+            points,
+            health_over_time(rec, args.hop),
+            str(args.bag),
+            notes,
+            f"{args.window:g} s window, {args.hop:g} s hop, {len(points)} hops",
+        )
+        console.print(f"wrote {args.report}", highlight=False)
     if args.out:
         from phid_ros.io.msg_schemas import typestore
         from phid_ros.stream.messages import header

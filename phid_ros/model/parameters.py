@@ -23,23 +23,25 @@ class ParameterSpec:
     low: float
     high: float
     description: str
+    symbol: str  # as printed in tables and figures, in the paper's notation
 
 
 # Defaults are the PowerFactory machine of Table 1. Ranges bound what a real
 # synchronous machine can have; they are validity checks, not search bounds.
 PARAMETER_SPECS: tuple[ParameterSpec, ...] = (
-    ParameterSpec("H", "s", 3.480, 0.5, 15.0, "inertia constant"),
-    ParameterSpec("D", "pu", 0.400, 0.0, 50.0, "damping coefficient"),
-    ParameterSpec("X_d", "pu", 2.540, 0.3, 5.0, "d-axis synchronous reactance"),
-    ParameterSpec("X_q", "pu", 2.410, 0.3, 5.0, "q-axis synchronous reactance"),
-    ParameterSpec("X_d_prime", "pu", 0.500, 0.05, 1.5, "d-axis transient reactance"),
-    ParameterSpec("X_q_prime", "pu", 0.814, 0.05, 2.5, "q-axis transient reactance"),
-    ParameterSpec("T_d0_prime", "s", 1.437, 0.05, 20.0, "d-axis open-circuit transient time constant"),
-    ParameterSpec("T_q0_prime", "s", 0.1351, 0.01, 5.0, "q-axis open-circuit transient time constant"),
+    ParameterSpec("H", "s", 3.480, 0.5, 15.0, "inertia constant", "H"),
+    ParameterSpec("D", "pu", 0.400, 0.0, 50.0, "damping coefficient", "D"),
+    ParameterSpec("X_d", "pu", 2.540, 0.3, 5.0, "d-axis synchronous reactance", "X_d"),
+    ParameterSpec("X_q", "pu", 2.410, 0.3, 5.0, "q-axis synchronous reactance", "X_q"),
+    ParameterSpec("X_d_prime", "pu", 0.500, 0.05, 1.5, "d-axis transient reactance", "X'_d"),
+    ParameterSpec("X_q_prime", "pu", 0.814, 0.05, 2.5, "q-axis transient reactance", "X'_q"),
+    ParameterSpec("T_d0_prime", "s", 1.437, 0.05, 20.0, "d-axis open-circuit transient time constant", "T'_d0"),
+    ParameterSpec("T_q0_prime", "s", 0.1351, 0.01, 5.0, "q-axis open-circuit transient time constant", "T'_q0"),
 )
 
 PARAMETER_NAMES: tuple[str, ...] = tuple(s.name for s in PARAMETER_SPECS)
 SPECS_BY_NAME: dict[str, ParameterSpec] = {s.name: s for s in PARAMETER_SPECS}
+SYMBOLS: dict[str, str] = {s.name: s.symbol for s in PARAMETER_SPECS}
 
 
 @dataclass(frozen=True)
@@ -79,6 +81,28 @@ class GeneratorParameters:
                 raise ParameterError(f"{source}: parameter {name} must be a number, got {raw!r}")
             out[name] = float(raw)
         return cls(**out)
+
+    @classmethod
+    def from_document(cls, doc: object, *, source: str) -> tuple[GeneratorParameters, list[str]]:
+        """The eight parameters of a JSON document, and notes on what else it carried.
+
+        Accepted: a ``parameters`` object (a results or truth file), or the eight at the top
+        level beside other keys (unit, date, effects...). Keys that are not parameters are
+        ignored and named in a note; a missing parameter or a non-number is still an error.
+        """
+        if not isinstance(doc, Mapping):
+            raise ParameterError(f"{source}: expected a JSON object with the eight parameters")
+        nested = doc.get("parameters")
+        if nested is not None and not isinstance(nested, Mapping):
+            raise ParameterError(f"{source}: 'parameters' must be an object of the eight parameters")
+        values = nested if nested is not None else doc
+        extra = sorted(k for k in values if k not in SPECS_BY_NAME)
+        ignored = f"ignored key(s) that are not parameters: {', '.join(map(str, extra))}" if extra else ""
+        try:
+            params = cls.from_mapping({k: values[k] for k in values if k in SPECS_BY_NAME}, source=source)
+        except ParameterError as exc:
+            raise ParameterError(f"{exc} ({ignored})" if ignored else str(exc)) from None
+        return params, [f"{source}: {ignored}"] if ignored else []
 
     def replace(self, **changes: float) -> GeneratorParameters:
         return GeneratorParameters(**{**self.as_dict(), **changes})

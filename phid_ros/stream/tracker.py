@@ -23,7 +23,7 @@ from phid_ros.ident import stage1, stage3
 from phid_ros.ident.results import Estimate
 from phid_ros.ident.scenario import ScenarioData, find_events
 from phid_ros.io.topics import CHANNELS
-from phid_ros.model.parameters import GeneratorParameters
+from phid_ros.model.parameters import SYMBOLS, GeneratorParameters
 from phid_ros.stream.ring import RingBuffer
 
 NS = 1_000_000_000
@@ -49,6 +49,8 @@ class TrackPoint:
     estimates: dict[str, Estimate]
     alarms: list[str]
     problems: list[str] = field(default_factory=list)
+    alarmed: list[str] = field(default_factory=list)  # the parameters the alarms are about
+    steps: list[tuple[str, int]] = field(default_factory=list)  # (kind, stamp) of the steps in the window
 
     def value(self, name: str) -> float:
         e = self.estimates.get(name)
@@ -98,7 +100,9 @@ class SlidingTracker:
             self.history.append(point)
             return point
         signals = {c: x[:, i] for i, c in enumerate(CHANNELS)}
-        steps = [k for _, k, _ in find_events(signals, dt)] + [k_cl for _, _, k_cl in find_events(signals, dt) if k_cl]
+        found = find_events(signals, dt)
+        steps = [k for _, k, _ in found] + [k_cl for _, _, k_cl in found if k_cl]
+        point.steps = [(kind, int(t[k])) for kind, k, _ in found]
         k0 = max(1, int(1.0 / dt))  # a short "pre" stretch for the stages' baselines
         sc = ScenarioData(
             "window",
@@ -160,10 +164,11 @@ class SlidingTracker:
             if self._beyond[name] >= self.settings.alarm_after:
                 change = 100 * (est.value / ref.value - 1)
                 point.alarms.append(
-                    f"{name} drifted {change:+.1f} % from {ref.value:.4g} "
+                    f"{SYMBOLS[name]} drifted {change:+.1f} % from {ref.value:.4g} "
                     f"(beyond {self.settings.drift_sigmas:g} sigma for {self._beyond[name]} hops)"
                 )
                 self._alarmed.add(name)
+                point.alarmed.append(name)
 
     @property
     def alarmed(self) -> set[str]:

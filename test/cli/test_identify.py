@@ -99,10 +99,33 @@ def test_inconsistent_frequency_between_truth_and_bag(tmp_path):
 
 
 def test_truth_file_with_a_wrong_name(tmp_path):
+    """A misspelt parameter leaves one missing: refused, naming both the missing and the ignored key."""
+    values = TABLE1.as_dict()
+    values["Xdp"] = values.pop("X_d_prime")
     bad = tmp_path / "t.json"
-    bad.write_text(json.dumps({"parameters": {**TABLE1.as_dict(), "Xdp": 0.3}}))
+    bad.write_text(json.dumps({"parameters": values}))
     r = run_phid("identify", str(BAGS / "validation.mcap"), "--truth", str(bad))
-    assert r.returncode == 2 and "unknown parameter(s) ['Xdp']" in r.stderr and "Traceback" not in r.stderr
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert (
+        "missing parameter(s) ['X_d_prime']" in r.stderr and "ignored key(s) that are not parameters: Xdp" in r.stderr
+    )
+
+
+@pytest.mark.parametrize("nested", [True, False])
+def test_truth_file_with_metadata_beside_the_parameters(tmp_path, capsys, nested):
+    """A plant's truth file carries more than the eight: unit, date, source. Ignored, with a note."""
+    from phid_ros.cli.identify import load_parameters
+
+    meta = {"unit": "G1", "date": "2026-11-01", "source": "OEM datasheet"}
+    doc = {**meta, "parameters": TABLE1.as_dict()} if nested else {**meta, **TABLE1.as_dict()}
+    truth = tmp_path / "t.json"
+    truth.write_text(json.dumps(doc))
+    assert load_parameters(truth) == TABLE1
+    err = capsys.readouterr().err
+    if nested:  # keys beside a nested 'parameters' object are the document's own business
+        assert err == ""
+    else:
+        assert err.strip() == f"phid: warning: {truth}: ignored key(s) that are not parameters: date, source, unit"
 
 
 def test_inconsistent_base_between_truth_and_bag(tmp_path):

@@ -21,7 +21,7 @@ def test_replay_writes_every_output_and_prints_the_summary(tmp_path, capsys):
     text = capsys.readouterr().out
     assert "V1_power_step" in text and "V3_fault_150ms" in text and "stream health" in text
     # three validation events cannot identify anything: said, not invented
-    assert "final parameters: none" in text or "rejected" in text
+    assert "parameters in force at the end: none" in text or "rejected" in text
     assert (tmp_path / "e.sqlite").stat().st_size > 0
 
 
@@ -34,7 +34,7 @@ def test_simulate_ambient_then_track(tmp_path, capsys):
     out = tmp_path / "tracked.mcap"
     assert main(["track", str(bag), "--window", "300", "--hop", "60", "--out", str(out)]) == 0
     text = capsys.readouterr().out
-    assert "3 hops" in text and "T_d0_prime" in text
+    assert "3 hops" in text and "T'_d0" in text
     assert dict((t, n) for t, _, n in topic_table(out))["/phid/tracked_parameters"] == 3
 
 

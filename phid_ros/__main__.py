@@ -1,0 +1,7 @@
+"""``python -m phid_ros``: the ``phid`` command."""
+
+import sys
+
+from phid_ros.cli.main import main
+
+sys.exit(main())

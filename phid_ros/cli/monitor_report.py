@@ -1,0 +1,327 @@
+"""HTML reports of a monitoring run over a recording: ``phid replay --report`` and ``phid track --report``.
+
+Both show the same three things over the recording's time axis: the events (on the
+measured terminal voltage and mechanical power), the parameters with ±2σ bands and
+their alarms, and the health of every sensor stream.
+"""
+
+from __future__ import annotations
+
+import html
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from phid_ros.cli.report import STYLE, html_table, png_data_uri
+from phid_ros.cli.tables import CONCISE_LEGEND, estimate_text
+from phid_ros.fleet.history import DRIFT_SIGMAS
+from phid_ros.io.outputs import write_text
+from phid_ros.io.recording import NS, Recording
+from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, SYMBOLS
+
+if TYPE_CHECKING:
+    from phid_ros.cli.replay import OutputCollector
+    from phid_ros.ident.results import Estimate
+    from phid_ros.stream.pipeline import Outputs
+    from phid_ros.stream.tracker import TrackPoint
+
+KIND_COLORS = {"fault": "#c0392b", "torque_step": "#1f5fbf", "voltage_step": "#2e8b57"}
+LEVEL_COLORS = {"OK": "#2e8b57", "WARN": "#e69f00", "ERROR": "#c0392b", "STALE": "#888888"}
+MAX_POINTS = 4000  # samples drawn per trace: a day at 1 kHz would not be readable anyway
+
+
+@dataclass
+class ParameterPoint:
+    """One published set: its stream time, the estimates, and which of them raised an alarm."""
+
+    t_s: float
+    estimates: dict[str, Estimate]
+    alarmed: list[str] = field(default_factory=list)
+
+
+@dataclass
+class HealthLog:
+    """Each stream's level and cumulative counters at stamps over the recording."""
+
+    t_s: list[float] = field(default_factory=list)
+    streams: dict[str, list[tuple[str, int, int, int]]] = field(default_factory=dict)  # level, dropped, gaps, jumps
+
+    def add(self, t_s: float, snapshot: dict[str, tuple[str, int, int, int]]) -> None:
+        self.t_s.append(t_s)
+        for name, row in snapshot.items():
+            self.streams.setdefault(name, []).append(row)
+
+
+# -- figures ----------------------------------------------------------------------------------------
+def _events_figure(
+    rec: Recording, events: Sequence[tuple[str, float, bool]], marks: Sequence[tuple[float, str]]
+) -> str:
+    """V_t and P_m over the recording, each event a line in its kind's colour (dashed: window unusable)."""
+    import matplotlib.pyplot as plt
+
+    start = rec.span_ns()[0]
+    fig, axes = plt.subplots(2, 1, figsize=(10, 4.6), sharex=True, layout="constrained")
+    for ax, (stream, channel, label) in zip(axes, (("pt_ct", "v_t", "V_t (pu)"), ("encoder", "p_m", "P_m (pu)"))):
+        s = rec.streams[stream]
+        step = max(1, len(s.t_ns) // MAX_POINTS)
+        t = (s.t_ns[::step] - start) / NS
+        # min and max of each stride, so that a 100 ms fault dip is not decimated away
+        x = s.channels[channel]
+        n = len(x) // step * step
+        if step > 1 and n:
+            blocks = x[:n].reshape(-1, step)
+            tt = np.repeat(t[: len(blocks)], 2)
+            xx = np.column_stack((blocks.min(axis=1), blocks.max(axis=1))).ravel()
+            ax.plot(tt, xx, color="0.35", lw=0.6)
+        else:
+            ax.plot(t, x[::step], color="0.35", lw=0.6)
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+        for kind, t_ev, ok in events:
+            ax.axvline(t_ev, color=KIND_COLORS.get(kind, "k"), lw=1.0, ls="-" if ok else "--", alpha=0.8)
+    for t_m, color in marks:
+        axes[0].plot([t_m], [axes[0].get_ylim()[1]], marker="v", color=color, ms=8, clip_on=False)
+    handles = [plt.Line2D([], [], color=c, label=k.replace("_", " ")) for k, c in KIND_COLORS.items()]
+    handles.append(plt.Line2D([], [], color="k", ls="--", label="window not usable"))
+    if marks:
+        handles.append(plt.Line2D([], [], color="#2e8b57", marker="v", ls="", label="recalibration accepted"))
+        handles.append(plt.Line2D([], [], color="#c0392b", marker="v", ls="", label="recalibration rejected"))
+    axes[0].legend(handles=handles, fontsize=7, ncol=3, loc="lower left")
+    axes[-1].set_xlabel("time from the start of the recording (s)")
+    fig.suptitle("Events over the recording")
+    return png_data_uri(fig)
+
+
+def _parameters_figure(points: Sequence[ParameterPoint], names: Sequence[str], title: str) -> str | None:
+    """Each parameter over time: the estimate, a ±2σ band, hollow where not identifiable, alarms ringed."""
+    import matplotlib.pyplot as plt
+
+    if not points:
+        return None
+    rows = math.ceil(len(names) / 2)
+    fig, axes = plt.subplots(rows, 2, figsize=(10, 2.1 * rows), sharex=True, layout="constrained", squeeze=False)
+    t = np.array([p.t_s for p in points])
+    for ax, name in zip(axes.ravel(), names):
+        v = np.array([p.estimates[name].value if name in p.estimates else math.nan for p in points])
+        sd = np.array([p.estimates[name].std if name in p.estimates else math.nan for p in points])
+        ok = np.array([name in p.estimates and p.estimates[name].identifiable for p in points])
+        ax.errorbar(
+            t[ok], v[ok], yerr=2 * sd[ok], fmt="o-", color="#1f5fbf", ms=3, lw=1.0, capsize=3, label="estimate ±2σ"
+        )
+        if (~ok).any():
+            ax.plot(t[~ok], v[~ok], "o", mfc="none", color="0.5", ms=4, label="not identifiable")
+        alarm = np.array([name in p.alarmed for p in points])
+        if alarm.any():
+            ax.plot(t[alarm], v[alarm], "o", mfc="none", mec="#c0392b", ms=11, mew=1.8, label="alarm")
+        unit = SPECS_BY_NAME[name].unit
+        ax.set_ylabel(f"{SYMBOLS[name]} ({unit})")
+        ax.ticklabel_format(axis="y", useOffset=False)
+        ax.grid(alpha=0.3)
+    for ax in axes.ravel()[len(names) :]:
+        ax.set_visible(False)
+    for ax in axes[-1]:
+        ax.set_xlabel("time from the start of the recording (s)")
+    handles, labels = [], []
+    for ax in axes.ravel():
+        for h, lab in zip(*ax.get_legend_handles_labels()):
+            if lab not in labels:
+                handles.append(h)
+                labels.append(lab)
+    axes[0][0].legend(handles, labels, fontsize=7, loc="best")
+    fig.suptitle(title)
+    return png_data_uri(fig)
+
+
+def _health_figure(log: HealthLog) -> str | None:
+    """Per stream: a strip of its diagnostic level over time, and its cumulative losses beneath."""
+    import matplotlib.pyplot as plt
+
+    if not log.t_s:
+        return None
+    names = list(log.streams)
+    t = np.array(log.t_s)
+    fig, (ax_level, ax_count) = plt.subplots(
+        2,
+        1,
+        figsize=(10, 1.2 + 0.45 * len(names) + 2.4),
+        sharex=True,
+        layout="constrained",
+        gridspec_kw={"height_ratios": [0.45 * len(names) + 0.4, 2.4]},
+    )
+    for row, name in enumerate(names):
+        levels = [r[0] for r in log.streams[name]]
+        edges = np.append(t, t[-1] + (t[-1] - t[-2] if len(t) > 1 else 1.0))
+        for k, level in enumerate(levels):
+            ax_level.barh(row, edges[k + 1] - edges[k], left=edges[k], color=LEVEL_COLORS.get(level, "k"), height=0.7)
+        counts = np.array([r[1:] for r in log.streams[name]])
+        ax_count.step(t, counts[:, 0], where="post", lw=1.0, label=f"{name} dropped")
+        ax_count.step(t, counts[:, 1], where="post", lw=1.0, ls="--", label=f"{name} gaps")
+        if counts[:, 2].any():
+            ax_count.step(t, counts[:, 2], where="post", lw=1.4, ls=":", label=f"{name} clock jumps")
+    ax_level.set_yticks(range(len(names)), names)
+    ax_level.invert_yaxis()
+    ax_level.set_title(
+        "diagnostic level: "
+        + ", ".join(f"{k} {v}" for k, v in (("OK", "green"), ("WARN", "orange"), ("ERROR", "red"), ("STALE", "grey"))),
+        fontsize=9,
+    )
+    ax_count.set_ylabel("count since start")
+    ax_count.grid(alpha=0.3)
+    ax_count.legend(fontsize=7, ncol=4)
+    ax_count.set_xlabel("time from the start of the recording (s)")
+    fig.suptitle("Stream health over time")
+    return png_data_uri(fig)
+
+
+def _parameter_rows(points: Sequence[ParameterPoint], names: Sequence[str]) -> tuple[list[str], list[list[str]]]:
+    head = ["t s"] + [f"{SYMBOLS[n]} ({SPECS_BY_NAME[n].unit})" for n in names] + ["alarms"]
+    rows = []
+    for p in points:
+        cells = [f"{p.t_s:.1f}"]
+        for n in names:
+            e = p.estimates.get(n)
+            cells.append(estimate_text(e.value, e.std, e.identifiable) if e else "—")
+        cells.append(", ".join(SYMBOLS[n] for n in p.alarmed))
+        rows.append(cells)
+    return head, rows
+
+
+def _page(title: str, source: str, intro: str, sections: Sequence[str]) -> str:
+    head = f"{html.escape(title)}: {html.escape(source)}"
+    return f"""<!doctype html><html><head><meta charset="utf-8"><title>{head}</title>
+<style>{STYLE}</style></head><body>
+<h1>{html.escape(title)}</h1>
+<p>Input: <code>{html.escape(source)}</code> &middot; {intro}</p>
+{"".join(sections)}
+</body></html>"""
+
+
+def _figure(heading: str, img: str | None, alt: str) -> str:
+    return f'<h2>{html.escape(heading)}</h2><img src="{img}" alt="{html.escape(alt)}">' if img else ""
+
+
+def _write(path: str | Path, page: str) -> Path:
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    write_text(out, page)
+    return out
+
+
+# -- replay ------------------------------------------------------------------------------------------
+def replay_alarms(points: list[ParameterPoint], sigmas: float = DRIFT_SIGMAS) -> None:
+    """Mark a parameter whose accepted value moved beyond ``sigmas`` combined σ since the previous set."""
+    for prev, cur in zip(points, points[1:]):
+        for n, e in cur.estimates.items():
+            p = prev.estimates.get(n)
+            if p is None or not (e.identifiable and p.identifiable):
+                continue
+            band = sigmas * math.hypot(e.std, p.std)
+            if math.isfinite(band) and abs(e.value - p.value) > band:
+                cur.alarmed.append(n)
+
+
+def write_replay_report(
+    path: str | Path, rec: Recording, outputs: Outputs, collector: OutputCollector, source: str
+) -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    start = rec.span_ns()[0]
+    usable = {w.event.event_id: w.usable for w in outputs.windows}
+    events = [(e.kind, (e.inception_ns - start) / NS, usable.get(e.event_id, False)) for e in outputs.events]
+    marks = [((r.stream_time_ns - start) / NS, "#2e8b57" if r.accepted else "#c0392b") for r in outputs.recalibrations]
+    points = [
+        ParameterPoint((r.stream_time_ns - start) / NS, dict(r.result.estimates))
+        for r in outputs.recalibrations
+        if r.accepted and r.result is not None
+    ]
+    replay_alarms(points)
+    health = HealthLog()
+    for t_ns, snap in collector.health_log:
+        health.add((t_ns - start) / NS, snap)
+    reasons = {w.event.event_id: ("ok" if w.usable else w.reason) for w in outputs.windows}
+    from phid_ros.cli.replay import severity_text
+
+    ev_rows = [
+        [
+            f"{(e.inception_ns - start) / NS:.3f}",
+            e.kind,
+            e.name or "—",
+            severity_text(e.kind, e.severity),
+            reasons.get(e.event_id, "pending"),
+        ]
+        for e in outputs.events
+    ]
+    rc_rows = [
+        [
+            f"{(r.stream_time_ns - start) / NS:.1f}",
+            str(len(r.event_ids)),
+            "accepted" if r.accepted else "rejected",
+            r.status,
+        ]
+        for r in outputs.recalibrations
+    ]
+    head, prow = _parameter_rows(points, PARAMETER_NAMES)
+    span = (rec.span_ns()[1] - start) / NS
+    sections = [
+        _figure("Events", _events_figure(rec, events, marks), "events timeline"),
+        html_table(["t s", "kind", "scenario", "severity", "window"], ev_rows),
+        _figure(
+            "Parameters over time",
+            _parameters_figure(points, PARAMETER_NAMES, "Parameters of each accepted recalibration (±2σ)"),
+            "parameters over time",
+        ),
+        f"<p>{html.escape(CONCISE_LEGEND)}. Alarm: a change beyond {DRIFT_SIGMAS:g} combined σ since the "
+        "previous accepted set.</p>",
+        html_table(head, prow) if prow else "<p>No recalibration was accepted.</p>",
+        "<h2>Recalibrations</h2>",
+        html_table(["t s", "events", "outcome", "status"], rc_rows),
+        _figure("Stream health", _health_figure(health), "stream health over time"),
+    ]
+    intro = f"{span:.1f} s of data &middot; {len(outputs.events)} events &middot; {len(points)} accepted recalibrations"
+    return _write(path, _page("phid replay", source, intro, sections))
+
+
+# -- track -------------------------------------------------------------------------------------------
+def write_track_report(
+    path: str | Path,
+    rec: Recording,
+    track: Sequence[TrackPoint],
+    health: HealthLog,
+    source: str,
+    notes: Sequence[str],
+    settings: str,
+) -> Path:
+    import matplotlib
+
+    from phid_ros.stream.tracker import TRACKED
+
+    matplotlib.use("Agg")
+    start = rec.span_ns()[0]
+    seen: dict[int, str] = {}
+    for p in track:
+        for kind, t_ns in p.steps:
+            if all(abs(t_ns - t) > NS for t in seen):
+                seen[t_ns] = kind
+    events = [(kind, (t - start) / NS, True) for t, kind in sorted(seen.items())]
+    points = [ParameterPoint((p.t_ns - start) / NS, p.estimates, list(p.alarmed)) for p in track]
+    head, rows = _parameter_rows(points, TRACKED)
+    alarms = [f"<li>{(p.t_ns - start) / NS:.0f} s: {html.escape(a)}</li>" for p in track for a in p.alarms]
+    sections = [
+        _figure("Events", _events_figure(rec, events, []), "events timeline"),
+        _figure(
+            "Parameters over time",
+            _parameters_figure(points, TRACKED, "Tracked parameters at the end of each window (±2σ)"),
+            "parameters over time",
+        ),
+        f"<p>{html.escape(CONCISE_LEGEND)}. X_d and X_q are held at the base set; see the notes.</p>",
+        html_table(head, rows),
+        "<h2>Drift alarms</h2><ul>" + ("".join(alarms) or "<li>none</li>") + "</ul>",
+        _figure("Stream health", _health_figure(health), "stream health over time"),
+        "<h2>Notes</h2><ul>" + ("".join(f"<li>{html.escape(n)}</li>" for n in notes) or "<li>none</li>") + "</ul>",
+    ]
+    return _write(path, _page("phid track", source, html.escape(settings), sections))

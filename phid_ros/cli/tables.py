@@ -1,0 +1,159 @@
+"""Terminal tables and numbers: one look for every command, fitted to the console's width.
+
+A table is declared as columns with a priority; when it does not fit the console (80
+columns in a log, the terminal's width on a terminal), the least needed columns are left
+out and a legend line says which, so that no number is ever cut to ``0.06…``. ``--wide``
+gives the console room for everything.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from rich import box
+from rich.console import Console
+from rich.markup import escape
+from rich.measure import Measurement
+from rich.table import Table
+
+LOG_WIDTH = 80  # a console that is not a terminal (a log, a pipe) is this wide
+WIDE_WIDTH = 400  # --wide: room for every column
+
+
+def make_console(*, wide: bool = False) -> Console:
+    """The command's console: the terminal's width, 80 columns in a file, unlimited with --wide."""
+    import sys
+
+    if wide:
+        return Console(width=WIDE_WIDTH, soft_wrap=True)
+    if sys.stdout.isatty():
+        return Console()
+    return Console(width=LOG_WIDTH, soft_wrap=True)
+
+
+@dataclass(frozen=True)
+class Col:
+    header: str
+    justify: str = "right"
+    keep: int = 9  # priority: columns with the lowest ``keep`` are left out first when space runs short
+    text: bool = False  # free text: may wrap over lines (numbers and names never do)
+    key: bool = False  # repeated in every part when a table too wide is folded into parts
+
+
+def _build(title: str, cols: Sequence[Col], rows: Sequence[Sequence[str]], shown: list[int]) -> Table:
+    table = Table(title=title, title_justify="left", box=box.SIMPLE_HEAD, padding=(0, 1), show_edge=False)
+    for i in shown:
+        c = cols[i]
+        table.add_column(c.header, justify=c.justify, no_wrap=not c.text, overflow="fold")  # type: ignore[arg-type]
+    for r in rows:
+        table.add_row(*(escape(r[i]) for i in shown))
+    return table
+
+
+def _needed(console: Console, cols: Sequence[Col], rows: Sequence[Sequence[str]], shown: list[int]) -> int:
+    """Columns needed with every number whole; a text column counts at most 16 (it wraps)."""
+    fixed = [i for i in shown if not cols[i].text]
+    wide = console.options.update_width(WIDE_WIDTH)
+    width = Measurement.get(console, wide, _build("", cols, rows, fixed)).maximum if fixed else 0
+    for i in shown:
+        if cols[i].text:
+            width += 3 + min(16, max([len(cols[i].header)] + [len(r[i]) for r in rows]))
+    return width
+
+
+def print_table(
+    console: Console, title: str, cols: Sequence[Col], rows: Sequence[Sequence[str]], legend: str = ""
+) -> list[str]:
+    """Print a table that fits the console; returns the headers left out (named under the table).
+
+    Columns empty in every row are not shown at all.
+    """
+    shown = [i for i in range(len(cols)) if any(r[i] for r in rows)] if rows else list(range(len(cols)))
+    order = sorted(shown, key=lambda i: (cols[i].keep, -i))
+    dropped: list[str] = []
+    while _needed(console, cols, rows, shown) > console.width:
+        candidates = [i for i in order if i in shown and cols[i].keep < 9]
+        if not candidates:
+            break
+        shown.remove(candidates[0])
+        dropped.append(cols[candidates[0]].header)
+    parts = _fold(console, cols, rows, shown)
+    for k, part in enumerate(parts, start=1):
+        suffix = f" (part {k} of {len(parts)})" if len(parts) > 1 else ""
+        console.print(_build(escape(title) + suffix, cols, rows, part))
+    notes = [legend] if legend else []
+    if dropped:
+        notes.append(f"not shown at {console.width} columns: {', '.join(dropped)} (--wide shows them)")
+    for n in notes:
+        console.print(escape(n), highlight=False, style="dim")
+    return dropped
+
+
+def _fold(console: Console, cols: Sequence[Col], rows: Sequence[Sequence[str]], shown: list[int]) -> list[list[int]]:
+    """The shown columns in parts that each fit, every part led by the key columns."""
+    keys = [i for i in shown if cols[i].key]
+    parts: list[list[int]] = [list(keys)]
+    for i in shown:
+        if i in keys:
+            continue
+        if len(parts[-1]) > len(keys) and _needed(console, cols, rows, parts[-1] + [i]) > console.width:
+            parts.append(list(keys))
+        parts[-1].append(i)
+    return [sorted(p) for p in parts]
+
+
+def fmt(v: float | None, digits: int = 4) -> str:
+    """A number in ``digits`` significant figures; a dash for none; never exponent notation above 1e-3."""
+    if v is None or not math.isfinite(v):
+        return "—"
+    if v != 0 and (abs(v) >= 10**digits or abs(v) < 1e-3):
+        return f"{v:.{max(1, digits - 2)}e}" if abs(v) < 1e-3 else f"{v:,.0f}"
+    return f"{v:.{digits}g}"
+
+
+def pct(v: float | None, digits: int = 2) -> str:
+    return "—" if v is None or not math.isfinite(v) else f"{v:+.{digits}f}%"
+
+
+def concise(value: float, std: float) -> str:
+    """``1.4430(55)`` for 1.4430 ± 0.0055: the metrologists' short form, two digits of the std."""
+    if not math.isfinite(value):
+        return "—"
+    if not math.isfinite(std) or std <= 0:
+        return f"{value:.4g}"
+    decimals = max(0, 1 - math.floor(math.log10(std)))
+    digits = round(std * 10**decimals)
+    if decimals == 0:
+        return f"{value:.0f}({digits})"
+    return f"{value:.{decimals}f}({digits})"
+
+
+# how a measured channel is named and in what unit it is compared, in tables and on figure axes
+CHANNEL_LABELS = {
+    "omega": ("ω", "pu"),
+    "delta": ("δ", "rad"),
+    "i_d": ("I_d", "pu"),
+    "i_q": ("I_q", "pu"),
+    "p_e": ("P_e", "pu"),
+    "q_e": ("Q_e", "pu"),
+    "v_t": ("V_t", "pu"),
+    "p_m": ("P_m", "pu"),
+}
+
+
+def axis_label(channel: str) -> str:
+    symbol, unit = CHANNEL_LABELS[channel]
+    return f"{symbol} ({unit})"
+
+
+NOT_IDENTIFIED = "n.i."
+CONCISE_LEGEND = "1.4430(55) = 1.4430 ± 0.0055; n.i. = not identifiable from these data (value withheld)"
+
+
+def estimate_text(value: float, std: float, identifiable: bool) -> str:
+    """An estimate for a table: concise form when identified; withheld, not printed as a number, when not."""
+    if not math.isfinite(value):
+        return "—"
+    return concise(value, std) if identifiable else NOT_IDENTIFIED
