@@ -60,19 +60,26 @@ def _run(args: list[str], timeout: float = 120) -> subprocess.CompletedProcess[s
         return subprocess.run(base + args, capture_output=True, text=True, timeout=timeout, check=False)
 
 
-def inspect(report: Path) -> dict:
-    """What Chromium rendered: every figure's size and share of inked pixels, every table's headers."""
+def _rendered(report: Path, script: str, marker: str) -> str | None:
+    """The text a probe script left in ``<pre id=marker>`` after Chromium loaded the page, or None."""
     with tempfile.TemporaryDirectory() as tmp:
         page = Path(tmp) / report.name
-        page.write_text(report.read_text(encoding="utf-8").replace("</body>", CHECK_SCRIPT + "</body>"))
+        page.write_text(report.read_text(encoding="utf-8").replace("</body>", script + "</body>"))
         done = _run(["--window-size=1280,2000", "--virtual-time-budget=20000", "--dump-dom", page.as_uri()])
-    start = done.stdout.find('<pre id="phid-check">')
+    start = done.stdout.find(f'<pre id="{marker}">')
     if start < 0:
-        raise AssertionError(f"Chromium rendered no check for {report}: {done.stderr[-500:]}")
-    text = done.stdout[start + len('<pre id="phid-check">') : done.stdout.index("</pre>", start)]
+        return None
     import html
 
-    return json.loads(html.unescape(text))
+    return html.unescape(done.stdout[start + len(f'<pre id="{marker}">') : done.stdout.index("</pre>", start)])
+
+
+def inspect(report: Path) -> dict:
+    """What Chromium rendered: every figure's size and share of inked pixels, every table's headers."""
+    text = _rendered(report, CHECK_SCRIPT, "phid-check")
+    if text is None:
+        raise AssertionError(f"Chromium rendered no check for {report}")
+    return json.loads(text)
 
 
 def screenshot(report: Path, png: Path, width: int = 1280, height: int | None = None) -> Path:
@@ -91,11 +98,21 @@ def _page_height(report: Path) -> int:
         "<script>window.addEventListener('load',()=>{const p=document.createElement('pre');p.id='phid-h';"
         "p.textContent=document.documentElement.scrollHeight;document.body.appendChild(p);});</script>"
     )
-    with tempfile.TemporaryDirectory() as tmp:
-        page = Path(tmp) / report.name
-        page.write_text(report.read_text(encoding="utf-8").replace("</body>", probe + "</body>"))
-        done = _run(["--window-size=1280,2000", "--virtual-time-budget=20000", "--dump-dom", page.as_uri()])
-    start = done.stdout.find('<pre id="phid-h">')
-    if start < 0:
-        return 4000
-    return int(done.stdout[start + len('<pre id="phid-h">') : done.stdout.index("</pre>", start)]) + 40
+    text = _rendered(report, probe, "phid-h")
+    return 4000 if text is None else int(text) + 40
+
+
+def assert_readable(report: Path, figures: int) -> dict:
+    """Every figure a non-blank image shown on the page, every table its headers, no number wrapped,
+    nothing off the right edge of a 1280-pixel window."""
+    seen = inspect(report)
+    assert len(seen["figures"]) == figures, [f["alt"] for f in seen["figures"]]
+    for fig in seen["figures"]:
+        assert fig["width"] > 300 and fig["height"] > 200 and fig["shown_width"] > 300, fig
+        assert fig["inked"] > 0.01, f"{fig['alt']}: an almost blank figure"
+    assert seen["tables"]
+    for table in seen["tables"]:
+        assert table["rows"] > 0 and all(table["headers"]) and set(table["header_cells"]) == {"TH"}, table
+        assert table["wrapped_numbers"] == 0, table
+    assert seen["width"] <= 1280, f"{report}: {seen['width']} px wide"
+    return seen

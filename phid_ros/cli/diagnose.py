@@ -10,7 +10,7 @@ from rich.console import Console
 from phid_ros.cli.common import warn
 from phid_ros.cli.identify import load_input, load_truth
 from phid_ros.cli.scenarios import scenarios_from_recording
-from phid_ros.cli.tables import CHANNEL_LABELS, Col, fmt, pct, print_table
+from phid_ros.cli.tables import CHANNEL_LABELS, Col, fmt, pct, print_table, signed_int
 from phid_ros.diagnose.localise import localise
 from phid_ros.diagnose.playin import OUTPUTS
 from phid_ros.diagnose.results import to_json
@@ -59,8 +59,8 @@ def print_parameters(console: Console, doc: dict[str, Any]) -> None:
 
 
 def print_rounds(console: Console, doc: dict[str, Any]) -> None:
-    cols = [Col("rnd"), Col("candidate", "left"), Col("ΔBIC"), Col("held-out"), Col("named", "left")]
-    cols.append(Col("fitted values", "left", keep=4, text=True))
+    cols = [Col("rnd", key=True), Col("candidate", "left", key=True), Col("ΔBIC"), Col("held-out")]
+    cols += [Col("named", "left"), Col("fitted values", "left", text=True)]
     rows = []
     for i, r in enumerate(doc["rounds"], start=1):
         for tr in r["trials"]:
@@ -69,7 +69,7 @@ def print_rounds(console: Console, doc: dict[str, Any]) -> None:
                 [
                     str(i),
                     tr["candidate"],
-                    "-" if tr["delta_bic"] is None else fmt(tr["delta_bic"]),
+                    "-" if tr["delta_bic"] is None else signed_int(tr["delta_bic"]),
                     "-" if gain is None else pct(-100 * gain, 0),
                     "yes" if tr["accepted"] else "",
                     _fmt_values(tr["parameters"] or {}),

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from phid_ros.cli.report import STYLE, html_table, png_data_uri
-from phid_ros.cli.tables import CHANNEL_LABELS, axis_label, fmt, pct
+from phid_ros.cli.tables import CHANNEL_LABELS, axis_label, fmt, pct, signed_int
 from phid_ros.diagnose.fit import evaluate
 from phid_ros.diagnose.playin import OUTPUTS, PlayIn
 from phid_ros.diagnose.workflow import Diagnosis
@@ -98,7 +98,7 @@ def write_report(path: str | Path, d: Diagnosis, doc: dict[str, Any], source: st
                 _values(e["parameters"]),
                 fmt(e["rmse_before"], 3),
                 fmt(e["rmse_after"], 3),
-                fmt(e["delta_bic"]),
+                signed_int(e["delta_bic"]),
                 e["signature"],
             ]
             for e in doc["effects"]
@@ -139,7 +139,7 @@ def write_report(path: str | Path, d: Diagnosis, doc: dict[str, Any], source: st
             [
                 str(i),
                 t["candidate"],
-                "-" if t["delta_bic"] is None else fmt(t["delta_bic"]),
+                "-" if t["delta_bic"] is None else signed_int(t["delta_bic"]),
                 "-" if t["heldout_gain"] is None else pct(-100 * t["heldout_gain"], 0),
                 "yes" if t["accepted"] else "",
                 _values(t["parameters"] or {}),

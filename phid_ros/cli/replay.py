@@ -226,7 +226,7 @@ def print_summary(
     cols = [
         Col("t s"),
         Col("kind", "left"),
-        Col("scenario", "left", keep=5, text=True),
+        Col("scenario", "left", keep=5, text=True, breakable=True),
         Col("clearing s", keep=3),
         Col("severity", "left"),
         Col("window", "left", text=True),

@@ -27,7 +27,7 @@ from phid_ros.model.parameters import (
 STYLE = (
     "body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222}"
     "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #bbb;padding:3px 8px;text-align:right;"
-    "white-space:nowrap}td.text{white-space:normal;text-align:left;max-width:40em}td.name{text-align:left}"
+    "white-space:nowrap}td.text{white-space:normal;text-align:left;max-width:40em}td.name,th.name{text-align:left}"
     "td:first-child,th:first-child{text-align:left}th{background:#f2f2f2}img{max-width:100%;display:block}"
     "h2,h3{margin:1.2em 0 0.3em}"
 )
@@ -41,7 +41,11 @@ def html_table(headers: Sequence[str], rows: Sequence[Sequence[str]], text_colum
 
     ``text_columns`` (and any long prose cell) may wrap over lines.
     """
-    head = "".join(f"<th>{html.escape(h)}</th>" for h in headers)
+    numeric = [bool(rows) and all(not r[i] or NUMERIC.match(r[i]) for r in rows) for i in range(len(headers))]
+    head = "".join(
+        f"<th>{html.escape(h)}</th>" if numeric[i] else f'<th class="name">{html.escape(h)}</th>'
+        for i, h in enumerate(headers)
+    )
 
     def cell(i: int, c: str) -> str:
         if i in text_columns or (len(c) > 30 and " " in c):
@@ -182,7 +186,7 @@ def _validation_figures(res: IdentificationResult, truth: GeneratorParameters | 
                 a.grid(alpha=0.3)
         axes[0].legend(fontsize=8, ncol=5, loc="best")
         axes[-1].set_xlabel("time after the event (s)")
-        fig.suptitle(f"Validation: {s.name} (cf. paper Figs. 4-6); residual beneath each signal")
+        fig.suptitle("Each model against the measurement (cf. paper Figs. 4-6); its residual beneath each signal")
         out.append((s.name, png_data_uri(fig)))
     return out
 

@@ -40,13 +40,20 @@ class Col:
     keep: int = 9  # priority: columns with the lowest ``keep`` are left out first when space runs short
     text: bool = False  # free text: may wrap over lines (numbers and names never do)
     key: bool = False  # repeated in every part when a table too wide is folded into parts
+    breakable: bool = False  # text that may break inside a word (names, ids: never a number)
 
 
 def _build(title: str, cols: Sequence[Col], rows: Sequence[Sequence[str]], shown: list[int]) -> Table:
     table = Table(title=title, title_justify="left", box=box.SIMPLE_HEAD, padding=(0, 1), show_edge=False)
     for i in shown:
         c = cols[i]
-        table.add_column(c.header, justify=c.justify, no_wrap=not c.text, overflow="fold")  # type: ignore[arg-type]
+        table.add_column(
+            c.header,
+            justify=c.justify,  # type: ignore[arg-type]
+            no_wrap=not c.text,
+            overflow="fold",
+            min_width=_longest_word(cols, rows, i) if c.text and not c.breakable else None,
+        )
     for r in rows:
         table.add_row(*(escape(r[i]) for i in shown))
     return table
@@ -59,8 +66,14 @@ def _needed(console: Console, cols: Sequence[Col], rows: Sequence[Sequence[str]]
     width = Measurement.get(console, wide, _build("", cols, rows, fixed)).maximum if fixed else 0
     for i in shown:
         if cols[i].text:
-            width += 3 + min(16, max([len(cols[i].header)] + [len(r[i]) for r in rows]))
+            natural = max([len(cols[i].header)] + [len(r[i]) for r in rows])
+            least = 0 if cols[i].breakable else _longest_word(cols, rows, i)
+            width += 3 + max(least, min(16, natural))
     return width
+
+
+def _longest_word(cols: Sequence[Col], rows: Sequence[Sequence[str]], i: int) -> int:
+    return max([len(w) for r in rows for w in r[i].split()] + [len(cols[i].header.split()[0]) if cols[i].header else 1])
 
 
 def print_table(
@@ -111,6 +124,11 @@ def fmt(v: float | None, digits: int = 4) -> str:
     if v != 0 and (abs(v) >= 10**digits or abs(v) < 1e-3):
         return f"{v:.{max(1, digits - 2)}e}" if abs(v) < 1e-3 else f"{v:,.0f}"
     return f"{v:.{digits}g}"
+
+
+def signed_int(v: float | None) -> str:
+    """A large signed count-like figure (ΔBIC): whole, with thousands separators."""
+    return "—" if v is None or not math.isfinite(v) else f"{v:+,.0f}"
 
 
 def pct(v: float | None, digits: int = 2) -> str:

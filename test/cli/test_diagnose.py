@@ -7,6 +7,7 @@ import json
 import pytest
 
 from phid_ros.cli.main import main
+from test.browser import assert_readable, chromium
 from test.cli.test_identify import BAGS, run_phid
 
 
@@ -29,7 +30,11 @@ def test_diagnose_names_the_hidden_saturation_in_the_shipped_bag(tmp_path, capsy
     assert set(doc["gap_before"]["by_channel"]) == {"omega", "delta", "i_d", "i_q", "p_e", "q_e"}
     page = report.read_text()
     assert page.count("data:image/png;base64,") == 2 and "magnetic_saturation" in page
-    assert "missing physics: magnetic_saturation" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "missing physics: magnetic_saturation" in out
+    assert "…" not in out and max(len(line) for line in out.splitlines() if line.startswith(" ")) <= 80
+    if chromium() is not None:  # rendered as a reader sees it (the other reports: test_reports_and_terminal.py)
+        assert_readable(report, figures=2)
 
 
 def test_diagnose_without_identification_scenarios_is_a_one_line_error():

@@ -1,0 +1,62 @@
+"""Make the README's report screenshots: run each command with --report on the shipped bags, then
+photograph the page in headless Chromium (Debian's ``chromium``). About six minutes on two cores,
+most of it the diagnosis.
+
+    python docs/make_screenshots.py [--reports DIR]   # DIR: keep the HTML reports there (default: a temp dir)
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from phid_ros.cli.main import main  # noqa: E402
+from test.browser import assert_readable, chromium, screenshot  # noqa: E402
+
+BAGS = ROOT / "bags"
+FIGURES = {"identify": 4, "diagnose": 2, "replay": 3, "track": 3}
+
+
+def make_reports(out: Path) -> None:
+    runs = {
+        "identify": ["identify", str(BAGS / "catalogue"), "--truth", str(BAGS / "catalogue.truth.json")],
+        "diagnose": ["diagnose", str(BAGS / "saturation"), "--truth", str(BAGS / "saturation.truth.json")],
+        "replay": ["replay", str(BAGS / "catalogue"), "--out", str(out / "replay_out.mcap"), "--force"],
+    }
+    for name, args in runs.items():
+        if not (out / f"{name}.html").exists():
+            assert main(args + ["--report", str(out / f"{name}.html")]) == 0
+    if not (out / "track.html").exists():
+        bag = out / "drift.mcap"
+        if not bag.exists():
+            assert (
+                main(["simulate", "--ambient", "1200", "--drift", "T_d0_prime=0.15@300-1100", "--out", str(bag)]) == 0
+            )
+        assert main(["track", str(bag), "--report", str(out / "track.html")]) == 0
+
+
+def run(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--reports", type=Path, help="folder for the HTML reports (reused if already there)")
+    args = parser.parse_args(argv)
+    if chromium() is None:
+        print("no Chromium: apt-get install chromium", file=sys.stderr)
+        return 2
+    with tempfile.TemporaryDirectory() as tmp:
+        out = args.reports or Path(tmp)
+        out.mkdir(parents=True, exist_ok=True)
+        make_reports(out)
+        for name, figures in FIGURES.items():
+            assert_readable(out / f"{name}.html", figures)
+            shot = screenshot(out / f"{name}.html", ROOT / "docs" / f"{name}_report.jpg")
+            print(f"{shot.relative_to(ROOT)}: {shot.stat().st_size / 1e3:.0f} kB")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(run())
