@@ -65,11 +65,13 @@ def health_over_time(rec: Any, bin_s: float) -> HealthLog:
     log = HealthLog(t_s=[float(t) for t in (edges[1:] - start) / NS])
     for name, s in rec.streams.items():
         got = np.histogram(s.t_ns, edges)[0]
-        share = got / (bin_s * NS / s.period_ns)
+        # the last bin may be cut by the end of the recording: expect only what it spans
+        expected = (np.minimum(edges[1:], end + s.period_ns) - edges[:-1]) / s.period_ns
+        share = got / expected
         step = np.diff(s.t_ns)
         gap_at = s.t_ns[1:][step > 1.5 * s.period_ns]
         back_at = s.t_ns[1:][step <= 0]
-        missing = np.cumsum(np.maximum(0, np.round(bin_s * NS / s.period_ns) - got)).astype(int)
+        missing = np.cumsum(np.maximum(0, np.round(expected) - got)).astype(int)
         gaps = np.cumsum(np.histogram(gap_at, edges)[0])
         jumps = np.cumsum(np.histogram(back_at, edges)[0])
         levels = np.where(share >= 0.99, "OK", np.where(share >= 0.9, "WARN", np.where(share > 0, "ERROR", "STALE")))

@@ -149,3 +149,26 @@ def test_help_texts_name_their_arguments_and_the_effects():
     assert all(name in sim for name in REGISTRY)
     assert "manifest.json" in helptext("import-csv").split("positional arguments:")[1]
     assert "rosbag2 folder or .mcap" in helptext("info").split("positional arguments:")[1]
+
+
+def test_track_health_over_time_marks_the_bin_with_a_gap(short_recording):
+    """Stream health from the stamps: the 2 s bin that lost 0.5 s of PMU samples is ERROR, the rest OK."""
+    import dataclasses
+
+    import numpy as np
+
+    from phid_ros.cli.track import health_over_time
+    from phid_ros.io.recording import NS, Recording
+
+    pmu = short_recording.streams["pmu"]
+    start = int(pmu.t_ns[0])
+    keep = (pmu.t_ns < start + 4 * NS) | (pmu.t_ns >= start + int(4.5 * NS))
+    cut = dataclasses.replace(pmu, t_ns=pmu.t_ns[keep], channels={c: v[keep] for c, v in pmu.channels.items()})
+    rec = Recording({**short_recording.streams, "pmu": cut}, short_recording.scenarios, short_recording.metadata)
+    log = health_over_time(rec, 2.0)
+    levels = [row[0] for row in log.streams["pmu"]]
+    assert levels[2] == "ERROR" and levels.count("ERROR") == 1 and set(levels) <= {"OK", "ERROR"}
+    missing = np.array([row[1] for row in log.streams["pmu"]])
+    assert missing[-1] == 500 and missing[1] == 0  # 0.5 s at 1 kHz, counted from the bin it fell in
+    assert [row[2] for row in log.streams["pmu"]][-1] == 1  # one gap
+    assert all(row[0] == "OK" for row in log.streams["pt_ct"])  # the last, shorter bin is not a loss
