@@ -304,6 +304,15 @@ def run(args: object, console: object) -> int:
     unit = args.unit or rec.metadata.get("unit", "")  # type: ignore[attr-defined]
     settings = PipelineSettings(store_path=args.store or ":memory:", unit=unit)  # type: ignore[attr-defined]
     pipeline = MonitorPipeline(settings)
+    if len(pipeline.store):
+        # a kept store is the deployment's memory: its events take part in every recalibration, so
+        # a replay into it differs from one into an empty store, and says so
+        console.print(  # type: ignore[attr-defined]
+            f"store {args.store}: {len(pipeline.store)} events from earlier runs take part in the recalibrations "  # type: ignore[attr-defined]
+            "(an empty store, or none, gives the same result on every run)",
+            highlight=False,
+            markup=False,
+        )
     t0 = time.perf_counter()
     # outputs go to OUT.partial as they are made and become OUT at the end: an interruption
     # leaves what was published so far, readable, and the events already in the store

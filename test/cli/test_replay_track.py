@@ -23,6 +23,12 @@ def test_replay_writes_every_output_and_prints_the_summary(tmp_path, capsys):
     # three validation events cannot identify anything: said, not invented
     assert "parameters in force at the end: none" in text or "rejected" in text
     assert (tmp_path / "e.sqlite").stat().st_size > 0
+    assert "from earlier runs" not in text
+    # the same bag again into the kept store: its events take part, and the summary says so
+    assert (
+        main(["replay", str(BAGS / "validation.mcap"), "--out", str(out), "--store", str(tmp_path / "e.sqlite")]) == 0
+    )
+    assert "e.sqlite: 3 events from earlier runs take part in the recalibrations" in capsys.readouterr().out
 
 
 def test_simulate_ambient_then_track(tmp_path, capsys):
