@@ -218,7 +218,7 @@ def print_summary(
     console: Console, rec: Recording, pipeline: MonitorPipeline, outputs: Outputs, collector: OutputCollector
 ) -> None:
     """What a replay found, in the same words on every run of the same bag (no wall times)."""
-    from phid_ros.cli.tables import CONCISE_LEGEND, Col, estimate_text, print_table
+    from phid_ros.cli.tables import CONCISE_LEGEND, Col, estimate_text, fmt, print_table
     from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, SYMBOLS
 
     start = rec.span_ns()[0]
@@ -274,7 +274,7 @@ def print_summary(
         e = outputs.energy[-1]
         n_energy = collector.counts.get(OUTPUT_TOPICS["hamiltonian"][0], 0)
         console.print(
-            f"Hamiltonian at the end: {e.value[-1]:.5f} pu·s (MJ per MVA of rating): kinetic {e.kinetic[-1]:.2e}, "
+            f"Hamiltonian at the end: {e.value[-1]:.5f} pu·s (MJ per MVA of rating): kinetic {fmt(e.kinetic[-1], 3)}, "
             f"magnetic d {e.magnetic_d[-1]:.4f}, q {e.magnetic_q[-1]:.4f} pu·s; "
             f"{n_energy} samples published at {pipeline.settings.hamiltonian_rate_hz:g} Hz",
             highlight=False,
