@@ -9,7 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from phid_ros.cli.report import STYLE, png_data_uri
+from phid_ros.cli.report import STYLE, html_table, png_data_uri
+from phid_ros.cli.tables import CONCISE_LEGEND, estimate_text
 from phid_ros.fleet.history import Change, Row
 from phid_ros.io.outputs import write_text
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, SYMBOLS
@@ -60,21 +61,19 @@ def write_report(path: str | Path, unit: str, rows: list[Row], flagged: list[Cha
     import matplotlib
 
     matplotlib.use("Agg")
-    head = "".join(f"<th>{html.escape(SYMBOLS[n])}</th>" for n in PARAMETER_NAMES)
+    head = ["recorded (UTC)"] + [f"{SYMBOLS[n]} ({SPECS_BY_NAME[n].unit})" for n in PARAMETER_NAMES]
+    head += ["recording", "note"]
     body = []
     for r in rows:
-        cells = "".join(
-            f"<td>{r.values[n]:.5g} ± {r.stds[n]:.2g}{'' if r.identifiable.get(n) else ' ?'}</td>"
-            if r.status == "ok" and math.isfinite(r.values.get(n, math.nan))
-            else "<td>—</td>"
-            for n in PARAMETER_NAMES
-        )
         when = _when(r.start_ns)
-        note = r.error if r.status == "failed" else ", ".join(e["name"] for e in r.effects)
-        body.append(
-            f"<tr><td>{when.strftime('%Y-%m-%d %H:%M') if when else '—'}</td><td>{r.status}</td>{cells}"
-            f"<td>{html.escape(Path(r.recording).name)}</td><td>{html.escape(note)}</td></tr>"
-        )
+        note = f"FAILED: {r.error}" if r.status == "failed" else ", ".join(e["name"] for e in r.effects)
+        values = [
+            estimate_text(r.values.get(n, math.nan), r.stds.get(n, math.nan), bool(r.identifiable.get(n)))
+            if r.status == "ok"
+            else "—"
+            for n in PARAMETER_NAMES
+        ]
+        body.append([when.strftime("%Y-%m-%d %H:%M") if when else "—", *values, Path(r.recording).name, note])
     alarms = (
         "".join(
             f"<li>{html.escape(SYMBOLS[c.parameter])} {c.relative:+.2%} ({c.sigmas:.1f} σ) between "
@@ -90,7 +89,8 @@ def write_report(path: str | Path, unit: str, rows: list[Row], flagged: list[Cha
 <h2>Flagged changes</h2><ul>{alarms}</ul>
 <img src="{figure}" alt="parameters over time">
 <h2>Recordings</h2>
-<table><tr><th>recorded (UTC)</th><th>status</th>{head}<th>recording</th><th>note</th></tr>{"".join(body)}</table>
+<p>{html.escape(CONCISE_LEGEND)}</p>
+{html_table(head, body, text_columns=(len(head) - 2, len(head) - 1))}
 </body></html>"""
     p = Path(path)
     write_text(p, doc)

@@ -225,6 +225,10 @@ def test_history_command_flags_a_jump_and_writes_its_report(tmp_path: Path, caps
     assert html.count('<img src="data:image/png;base64,') == 1
     assert "T&#x27;_d0 +9.92% (100.9 σ)" in html or "T'_d0 +9.92% (100.9 σ)" in html
     assert html.count("<tr>") == 1 + 5  # header + four sets + the failure
+    from test.browser import assert_readable, chromium
+
+    if chromium() is not None:  # as a reader sees it (skip reasons: test/cli/test_reports_and_terminal.py)
+        assert_readable(report, figures=1)
 
 
 def test_a_csv_scenario_set_and_a_rosbag2_folder_are_one_recording_each(tmp_path: Path):
