@@ -460,7 +460,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_fleet)
 
     p = sub.add_parser("history", help="one unit's parameters over time from a fleet history, changes flagged")
-    p.add_argument("unit")
+    p.add_argument("unit", help="the unit's name, as in the fleet's inventory (phid fleet --summary lists them)")
     p.add_argument(
         "--fleet", default=".", metavar="FLEET_DIR", help="the fleet folder of phid fleet --out (default: here)"
     )
