@@ -1,0 +1,168 @@
+"""The speed goals of one release against a baseline revision, measured in the same run.
+
+    python benchmarks/bench_speed.py [--baseline REV] [--runs 5] [--skip-diagnose]
+
+The baseline's code is checked out into a temporary git worktree and each figure is
+measured for it and for this tree alternately (so a machine that gets busier part way
+hurts both alike). Each figure is a median over ``--runs`` (diagnose: over 1 run unless
+``--diagnose-runs`` says more, it takes minutes). Printed per goal: baseline, this tree,
+ratio, and the goal.
+
+- identify warm: the second to last of repeated read + identify + JSON in one process;
+- identify fresh: ``phid identify BAG --json`` in a new process (interpreter start included);
+- replay: ``phid replay bags/catalogue``, stream seconds per wall second;
+- diagnose: ``phid diagnose bags/saturation`` end to end, wall time and peak memory.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+BAGS = ROOT / "bags"
+
+WARM_IDENTIFY = """
+import json, statistics, sys, time
+from pathlib import Path
+from phid_ros.cli.main import main
+import contextlib, io
+bag, out, runs = sys.argv[1], sys.argv[2], int(sys.argv[3])
+times = []
+for _ in range(runs + 1):
+    t0 = time.perf_counter()
+    with contextlib.redirect_stdout(io.StringIO()):
+        main(["identify", bag, "--json", out])
+    times.append(time.perf_counter() - t0)
+print(json.dumps({"warm": statistics.median(times[1:])}))
+"""
+
+
+def _env(tree: Path) -> dict[str, str]:
+    env = dict(os.environ)
+    env["PYTHONPATH"] = str(tree)
+    return env
+
+
+def _timed(cmd: list[str], tree: Path) -> tuple[float, float, str]:
+    """Wall seconds, this child's own peak memory (MB, from wait4) and its stdout."""
+    with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
+        t0 = time.perf_counter()
+        proc = subprocess.Popen(cmd, env=_env(tree), stdout=out, stderr=err, text=True, cwd=tree)
+        _, status, usage = os.wait4(proc.pid, 0)
+        wall = time.perf_counter() - t0
+        proc.returncode = os.waitstatus_to_exitcode(status)
+        out.seek(0)
+        err.seek(0)
+        if proc.returncode != 0:
+            raise SystemExit(f"{' '.join(cmd)} failed in {tree}:\n{err.read()[-2000:]}")
+        return wall, usage.ru_maxrss / 1024, out.read()
+
+
+def identify_warm(tree: Path, runs: int, tmp: Path) -> float:
+    _, _, out = _timed(
+        [sys.executable, "-c", WARM_IDENTIFY, str(BAGS / "catalogue"), str(tmp / "w.json"), str(runs)], tree
+    )
+    return float(json.loads(out.strip().splitlines()[-1])["warm"])
+
+
+def identify_fresh(tree: Path, tmp: Path) -> float:
+    cmd = [
+        sys.executable,
+        "-m",
+        "phid_ros.cli.main",
+        "identify",
+        str(BAGS / "catalogue"),
+        "--json",
+        str(tmp / "f.json"),
+    ]
+    return _timed(cmd, tree)[0]
+
+
+def replay_speed(tree: Path, tmp: Path) -> float:
+    out = tmp / "replay.mcap"
+    cmd = [sys.executable, "-m", "phid_ros.cli.main", "replay", str(BAGS / "catalogue"), "--out", str(out), "--force"]
+    wall, _, _ = _timed(cmd, tree)
+    return 660.0 / wall  # the catalogue holds 660 s of data; start-up and writing included
+
+
+def diagnose(tree: Path, tmp: Path) -> tuple[float, float]:
+    cmd = [
+        sys.executable,
+        "-m",
+        "phid_ros.cli.main",
+        "diagnose",
+        str(BAGS / "saturation"),
+        "--json",
+        str(tmp / "d.json"),
+    ]
+    wall, peak, _ = _timed(cmd, tree)
+    return wall, peak
+
+
+def _worktree(rev: str, where: Path) -> Path:
+    path = where / "baseline"
+    subprocess.run(
+        ["git", "-C", str(ROOT), "worktree", "add", "--detach", str(path), rev], check=True, capture_output=True
+    )
+    return path
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--baseline", default="389835a", help="git revision to compare with (default: before issue 17)")
+    ap.add_argument("--runs", type=int, default=5)
+    ap.add_argument("--diagnose-runs", type=int, default=1)
+    ap.add_argument("--skip-diagnose", action="store_true", help="leave out the minutes-long diagnosis")
+    args = ap.parse_args()
+    with tempfile.TemporaryDirectory() as tmp_name:
+        tmp = Path(tmp_name)
+        base = _worktree(args.baseline, tmp)
+        trees = {"baseline": base, "this tree": ROOT}
+        try:
+            figures: dict[str, dict[str, list[float]]] = {name: {} for name in trees}
+
+            def add(tree: str, key: str, value: float) -> None:
+                figures[tree].setdefault(key, []).append(value)
+
+            for name, tree in trees.items():
+                add(name, "identify warm (s)", identify_warm(tree, args.runs, tmp))
+            for _ in range(args.runs):
+                for name, tree in trees.items():
+                    add(name, "identify fresh (s)", identify_fresh(tree, tmp))
+                    add(name, "replay (x real time)", replay_speed(tree, tmp))
+            if not args.skip_diagnose:
+                for _ in range(args.diagnose_runs):
+                    for name, tree in trees.items():
+                        wall, peak = diagnose(tree, tmp)
+                        add(name, "diagnose saturation (s)", wall)
+                        add(name, "diagnose peak memory (MB)", peak)
+        finally:
+            subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(base)], check=False)
+    goals = {
+        "identify warm (s)": "≤ 0.2",
+        "identify fresh (s)": "≤ 0.5",
+        "replay (x real time)": "≥ 500",
+        "diagnose saturation (s)": "≤ 15",
+        "diagnose peak memory (MB)": "≤ 400",
+    }
+    print(f"baseline {args.baseline} vs this tree; medians of {args.runs} runs (diagnose: {args.diagnose_runs})")
+    print(f"{'figure':28s} {'baseline':>10s} {'this tree':>10s} {'ratio':>7s}   goal")
+    for key, goal in goals.items():
+        if key not in figures["baseline"]:
+            continue
+        b = statistics.median(figures["baseline"][key])
+        n = statistics.median(figures["this tree"][key])
+        ratio = n / b if "real time" in key else b / n  # > 1: faster (or smaller)
+        print(f"{key:28s} {b:10.3f} {n:10.3f} {ratio:6.2f}x   {goal}")
+
+
+if __name__ == "__main__":
+    main()
