@@ -114,7 +114,7 @@ def play_in(
         i_d = (e_q - v_q) / xdp  # (11)
         i_q = (v_d - e_d) / xqp  # (12)
         slip = omega - 1.0
-        return np.stack(
+        return np.array(  # not np.stack: 3x its speed for four rows
             (
                 ws * slip,
                 (pm - (v_d * i_d + v_q * i_q) - D * slip) * inv_2h,  # (13) in (6)

@@ -22,12 +22,14 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
 
 from phid_ros.errors import SimulationError
+from phid_ros.model.conventions import omega_s
 
 Array = NDArray[np.float64]
 
@@ -156,9 +158,12 @@ class MagneticSaturation(PlantEffect):
         if not self["s12"] > self["s10"]:
             raise SimulationError("effect magnetic_saturation: s12 must exceed s10")
 
+    @cached_property
+    def _exponent(self) -> Any:
+        return np.log(self["s12"] / self["s10"]) / 0.2
+
     def flux_loss_d(self, e_q: Array) -> Array:
-        b = np.log(self["s12"] / self["s10"]) / 0.2
-        return self["s10"] * np.exp(b * (e_q - 1.0)) * e_q
+        return self["s10"] * np.exp(self._exponent * (e_q - 1.0)) * e_q
 
 
 @register
@@ -253,13 +258,14 @@ class ShaftTorsion(PlantEffect):
         return h_t, h_g, k
 
     def initial_states(self, ctx: dict[str, Any], plant: Any) -> list[float]:
-        from phid_ros.model.conventions import omega_s
-
         _, _, k = self._stiffness(plant.params, omega_s(plant.f_nominal_hz))
         return [ctx["delta"] + ctx["p_m"] / k, 1.0]
 
+    def configure(self, plant: Any) -> None:
+        self._constants = self._stiffness(plant.params, omega_s(plant.f_nominal_hz))
+
     def _shaft(self, states: Array, ctx: dict[str, Any], params: Any) -> tuple[Array, float, float]:
-        h_t, h_g, k = self._stiffness(params, ctx["ws"])
+        h_t, h_g, k = self._constants  # the plant's: its parameters do not change while it runs
         torque = k * (states[0] - ctx["delta"]) + self["d_shaft"] * (states[1] - ctx["omega"])
         return torque, h_t, h_g
 
