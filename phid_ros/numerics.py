@@ -16,7 +16,7 @@ from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.signal import bilinear, lfilter, lfilter_zi
+from scipy.signal import lfilter, lfilter_zi
 
 Array = NDArray[np.float64]
 
@@ -43,11 +43,18 @@ def free_decay(n: int, tau: float, dt: float, start: int = 0) -> Array:
     return out
 
 
-def _lp2_coeffs(fc: float, dt: float, derivative: bool) -> tuple[Array, Array]:
+def lowpass2_coefficients(fc: float, dt: float, derivative: bool) -> tuple[Array, Array]:
+    """The bilinear map of ``w^2 / (s^2 + 2 w s + w^2)`` (times ``s`` for the derivative), written out.
+
+    ``s = K (z - 1)/(z + 1)`` with ``K = 2/dt``; scipy.signal.bilinear gives the same
+    coefficients but costs 2.4 ms a call behind scipy's array-API dispatch, and identification
+    designs a filter per scenario and signal (125 in one run: 0.3 s).
+    """
     w = 2.0 * np.pi * fc
-    num = [w * w, 0.0] if derivative else [w * w]
-    b, a = bilinear(num, [1.0, 2.0 * w, w * w], 1.0 / dt)
-    return np.asarray(b, float), np.asarray(a, float)
+    k = 2.0 / dt
+    a = np.array([k * k + 2.0 * w * k + w * w, 2.0 * (w * w - k * k), k * k - 2.0 * w * k + w * w])
+    b = w * w * (np.array([k, 0.0, -k]) if derivative else np.array([1.0, 2.0, 1.0]))
+    return b / a[0], a / a[0]
 
 
 def lowpass2(x: Array, fc: float, dt: float, *, steady_start: bool = False, axis: int = -1) -> Array:
@@ -57,7 +64,7 @@ def lowpass2(x: Array, fc: float, dt: float, *, steady_start: bool = False, axis
     start-up transient); the default starts from rest, which keeps the filter
     exactly linear (needed when it is applied to the terms of an equation).
     """
-    b, a = _lp2_coeffs(fc, dt, False)
+    b, a = lowpass2_coefficients(fc, dt, False)
     if steady_start:
         x0 = np.take(x, [0], axis=axis)
         zi_shape = [1] * np.ndim(x)
@@ -69,7 +76,7 @@ def lowpass2(x: Array, fc: float, dt: float, *, steady_start: bool = False, axis
 
 def lowpass2_derivative(x: Array, fc: float, dt: float, axis: int = -1) -> Array:
     """d/dt of :func:`lowpass2` (from rest), exact in the discrete sense."""
-    b, a = _lp2_coeffs(fc, dt, True)
+    b, a = lowpass2_coefficients(fc, dt, True)
     return lfilter(b, a, x, axis=axis)
 
 
@@ -104,3 +111,4 @@ def rk4(
         x = x + h6 * (k1 + 2.0 * (k2 + k3) + k4)
         states[k + 1] = x
     return states
+

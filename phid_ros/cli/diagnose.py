@@ -9,6 +9,7 @@ from rich.console import Console
 
 from phid_ros.cli.common import warn
 from phid_ros.cli.identify import load_input, load_truth
+from phid_ros.cli.progress import ProgressLine
 from phid_ros.cli.scenarios import scenarios_from_recording
 from phid_ros.cli.tables import CHANNEL_LABELS, Col, fmt, pct, print_table, signed_int
 from phid_ros.diagnose.localise import localise
@@ -85,27 +86,25 @@ def run(args: Any, console: Console) -> int:
     from phid_ros.io.outputs import refuse_inputs
 
     refuse_inputs([args.json, args.report], [args.input, args.truth])
-    rec, source = load_input(args.input)
-    truth = load_truth(args.truth, rec) if args.truth else None
-    truth_effects = read_json(args.truth).get("effects") if args.truth else None
-    scenarios, problems = scenarios_from_recording(rec, source)
-    if not any(s.role == "identify" for s in scenarios):
-        raise PhidError(f"{source}: no identification scenarios; the diagnosis needs them to fit candidate models")
-    opts = IdentifyOptions(baseline=False, validate=False, f_nominal_hz=rec.f_nominal_hz)
-    with console.status("identifying the fourth-order model") as status:
-        res = identify(scenarios, opts)
+    with ProgressLine(f"reading {args.input}") as progress:
+        rec, source = load_input(args.input)
+        truth = load_truth(args.truth, rec) if args.truth else None
+        truth_effects = read_json(args.truth).get("effects") if args.truth else None
+        progress.update(f"cutting the scenarios of {source}")
+        scenarios, problems = scenarios_from_recording(rec, source)
+        if not any(s.role == "identify" for s in scenarios):
+            raise PhidError(f"{source}: no identification scenarios; the diagnosis needs them to fit candidate models")
+        opts = IdentifyOptions(baseline=False, validate=False, f_nominal_hz=rec.f_nominal_hz)
+        res = identify(scenarios, opts, progress=progress.update)
         start = res.parameters
         model = res.complete()
+        progress.update("locating the gap between the model and the measurements")
         gap = localise(scenarios, model, rec.f_nominal_hz) if model is not None else None
-
-        def progress(msg: str) -> None:
-            status.update(msg)
-
         d = diagnose(
             scenarios,
             start,
             DiagnoseOptions(f_nominal_hz=rec.f_nominal_hz, workers=args.workers, scheduler=args.scheduler),
-            progress=progress,
+            progress=progress.update,
         )
     d.problems[:0] = problems + [p for p in res.problems if "kept the label" not in p]
     doc = to_json(d, truth, truth_effects)
@@ -139,7 +138,8 @@ def run(args: Any, console: Console) -> int:
     if args.report:
         from phid_ros.cli.diagnose_report import write_report
 
-        write_report(args.report, d, doc, source)
+        with ProgressLine(f"writing {args.report}"):
+            write_report(args.report, d, doc, source)
         console.print(f"wrote {args.report}", highlight=False)
     return 0
 

@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from rich.console import Console
 
 from phid_ros.cli.common import read_input, warn
+from phid_ros.cli.progress import ProgressLine
 
 # imported here, with the command, so that their import is start-up and not "reading"
 from phid_ros.cli.scenarios import scenarios_from_recording
@@ -134,14 +136,20 @@ def print_validation(console: Console, res: IdentificationResult) -> None:
 
 
 def identify_recording(
-    rec: Recording, source: str, options: IdentifyOptions, truth: GeneratorParameters | None = None
+    rec: Recording,
+    source: str,
+    options: IdentifyOptions,
+    truth: GeneratorParameters | None = None,
+    progress: Callable[[str], None] | None = None,
 ) -> tuple[list[ScenarioData], IdentificationResult]:
     """A recording's scenarios and their identification; PhidError when nothing could be identified."""
+    if progress:
+        progress(f"cutting the scenarios of {source}")
     scenarios, problems = scenarios_from_recording(rec, source)
     if not any(sc.role == "identify" for sc in scenarios):
         why = "; ".join(problems[-3:]) or f"{len(scenarios)} scenario(s), all for validation"
         raise PhidError(f"{source}: nothing to identify from: no usable identification scenario ({why})")
-    res = identify(scenarios, options, truth)
+    res = identify(scenarios, options, truth, progress)
     res.problems[:0] = problems
     if not any(e is not None and math.isfinite(e.value) for e in res.estimates.values()):
         raise PhidError(f"{source}: nothing identified: " + ("; ".join(res.problems) or "every stage failed"))
@@ -153,17 +161,18 @@ def run(args: Any, console: Console) -> int:
 
     refuse_inputs([args.json, args.report], [args.input, args.truth])
     t_start = time.perf_counter()
-    rec, source = load_input(args.input)
-    t_read = time.perf_counter() - t_start
-    truth = load_truth(args.truth, rec) if args.truth else None
-    options = IdentifyOptions(
-        method=args.method,
-        f_nominal_hz=rec.f_nominal_hz,
-        seed=args.seed,
-        baseline=not args.no_baseline,
-        paper_maxiter=args.paper_maxiter,
-    )
-    scenarios, res = identify_recording(rec, source, options, truth)
+    with ProgressLine(f"reading {args.input}") as progress:
+        rec, source = load_input(args.input)
+        t_read = time.perf_counter() - t_start
+        truth = load_truth(args.truth, rec) if args.truth else None
+        options = IdentifyOptions(
+            method=args.method,
+            f_nominal_hz=rec.f_nominal_hz,
+            seed=args.seed,
+            baseline=not args.no_baseline,
+            paper_maxiter=args.paper_maxiter,
+        )
+        scenarios, res = identify_recording(rec, source, options, truth, progress.update)
     res.timing = {"read": round(t_read, 6), **res.timing}
     doc = res.to_json(truth)
     doc["input"] = source
@@ -193,6 +202,7 @@ def run(args: Any, console: Console) -> int:
     if args.report:
         from phid_ros.cli.report import write_report
 
-        write_report(args.report, res, truth, source)
+        with ProgressLine(f"writing {args.report}"):
+            write_report(args.report, res, truth, source)
         console.print(f"wrote {args.report}", highlight=False)
     return 0

@@ -14,11 +14,11 @@ from pathlib import Path
 
 from rich.console import Console
 from rich.markup import escape
-from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
 from phid_ros import __version__
 from phid_ros.cli.common import warn
+from phid_ros.cli.progress import ProgressLine
 from phid_ros.cli.tables import make_console
 from phid_ros.errors import PhidError
 from phid_ros.fleet.history import DRIFT_SIGMAS
@@ -54,18 +54,6 @@ def _number(kind: type, *, low: float, inclusive: bool = False) -> object:
 
 POSITIVE = _number(float, low=0.0)
 POSITIVE_INT = _number(int, low=1, inclusive=True)
-
-
-def _progress(console: Console) -> Progress:
-    return Progress(
-        SpinnerColumn(),
-        TextColumn("{task.description}"),
-        BarColumn(),
-        TimeElapsedColumn(),
-        console=console,
-        transient=True,
-        disable=not console.is_terminal,
-    )
 
 
 # -- simulate ------------------------------------------------------------------
@@ -104,10 +92,9 @@ def cmd_simulate(args: argparse.Namespace, console: Console) -> int:
     cfg = SimulationConfig(
         f_nominal_hz=args.f_nominal, sensors=SensorModel(seed=args.seed, noiseless=args.noiseless), effects=effects
     )
-    with _progress(console) as progress:
-        task = progress.add_task(f"simulating {len(scenarios)} scenario(s)", total=None)
+    with ProgressLine(f"simulating {len(scenarios)} scenario(s)") as progress:
         runs = simulate_scenarios(scenarios, cfg)
-        progress.update(task, description=f"writing {out}")
+        progress.update(f"writing {out}")
         rec = recording_from_runs(runs, cfg)
         with atomic_output(out) as tmp:  # a kill leaves no half-written bag that looks complete
             write_recording(tmp, rec, block_size=args.block_size)
@@ -157,12 +144,12 @@ def _simulate_ambient(args: argparse.Namespace, console: Console) -> int:
     drifts = tuple(_parse_drift(d) for d in (args.drift or []))
     settings = AmbientSettings(duration_s=args.ambient, drifts=drifts, seed=args.seed)  # type: ignore[arg-type]
     cfg = SimulationConfig(f_nominal_hz=args.f_nominal, sensors=SensorModel(seed=args.seed, noiseless=args.noiseless))
-    with _progress(console) as progress:
-        progress.add_task(f"simulating {args.ambient:g} s of ambient operation", total=None)
+    with ProgressLine(f"simulating {args.ambient:g} s of ambient operation") as progress:
         run = simulate_ambient(settings, cfg)
         dt_ns = int(round(cfg.dt * NS))
         t_ns = DEFAULT_START_NS + np.arange(len(run.t), dtype=np.int64) * dt_ns
         streams = {s.name: StreamSamples(t_ns.copy(), dt_ns, {c: run.measured[c] for c in s.channels}) for s in STREAMS}
+        progress.update(f"writing {out}")
         with atomic_output(out) as tmp:
             write_recording(tmp, Recording(streams, [], recording_metadata(cfg)), block_size=args.block_size)
     truth = truth_document(cfg, [])
@@ -182,9 +169,9 @@ def cmd_import_csv(args: argparse.Namespace, console: Console) -> int:
     refuse_inputs([out], [args.manifest])
     if out.exists():
         raise PhidError(f"{out}: already exists, not overwriting")
-    with _progress(console) as progress:
-        progress.add_task(f"importing {args.manifest}", total=None)
+    with ProgressLine(f"importing {args.manifest}") as progress:
         rec, warnings = import_csv_set(args.manifest, strict=args.strict)
+        progress.update(f"writing {out}")
         with atomic_output(out) as tmp:
             write_recording(tmp, rec, block_size=args.block_size)
     for w in warnings:

@@ -56,11 +56,13 @@ def replay(
     block_size: int = DEFAULT_BLOCK_SIZE,
     on_outputs: Callable[[Outputs], None] | None = None,
     keep_arrays: bool = True,
+    progress: Callable[[float], None] | None = None,
 ) -> Outputs:
     """Feed every sensor block in stamp order; ``rate`` paces it at R x real time (None: as fast as possible).
 
     ``on_outputs`` sees every output in full; the returned summary drops the bulk arrays
-    when ``keep_arrays`` is False, so a long replay's memory stays flat.
+    when ``keep_arrays`` is False, so a long replay's memory stays flat. ``progress`` hears
+    the stream time played so far (seconds) after every processing step.
     """
     for m in markers_of(rec):
         pipeline.add_marker(m)
@@ -90,6 +92,8 @@ def replay(
             total.extend(out if keep_arrays else out.light())
             if on_outputs:
                 on_outputs(out)
+            if progress:
+                progress(played / NS)
     out = pipeline.process(final=True)
     total.extend(out if keep_arrays else out.light())
     if on_outputs:
@@ -292,6 +296,7 @@ def run(args: object, console: object) -> int:
     import resource
 
     from phid_ros.cli.common import read_input, warn
+    from phid_ros.cli.progress import ProgressLine
     from phid_ros.io.bags import open_message_writer
     from phid_ros.io.outputs import atomic_output, partial_path, refuse_inputs
     from phid_ros.stream.pipeline import PipelineSettings
@@ -300,7 +305,8 @@ def run(args: object, console: object) -> int:
     refuse_inputs([out_path, args.store, args.report], [args.bag])  # type: ignore[attr-defined]
     refuse_inputs([out_path], [args.store])  # type: ignore[attr-defined]
     check_output(out_path, args.force)  # type: ignore[attr-defined]
-    rec, _ = read_input(args.bag)  # type: ignore[attr-defined]
+    with ProgressLine(f"reading {args.bag}"):  # type: ignore[attr-defined]
+        rec, _ = read_input(args.bag)  # type: ignore[attr-defined]
     unit = args.unit or rec.metadata.get("unit", "")  # type: ignore[attr-defined]
     settings = PipelineSettings(store_path=args.store or ":memory:", unit=unit)  # type: ignore[attr-defined]
     pipeline = MonitorPipeline(settings)
@@ -319,8 +325,21 @@ def run(args: object, console: object) -> int:
     with atomic_output(out_path, keep_partial=True) as tmp:
         writer = open_message_writer(tmp, {"source": f"phid replay {args.bag}"})  # type: ignore[attr-defined]
         collector = OutputCollector(pipeline, sink=writer.write)  # type: ignore[attr-defined]
+        start, end = rec.span_ns()
+        span = (end - start) / NS
+        events = 0
+
+        def collect(out: Outputs) -> None:
+            nonlocal events
+            collector(out)
+            events += len(out.events)
+
+        def played(seconds: float) -> None:
+            progress.update(f"replaying: {seconds:.0f} of {span:.0f} s of stream time, {events} event(s)")
+
         try:
-            outputs = replay(rec, pipeline, rate=args.rate, on_outputs=collector, keep_arrays=False)  # type: ignore[attr-defined]
+            with ProgressLine(f"replaying {args.bag}") as progress:  # type: ignore[attr-defined]
+                outputs = replay(rec, pipeline, rate=args.rate, on_outputs=collect, keep_arrays=False, progress=played)  # type: ignore[attr-defined]
         except BaseException:
             writer.close()  # type: ignore[attr-defined]
             pipeline.close()
@@ -332,10 +351,9 @@ def run(args: object, console: object) -> int:
     if args.report:  # type: ignore[attr-defined]
         from phid_ros.cli.monitor_report import write_replay_report
 
-        write_replay_report(args.report, rec, outputs, collector, source=str(args.bag))  # type: ignore[attr-defined]
+        with ProgressLine(f"writing {args.report}"):  # type: ignore[attr-defined]
+            write_replay_report(args.report, rec, outputs, collector, source=str(args.bag))  # type: ignore[attr-defined]
         console.print(f"wrote {args.report}", highlight=False)  # type: ignore[attr-defined]
-    start, end = rec.span_ns()
-    span = (end - start) / NS
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     # the one line that differs between two replays of the same bag: it is measured, not replayed
     console.print(  # type: ignore[attr-defined]

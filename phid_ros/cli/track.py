@@ -12,6 +12,7 @@ from rich.markup import escape
 
 from phid_ros.cli.common import read_input, warn
 from phid_ros.cli.identify import load_parameters
+from phid_ros.cli.progress import ProgressLine
 from phid_ros.cli.monitor_report import HealthLog
 from phid_ros.cli.tables import CONCISE_LEGEND, estimate_text
 from phid_ros.errors import PhidError
@@ -122,7 +123,8 @@ def run(args: Any, console: Any) -> int:
         if Path(args.out).exists():
             raise PhidError(f"{args.out}: already exists, not overwriting")
     base = base_parameters(args)  # checked before the recording is read
-    rec, _ = read_input(args.bag)
+    with ProgressLine(f"reading {args.bag}"):
+        rec, _ = read_input(args.bag)
     tracker = SlidingTracker(
         base, rec.streams["pt_ct"].period_ns, TrackerSettings(window_s=args.window, hop_s=args.hop)
     )
@@ -131,13 +133,17 @@ def run(args: Any, console: Any) -> int:
     console.print(escape(CONCISE_LEGEND), style="dim", highlight=False)
     console.print(f"{'t s':>7} " + " ".join(f"{SYMBOLS[n]:>11}" for n in TRACKED), highlight=False)
 
+    end = rec.span_ns()[1]
+
     def show(p: TrackPoint) -> None:
         console.print(hop_line(start, p), highlight=False)
         for a in p.alarms:
             console.print(f"{'':>8}alarm: {a}", style="bold red", highlight=False, markup=False)
+        progress.update(f"tracking: {(p.t_ns - start) / 1e9:.0f} of {(end - start) / 1e9:.0f} s")
 
     t0 = time.perf_counter()
-    points = track_recording(rec, tracker, show)
+    with ProgressLine("tracking: the first window") as progress:
+        points = track_recording(rec, tracker, show)
     wall = time.perf_counter() - t0
     if not points:
         raise PhidError(f"{args.bag}: shorter than one tracking window ({args.window:g} s)")
@@ -151,15 +157,16 @@ def run(args: Any, console: Any) -> int:
 
         notes = [] if args.base else ["X_d and X_q: the paper's Table 1 values (no --base given)"]
         notes += sorted({q for p in points for q in p.problems})
-        write_track_report(
-            args.report,
-            rec,
-            points,
-            health_over_time(rec, args.hop),
-            str(args.bag),
-            notes,
-            f"{args.window:g} s window, {args.hop:g} s hop, {len(points)} hops",
-        )
+        with ProgressLine(f"writing {args.report}"):
+            write_track_report(
+                args.report,
+                rec,
+                points,
+                health_over_time(rec, args.hop),
+                str(args.bag),
+                notes,
+                f"{args.window:g} s window, {args.hop:g} s hop, {len(points)} hops",
+            )
         console.print(f"wrote {args.report}", highlight=False)
     if args.out:
         from phid_ros.io.msg_schemas import typestore

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -140,9 +140,14 @@ def _timed(timing: dict[str, float], key: str, t0: float) -> None:
 
 
 def identify(
-    scenarios: Sequence[ScenarioData], options: IdentifyOptions | None = None, truth: GeneratorParameters | None = None
+    scenarios: Sequence[ScenarioData],
+    options: IdentifyOptions | None = None,
+    truth: GeneratorParameters | None = None,
+    progress: Callable[[str], None] | None = None,
 ) -> IdentificationResult:
+    """The three stages (and the IEEE 115 baseline and validation when asked); ``progress`` hears each step."""
     opt = options or IdentifyOptions()
+    say = progress or (lambda step: None)
     if opt.method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {opt.method!r}")
     scs = list(scenarios)
@@ -155,6 +160,7 @@ def identify(
         return res
 
     # -- stage 1 -------------------------------------------------------------------
+    say("stage 1: H and D from the swing equation")
     t0 = time.perf_counter()
     try:
         res.stage1 = stage1.swing_regression(ident, opt.stage1_cutoff_hz)
@@ -169,6 +175,7 @@ def identify(
     _timed(res.timing, "stage1", t0)
 
     # -- stage 2 -------------------------------------------------------------------
+    say("stage 2: X_d and X_q from the steady states")
     t0 = time.perf_counter()
     x_d = x_q = None
     try:
@@ -184,6 +191,7 @@ def identify(
     t0 = time.perf_counter()
     base = None
     if opt.baseline and x_d is not None and x_q is not None:
+        say("IEEE 115 baseline: curve fits of the transients")
         try:
             base = ieee115.identify(ident, x_d, x_q, seed=opt.seed)
             res.baseline = {n: Estimate(res.estimates[n].value) for n in ("H", "D", "X_d", "X_q") if n in res.estimates}
@@ -193,6 +201,7 @@ def identify(
     _timed(res.timing, "ieee115", t0)
 
     # -- stage 3 -------------------------------------------------------------------
+    say("stage 3: transient parameters by state consistency")
     t0 = time.perf_counter()
     try:
         data = stage3.prepare(ident, opt.prefilter_hz)
@@ -225,6 +234,7 @@ def identify(
     t0 = time.perf_counter()
     model = res.complete()
     if opt.validate:
+        say("validation: playing in the held-out scenarios")
         if model is None:
             res.problems.append("validation skipped: the identified set is incomplete or not physically valid")
         else:

@@ -183,6 +183,34 @@ class _Held:
 RECENT_STAMPS = 20_000  # accepted stamps remembered per stream to tell a duplicate from a late sample
 
 
+class _RecentStamps:
+    """The last ``RECENT_STAMPS`` accepted stamps of a stream, in a fixed circular array.
+
+    Order does not matter (only membership is asked), so a block is written at the cursor:
+    keeping them by concatenate-and-trim copied 160 kB per message, the aligner's largest cost.
+    """
+
+    EMPTY = np.iinfo(np.int64).min  # never a stamp: the clock starts at zero
+
+    def __init__(self) -> None:
+        self._t = np.full(RECENT_STAMPS, self.EMPTY, np.int64)
+        self._at = 0
+
+    def add(self, t: NDArray[np.int64]) -> None:
+        t = t[-RECENT_STAMPS:]
+        first = min(len(t), RECENT_STAMPS - self._at)
+        self._t[self._at : self._at + first] = t[:first]
+        self._t[: len(t) - first] = t[first:]
+        self._at = (self._at + len(t)) % RECENT_STAMPS
+
+    def contains(self, t: NDArray[np.int64]) -> NDArray[np.bool_]:
+        return np.isin(t, self._t)
+
+    def clear(self) -> None:
+        self._t.fill(self.EMPTY)
+        self._at = 0
+
+
 class Aligner:
     def __init__(
         self,
@@ -205,7 +233,7 @@ class Aligner:
         self.health = {s.name: StreamHealth(s.name, rates.get(s.name, NS / period_ns)) for s in STREAMS}
         self._pending = {s.name: _Pending(s.channels) for s in STREAMS}
         self._held: dict[str, _Held | None] = {s.name: None for s in STREAMS}
-        self._recent_t: dict[str, NDArray[np.int64]] = {s.name: np.zeros(0, np.int64) for s in STREAMS}
+        self._recent_t = {s.name: _RecentStamps() for s in STREAMS}
         self._col = {c: i for i, c in enumerate(CHANNELS)}
         self._limits = {
             s.name: (np.array([PLAUSIBLE[c][0] for c in s.channels]), np.array([PLAUSIBLE[c][1] for c in s.channels]))
@@ -298,7 +326,7 @@ class Aligner:
         # not newer than what came before: a duplicate when that stamp was accepted, else late
         prev = np.maximum.accumulate(np.concatenate(([last if last is not None else np.iinfo(np.int64).min], t)))[:-1]
         stale = ok & (t <= prev)
-        seen = np.isin(t, self._recent_t[stream]) | (t == prev)
+        seen = self._recent_t[stream].contains(t) | (t == prev)
         dup = stale & seen
         back = stale & ~seen
         h.duplicates += int(dup.sum())
@@ -322,8 +350,7 @@ class Aligner:
         h._recent.append((int(t[-1]), len(t)))
         if len(h._recent) > 50:
             del h._recent[:-50]
-        recent = self._recent_t[stream]
-        self._recent_t[stream] = (np.concatenate((recent, t)) if len(recent) else t)[-RECENT_STAMPS:]
+        self._recent_t[stream].add(t)
         self._pending[stream].add(t, x)
 
     def _new_segment(self) -> None:
@@ -333,8 +360,8 @@ class Aligner:
         for h in self.health.values():
             h.last_stamp_ns = None
             h._recent.clear()
-        for name in self._recent_t:
-            self._recent_t[name] = np.zeros(0, np.int64)
+        for recent in self._recent_t.values():
+            recent.clear()
         self._next_grid = None
         self.segment += 1
 

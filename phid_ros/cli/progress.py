@@ -1,0 +1,101 @@
+"""What a long command is doing now, on stderr: a live line on a terminal, plain lines in a log.
+
+Progress goes to stderr so that what a command prints on stdout (its tables, its
+results) is the same from one run to the next whatever the timing, and a pipe or
+file of results is not interleaved with it.
+
+- On a terminal: one transient line (spinner, the current step, elapsed time) that
+  disappears when the command ends.
+- Otherwise (a log file, CI, a pipe): plain lines ``phid [  12.3 s] step``, one when the
+  step changes (at most one a second) and a reminder every ``HEARTBEAT_S`` while a step
+  lasts, so a log shows the command is alive and where it spends its time.
+
+Nothing is printed for a command that ends within ``QUIET_S``: a quick command, and
+above all a refused one, keeps its output to its results or its one-line error.
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+import time
+from types import TracebackType
+from typing import TextIO
+
+QUIET_S = 2.0  # no progress at all for a command that ends sooner
+MIN_GAP_S = 1.0  # plain lines: at most one a second
+HEARTBEAT_S = 30.0  # plain lines: the step again while it lasts longer than this
+POLL_S = 0.2
+
+
+class ProgressLine:
+    """Context manager; ``update(step)`` says what the command is doing now."""
+
+    def __init__(self, first: str = "", *, stream: TextIO | None = None, quiet_s: float | None = None) -> None:
+        self.stream = stream if stream is not None else sys.stderr
+        self.quiet_s = QUIET_S if quiet_s is None else quiet_s
+        self.live = bool(getattr(self.stream, "isatty", lambda: False)())
+        self._step = first
+        self._printed: str | None = None
+        self._last_line = -float("inf")
+        self._t0 = time.monotonic()
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._rich = None
+        self._task = None
+
+    def __enter__(self) -> ProgressLine:
+        self._t0 = time.monotonic()
+        if self.live:
+            self._start_live()
+        else:
+            self._thread = threading.Thread(target=self._plain_loop, name="phid-progress", daemon=True)
+            self._thread.start()
+        return self
+
+    def update(self, step: str) -> None:
+        with self._lock:
+            self._step = step
+        if self._rich is not None and self._task is not None:
+            self._rich.update(self._task, description=step)
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join()
+        if self._rich is not None:
+            self._rich.stop()
+
+    # -- plain lines -------------------------------------------------------------------------
+    def _plain_loop(self) -> None:
+        while not self._stop.wait(POLL_S):
+            self._maybe_print()
+
+    def _maybe_print(self) -> None:
+        now = time.monotonic()
+        elapsed = now - self._t0
+        with self._lock:
+            step = self._step
+        if not step or elapsed < self.quiet_s:
+            return
+        changed = step != self._printed and now - self._last_line >= MIN_GAP_S
+        if changed or now - self._last_line >= HEARTBEAT_S:
+            still = "" if changed else " (still)"
+            self.stream.write(f"phid [{elapsed:6.1f} s] {step}{still}\n")
+            self.stream.flush()
+            self._printed, self._last_line = step, now
+
+    # -- a live line on a terminal -----------------------------------------------------------
+    def _start_live(self) -> None:
+        from rich.console import Console
+        from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+        console = Console(file=self.stream)
+        self._rich = Progress(
+            SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(), console=console, transient=True
+        )
+        self._rich.start()
+        self._task = self._rich.add_task(self._step, total=None)
