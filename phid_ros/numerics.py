@@ -111,4 +111,3 @@ def rk4(
         x = x + h6 * (k1 + 2.0 * (k2 + k3) + k4)
         states[k + 1] = x
     return states
-
