@@ -12,8 +12,8 @@ from rich.markup import escape
 
 from phid_ros.cli.common import read_input, warn
 from phid_ros.cli.identify import load_parameters
-from phid_ros.cli.progress import ProgressLine
 from phid_ros.cli.monitor_report import HealthLog
+from phid_ros.cli.progress import ProgressLine
 from phid_ros.cli.tables import CONCISE_LEGEND, estimate_text
 from phid_ros.errors import PhidError
 from phid_ros.io.bags import write_messages
