@@ -42,6 +42,9 @@ setup(
         "distributed>=2024.1",
         "bokeh>=3.1",  # the Dask dashboard phid fleet prints the address of
         "pyyaml>=6.0",  # fleet inventories as YAML lists
+        # the diagnosis play-in compiled (phid_ros/sim/kernel.py): 6-9x a numpy play-in; without
+        # it (or with PHID_NO_JIT=1) the numpy plant runs, the same numbers, slower
+        "numba>=0.60",
     ],
     extras_require={"test": ["pytest>=7.4"]},
     zip_safe=True,

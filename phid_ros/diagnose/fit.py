@@ -8,7 +8,7 @@ is only judged against a base model that was refitted alongside it, or the
 base's compensation for the missing effect would count against the effect.
 
 Jacobians are forward differences computed in *one* vectorised play-in (one
-model column per parameter, beside the point itself); trust-region reflective least squares keeps every
+model column per parameter); trust-region reflective least squares keeps every
 parameter in its bounds (log scale for positive ones).
 """
 
@@ -28,6 +28,7 @@ from phid_ros.diagnose.playin import OUTPUTS, PlayIn, play_in
 from phid_ros.ident.scenario import ScenarioData
 from phid_ros.model.conventions import DEFAULT_F_NOMINAL_HZ
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME
+from phid_ros.sim import kernel
 
 Array = NDArray[np.float64]
 FD_STEP = 1e-5  # relative (log-scale) finite-difference step; the play-in is deterministic
@@ -188,35 +189,45 @@ class Problem:
 def fit(problem: Problem, max_nfev: int = 12) -> FitResult:
     """Local least squares from the problem's start values.
 
-    Every point the solver asks for is simulated together with its finite-difference
-    columns, in one vectorised play-in: a run of one model costs nearly what a run of a
-    dozen does (the integration's time is per step, not per column), and the solver asks
-    for the Jacobian at each point it accepts, so the Jacobian comes almost free.
+    Compiled (phid_ros.sim.kernel), a play-in costs per column, so a point is simulated
+    alone and its finite-difference columns only when the solver asks for the Jacobian
+    (it does not at the points it rejects). In numpy a run of one model costs nearly what
+    a run of a dozen does (the time is per step, not per column), so there every point is
+    simulated together with its columns in one run.
     """
     lo, hi = problem.bounds()
-    cache: dict[bytes, tuple[Array, Array]] = {}
+    together = not kernel.available()
+    cache: dict[bytes, tuple[Array, Array | None]] = {}
 
-    def evaluate(x: Array) -> tuple[Array, Array]:
+    def evaluate(x: Array, want_jac: bool) -> tuple[Array, Array | None]:
         key = x.tobytes()
-        if key not in cache:
-            cache.clear()
-            steps = FD_STEP * np.maximum(1.0, np.abs(x))
-            steps = np.where(x + steps > hi, -steps, steps)  # stay inside the bounds
+        r, J = cache.get(key, (None, None))
+        if r is not None and (J is not None or not want_jac):
+            return r, J
+        steps = FD_STEP * np.maximum(1.0, np.abs(x))
+        steps = np.where(x + steps > hi, -steps, steps)  # stay inside the bounds
+        if r is None and not (want_jac or together):
+            r = problem.residual_matrix(x[:, None])[:, 0]
+        elif r is None:
             R = problem.residual_matrix(np.hstack([x[:, None], x[:, None] + np.diag(steps)]))
-            cache[key] = R[:, 0], (R[:, 1:] - R[:, :1]) / steps[None, :]
-        return cache[key]
+            r, J = R[:, 0], (R[:, 1:] - R[:, :1]) / steps[None, :]
+        else:
+            J = (problem.residual_matrix(x[:, None] + np.diag(steps)) - r[:, None]) / steps[None, :]
+        cache.clear()
+        cache[key] = r, J
+        return r, J
 
     x0 = problem.x0()
     sol = least_squares(
-        lambda x: evaluate(x)[0],
+        lambda x: evaluate(x, False)[0],
         x0,
-        jac=lambda x: evaluate(x)[1],
+        jac=lambda x: evaluate(x, True)[1],
         bounds=(lo, hi),
         method="trf",
         x_scale="jac",
         max_nfev=max_nfev,
     )
-    r = evaluate(sol.x)[0]
+    r = evaluate(sol.x, False)[0]
     k = len(x0) + sum(len(c.searched()) for c, _ in problem.spec.effects)
     return FitResult(problem.spec_at(sol.x), float(r @ r), len(r), k, sol.nfev, sol.message)
 

@@ -26,6 +26,7 @@ from phid_ros.ident.validation import _stride, staged_samples
 from phid_ros.model.conventions import DEFAULT_F_NOMINAL_HZ, electrical_power, terminal_to_dq
 from phid_ros.model.parameters import PARAMETER_NAMES
 from phid_ros.numerics import rk4
+from phid_ros.sim import kernel
 from phid_ros.sim.effects import PlantEffect
 from phid_ros.sim.plant import Plant
 
@@ -100,14 +101,16 @@ def play_in(
     on = np.repeat([1.0 if s.generator_damping else 0.0 for s in scenarios], m)
     damping = params.D * on
     x0 = _initial_state(plant, [staged(c) for c in ("delta", "omega", "i_d", "i_q")], v_t, theta, scenarios, stride, m)
-    states = rk4(
-        plant._rhs,
-        x0,
-        steps - 1,
-        h,
-        lambda k: (),
-        staged=lambda k, j: (p_m[2 * k + j], v_f[2 * k + j], v_t[2 * k + j], theta[2 * k + j], 0.0, 0.0, damping),
-    )
+    states = kernel.integrate(plant, x0, steps - 1, h, (p_m, v_f, v_t, theta), damping)
+    if states is None:  # numba absent or switched off, or an effect without compiled terms
+        states = rk4(
+            plant._rhs,
+            x0,
+            steps - 1,
+            h,
+            lambda k: (),
+            staged=lambda k, j: (p_m[2 * k + j], v_f[2 * k + j], v_t[2 * k + j], theta[2 * k + j], 0.0, 0.0, damping),
+        )
     v_t, theta = v_t[::2], theta[::2]
     x = np.moveaxis(states, 1, 0)  # (n_states, steps, cols)
     eq_i, ed_i, xd_i, xq_i = plant._emf(x)

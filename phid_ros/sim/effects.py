@@ -105,6 +105,14 @@ class PlantEffect:
         """Channel -> latency (s) with which this effect makes that channel's sensor report."""
         return {}
 
+    def kernel_terms(self, plant: Any) -> dict[str, Any] | None:
+        """This effect's terms for the compiled play-in (phid_ros.sim.kernel), or None: numpy runs.
+
+        An effect that only configures the plant or re-times sensors returns ``{}``; one with
+        equations names its kernel flag and coefficients, and the kernel writes them out.
+        """
+        return None
+
     def initial_states(self, ctx: dict[str, Any], plant: Any) -> list[float]:
         """Values of this effect's states at the operating point (dx/dt = 0)."""
         return []
@@ -139,6 +147,9 @@ class StatorResistance(PlantEffect):
     def configure(self, plant: Any) -> None:
         plant.r_a = self["r_a"]
 
+    def kernel_terms(self, plant: Any) -> dict[str, Any]:
+        return {}  # the plant's r_a, which the kernel reads
+
 
 @register
 class MagneticSaturation(PlantEffect):
@@ -165,6 +176,9 @@ class MagneticSaturation(PlantEffect):
     def flux_loss_d(self, e_q: Array) -> Array:
         return self["s10"] * np.exp(self._exponent * (e_q - 1.0)) * e_q
 
+    def kernel_terms(self, plant: Any) -> dict[str, Any]:
+        return {"saturation": True, "s10": self["s10"], "sat_b": self._exponent}
+
 
 @register
 class SensorDelay(PlantEffect):
@@ -190,6 +204,9 @@ class SensorDelay(PlantEffect):
         from phid_ros.io.topics import STREAMS_BY_NAME
 
         return {c: self["delay_ms"] * 1e-3 for c in STREAMS_BY_NAME[self["stream"]].channels}
+
+    def kernel_terms(self, plant: Any) -> dict[str, Any]:
+        return {}  # the play-in re-times the measurements; the equations are the plant's
 
 
 @register
@@ -225,6 +242,9 @@ class SubtransientDynamics(PlantEffect):
 
     def emf(self, states: Array, params: Any) -> tuple[Array, Array, float, float]:
         return states[0], states[1], self["x_dpp"], self["x_qpp"]
+
+    def kernel_terms(self, plant: Any) -> dict[str, Any]:
+        return {"subtransient": True, **{k: self[k] for k in ("x_dpp", "x_qpp", "t_d0pp", "t_q0pp")}}
 
     def derivatives(self, states: Array, ctx: dict[str, Any], params: Any) -> list[Array]:
         e_qpp, e_dpp = states[0], states[1]
@@ -272,6 +292,10 @@ class ShaftTorsion(PlantEffect):
     def swing(self, states: Array, ctx: dict[str, Any], params: Any) -> Array:
         torque, _, h_g = self._shaft(states, ctx, params)
         return (torque - ctx["p_airgap"] - ctx["damping"] * (ctx["omega"] - 1.0)) / (2 * h_g)
+
+    def kernel_terms(self, plant: Any) -> dict[str, Any]:
+        h_t, h_g, k = self._constants
+        return {"torsion": True, "h_t": h_t, "h_g": h_g, "k_shaft": k, "d_shaft": self["d_shaft"]}
 
     def derivatives(self, states: Array, ctx: dict[str, Any], params: Any) -> list[Array]:
         torque, h_t, _ = self._shaft(states, ctx, params)

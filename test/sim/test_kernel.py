@@ -1,0 +1,93 @@
+"""The compiled play-in against the numpy plant it mirrors: every effect, alone and combined."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from phid_ros.diagnose.playin import OUTPUTS, play_in
+from phid_ros.model.parameters import TABLE1
+from phid_ros.sim import kernel
+from phid_ros.sim.effects import REGISTRY, PlantEffect
+from phid_ros.sim.runner import SimulationConfig, simulate_scenarios
+from phid_ros.sim.scenarios import paper_catalogue
+from test.conftest import scenario_from_run
+
+pytestmark = pytest.mark.skipif(not kernel.available(), reason="numba not installed: the numpy path is the only one")
+
+M = 3  # models side by side, each with its own parameter values
+RNG = np.random.default_rng(7)
+
+
+def spread(value: float, rel: float = 0.2) -> np.ndarray:
+    return value * (1 + rel * RNG.uniform(-1, 1, M))
+
+
+VALUES = {
+    "stator_resistance": lambda: {"r_a": spread(0.005)},
+    "magnetic_saturation": lambda: {"s10": spread(0.08), "s12": spread(0.4, 0.1)},
+    "sensor_delay": lambda: {"stream": "pmu", "delay_ms": spread(10.0)},
+    "subtransient_dynamics": lambda: {
+        "x_dpp": spread(0.25),
+        "x_qpp": spread(0.3),
+        "t_d0pp": spread(0.03),
+        "t_q0pp": spread(0.05),
+    },
+    "shaft_torsion": lambda: {"turbine_fraction": spread(0.6), "f_torsion_hz": spread(15.0), "d_shaft": spread(0.5)},
+}
+COMBINATIONS = [
+    (),
+    *[(name,) for name in sorted(VALUES)],
+    ("magnetic_saturation", "stator_resistance", "sensor_delay"),
+    ("shaft_torsion", "magnetic_saturation"),
+    ("subtransient_dynamics", "stator_resistance", "shaft_torsion"),
+]
+
+
+@pytest.fixture(scope="module")
+def windows():
+    cat = [replace(s, duration=3.0) for s in paper_catalogue() if s.name[:3] in ("S04", "S10", "S14")]
+    cfg = SimulationConfig(restore_ramp=1.0, restore_hold=1.0)
+    return [scenario_from_run(r) for r in simulate_scenarios(cat, cfg)]
+
+
+def test_every_registered_effect_has_compiled_terms():
+    # a new effect without them still works (numpy), but its diagnosis runs ten times slower
+    assert sorted(VALUES) == sorted(REGISTRY)
+    for cls in REGISTRY.values():
+        assert cls.kernel_terms is not PlantEffect.kernel_terms, cls.name
+
+
+@pytest.mark.parametrize("names", COMBINATIONS, ids=lambda n: "+".join(n) or "base")
+def test_compiled_play_in_equals_numpy(windows, names, monkeypatch):
+    base = {k: spread(v, 0.1) for k, v in TABLE1.as_dict().items()}
+    effects = [(REGISTRY[n], VALUES[n]()) for n in names]
+    compiled = play_in(windows, base, effects, m=M)
+    monkeypatch.setenv("PHID_NO_JIT", "1")
+    reference = play_in(windows, base, effects, m=M)
+    for a, b in zip(compiled, reference):
+        for c in OUTPUTS:
+            scale = max(1.0, float(np.max(np.abs(b.sim[c]))))
+            assert np.max(np.abs(a.sim[c] - b.sim[c])) <= 1e-10 * scale, (names, c)
+            np.testing.assert_array_equal(a.meas[c], b.meas[c])
+
+
+def test_an_effect_without_compiled_terms_runs_in_numpy(windows, monkeypatch):
+    class Uncompiled(PlantEffect):  # not registered: only this test sees it
+        name = "uncompiled"
+
+        def flux_loss_d(self, e_q):
+            return 0.01 * e_q
+
+    base = TABLE1.as_dict()
+    plain = play_in(windows, base)
+
+    def refuse(*args):
+        raise AssertionError("the compiled kernel ran a plant it has no terms for")
+
+    monkeypatch.setattr(kernel, "_rk4_columns", refuse)
+    out = play_in(windows, base, [(Uncompiled, {})])
+    # the extra loss changes E'_q and so the currents: the numpy plant ran it
+    assert np.max(np.abs(out[0].sim["i_d"] - plain[0].sim["i_d"])) > 1e-4
