@@ -11,7 +11,10 @@ ratio, and the goal.
 - identify warm: the second to last of repeated read + identify + JSON in one process;
 - identify fresh: ``phid identify BAG --json`` in a new process (interpreter start included);
 - replay: ``phid replay bags/catalogue``, stream seconds per wall second;
-- diagnose: ``phid diagnose bags/saturation`` end to end, wall time and peak memory.
+- diagnose: ``phid diagnose bags/saturation`` end to end, wall time and peak memory (the sum
+  over the command and its Dask worker processes, sampled every 0.2 s from /proc);
+- diagnose CSV: ``phid diagnose`` of a 16-scenario x 30 s CSV set with saturation hidden,
+  made by this tree's ``phid simulate --out DIR/manifest.json``.
 """
 
 from __future__ import annotations
@@ -51,19 +54,52 @@ def _env(tree: Path) -> dict[str, str]:
     return env
 
 
-def _timed(cmd: list[str], tree: Path) -> tuple[float, float, str]:
-    """Wall seconds, this child's own peak memory (MB, from wait4) and its stdout."""
+def _tree_rss_mb(root: int) -> float:
+    """Resident memory of a process and all its descendants (MB), from /proc (Linux)."""
+    parent: dict[int, int] = {}
+    rss: dict[int, int] = {}
+    for d in Path("/proc").iterdir():
+        if not d.name.isdigit():
+            continue
+        try:
+            fields = (d / "stat").read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        parent[int(d.name)] = int(fields[1])
+        rss[int(d.name)] = int(fields[21]) * os.sysconf("SC_PAGE_SIZE")
+    tree, todo = set(), [root]
+    while todo:
+        p = todo.pop()
+        tree.add(p)
+        todo.extend(c for c, pp in parent.items() if pp == p and c not in tree)
+    return sum(rss.get(p, 0) for p in tree) / 2**20
+
+
+def _timed(cmd: list[str], tree: Path, sample_tree: bool = False) -> tuple[float, float, str]:
+    """Wall seconds, peak memory (MB) and stdout of a child.
+
+    Peak memory: the child's own (wait4), or with ``sample_tree`` the largest sum over the
+    child and its descendants (Dask workers), sampled every 0.1 s.
+    """
     with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
         t0 = time.perf_counter()
         proc = subprocess.Popen(cmd, env=_env(tree), stdout=out, stderr=err, text=True, cwd=tree)
-        _, status, usage = os.wait4(proc.pid, 0)
-        wall = time.perf_counter() - t0
-        proc.returncode = os.waitstatus_to_exitcode(status)
+        if sample_tree:
+            peak = 0.0
+            while proc.poll() is None:
+                peak = max(peak, _tree_rss_mb(proc.pid))
+                time.sleep(0.1)
+            wall = time.perf_counter() - t0
+        else:
+            _, status, usage = os.wait4(proc.pid, 0)
+            wall = time.perf_counter() - t0
+            proc.returncode = os.waitstatus_to_exitcode(status)
+            peak = usage.ru_maxrss / 1024
         out.seek(0)
         err.seek(0)
         if proc.returncode != 0:
             raise SystemExit(f"{' '.join(cmd)} failed in {tree}:\n{err.read()[-2000:]}")
-        return wall, usage.ru_maxrss / 1024, out.read()
+        return wall, peak, out.read()
 
 
 def identify_warm(tree: Path, runs: int, tmp: Path) -> float:
@@ -93,18 +129,22 @@ def replay_speed(tree: Path, tmp: Path) -> float:
     return 660.0 / wall  # the catalogue holds 660 s of data; start-up and writing included
 
 
-def diagnose(tree: Path, tmp: Path) -> tuple[float, float]:
-    cmd = [
-        sys.executable,
-        "-m",
-        "phid_ros.cli.main",
-        "diagnose",
-        str(BAGS / "saturation"),
-        "--json",
-        str(tmp / "d.json"),
-    ]
-    wall, peak, _ = _timed(cmd, tree)
+def diagnose(tree: Path, tmp: Path, data: Path) -> tuple[float, float]:
+    """Wall time and peak memory of all its processes (the candidates run in Dask workers)."""
+    cmd = [sys.executable, "-m", "phid_ros.cli.main", "diagnose", str(data), "--json", str(tmp / "d.json")]
+    wall, peak, _ = _timed(cmd, tree, sample_tree=True)
     return wall, peak
+
+
+def csv_set(tmp: Path) -> Path:
+    """16 scenarios x 30 s with saturation hidden, as a CSV scenario set (this tree's phid simulate)."""
+    names = [f"S{i:02d}" for i in range(1, 14)] + ["V1", "V2", "V3"]
+    manifest = tmp / "csv16" / "manifest.json"
+    cmd = [sys.executable, "-m", "phid_ros.cli.main", "simulate", "--duration", "30", "--out", str(manifest)]
+    cmd += [a for n in names for a in ("--scenario", n)]
+    cmd += ["--effect", "magnetic_saturation=s10=0.08,s12=0.35"]
+    _timed(cmd, ROOT)
+    return manifest
 
 
 def _worktree(rev: str, where: Path) -> Path:
@@ -121,6 +161,7 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=5)
     ap.add_argument("--diagnose-runs", type=int, default=1)
     ap.add_argument("--skip-diagnose", action="store_true", help="leave out the minutes-long diagnosis")
+    ap.add_argument("--diagnose-only", action="store_true", help="only the diagnosis figures")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp_name:
         tmp = Path(tmp_name)
@@ -132,18 +173,21 @@ def main() -> None:
             def add(tree: str, key: str, value: float) -> None:
                 figures[tree].setdefault(key, []).append(value)
 
-            for name, tree in trees.items():
-                add(name, "identify warm (s)", identify_warm(tree, args.runs, tmp))
-            for _ in range(args.runs):
+            if not args.diagnose_only:
                 for name, tree in trees.items():
-                    add(name, "identify fresh (s)", identify_fresh(tree, tmp))
-                    add(name, "replay (x real time)", replay_speed(tree, tmp))
+                    add(name, "identify warm (s)", identify_warm(tree, args.runs, tmp))
+                for _ in range(args.runs):
+                    for name, tree in trees.items():
+                        add(name, "identify fresh (s)", identify_fresh(tree, tmp))
+                        add(name, "replay (x real time)", replay_speed(tree, tmp))
             if not args.skip_diagnose:
+                manifest = csv_set(tmp)
                 for _ in range(args.diagnose_runs):
                     for name, tree in trees.items():
-                        wall, peak = diagnose(tree, tmp)
+                        wall, peak = diagnose(tree, tmp, BAGS / "saturation")
                         add(name, "diagnose saturation (s)", wall)
                         add(name, "diagnose peak memory (MB)", peak)
+                        add(name, "diagnose CSV 16x30 s (s)", diagnose(tree, tmp, manifest)[0])
         finally:
             subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(base)], check=False)
     goals = {
@@ -152,6 +196,7 @@ def main() -> None:
         "replay (x real time)": "≥ 500",
         "diagnose saturation (s)": "≤ 15",
         "diagnose peak memory (MB)": "≤ 400",
+        "diagnose CSV 16x30 s (s)": "≤ 60",
     }
     print(f"baseline {args.baseline} vs this tree; medians of {args.runs} runs (diagnose: {args.diagnose_runs})")
     print(f"{'figure':28s} {'baseline':>10s} {'this tree':>10s} {'ratio':>7s}   goal")

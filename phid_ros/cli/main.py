@@ -96,8 +96,13 @@ def cmd_simulate(args: argparse.Namespace, console: Console) -> int:
         runs = simulate_scenarios(scenarios, cfg)
         progress.update(f"writing {out}")
         rec = recording_from_runs(runs, cfg)
-        with atomic_output(out) as tmp:  # a kill leaves no half-written bag that looks complete
-            write_recording(tmp, rec, block_size=args.block_size)
+        if out.name == "manifest.json":
+            from phid_ros.io.csv_export import write_csv_set
+
+            write_csv_set(out.parent, rec)  # the manifest last: a killed run leaves no set that looks complete
+        else:
+            with atomic_output(out) as tmp:  # a kill leaves no half-written bag that looks complete
+                write_recording(tmp, rec, block_size=args.block_size)
     truth = write_json(truth_path_for(out), truth_document(cfg, scenarios))
     start, end = rec.span_ns()
     console.print(f"wrote {out} ({len(scenarios)} scenarios, {(end - start) / 1e9:.1f} s of data) and {truth}")
@@ -109,6 +114,8 @@ def _simulation_output(args: argparse.Namespace) -> Path:
     from phid_ros.io.results import truth_path_for
 
     out = Path(args.out)
+    if out.name == "manifest.json":  # a CSV scenario set: its folder is the output
+        out.parent.mkdir(parents=True, exist_ok=True)
     refuse_inputs([out, truth_path_for(out)], [])
     for p in (out, truth_path_for(out)):
         if p.exists() and not args.force:
@@ -310,7 +317,11 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
 
     p = sub.add_parser("simulate", help="simulate the scenario catalogue (or some scenarios) into a bag")
-    p.add_argument("--out", required=True, help="output: a rosbag2 folder, or a file ending in .mcap")
+    p.add_argument(
+        "--out",
+        required=True,
+        help="output: a rosbag2 folder, a file ending in .mcap, or DIR/manifest.json for a CSV scenario set",
+    )
     p.add_argument(
         "--catalogue",
         choices=("paper", "validation"),
@@ -353,7 +364,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("import-csv", help="turn a CSV scenario set (manifest.json) into a bag")
     p.add_argument("manifest", help="the set's manifest.json (scenarios, their CSV files, kinds and roles)")
-    p.add_argument("--out", required=True, help="output: a rosbag2 folder, or a file ending in .mcap")
+    p.add_argument(
+        "--out",
+        required=True,
+        help="output: a rosbag2 folder, a file ending in .mcap, or DIR/manifest.json for a CSV scenario set",
+    )
     p.add_argument("--strict", action="store_true", help="refuse extra columns instead of ignoring them")
     p.add_argument(
         "--block-size",
