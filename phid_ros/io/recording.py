@@ -362,14 +362,17 @@ def recording_from_raw(
             raise BagError(f"{source}: corrupt message on {topic}: {exc}") from exc
 
     asm = _Assembler(source)
-    routes: dict[tuple[str, str], list[bytes] | None] = {}  # (topic, type) -> where its payloads go
+    # (topic, type) -> its payload list and its positions list, or None for topics not ours
+    routes: dict[tuple[str, str], tuple[list[bytes], list[int]] | None] = {}
     for position, (topic, msgtype, raw) in enumerate(items):
-        dest = routes.get((topic, msgtype), False)
-        if dest is False:
-            dest = routes[(topic, msgtype)] = _route(source, topic, msgtype, raws, topics)
-        if dest is not None:
-            dest.append(raw)
-            seqs.setdefault(stream_of_topic(topic) or "", []).append(position)
+        key = (topic, msgtype)
+        if key not in routes:
+            dest = _route(source, topic, msgtype, raws, topics)
+            routes[key] = None if dest is None else (dest, seqs.setdefault(stream_of_topic(topic) or "", []))
+        route = routes[key]
+        if route is not None:
+            route[0].append(raw)
+            route[1].append(position)
         elif topic == SCENARIO_TOPIC:
             asm.scenarios.append(_scenario_from_msg(deserialize(raw, msgtype, topic)))
     if not raws and not asm.scenarios:
@@ -406,18 +409,18 @@ def checked_payloads(messages: Iterable[tuple[str, str, str, bytes]], source: st
     Foreign topics pass through unchecked (they are counted, then ignored).
     """
     store = typestore()
-    ours: set[str] = set()
+    checked: set[tuple[str, str, str]] = set()  # a (topic, type, encoding) is judged once, not per message
     for topic, schema, encoding, raw in messages:
-        if topic not in ours:
+        if (topic, schema, encoding) not in checked:
             if not is_phid_topic(topic):
                 yield topic, schema, raw
                 continue
-            ours.add(topic)
-        if encoding != "cdr" or not schema:
-            raise BagError(f"{source}: topic {topic} is not cdr-encoded ROS 2 data")
-        _check_type(source, topic, schema, expected_type(topic))  # type: ignore[arg-type]
-        if schema not in store.types:
-            raise BagError(f"{source}: topic {topic} has unknown message type {schema}")
+            if encoding != "cdr" or not schema:
+                raise BagError(f"{source}: topic {topic} is not cdr-encoded ROS 2 data")
+            _check_type(source, topic, schema, expected_type(topic))  # type: ignore[arg-type]
+            if schema not in store.types:
+                raise BagError(f"{source}: topic {topic} has unknown message type {schema}")
+            checked.add((topic, schema, encoding))
         yield topic, schema, raw
 
 
