@@ -129,6 +129,15 @@ def _raise_parse_error(path: Path, header: list[str], idx: list[int], body: str)
     raise CsvImportError(f"{path}: cannot parse as CSV of numbers")
 
 
+def _scenario_name(path: Path) -> str:
+    """The file's name without .csv or .csv.gz (a name may hold dots: ``S03_torque_+0.05.csv``)."""
+    name = path.name
+    for suffix in (".csv.gz", ".csv", ".gz"):
+        if name.lower().endswith(suffix):
+            return name[: -len(suffix)]
+    return name
+
+
 def _is_float(s: str) -> bool:
     try:
         float(s)
@@ -202,7 +211,7 @@ def import_csv_set(
             c_parts[c].append(cols[c])
         infos.append(
             ScenarioInfo(
-                name=path.name.split(".")[0],
+                name=_scenario_name(path),
                 kind=kind,
                 role=role,
                 generator_damping=damping,
