@@ -56,6 +56,24 @@ def test_import_csv_command(tmp_path, short_runs):
     assert len(read_recording(out).scenarios) == 2
 
 
+def test_simulate_to_a_csv_set_then_import_it(tmp_path, capsys):
+    manifest = tmp_path / "set" / "manifest.json"
+    args = ["simulate", "--scenario", "S04", "--scenario", "V1", "--duration", "2", "--out", str(manifest)]
+    assert main(args) == 0
+    assert sorted(p.name for p in manifest.parent.iterdir()) == [
+        "S04_torque_+0.10.csv",
+        "V1_power_step.csv",
+        "manifest.json",
+        "manifest.json.truth.json",
+    ]
+    assert main(args) == 2 and "already exists" in capsys.readouterr().err  # not replaced without --force
+    out = tmp_path / "imported"
+    assert main(["import-csv", str(manifest), "--out", str(out)]) == 0
+    rec = read_recording(out)
+    assert [s.name for s in rec.scenarios] == ["S04_torque_+0.10", "V1_power_step"]
+    assert len(rec.streams["pt_ct"].t_ns) == 2 * 2000
+
+
 @pytest.mark.parametrize(
     "make, args, message",
     [
