@@ -56,7 +56,9 @@ def _common_samples(rec: Recording) -> tuple[np.ndarray, np.ndarray]:
     for spec in STREAMS:
         s = rec.streams[spec.name]
         if not np.array_equal(s.t_ns, first.t_ns):
-            raise PhidError(f"stream {spec.name}: its stamps differ from {STREAMS[0].name}'s; a CSV row needs one clock")
+            raise PhidError(
+                f"stream {spec.name}: its stamps differ from {STREAMS[0].name}'s; a CSV row needs one clock"
+            )
         for c in spec.channels:
             values[:, CHANNELS.index(c)] = s.channels[c]
     return first.t_ns, values

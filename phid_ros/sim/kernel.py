@@ -95,7 +95,7 @@ def integrate(
         flags[0],
         flags[1],
         flags[2],
-        float(plant._ws),
+        float(plant.ws),
         int(n_steps),
         float(h),
     )
@@ -109,17 +109,17 @@ def _terms(plant: Any, cols: int, damping: Array) -> tuple[Array, tuple[int, int
     def put(name: str, value: Any) -> None:
         coef[ROW[name]] = np.broadcast_to(np.asarray(value, dtype=np.float64), (cols,))
 
-    put("inv_2h", plant._inv_2h)
-    put("xd_diff", plant._xd_diff)
-    put("xq_diff", plant._xq_diff)
-    put("inv_td0", plant._inv_td0)
-    put("inv_tq0", plant._inv_tq0)
+    put("inv_2h", plant.inv_2h)
+    put("xd_diff", plant.xd_diff)
+    put("xq_diff", plant.xq_diff)
+    put("inv_td0", plant.inv_td0)
+    put("inv_tq0", plant.inv_tq0)
     put("x_d_prime", p.X_d_prime)
     put("x_q_prime", p.X_q_prime)
     put("r_a", plant.r_a)
     put("damping", damping)
     flags = {"saturation": 0, "subtransient": -1, "torsion": -1}
-    for effect, sl in zip(plant.effects, plant._slots):
+    for effect, sl in zip(plant.effects, plant.slots):
         found = effect.kernel_terms(plant)
         if found is None:
             return None

@@ -119,20 +119,20 @@ class Plant:
         self.f_nominal_hz = float(f_nominal_hz)
         self.r_a = float(r_a)
         self.effects = tuple(effects)
-        # the equations' constants, once per plant: _rhs runs millions of times in a diagnosis
-        # and recomputing them there was a sixth of its time
+        # the equations' constants, once per plant (the compiled kernel reads them too): _rhs runs
+        # millions of times in a diagnosis, and recomputing them there was a sixth of its time
         p = params
-        self._ws = omega_s(self.f_nominal_hz)
-        self._inv_2h = 1.0 / (2.0 * p.H)
-        self._xd_diff = p.X_d - p.X_d_prime
-        self._xq_diff = p.X_q - p.X_q_prime
-        self._inv_td0 = 1.0 / p.T_d0_prime
-        self._inv_tq0 = 1.0 / p.T_q0_prime
-        self._slots: list[slice] = []
+        self.ws = omega_s(self.f_nominal_hz)
+        self.inv_2h = 1.0 / (2.0 * p.H)
+        self.xd_diff = p.X_d - p.X_d_prime
+        self.xq_diff = p.X_q - p.X_q_prime
+        self.inv_td0 = 1.0 / p.T_d0_prime
+        self.inv_tq0 = 1.0 / p.T_q0_prime
+        self.slots: list[slice] = []
         start = 4
         for effect in self.effects:
             effect.configure(self)
-            self._slots.append(slice(start, start + len(effect.state_names)))
+            self.slots.append(slice(start, start + len(effect.state_names)))
             start += len(effect.state_names)
         self.n_states = start
         self._flux_effects = [e for e in self.effects if type(e).flux_loss_d is not PlantEffect.flux_loss_d]
@@ -179,7 +179,7 @@ class Plant:
     def _emf(self, x: Array) -> tuple[Array, Array, float, float]:
         """The EMF behind the stator reactances: (E'_q, E'_d, X'_d, X'_q), or an effect's (E''...)."""
         p = self.params
-        for effect, sl in zip(self.effects, self._slots):
+        for effect, sl in zip(self.effects, self.slots):
             if effect.provides_emf:
                 return effect.emf(x[sl], p)
         return x[2], x[3], p.X_d_prime, p.X_q_prime
@@ -224,12 +224,12 @@ class Plant:
         # air-gap power; equals terminal P_e (13) when R_a = 0
         p_airgap = ed_i * i_d + eq_i * i_q + (xq_i - xd_i) * i_d * i_q
         slip = omega - 1.0
-        d_omega = (p_m - p_airgap - damping * slip) * self._inv_2h
+        d_omega = (p_m - p_airgap - damping * slip) * self.inv_2h
         derivs = [
-            self._ws * slip,
+            self.ws * slip,
             d_omega,
-            (v_f - e_q - self._xd_diff * i_d - self._flux_loss_d(e_q)) * self._inv_td0,
-            (self._xq_diff * i_q - e_d) * self._inv_tq0,
+            (v_f - e_q - self.xd_diff * i_d - self._flux_loss_d(e_q)) * self.inv_td0,
+            (self.xq_diff * i_q - e_d) * self.inv_tq0,
         ]
         if self.effects:
             ctx = {
@@ -243,9 +243,9 @@ class Plant:
                 "p_m": p_m,
                 "p_airgap": p_airgap,
                 "damping": damping,
-                "ws": self._ws,
+                "ws": self.ws,
             }
-            for effect, sl in zip(self.effects, self._slots):
+            for effect, sl in zip(self.effects, self.slots):
                 swing = effect.swing(x[sl], ctx, self.params)
                 if swing is not None:
                     derivs[1] = swing
