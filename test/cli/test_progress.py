@@ -15,14 +15,15 @@ BAGS = Path(__file__).resolve().parents[2] / "bags"
 LINE = re.compile(r"^phid \[ *\d+\.\d s\] (.+)$")
 
 
-def test_plain_lines_once_per_step_after_the_quiet_time():
+def test_plain_lines_once_per_step_after_the_quiet_time(monkeypatch):
+    monkeypatch.setattr(progress_module, "MIN_GAP_S", 0.1)
     out = io.StringIO()
     with ProgressLine("step one", stream=out, quiet_s=0.3) as p:
         time.sleep(0.1)
-        p.update("step two")  # within the quiet time: never printed
-        time.sleep(0.5)
+        p.update("step two")  # step one ended within the quiet time: never printed
+        time.sleep(0.8)
         p.update("step three")
-        time.sleep(1.5)
+        time.sleep(0.8)
     steps = [LINE.match(line).group(1) for line in out.getvalue().splitlines()]
     assert steps == ["step two", "step three"]
 
