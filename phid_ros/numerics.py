@@ -1,5 +1,11 @@
 """Numerical building blocks shared by the simulator and the identification (numpy/scipy only).
 
+The filters and the peak finder here are written on numpy and scipy.linalg, not taken from
+scipy.signal: importing scipy.signal costs 0.8-1.8 s (scipy 1.17 parses every docstring of
+its array-API wrappers at import), more than the whole identification of a recording, and
+these three functions were all that identification used of it. Tests hold them equal to
+scipy.signal's lfilter and find_peaks.
+
 - :func:`first_order_response`: exact discretisation of ``T dx/dt = u - x`` for an
   input that is linear between samples (first-order hold), so flux ODEs driven
   by sampled currents are integrated without a half-sample bias.
@@ -16,7 +22,7 @@ from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.signal import lfilter, lfilter_zi
+from scipy.linalg.lapack import dtbtrs
 
 Array = NDArray[np.float64]
 
@@ -26,13 +32,41 @@ def first_order_response(u: Array, tau: float, dt: float, axis: int = -1) -> Arr
     a = float(np.exp(-dt / tau))
     b0 = (tau - (tau + dt) * a) / dt
     b1 = 1.0 - a - b0
-    z = lfilter([b1, b0], [1.0, -a], u, axis=axis)
-    # lfilter starts with z_0 = b1 u_0; remove that value's free decay so x(0) = 0
-    first = np.take(z, [0], axis=axis)
-    n = np.shape(u)[axis]
-    shape = [1] * np.ndim(u)
-    shape[axis] = n
-    return z - first * (a ** np.arange(n)).reshape(shape)
+    u = np.moveaxis(np.asarray(u, dtype=float), axis, 0)
+    v = b1 * u
+    v[1:] += b0 * u[:-1]
+    z = recursive_first_order(v, a, axis=0)
+    # the recursion starts with z_0 = b1 u_0; remove that value's free decay so x(0) = 0
+    n = u.shape[0]
+    decay = (a ** np.arange(n)).reshape((n,) + (1,) * (u.ndim - 1))
+    return np.moveaxis(z - z[:1] * decay, 0, axis)
+
+
+def recursive_first_order(x: Array, a: float, axis: int = -1) -> Array:
+    """``y[n] = a y[n-1] + x[n]`` from rest along ``axis`` (scipy.signal.lfilter([1], [1, -a], x))."""
+    return all_pole(x, (-a,), axis)
+
+
+def all_pole(x: Array, a: tuple[float, ...], axis: int = -1) -> Array:
+    """``y[n] = x[n] - a_1 y[n-1] - ... - a_k y[n-k]`` from rest: lfilter([1], [1, *a], x).
+
+    Solved as the unit lower-triangular banded system it is, by LAPACK's banded triangular
+    solve (forward substitution, all columns at once, no factorisation): the same steps as the
+    recursion, at lfilter's speed.
+    """
+    x = np.moveaxis(np.asarray(x, dtype=float), axis, 0)
+    n = x.shape[0]
+    if n == 0:
+        return np.moveaxis(x.copy(), 0, axis)
+    band = np.empty((len(a) + 1, n), order="F")  # LAPACK's layout: no copy on the way in
+    band[0] = 1.0  # the unit diagonal (diag="U": not read)
+    for i, ai in enumerate(a, start=1):
+        band[i] = ai
+    rhs = x if x.ndim == 2 else x.reshape(n, -1)  # 2-D: a column-major view, no copy for axis=1 input
+    y, info = dtbtrs(band, rhs, uplo="L", diag="U")
+    if info != 0:
+        raise ValueError(f"banded triangular solve failed (LAPACK info {info})")
+    return np.moveaxis(y.reshape(x.shape), 0, axis)
 
 
 def free_decay(n: int, tau: float, dt: float, start: int = 0) -> Array:
@@ -46,15 +80,24 @@ def free_decay(n: int, tau: float, dt: float, start: int = 0) -> Array:
 def lowpass2_coefficients(fc: float, dt: float, derivative: bool) -> tuple[Array, Array]:
     """The bilinear map of ``w^2 / (s^2 + 2 w s + w^2)`` (times ``s`` for the derivative), written out.
 
-    ``s = K (z - 1)/(z + 1)`` with ``K = 2/dt``; scipy.signal.bilinear gives the same
-    coefficients but costs 2.4 ms a call behind scipy's array-API dispatch, and identification
-    designs a filter per scenario and signal (125 in one run: 0.3 s).
+    ``s = K (z - 1)/(z + 1)`` with ``K = 2/dt``: scipy.signal.bilinear's coefficients (test).
     """
     w = 2.0 * np.pi * fc
     k = 2.0 / dt
     a = np.array([k * k + 2.0 * w * k + w * w, 2.0 * (w * w - k * k), k * k - 2.0 * w * k + w * w])
     b = w * w * (np.array([k, 0.0, -k]) if derivative else np.array([1.0, 2.0, 1.0]))
     return b / a[0], a / a[0]
+
+
+def _lowpass2_from_rest(x: Array, fc: float, dt: float, derivative: bool, axis: int) -> Array:
+    """The section as its numerator taps, then its denominator as one all-pole recursion."""
+    b, a = lowpass2_coefficients(fc, dt, derivative)
+    x = np.moveaxis(np.asarray(x, dtype=float), axis, 0)
+    v = b[0] * x
+    v[1:] += b[1] * x[:-1]
+    if b[2]:
+        v[2:] += b[2] * x[:-2]
+    return np.moveaxis(all_pole(v, (float(a[1]), float(a[2])), axis=0), 0, axis)
 
 
 def lowpass2(x: Array, fc: float, dt: float, *, steady_start: bool = False, axis: int = -1) -> Array:
@@ -64,20 +107,64 @@ def lowpass2(x: Array, fc: float, dt: float, *, steady_start: bool = False, axis
     start-up transient); the default starts from rest, which keeps the filter
     exactly linear (needed when it is applied to the terms of an equation).
     """
-    b, a = lowpass2_coefficients(fc, dt, False)
     if steady_start:
+        # the section passes a constant unchanged (gain 1 at DC): the steady state at the first
+        # value is that value, and the rest is the response to the departure from it
         x0 = np.take(x, [0], axis=axis)
-        zi_shape = [1] * np.ndim(x)
-        zi_shape[axis] = len(a) - 1
-        zi = lfilter_zi(b, a).reshape(zi_shape) * x0
-        return lfilter(b, a, x, axis=axis, zi=zi)[0]
-    return lfilter(b, a, x, axis=axis)
+        return _lowpass2_from_rest(x - x0, fc, dt, False, axis) + x0
+    return _lowpass2_from_rest(x, fc, dt, False, axis)
 
 
 def lowpass2_derivative(x: Array, fc: float, dt: float, axis: int = -1) -> Array:
     """d/dt of :func:`lowpass2` (from rest), exact in the discrete sense."""
-    b, a = lowpass2_coefficients(fc, dt, True)
-    return lfilter(b, a, x, axis=axis)
+    return _lowpass2_from_rest(x, fc, dt, True, axis)
+
+
+def find_peaks(x: Array, distance: int = 1) -> Array:
+    """Indices of the local maxima of ``x`` at least ``distance`` samples apart, the higher kept first.
+
+    scipy.signal.find_peaks(x, distance=...) (a test holds them equal): a plateau counts once,
+    at its middle; a maximum at either end of ``x`` is not a peak.
+    """
+    x = np.asarray(x, dtype=float)
+    n = len(x)
+    if n < 3:
+        return np.zeros(0, dtype=np.intp)
+    d = np.diff(x)
+    if np.all(d != 0):
+        peaks = np.flatnonzero((d[:-1] > 0) & (d[1:] < 0)) + 1
+    else:
+        peaks = _local_maxima_with_plateaus(x)
+    if distance <= 1 or len(peaks) < 2:
+        return peaks
+    keep = np.ones(len(peaks), dtype=bool)
+    for j in np.argsort(x[peaks])[::-1]:  # highest first, as scipy (its order among equal heights too)
+        if not keep[j]:
+            continue
+        k = j - 1
+        while k >= 0 and peaks[j] - peaks[k] < distance:
+            keep[k] = False
+            k -= 1
+        k = j + 1
+        while k < len(peaks) and peaks[k] - peaks[j] < distance:
+            keep[k] = False
+            k += 1
+    return peaks[keep]
+
+
+def _local_maxima_with_plateaus(x: Array) -> Array:
+    peaks = []
+    i, n = 1, len(x)
+    while i < n - 1:
+        if x[i - 1] < x[i]:
+            ahead = i + 1
+            while ahead < n - 1 and x[ahead] == x[i]:
+                ahead += 1
+            if x[ahead] < x[i]:
+                peaks.append((i + ahead - 1) // 2)
+                i = ahead
+        i += 1
+    return np.array(peaks, dtype=np.intp)
 
 
 def rk4(

@@ -17,3 +17,62 @@ def test_lowpass_coefficients_are_scipys_bilinear_map(fc, dt, derivative):
     b, a = lowpass2_coefficients(fc, dt, derivative)
     np.testing.assert_allclose(a, a_ref, rtol=1e-12, atol=1e-15)
     np.testing.assert_allclose(b, np.pad(b_ref, (len(b) - len(b_ref), 0)), rtol=1e-12, atol=1e-15)
+
+
+RNG = np.random.default_rng(3)
+
+
+def close(got, want):
+    # rounding, amplified by poles near 1 (0.997 for 0.5 Hz at 1 kHz): the direct form and
+    # the cascade of first-order passes differ by some 1e-10 of the signal, both rounding
+    scale = float(np.max(np.abs(want)))
+    np.testing.assert_allclose(got, want, rtol=1e-8, atol=1e-9 * scale)
+
+
+@pytest.mark.parametrize("shape, axis", [((5000,), -1), ((3, 4000), 1), ((4000, 3), 0)])
+def test_filters_equal_scipy_lfilter(shape, axis):
+    from scipy.signal import lfilter, lfilter_zi
+
+    from phid_ros.numerics import first_order_response, lowpass2, lowpass2_derivative, recursive_first_order
+
+    x = np.cumsum(RNG.standard_normal(shape), axis=axis) + 3.0
+    dt = 1e-3
+    for fc in (0.5, 2.0, 45.0):
+        for derivative in (False, True):
+            b, a = lowpass2_coefficients(fc, dt, derivative)
+            want = lfilter(b, a, x, axis=axis)
+            got = (lowpass2_derivative if derivative else lowpass2)(x, fc, dt, axis=axis)
+            close(got, want)
+        b, a = lowpass2_coefficients(fc, dt, False)
+        x0 = np.take(x, [0], axis=axis)
+        zi_shape = [1] * x.ndim
+        zi_shape[axis] = 2
+        want = lfilter(b, a, x, axis=axis, zi=lfilter_zi(b, a).reshape(zi_shape) * x0)[0]
+        close(lowpass2(x, fc, dt, steady_start=True, axis=axis), want)
+    for a1 in (0.5, 0.999):
+        want = lfilter([1.0], [1.0, -a1], x, axis=axis)
+        close(recursive_first_order(x, a1, axis=axis), want)
+    tau = 0.13
+    a1 = np.exp(-dt / tau)
+    b0 = (tau - (tau + dt) * a1) / dt
+    z = lfilter([1.0 - a1 - b0, b0], [1.0, -a1], x, axis=axis)
+    n = x.shape[axis]
+    shape_n = [1] * x.ndim
+    shape_n[axis] = n
+    want = z - np.take(z, [0], axis=axis) * (a1 ** np.arange(n)).reshape(shape_n)
+    close(first_order_response(x, tau, dt, axis=axis), want)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_find_peaks_equals_scipy(seed):
+    from scipy.signal import find_peaks as scipy_find_peaks
+
+    from phid_ros.numerics import find_peaks
+
+    rng = np.random.default_rng(seed)
+    x = np.abs(np.sin(np.linspace(0, 40, 3000)) + 0.3 * rng.standard_normal(3000))
+    if seed % 2:
+        x = np.round(x, 1)  # plateaus and equal heights
+    for distance in (1, 2, 7, 100):
+        want, _ = scipy_find_peaks(x, distance=distance)
+        np.testing.assert_array_equal(find_peaks(x, distance=distance), want)

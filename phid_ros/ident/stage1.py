@@ -29,13 +29,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import curve_fit
-from scipy.signal import find_peaks
 
 from phid_ros.errors import PhidError
 from phid_ros.ident.results import STD_CALIBRATION, Estimate, flag
 from phid_ros.ident.scenario import ScenarioData
 from phid_ros.ident.uncertainty import block_ids, cluster_robust_cov, information_share
-from phid_ros.numerics import lowpass2, lowpass2_derivative
+from phid_ros.numerics import find_peaks, lowpass2, lowpass2_derivative
 
 DEFAULT_CUTOFF_HZ = 2.0
 BLOCK_SECONDS = 1.0
@@ -163,7 +162,7 @@ def _envelope(s: ScenarioData, window_s: float = 15.0) -> tuple[float, float]:
     w = s["omega"][k0:k1]
     w_ss = float(np.mean(s["omega"][s.steady_slice()]))
     dev = lowpass2(w - w_ss, 10.0, s.dt, steady_start=True)  # the encoder's noise makes false peaks
-    peaks, _ = find_peaks(np.abs(dev), distance=max(1, int(0.1 / s.dt)))
+    peaks = find_peaks(np.abs(dev), distance=max(1, int(0.1 / s.dt)))
     peaks = peaks[np.abs(dev[peaks]) > 20 * max(np.std(s["omega"][s.steady_slice()]), 1e-9)]
     if len(peaks) < 3:
         raise Stage1Error(f"{s.name}: fewer than 3 speed oscillation peaks above the noise")

@@ -37,13 +37,12 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import differential_evolution, minimize, minimize_scalar
-from scipy.signal import lfilter
 
 from phid_ros.errors import PhidError
 from phid_ros.ident.results import STD_CALIBRATION, Estimate, flag
 from phid_ros.ident.scenario import ScenarioData
 from phid_ros.ident.uncertainty import block_ids, cluster_robust_cov, information_share
-from phid_ros.numerics import first_order_response, lowpass2
+from phid_ros.numerics import first_order_response, lowpass2, recursive_first_order
 
 Array = NDArray[np.float64]
 
@@ -174,7 +173,7 @@ def _axis_system(
     p = 1 + (int(ax.switch_slot.max()) if ax.switch_slot.size else 0)
     n = ax.current.shape[1]
     nuisance = np.zeros((ax.current.shape[0], p, n))
-    g = lfilter([1.0], [1.0, -a], ax.impulse)  # a free flux decaying from one sample on, filtered
+    g = recursive_first_order(ax.impulse, a)  # a free flux decaying from one sample on, filtered
     nuisance[:, 0] = g
     for row, slot, k in zip(ax.switch_row, ax.switch_slot, ax.switch_at):
         nuisance[row, slot, k:] = g[: n - k]

@@ -21,10 +21,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.signal import lfilter
 
 from phid_ros.errors import SimulationError
 from phid_ros.model.conventions import omega_s
+from phid_ros.numerics import recursive_first_order
 from phid_ros.sim.runner import SimulationConfig
 
 Array = NDArray[np.float64]
@@ -62,7 +62,7 @@ class AmbientRun:
 
 def _ou(n: int, dt: float, std: float, tau: float, rng: np.random.Generator) -> Array:
     a = math.exp(-dt / tau)
-    return lfilter([std * math.sqrt(1 - a * a)], [1.0, -a], rng.standard_normal(n))
+    return recursive_first_order(std * math.sqrt(1 - a * a) * rng.standard_normal(n), a)
 
 
 def simulate_ambient(settings: AmbientSettings, cfg: SimulationConfig | None = None) -> AmbientRun:
