@@ -71,12 +71,15 @@ def integrate(
     n_steps: int,
     h: float,
     staged: tuple[Array, Array, Array, Array],
+    source: NDArray[np.int64],
     damping: Array,
 ) -> Array | None:
     """RK4 of ``plant`` from ``x0`` (n_states, cols): states (n_steps + 1, n_states, cols), or None.
 
     ``staged`` = (P_m, V_f, V_t, theta_t) at every half step (rows 2k + j at t_k + j h/2),
-    as :func:`phid_ros.numerics.rk4` reads them. None when the compiled path cannot run.
+    as :func:`phid_ros.numerics.rk4` reads them; ``source[i, c]`` is the column of input ``i``
+    that model column ``c`` reads (models of one scenario share its measured inputs unless an
+    effect re-times them per model). None when the compiled path cannot run.
     """
     if not available():
         return None
@@ -91,6 +94,7 @@ def integrate(
         v_f,
         v_t,
         theta,
+        np.ascontiguousarray(source, dtype=np.int64),
         coef,
         flags[0],
         flags[1],
@@ -196,6 +200,7 @@ def _rk4_columns(
     v_f: Array,
     v_t: Array,
     theta: Array,
+    source: NDArray[np.int64],
     coef: Array,
     sat: int,
     sub_at: int,
@@ -212,20 +217,21 @@ def _rk4_columns(
     xs = np.empty(n_states)
     k1, k2, k3, k4 = np.empty(n_states), np.empty(n_states), np.empty(n_states), np.empty(n_states)
     for c in range(cols):
+        pm, vf, vt, th = source[0, c], source[1, c], source[2, c], source[3, c]
         for i in range(n_states):
             x[i] = x0[i, c]
         for k in range(n_steps):
             a, b, e = 2 * k, 2 * k + 1, 2 * k + 2
-            _rhs_column(x, k1, c, p_m[a, c], v_f[a, c], v_t[a, c], theta[a, c], coef, sat, sub_at, tor_at, ws)
+            _rhs_column(x, k1, c, p_m[a, pm], v_f[a, vf], v_t[a, vt], theta[a, th], coef, sat, sub_at, tor_at, ws)
             for i in range(n_states):
                 xs[i] = x[i] + h2 * k1[i]
-            _rhs_column(xs, k2, c, p_m[b, c], v_f[b, c], v_t[b, c], theta[b, c], coef, sat, sub_at, tor_at, ws)
+            _rhs_column(xs, k2, c, p_m[b, pm], v_f[b, vf], v_t[b, vt], theta[b, th], coef, sat, sub_at, tor_at, ws)
             for i in range(n_states):
                 xs[i] = x[i] + h2 * k2[i]
-            _rhs_column(xs, k3, c, p_m[b, c], v_f[b, c], v_t[b, c], theta[b, c], coef, sat, sub_at, tor_at, ws)
+            _rhs_column(xs, k3, c, p_m[b, pm], v_f[b, vf], v_t[b, vt], theta[b, th], coef, sat, sub_at, tor_at, ws)
             for i in range(n_states):
                 xs[i] = x[i] + h * k3[i]
-            _rhs_column(xs, k4, c, p_m[e, c], v_f[e, c], v_t[e, c], theta[e, c], coef, sat, sub_at, tor_at, ws)
+            _rhs_column(xs, k4, c, p_m[e, pm], v_f[e, vf], v_t[e, vt], theta[e, th], coef, sat, sub_at, tor_at, ws)
             for i in range(n_states):
                 x[i] = x[i] + h6 * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i])
                 states[k + 1, i, c] = x[i]
