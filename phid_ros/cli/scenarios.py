@@ -14,17 +14,21 @@ PRE_EVENT_S = 1.0
 POST_EVENT_S = 29.0
 
 
-def aligned_channels(rec: Recording, source: str) -> tuple[np.ndarray, float, dict[str, np.ndarray], list[str]]:
+def aligned_channels(
+    rec: Recording, source: str, windows: list[tuple[int, int]] | None = None
+) -> tuple[np.ndarray, float, dict[str, np.ndarray], list[str]]:
     """All ten channels on one uniform grid, by the very aligner the online pipeline uses.
 
     So ``identify`` sees a recording exactly as ``replay`` does: a hole in the streams is a
     hole (NaN, and a window over it is skipped by name), not a splice of the samples either
     side; duplicate stamps keep their first value and are counted; a channel recorded in
     other units than per unit is refused with the unit it looks like. Returns the grid, the
-    period in s, the channels and notes on what was dropped.
+    period in s, the channels and notes on what was dropped. With ``windows`` (the scenarios'
+    [start, end] stamps), a stream's gaps are noted only where they touch a window: the spaces
+    between the scenarios of a CSV set are gaps by design and skip nothing.
     """
     from phid_ros.io.recording import block_bounds
-    from phid_ros.io.topics import STREAMS, unit_problem
+    from phid_ros.io.topics import STREAMS, STREAMS_BY_NAME, unit_problem
     from phid_ros.stream.align import Aligner
 
     missing_streams = [s.name for s in STREAMS if s.name not in rec.streams]
@@ -64,14 +68,23 @@ def aligned_channels(rec: Recording, source: str) -> tuple[np.ndarray, float, di
         for what, count in dropped.items():
             if count:
                 notes.append(f"{source}: stream {name}: {count} samples dropped: {what}")
-        if h.gaps:
+        if h.gaps and _gap_in_windows(t, values[:, CHANNELS.index(STREAMS_BY_NAME[name].channels[0])], windows):
             notes.append(f"{source}: stream {name}: {h.gaps} gap(s); windows over a gap are skipped")
     return t, period / NS, {c: values[:, i] for i, c in enumerate(CHANNELS)}, notes
 
 
+def _gap_in_windows(t: np.ndarray, column: np.ndarray, windows: list[tuple[int, int]] | None) -> bool:
+    """Whether the aligner left a hole (NaN) in this stream inside any window (True without windows)."""
+    if windows is None:
+        return True
+    holes = t[np.isnan(column)]
+    return any(bool(np.any((holes >= a) & (holes <= b))) for a, b in windows)
+
+
 def scenarios_from_recording(rec: Recording, source: str) -> tuple[list[ScenarioData], list[str]]:
     """Scenario windows from the markers, or from detected disturbances when there are none."""
-    t, dt, ch, problems = aligned_channels(rec, source)
+    marked = [(m.start_ns, m.end_ns) for m in rec.scenarios] if rec.scenarios else None
+    t, dt, ch, problems = aligned_channels(rec, source, marked)
     out: list[ScenarioData] = []
     windows = []
     if rec.scenarios:
