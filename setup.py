@@ -46,7 +46,10 @@ setup(
         # it (or with PHID_NO_JIT=1) the numpy plant runs, the same numbers, slower
         "numba>=0.60",
     ],
-    extras_require={"test": ["pytest>=7.4"]},
+    extras_require={
+        # andes: the independent simulator the exported planning records are checked in
+        "test": ["pytest>=7.4", "andes>=1.9"],
+    },
     zip_safe=True,
     maintainer="phid_ros maintainers",
     maintainer_email="phid@example.org",

@@ -176,6 +176,9 @@ def run(args: Any, console: Console) -> int:
     res.timing = {"read": round(t_read, 6), **res.timing}
     doc = res.to_json(truth)
     doc["input"] = source
+    doc["f_nominal_hz"] = rec.f_nominal_hz  # what phid export needs to write a planning model
+    if rec.metadata.get("base_mva") is not None:
+        doc["base_mva"] = float(rec.metadata["base_mva"])
     if args.json:
         t0 = time.perf_counter()
         write_json(args.json, doc)

@@ -303,6 +303,12 @@ def cmd_fleet(args: argparse.Namespace, console: Console) -> int:
     return run(args, console)
 
 
+def cmd_export(args: argparse.Namespace, console: Console) -> int:
+    from phid_ros.cli.export import run
+
+    return run(args, console)
+
+
 def cmd_history(args: argparse.Namespace, console: Console) -> int:
     from phid_ros.cli.fleet import run_history
 
@@ -474,6 +480,35 @@ def build_parser() -> argparse.ArgumentParser:
         help=f"flag a change between consecutive well-identified sets beyond this many σ (default {DRIFT_SIGMAS:g})",
     )
     p.set_defaults(func=cmd_history)
+
+    p = sub.add_parser("export", help="an identified machine as a planning-model record (PSS/E, PSLF, ANDES)")
+    p.add_argument("result", help="results JSON of phid identify --json (its identifiability flags are honoured)")
+    p.add_argument("--format", choices=("psse-dyr", "pslf-dyd", "andes"), required=True, help="the record's format")
+    p.add_argument(
+        "--model",
+        choices=("GENROU", "GENSAL"),
+        type=str.upper,
+        default="GENROU",
+        help="round rotor (GENROU, default) or salient pole (GENSAL: X'_q and T'_q0 are dropped)",
+    )
+    p.add_argument(
+        "--diagnosis",
+        metavar="DIAG.json",
+        help="phid diagnose --json of the same unit: the base parameters of its refit, and X''/T'' "
+        "(subtransient_dynamics), S(1.0)/S(1.2) (magnetic_saturation), r_a (stator_resistance) where named",
+    )
+    p.add_argument("--out", metavar="OUT", help="the record's file (default: RESULT with .dyr, .dyd or .json)")
+    p.add_argument("--mva", type=POSITIVE, help="the machine's MVA base (default: the result's base_mva)")
+    p.add_argument("--kv", type=POSITIVE, default=20.0, help="the terminal bus's base kV (default 20)")
+    p.add_argument("--bus", type=POSITIVE_INT, default=1, help="the bus number of the machine (default 1)")
+    p.add_argument("--id", default="1", help="the machine id at its bus (default 1)")
+    p.add_argument("--f-nominal", type=POSITIVE, help="nominal frequency for ANDES's fn (default: the result's)")
+    p.add_argument(
+        "--allow-flagged",
+        action="store_true",
+        help="write parameters flagged not identified (they are named in the record's comment)",
+    )
+    p.set_defaults(func=cmd_export)
 
     p = sub.add_parser("info", help="topics, message counts, rates, time span and gaps of a bag")
     p.add_argument("bag", help="rosbag2 folder or .mcap file (a bag cut short is read as far as it goes)")

@@ -1,0 +1,56 @@
+"""``phid export``: an identification result (and its diagnosis) as a planning-model record."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from rich.console import Console
+
+from phid_ros.cli.common import warn
+from phid_ros.cli.tables import Col, print_table
+from phid_ros.export.formats import WRITERS
+from phid_ros.export.record import FIELDS, ExportError, build_record
+from phid_ros.io.outputs import refuse_inputs, write_text
+from phid_ros.io.results import read_json
+
+SUFFIX = {"psse-dyr": ".dyr", "pslf-dyd": ".dyd", "andes": ".andes.json"}
+
+
+def run(args: argparse.Namespace, console: Console) -> int:
+    result = read_json(args.result)
+    diagnosis = read_json(args.diagnosis) if args.diagnosis else None
+    mva = args.mva if args.mva is not None else result.get("base_mva")
+    if mva is None:
+        raise ExportError(f"{args.result}: the result does not say the machine's MVA base; give it with --mva")
+    out = Path(args.out) if args.out else Path(args.result).with_suffix(SUFFIX[args.format])
+    refuse_inputs([out], [args.result, args.diagnosis])
+    rec = build_record(
+        result,
+        source=str(args.result),
+        model=args.model,
+        mva=float(mva),
+        kv=args.kv,
+        bus=args.bus,
+        machine_id=args.id,
+        diagnosis=diagnosis,
+        diagnosis_source=str(args.diagnosis or ""),
+        allow_flagged=args.allow_flagged,
+    )
+    if args.f_nominal is not None:
+        rec.f_nominal_hz = args.f_nominal
+    if rec.flagged:
+        warn(f"writing parameters that are NOT identified (--allow-flagged): {', '.join(rec.flagged)}")
+    for w in rec.warnings:
+        warn(w)
+    write_text(out, WRITERS[args.format](rec))
+    rows = [[f, FIELDS[f].split(",")[0].split(" (")[0], f"{rec.values[f]:.6g}", rec.sources[f]] for f in rec.fields]
+    cols = [
+        Col("field", justify="left", key=True),
+        Col("symbol", justify="left", keep=3),
+        Col("value"),
+        Col("source", justify="left", keep=8, text=True),
+    ]
+    print_table(console, f"{rec.model} record, bus {rec.bus} id {rec.machine_id}, {rec.mva:g} MVA base", cols, rows)
+    console.print(f"wrote {out} ({args.format})", highlight=False)
+    return 0

@@ -1,0 +1,1 @@
+"""Planning-model records (PSS/E, PSLF, ANDES) from identification results."""

@@ -1,0 +1,114 @@
+"""The machine record laid out in the planners' formats: PSS/E .dyr, PSLF .dyd, ANDES JSON.
+
+Rules followed (each writer's test reads its output back by these rules):
+
+- PSS/E .dyr: ``IBUS 'MODEL' ID`` then the model's constants in their documented order,
+  free format, the record ended by ``/``; anything after the ``/`` is a comment. The constants
+  are on the machine base (MBASE of the .raw generator record). GENROU: T'do T''do T'qo T''qo
+  H D Xd Xq X'd X'q X''d Xl S(1.0) S(1.2); GENSAL: T'do T''do T''qo H D Xd Xq X'd X''d Xl
+  S(1.0) S(1.2). Stator resistance is not a .dyr constant (it is ZSORCE in the .raw).
+- PSLF .dyd: ``genrou BUS "NAME" KV "ID" : #9 mva=MVA`` then ``"name" value`` pairs;
+  a line ending in ``/`` continues on the next; lines starting with ``#`` are comments.
+- ANDES: a JSON object ``{"GENROU": [record]}`` with ANDES's field names (M = 2H, xd1, Td10,
+  ...), loadable with ``andes.io.json.read`` into a system that holds the bus and the
+  static generator named by ``bus`` and ``gen``. ANDES has no GENSAL model (its .dyr reader
+  maps GENSAL to GENROU with X'_q = X'_d): a GENSAL record goes out the same way.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+
+from phid_ros.export.record import MachineRecord
+
+PSSE_ORDER = {
+    "GENROU": ("Td10", "Td20", "Tq10", "Tq20", "H", "D", "Xd", "Xq", "Xd1", "Xq1", "Xd2", "Xl", "S10", "S12"),
+    "GENSAL": ("Td10", "Td20", "Tq20", "H", "D", "Xd", "Xq", "Xd1", "Xd2", "Xl", "S10", "S12"),
+}
+
+PSLF_NAMES = {
+    "Td10": "tpdo",
+    "Td20": "tppdo",
+    "Tq10": "tpqo",
+    "Tq20": "tppqo",
+    "H": "h",
+    "D": "d",
+    "Xd": "ld",
+    "Xq": "lq",
+    "Xd1": "lpd",
+    "Xq1": "lpq",
+    "Xd2": "lppd",
+    "Xl": "ll",
+    "S10": "s1",
+    "S12": "s12",
+    "ra": "ra",
+}
+PSLF_FIXED = {"rcomp": 0.0, "xcomp": 0.0, "accel": 0.0}
+
+ANDES_NAMES = {
+    "Td10": "Td10",
+    "Td20": "Td20",
+    "Tq10": "Tq10",
+    "Tq20": "Tq20",
+    "D": "D",
+    "Xd": "xd",
+    "Xq": "xq",
+    "Xd1": "xd1",
+    "Xq1": "xq1",
+    "Xl": "xl",
+    "S10": "S10",
+    "S12": "S12",
+    "ra": "ra",
+}
+
+
+def _num(v: float) -> str:
+    return f"{v:.6g}"
+
+
+def psse_dyr(rec: MachineRecord) -> str:
+    values = [_num(rec.values[f]) for f in PSSE_ORDER[rec.model]]
+    lines = [f"{rec.bus} '{rec.model}' '{rec.machine_id}'"]
+    for i in range(0, len(values), 6):
+        lines.append("    " + " ".join(values[i : i + 6]))
+    lines[-1] += f" /  {rec.comment()}"
+    return "\n".join(lines) + "\n"
+
+
+def pslf_dyd(rec: MachineRecord) -> str:
+    pairs = [f'"{PSLF_NAMES[f]}" {_num(rec.values[f])}' for f in rec.fields]
+    pairs += [f'"{k}" {_num(v)}' for k, v in PSLF_FIXED.items()]
+    head = f'{rec.model.lower()} {rec.bus} "BUS{rec.bus}" {rec.kv:.2f} "{rec.machine_id}" : #9 mva={rec.mva:g}'
+    body = [head] + ["    " + " ".join(pairs[i : i + 5]) for i in range(0, len(pairs), 5)]
+    return f"# {rec.comment()}\n" + " /\n".join(body) + "\n"
+
+
+def andes_json(rec: MachineRecord) -> str:
+    v = rec.values
+    row: dict[str, object] = {
+        "idx": f"GENROU_{rec.bus}_{rec.machine_id}",
+        "u": 1,
+        "name": f"GEN_{rec.bus}_{rec.machine_id}",
+        "bus": rec.bus,
+        "gen": f"{rec.bus}_{rec.machine_id}",
+        "Sn": rec.mva,
+        "Vn": rec.kv,
+        "fn": rec.f_nominal_hz,
+        "M": 2.0 * v["H"],
+    }
+    row.update({ANDES_NAMES[f]: v[f] for f in ANDES_NAMES if f in v})
+    row["xd2"] = row["xq2"] = v["Xd2"]
+    if rec.model == "GENSAL":  # as ANDES's own .dyr reader maps GENSAL onto GENROU
+        row["xq1"], row["Tq10"] = v["Xd1"], v["Td10"]
+    if rec.flagged:  # ANDES rows have no comment field; the name carries the warning
+        row["name"] = f"{row['name']} NOT IDENTIFIED: {', '.join(rec.flagged)}"
+    doc = {"GENROU": [row]}
+    return json.dumps(doc, indent=2) + "\n"
+
+
+WRITERS: dict[str, Callable[[MachineRecord], str]] = {
+    "psse-dyr": psse_dyr,
+    "pslf-dyd": pslf_dyd,
+    "andes": andes_json,
+}

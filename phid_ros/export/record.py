@@ -1,0 +1,258 @@
+"""A planning-model machine record (GENROU or GENSAL) built from phid's results.
+
+The record is the fields of the PSS/E GENROU/GENSAL models, on the machine's MVA base, each
+with the place its value came from: identified (the eight base parameters), named by the
+diagnosis (subtransient dynamics, saturation, stator resistance), or a stated default.
+The writers in :mod:`phid_ros.export.formats` only lay these fields out.
+
+The fourth-order model of the paper is GENROU with its damper windings taken out. GENROU
+cannot take them out (its X''_d = X''_q must lie below X'_d and X'_q), so without a
+diagnosed subtransient effect the defaults are chosen to change the fourth-order behaviour as
+little as GENROU allows: X'' = min(X'_d, X'_q), which makes the damper of the axis with the
+smaller transient reactance inert, and short subtransient time constants for the other.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from phid_ros.errors import PhidError
+from phid_ros.model.parameters import PARAMETER_NAMES
+
+MODELS = ("GENROU", "GENSAL")
+
+# the record's fields in the order PSS/E lists them, with what each means
+FIELDS: dict[str, str] = {
+    "Td10": "T'_d0, d-axis open-circuit transient time constant (s)",
+    "Td20": "T''_d0, d-axis open-circuit subtransient time constant (s)",
+    "Tq10": "T'_q0, q-axis open-circuit transient time constant (s; GENROU only)",
+    "Tq20": "T''_q0, q-axis open-circuit subtransient time constant (s)",
+    "H": "inertia constant (s, machine base)",
+    "D": "speed damping (pu torque per pu speed)",
+    "Xd": "X_d (pu)",
+    "Xq": "X_q (pu)",
+    "Xd1": "X'_d (pu)",
+    "Xq1": "X'_q (pu; GENROU only)",
+    "Xd2": "X''_d = X''_q (pu)",
+    "Xl": "stator leakage reactance (pu)",
+    "S10": "saturation factor S(1.0)",
+    "S12": "saturation factor S(1.2)",
+    "ra": "stator resistance (pu; in PSS/E it belongs to the .raw generator record)",
+}
+GENSAL_ABSENT = ("Tq10", "Xq1")
+
+# where the eight base parameters go
+BASE_FIELDS = {
+    "H": "H",
+    "D": "D",
+    "X_d": "Xd",
+    "X_q": "Xq",
+    "X_d_prime": "Xd1",
+    "X_q_prime": "Xq1",
+    "T_d0_prime": "Td10",
+    "T_q0_prime": "Tq10",
+}
+
+# Stated defaults for what phid does not identify, typical of large round-rotor units. T''_q0
+# sits at the low end of the usual 0.03-0.1 s: the q-axis damper GENROU cannot leave out then
+# departs least from the identified model (ANDES round trip, test/export: delta RMS 0.045 deg
+# on a torque step, 0.32 deg on a fault; with 0.05 s it was 0.07 and 0.49 deg).
+DEFAULT_TD20_S = 0.03
+DEFAULT_TQ20_S = 0.03
+DEFAULT_XL_PU = 0.15
+XL_SHARE_OF_XD2 = 0.8  # Xl must stay below X''_d: GENROU's flux split divides by X'_d - Xl
+
+
+class ExportError(PhidError):
+    """A result cannot become a planning-model record as asked."""
+
+
+@dataclass
+class MachineRecord:
+    model: str
+    values: dict[str, float]
+    sources: dict[str, str]
+    mva: float
+    kv: float
+    bus: int
+    machine_id: str
+    f_nominal_hz: float
+    origin: str
+    flagged: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def fields(self) -> list[str]:
+        return [f for f in FIELDS if not (self.model == "GENSAL" and f in GENSAL_ABSENT)]
+
+    @property
+    def defaults(self) -> list[str]:
+        return [f for f in self.fields if self.sources[f].startswith("default")]
+
+    def comment(self) -> str:
+        """One line for the record's comment: where it came from and what is not identified."""
+        parts = [f"phid_ros export of {self.origin}", f"{self.mva:g} MVA base"]
+        if self.flagged:
+            parts.append("NOT IDENTIFIED: " + ", ".join(self.flagged))
+        if self.defaults:
+            parts.append("defaults: " + ", ".join(self.defaults))
+        return "; ".join(parts)
+
+
+def _number(doc: Mapping[str, Any], key: str, source: str) -> float:
+    v = doc.get(key)
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(float(v)):
+        raise ExportError(f"{source}: parameter {key} is {v!r}, not a finite number")
+    return float(v)
+
+
+def _effects(diagnosis: Mapping[str, Any] | None, source: str) -> dict[str, dict[str, Any]]:
+    if diagnosis is None:
+        return {}
+    effects = diagnosis.get("effects")
+    if not isinstance(effects, list):
+        raise ExportError(f"{source}: not a diagnosis result (no 'effects' list)")
+    out: dict[str, dict[str, Any]] = {}
+    for e in effects:
+        named = isinstance(e, Mapping) and isinstance(e.get("name"), str)
+        if not named or not isinstance(e.get("parameters"), Mapping):
+            raise ExportError(f"{source}: an entry of 'effects' lacks its name or parameters")
+        out[e["name"]] = dict(e["parameters"])
+    return out
+
+
+def build_record(
+    result: Mapping[str, Any],
+    *,
+    source: str,
+    model: str = "GENROU",
+    mva: float,
+    kv: float = 20.0,
+    bus: int = 1,
+    machine_id: str = "1",
+    diagnosis: Mapping[str, Any] | None = None,
+    diagnosis_source: str = "",
+    allow_flagged: bool = False,
+) -> MachineRecord:
+    """The record for an identification result (and the effects its diagnosis named)."""
+    model = model.upper()
+    if model not in MODELS:
+        raise ExportError(f"model must be one of {MODELS}, got {model!r}")
+    if not mva > 0:
+        raise ExportError(f"the machine base must be positive, got {mva} MVA")
+    params = result.get("parameters")
+    flags = result.get("identifiable")
+    if not isinstance(params, Mapping) or not isinstance(flags, Mapping):
+        raise ExportError(
+            f"{source}: not an identification result "
+            "(it needs 'parameters' and 'identifiable', as phid identify --json writes)"
+        )
+    flagged = [n for n in PARAMETER_NAMES if flags.get(n) is not True]
+    if flagged and not allow_flagged:
+        raise ExportError(
+            f"{source}: {', '.join(flagged)} not identified; refusing to export them as a planning model "
+            "(--allow-flagged writes them anyway, marked in the record's comment)"
+        )
+    f_nominal = float(result.get("f_nominal_hz", 50.0))
+    values: dict[str, float] = {}
+    sources: dict[str, str] = {}
+    base = params
+    base_origin = "identified"
+    effects = _effects(diagnosis, diagnosis_source)
+    if diagnosis is not None:
+        refit = diagnosis.get("parameters")
+        if not isinstance(refit, Mapping):
+            raise ExportError(f"{diagnosis_source}: the diagnosis has no final 'parameters'")
+        base, base_origin = refit, "diagnosis refit"
+    for name, f in BASE_FIELDS.items():
+        values[f] = _number(base, name, diagnosis_source if diagnosis is not None else source)
+        sources[f] = f"{base_origin} ({name})" + (" NOT IDENTIFIED" if name in flagged else "")
+    warnings: list[str] = []
+    _fill_subtransient(values, sources, effects.get("subtransient_dynamics"), warnings)
+    _fill_saturation(values, sources, effects.get("magnetic_saturation"), warnings)
+    ra = effects.get("stator_resistance")
+    values["ra"], sources["ra"] = (float(ra["r_a"]), "diagnosis: stator_resistance r_a") if ra else (0.0, "default")
+    if model == "GENSAL":
+        _to_gensal(values, sources, warnings)
+    rec = MachineRecord(
+        model, values, sources, mva, kv, bus, machine_id, f_nominal, source, flagged=flagged, warnings=warnings
+    )
+    if rec.defaults:
+        warnings.append(
+            "stated defaults (not identified) in the record: " + ", ".join(f"{f}={values[f]:g}" for f in rec.defaults)
+        )
+    _check(rec)
+    return rec
+
+
+def _fill_subtransient(
+    values: dict[str, float], sources: dict[str, str], effect: Mapping[str, Any] | None, warnings: list[str]
+) -> None:
+    if effect:
+        x_dpp, x_qpp = float(effect["x_dpp"]), float(effect["x_qpp"])
+        values["Xd2"], sources["Xd2"] = x_dpp, "diagnosis: subtransient_dynamics x_dpp"
+        values["Td20"], sources["Td20"] = float(effect["t_d0pp"]), "diagnosis: subtransient_dynamics t_d0pp"
+        values["Tq20"], sources["Tq20"] = float(effect["t_q0pp"]), "diagnosis: subtransient_dynamics t_q0pp"
+        if abs(x_qpp - x_dpp) > 0.01 * x_dpp:
+            warnings.append(
+                f"the diagnosis found X''_q = {x_qpp:.4g} and X''_d = {x_dpp:.4g}; the record has one X'' "
+                "(GENROU/GENSAL hold X''_q = X''_d) and takes X''_d"
+            )
+    else:
+        values["Xd2"] = min(values["Xd1"], values["Xq1"])
+        sources["Xd2"] = "default: min(X'_d, X'_q), the damper of that axis inert"
+        values["Td20"], sources["Td20"] = DEFAULT_TD20_S, "default"
+        values["Tq20"], sources["Tq20"] = DEFAULT_TQ20_S, "default"
+    values["Xl"] = min(DEFAULT_XL_PU, XL_SHARE_OF_XD2 * values["Xd2"])
+    sources["Xl"] = f"default: min({DEFAULT_XL_PU:g}, {XL_SHARE_OF_XD2:g} X''_d)"
+
+
+def _fill_saturation(
+    values: dict[str, float], sources: dict[str, str], effect: Mapping[str, Any] | None, warnings: list[str]
+) -> None:
+    if effect:
+        values["S10"], sources["S10"] = float(effect["s10"]), "diagnosis: magnetic_saturation s10"
+        values["S12"], sources["S12"] = float(effect["s12"]), "diagnosis: magnetic_saturation s12"
+        warnings.append(
+            "phid's saturation is exponential on E'_q (d axis); GENROU's is quadratic on the air-gap flux: "
+            "the two agree at 1.0 and 1.2 pu, not between or beyond"
+        )
+    else:
+        values["S10"], sources["S10"] = 0.0, "default: no saturation"
+        values["S12"], sources["S12"] = 0.0, "default: no saturation"
+
+
+def _to_gensal(values: dict[str, float], sources: dict[str, str], warnings: list[str]) -> None:
+    # a salient-pole rotor has no q-axis field circuit: the fourth-order model's q-axis
+    # transient circuit is its damper, so T'_q0 becomes T''_q0 unless the diagnosis named one
+    if sources["Tq20"].startswith("default"):
+        values["Tq20"], sources["Tq20"] = values["Tq10"], "identified T_q0_prime (GENSAL's q-axis damper)"
+    warnings.append(
+        f"GENSAL has no X'_q or T'_q0: X'_q = {values['Xq1']:.4g} is dropped (its q axis goes from X_q "
+        f"to X'' = {values['Xd2']:.4g} with T''_q0 = {values['Tq20']:.4g} s)"
+    )
+    for f in GENSAL_ABSENT:
+        del values[f], sources[f]
+
+
+def _check(rec: MachineRecord) -> None:
+    """The orderings GENROU/GENSAL need to initialise (X_l < X'' <= X' < X, positive times)."""
+    v = rec.values
+    problems = []
+    transient = [v["Xd1"]] + ([v["Xq1"]] if "Xq1" in v else [])
+    if not v["Xl"] < v["Xd2"]:
+        problems.append(f"Xl={v['Xl']:g} must be below X''={v['Xd2']:g}")
+    if any(v["Xd2"] > x for x in transient):
+        problems.append(f"X''={v['Xd2']:g} must not exceed X'_d, X'_q={transient}")
+    if not v["Xd1"] < v["Xd"] or ("Xq1" in v and not v["Xq1"] < v["Xq"]):
+        problems.append("transient reactances must lie below the synchronous ones")
+    times = [f for f in ("Td10", "Td20", "Tq10", "Tq20") if f in v and not v[f] > 0]
+    if times:
+        problems.append(f"time constants {times} must be positive")
+    if v["S10"] and not v["S12"] > v["S10"]:
+        problems.append(f"S(1.2)={v['S12']:g} must exceed S(1.0)={v['S10']:g}")
+    if problems:
+        raise ExportError(f"{rec.origin}: cannot form a valid {rec.model} record: " + "; ".join(problems))

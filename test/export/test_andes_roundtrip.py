@@ -1,0 +1,132 @@
+"""The exported record in a simulator no one here wrote: ANDES, single machine on an infinite bus.
+
+The case is the one phid's own simulator uses (phid_ros.sim: 0.12 + 0.08 pu to the infinite bus,
+P = 0.8, Q = 0.4 at V_t = 1.0, 1000 MVA machine on ANDES's 100 MVA system base). The .dyr goes
+through ANDES's PSS/E reader, the ANDES JSON through its JSON reader; a torque step of 0.1 pu and
+a 100 ms terminal fault through 0.04 pu are simulated in both and delta, omega compared.
+
+GENROU reduces exactly to the paper's fourth-order model when X'_d = X'_q = X'' (both dampers
+inert): there the two simulators must agree to integration error. Where X'_d != X'_q, GENROU
+keeps a q-axis damper (X'' = X'_d, T''_q0 = 0.03 s default): the difference is measured here and
+quoted in the README.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from phid_ros.export.formats import andes_json, psse_dyr
+from phid_ros.export.record import MachineRecord, build_record
+from phid_ros.model.parameters import PARAMETER_NAMES, TABLE1, GeneratorParameters
+from phid_ros.sim.runner import SimulationConfig, simulate_scenarios
+from phid_ros.sim.scenarios import Scenario
+
+andes = pytest.importorskip("andes")
+
+SYSTEM_MVA = 100.0
+MACHINE_MVA = 1000.0
+DURATION_S = 10.0
+TORQUE_STEP = Scenario("T", "torque_step", 0.1, duration=DURATION_S)
+FAULT = Scenario("F", "fault", 0.1, duration=DURATION_S)
+
+
+def export(params: GeneratorParameters) -> MachineRecord:
+    result = {
+        "parameters": params.as_dict(),
+        "identifiable": {n: True for n in PARAMETER_NAMES},
+        "f_nominal_hz": 50.0,
+    }
+    return build_record(result, source="result.json", mva=MACHINE_MVA, bus=1, machine_id="1")
+
+
+def andes_run(record_file: Path, fmt: str, scenario: Scenario, cfg: SimulationConfig) -> tuple[np.ndarray, ...]:
+    andes.config_logger(stream_level=40)
+    ss = cfg.plant().steady_state(cfg.operating_point)
+    to_system = SYSTEM_MVA / MACHINE_MVA
+    s = andes.System(default_config=True)
+    s.config.freq = 50.0
+    s.add("Bus", {"idx": 1, "name": "G", "Vn": 20.0, "v0": 1.0})
+    s.add("Bus", {"idx": 2, "name": "INF", "Vn": 20.0, "v0": ss.v_inf})
+    x_e = (cfg.network.x_transformer + cfg.network.x_line) * to_system
+    s.add("Line", {"idx": "L", "bus1": 1, "bus2": 2, "x": x_e, "r": 0.0, "b": 0.0, "Vn1": 20.0, "Vn2": 20.0})
+    p_sys = cfg.operating_point.p_e / to_system
+    s.add("PV", {"idx": "1_1", "bus": 1, "subidx": 1, "Sn": MACHINE_MVA, "Vn": 20.0, "p0": p_sys, "v0": 1.0})
+    s.add("Slack", {"idx": "S", "bus": 2, "Sn": 1e5, "Vn": 20.0, "v0": ss.v_inf, "a0": 0.0})
+    if fmt == "psse-dyr":
+        andes.io.psse.read_add(s, str(record_file))
+        s.GENROU.fn.v[0] = 50.0  # PSS/E takes the frequency from the case, ANDES's reader defaults it to 60 Hz
+    else:
+        andes.io.json.read(s, str(record_file))
+    assert s.GENROU.n == 1
+    if scenario.kind == "torque_step":
+        dev = s.GENROU.idx.v[0]
+        s.add(
+            "Alter",
+            {
+                "t": scenario.t_event,
+                "model": "GENROU",
+                "dev": dev,
+                "src": "tm0",
+                "attr": "v",
+                "method": "+",
+                "amount": scenario.magnitude / to_system,
+            },
+        )
+    else:
+        s.add(
+            "Fault",
+            {
+                "bus": 1,
+                "tf": scenario.t_event,
+                "tc": scenario.t_clear,
+                "xf": scenario.fault_reactance * to_system,
+                "rf": 0.0,
+            },
+        )
+    s.setup()
+    assert s.PFlow.run()
+    s.TDS.config.update(tf=DURATION_S, tstep=0.01, fixt=1, shrinkt=0, no_tqdm=1)
+    assert s.TDS.run()
+    ts = s.dae.ts
+    return ts.t, ts.x[:, s.GENROU.delta.a[0]], ts.x[:, s.GENROU.omega.a[0]]
+
+
+def compare(tmp_path: Path, params: GeneratorParameters, fmt: str, scenario: Scenario) -> tuple[float, float]:
+    """RMS of (delta - delta_0) in degrees and of omega in pu, ANDES against phid over the scenario."""
+    rec = export(params)
+    path = tmp_path / ("unit.dyr" if fmt == "psse-dyr" else "unit.json")
+    path.write_text(psse_dyr(rec) if fmt == "psse-dyr" else andes_json(rec))
+    cfg = SimulationConfig(params=params)
+    t_a, d_a, w_a = andes_run(path, fmt, scenario, cfg)
+    run = simulate_scenarios([scenario], cfg)[0]
+    n = run.n_analysis
+    t, d, w = run.t[:n], run.states["delta"][:n], run.states["omega"][:n]
+    assert abs(d_a[0] - d[0]) < 1e-5  # the same operating point, the same angle reference
+    d_i, w_i = np.interp(t, t_a, d_a), np.interp(t, t_a, w_a)
+    e_delta = np.degrees((d_i - d_i[0]) - (d - d[0]))
+    return float(np.sqrt(np.mean(e_delta**2))), float(np.sqrt(np.mean((w_i - w) ** 2)))
+
+
+@pytest.mark.parametrize(
+    ("fmt", "scenario"), [("psse-dyr", TORQUE_STEP), ("andes", FAULT)], ids=["dyr-torque_step", "andes-fault"]
+)
+def test_genrou_record_reproduces_the_fourth_order_model(tmp_path: Path, fmt: str, scenario: Scenario) -> None:
+    # measured 0.002 deg (torque step) and 0.007 deg (fault): ANDES's trapezoidal rule at 10 ms
+    rms_delta, rms_omega = compare(tmp_path, TABLE1.replace(X_q_prime=TABLE1.X_d_prime), fmt, scenario)
+    assert rms_delta < 0.02 and rms_omega < 1e-5, (rms_delta, rms_omega)
+
+
+def test_table1_machine_torque_step_within_a_tenth_of_a_degree(tmp_path: Path) -> None:
+    # X'_q = 0.814 > X'_d = 0.5: GENROU's q-axis damper (default T''_q0 = 0.03 s) stays; measured 0.045 deg
+    rms_delta, _ = compare(tmp_path, TABLE1, "psse-dyr", TORQUE_STEP)
+    assert rms_delta < 0.1, rms_delta
+
+
+def test_table1_machine_fault_difference_is_the_q_axis_damper(tmp_path: Path) -> None:
+    # during a terminal fault the q-axis damper GENROU cannot leave out shows: measured 0.32 deg RMS
+    # (README); bounded here so a change in the record's defaults is noticed
+    rms_delta, _ = compare(tmp_path, TABLE1, "psse-dyr", FAULT)
+    assert 0.1 < rms_delta < 1.0, rms_delta

@@ -1,0 +1,88 @@
+"""The planning-model record: field sources, defaults, flags, and the orderings GENROU needs."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from phid_ros.export.record import DEFAULT_TD20_S, ExportError, build_record
+from phid_ros.model.parameters import PARAMETER_NAMES, TABLE1
+
+
+def result(**flags: bool) -> dict:
+    return {
+        "parameters": TABLE1.as_dict(),
+        "identifiable": {n: flags.get(n, True) for n in PARAMETER_NAMES},
+        "f_nominal_hz": 50.0,
+        "base_mva": 1000.0,
+    }
+
+
+def diagnosis(*effects: tuple[str, dict], **base: float) -> dict:
+    return {
+        "effects": [{"name": n, "parameters": p} for n, p in effects],
+        "parameters": TABLE1.replace(**base).as_dict(),
+    }
+
+
+def test_identified_fields_and_stated_defaults() -> None:
+    rec = build_record(result(), source="r.json", mva=1000.0)
+    v = rec.values
+    assert (v["H"], v["Xd"], v["Xq1"], v["Tq10"]) == (3.48, 2.54, 0.814, 0.1351)
+    # without a diagnosed damper, X'' = min(X'_d, X'_q): the d-axis damper is inert
+    assert v["Xd2"] == 0.5 and v["Td20"] == DEFAULT_TD20_S and v["Xl"] == 0.15
+    assert rec.defaults == ["Td20", "Tq20", "Xd2", "Xl", "S10", "S12", "ra"]
+    assert rec.sources["H"] == "identified (H)"
+    assert any("stated defaults" in w and "Xl=0.15" in w for w in rec.warnings)
+
+
+def test_flagged_parameters_are_refused_unless_allowed() -> None:
+    with pytest.raises(ExportError, match=r"r\.json: T_q0_prime not identified; refusing"):
+        build_record(result(T_q0_prime=False), source="r.json", mva=1000.0)
+    rec = build_record(result(T_q0_prime=False), source="r.json", mva=1000.0, allow_flagged=True)
+    assert rec.flagged == ["T_q0_prime"]
+    assert "NOT IDENTIFIED: T_q0_prime" in rec.comment()
+    assert rec.sources["Tq10"].endswith("NOT IDENTIFIED")
+
+
+def test_diagnosed_effects_fill_subtransient_saturation_and_ra() -> None:
+    sub = {"x_dpp": 0.25, "x_qpp": 0.30, "t_d0pp": 0.035, "t_q0pp": 0.06}
+    diag = diagnosis(
+        ("subtransient_dynamics", sub),
+        ("magnetic_saturation", {"s10": 0.07, "s12": 0.45}),
+        ("stator_resistance", {"r_a": 0.004}),
+        H=3.5,
+    )
+    rec = build_record(result(), source="r.json", mva=1000.0, diagnosis=diag, diagnosis_source="d.json")
+    v = rec.values
+    assert (v["Xd2"], v["Td20"], v["Tq20"], v["S10"], v["S12"], v["ra"]) == (0.25, 0.035, 0.06, 0.07, 0.45, 0.004)
+    assert v["H"] == 3.5 and rec.sources["H"] == "diagnosis refit (H)"
+    assert v["Xl"] == pytest.approx(0.15)
+    assert rec.defaults == ["Xl"]
+    assert any("X''_q = 0.3" in w for w in rec.warnings)  # one X'' in GENROU: the difference is said
+
+
+def test_gensal_drops_the_q_axis_transient_circuit() -> None:
+    rec = build_record(result(), source="r.json", mva=1000.0, model="gensal")
+    assert rec.model == "GENSAL" and "Xq1" not in rec.values and "Tq10" not in rec.values
+    assert rec.values["Tq20"] == 0.1351  # the fourth-order q-axis circuit is the salient machine's damper
+    assert any("X'_q = 0.814 is dropped" in w for w in rec.warnings)
+
+
+@pytest.mark.parametrize(
+    ("doc", "message"),
+    [
+        ({"effects": []}, "not an identification result"),
+        ({**result(), "parameters": {**TABLE1.as_dict(), "H": math.nan}}, "parameter H is nan"),
+    ],
+)
+def test_bad_results_are_named(doc: dict, message: str) -> None:
+    with pytest.raises(ExportError, match=message):
+        build_record(doc, source="r.json", mva=1000.0)
+
+
+def test_an_impossible_record_is_refused() -> None:
+    diag = diagnosis(("subtransient_dynamics", {"x_dpp": 0.6, "x_qpp": 0.6, "t_d0pp": 0.03, "t_q0pp": 0.05}))
+    with pytest.raises(ExportError, match=r"X''=0.6 must not exceed X'_d"):
+        build_record(result(), source="r.json", mva=1000.0, diagnosis=diag, diagnosis_source="d.json")
