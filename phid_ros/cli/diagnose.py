@@ -8,7 +8,7 @@ from typing import Any
 from rich.console import Console
 
 from phid_ros.cli.common import warn
-from phid_ros.cli.identify import load_input, load_truth
+from phid_ros.cli.identify import load_input, load_truth, step_thresholds
 from phid_ros.cli.progress import ProgressLine
 from phid_ros.cli.scenarios import scenarios_from_recording
 from phid_ros.cli.tables import CHANNEL_LABELS, Col, fmt, pct, print_table, signed_int
@@ -91,7 +91,7 @@ def run(args: Any, console: Console) -> int:
         truth = load_truth(args.truth, rec) if args.truth else None
         truth_effects = read_json(args.truth).get("effects") if args.truth else None
         progress.update(f"cutting the scenarios of {source}")
-        scenarios, problems = scenarios_from_recording(rec, source)
+        scenarios, problems = scenarios_from_recording(rec, source, step_thresholds(args))
         if not any(s.role == "identify" for s in scenarios):
             raise PhidError(f"{source}: no identification scenarios; the diagnosis needs them to fit candidate models")
         opts = IdentifyOptions(baseline=False, validate=False, f_nominal_hz=rec.f_nominal_hz)

@@ -18,10 +18,14 @@ from phid_ros.cli.scenarios import scenarios_from_recording
 from phid_ros.cli.tables import Col, fmt, pct, print_table
 from phid_ros.errors import PhidError
 from phid_ros.ident.pipeline import IdentificationResult, IdentifyOptions, identify
-from phid_ros.ident.scenario import ScenarioData
+from phid_ros.ident.scenario import ScenarioData, StepThresholds
 from phid_ros.io.recording import Recording
 from phid_ros.io.results import read_json, write_json
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, SYMBOLS, GeneratorParameters
+
+
+def step_thresholds(args: Any) -> StepThresholds:
+    return StepThresholds(torque_step=args.min_torque_step, voltage_step=args.min_voltage_step)
 
 
 def load_input(path: str | Path) -> tuple[Recording, str]:
@@ -145,7 +149,7 @@ def identify_recording(
     """A recording's scenarios and their identification; PhidError when nothing could be identified."""
     if progress:
         progress(f"cutting the scenarios of {source}")
-    scenarios, problems = scenarios_from_recording(rec, source)
+    scenarios, problems = scenarios_from_recording(rec, source, options.step_thresholds)
     if not any(sc.role == "identify" for sc in scenarios):
         why = "; ".join(problems[-3:]) or f"{len(scenarios)} scenario(s), all for validation"
         raise PhidError(f"{source}: nothing to identify from: no usable identification scenario ({why})")
@@ -171,6 +175,7 @@ def run(args: Any, console: Console) -> int:
             seed=args.seed,
             baseline=not args.no_baseline,
             paper_maxiter=args.paper_maxiter,
+            step_thresholds=step_thresholds(args),
         )
         scenarios, res = identify_recording(rec, source, options, truth, progress.update)
     res.timing = {"read": round(t_read, 6), **res.timing}

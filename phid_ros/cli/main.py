@@ -316,6 +316,26 @@ def cmd_history(args: argparse.Namespace, console: Console) -> int:
     return run_history(args, console)
 
 
+def add_step_thresholds(p: argparse.ArgumentParser) -> None:
+    from phid_ros.ident.scenario import MIN_TORQUE_STEP, MIN_VOLTAGE_STEP
+
+    p.add_argument(
+        "--min-torque-step",
+        type=POSITIVE,
+        default=MIN_TORQUE_STEP,
+        metavar="PU",
+        help=f"smallest P_m step taken as a disturbance where no marker or manifest kind says so "
+        f"(default {MIN_TORQUE_STEP})",
+    )
+    p.add_argument(
+        "--min-voltage-step",
+        type=POSITIVE,
+        default=MIN_VOLTAGE_STEP,
+        metavar="PU",
+        help=f"smallest V_t step taken as a disturbance where nothing says so (default {MIN_VOLTAGE_STEP})",
+    )
+
+
 # -- entry point -----------------------------------------------------------------
 def build_parser() -> argparse.ArgumentParser:
     parser = Parser(prog="phid", description="Port-Hamiltonian generator identification.")
@@ -400,6 +420,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--paper-maxiter", type=POSITIVE_INT, default=300, help="generations of the paper's DE (default 300)"
     )
+    add_step_thresholds(p)
     p.set_defaults(func=cmd_identify)
 
     p = sub.add_parser("diagnose", help="find and name the physics the fourth-order model is missing")
@@ -413,6 +434,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--scheduler", metavar="tcp://HOST:8786", help="fit the candidates on an existing Dask cluster instead"
     )
+    add_step_thresholds(p)
     p.set_defaults(func=cmd_diagnose)
 
     p = sub.add_parser("replay", help="play a bag through the online pipeline (detection, recalibration, energy)")

@@ -7,7 +7,15 @@ import hashlib
 import numpy as np
 
 from phid_ros.errors import PhidError
-from phid_ros.ident.scenario import CHANNELS, ScenarioData, ScenarioError, find_events, make_scenario
+from phid_ros.ident.scenario import (
+    CHANNELS,
+    DEFAULT_THRESHOLDS,
+    ScenarioData,
+    ScenarioError,
+    StepThresholds,
+    find_events,
+    make_scenario,
+)
 from phid_ros.io.recording import NS, Recording
 
 PRE_EVENT_S = 1.0
@@ -81,7 +89,9 @@ def _gap_in_windows(t: np.ndarray, column: np.ndarray, windows: list[tuple[int, 
     return any(bool(np.any((holes >= a) & (holes <= b))) for a, b in windows)
 
 
-def scenarios_from_recording(rec: Recording, source: str) -> tuple[list[ScenarioData], list[str]]:
+def scenarios_from_recording(
+    rec: Recording, source: str, thresholds: StepThresholds = DEFAULT_THRESHOLDS
+) -> tuple[list[ScenarioData], list[str]]:
     """Scenario windows from the markers, or from detected disturbances when there are none."""
     marked = [(m.start_ns, m.end_ns) for m in rec.scenarios] if rec.scenarios else None
     t, dt, ch, problems = aligned_channels(rec, source, marked)
@@ -97,7 +107,9 @@ def scenarios_from_recording(rec: Recording, source: str) -> tuple[list[Scenario
     else:
         from phid_ros.stream.detector import forward_filled
 
-        events = find_events({c: forward_filled(x) for c, x in ch.items()}, dt)  # as the online detector sees them
+        events = find_events(
+            {c: forward_filled(x) for c, x in ch.items()}, dt, thresholds=thresholds
+        )  # as the online detector sees them
         if not events:
             raise PhidError(
                 f"{source}: no scenario markers and no disturbance found (no fault, torque step or voltage step)"
@@ -131,6 +143,7 @@ def scenarios_from_recording(rec: Recording, source: str) -> tuple[list[Scenario
                     k_event=k_ev,
                     k_clear=k_cl,
                     start_ns=int(t[a]),
+                    thresholds=thresholds,
                 )
             )
         except ScenarioError as exc:

@@ -16,7 +16,7 @@ from typing import Any
 
 from phid_ros.ident import ieee115, stage1, stage2, stage3, validation
 from phid_ros.ident.results import Estimate
-from phid_ros.ident.scenario import ScenarioData
+from phid_ros.ident.scenario import DEFAULT_THRESHOLDS, ScenarioData, StepThresholds
 from phid_ros.model.conventions import DEFAULT_F_NOMINAL_HZ
 from phid_ros.model.parameters import PARAMETER_NAMES, GeneratorParameters, validation_problems
 
@@ -35,6 +35,8 @@ class IdentifyOptions:
     f_nominal_hz: float = DEFAULT_F_NOMINAL_HZ
     seed: int = 0
     paper_maxiter: int = 300
+    # the smallest unlabelled steps taken as disturbances when windows are cut (labelled ones count at any size)
+    step_thresholds: StepThresholds = DEFAULT_THRESHOLDS
 
 
 @dataclass

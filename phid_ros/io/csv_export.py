@@ -42,7 +42,10 @@ def write_csv_set(folder: str | Path, rec: Recording) -> Path:
         name = f"{sc.name}.csv"
         with atomic_output(out / name) as tmp:
             np.savetxt(tmp, rows, delimiter=",", header=",".join(CSV_COLUMNS), comments="", fmt="%.9g")
-        entries.append({"file": name, "kind": sc.kind, "role": sc.role, "generator_damping": sc.generator_damping})
+        entry = {"file": name, "kind": sc.kind, "role": sc.role, "generator_damping": sc.generator_damping}
+        if sc.event_ns:  # the marker's event time, so a small labelled step is not searched for
+            entry["event_time_s"] = (sc.event_ns - int(t_ns[a])) / NS
+        entries.append(entry)
     manifest = {"f_nominal_hz": rec.f_nominal_hz, "scenarios": entries}
     if "base_mva" in rec.metadata:
         manifest["base_mva"] = float(rec.metadata["base_mva"])

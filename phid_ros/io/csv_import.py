@@ -146,7 +146,7 @@ def _is_float(s: str) -> bool:
     return True
 
 
-def _manifest_entry(entry: Any, k: int, manifest: Path) -> tuple[Path, str, str, bool]:
+def _manifest_entry(entry: Any, k: int, manifest: Path) -> tuple[Path, str, str, bool, float | None]:
     where = f"{manifest}: scenarios[{k}]"
     if not isinstance(entry, dict) or "file" not in entry:
         raise CsvImportError(f"{where}: each scenario needs a 'file'")
@@ -159,12 +159,17 @@ def _manifest_entry(entry: Any, k: int, manifest: Path) -> tuple[Path, str, str,
         raise CsvImportError(f"{where}: role {role!r} not one of {ROLES}")
     if not isinstance(damping, bool):
         raise CsvImportError(f"{where}: generator_damping must be true or false")
+    event = entry.get("event_time_s")
+    if event is not None and (
+        isinstance(event, bool) or not isinstance(event, (int, float)) or not math.isfinite(event)
+    ):
+        raise CsvImportError(f"{where}: event_time_s must be a number of seconds on the CSV's t axis, got {event!r}")
     name = str(entry["file"])
     folder = manifest.parent.resolve()
     path = (folder / name).resolve()
     if Path(name).is_absolute() or not path.is_relative_to(folder):
         raise CsvImportError(f"{where}: file {name!r} is outside the manifest's folder {folder}; refused")
-    return manifest.parent / name, kind, role, damping
+    return manifest.parent / name, kind, role, damping, None if event is None else float(event)
 
 
 def import_csv_set(
@@ -190,7 +195,7 @@ def import_csv_set(
     period_ns: int | None = None
     cursor = start_ns
     for k, entry in enumerate(scenarios):
-        path, kind, role, damping = _manifest_entry(entry, k, manifest)
+        path, kind, role, damping, event_s = _manifest_entry(entry, k, manifest)
         cols, extra = read_scenario_csv(path, strict=strict)
         for c in CHANNELS:
             problem = unit_problem(c, cols[c])
@@ -206,6 +211,14 @@ def import_csv_set(
             raise CsvImportError(f"{path}: sample period {p_ns} ns differs from the first scenario's {period_ns} ns")
         n = len(t)
         stamps = cursor + np.arange(n, dtype=np.int64) * p_ns
+        event_ns = 0
+        if event_s is not None:
+            if not t[0] < event_s < t[-1]:
+                raise CsvImportError(
+                    f"{manifest}: scenarios[{k}]: event_time_s {event_s:g} lies outside {path.name}'s "
+                    f"t = {t[0]:g} .. {t[-1]:g} s"
+                )
+            event_ns = int(stamps[0]) + int(round((event_s - t[0]) * NS))
         t_parts.append(stamps)
         for c in CHANNELS:
             c_parts[c].append(cols[c])
@@ -216,6 +229,7 @@ def import_csv_set(
                 role=role,
                 generator_damping=damping,
                 start_ns=int(stamps[0]),
+                event_ns=event_ns,
                 end_ns=int(stamps[-1]),
                 description=f"imported from {path.name}",
             )
