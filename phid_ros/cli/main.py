@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import argparse
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from datetime import datetime, timezone
 from pathlib import Path
 
@@ -17,13 +17,13 @@ from rich.markup import escape
 from rich.table import Table
 
 from phid_ros import __version__
-from phid_ros.cli.common import warn
+from phid_ros.cli.common import warn, write_output
 from phid_ros.cli.progress import ProgressLine
 from phid_ros.cli.tables import make_console
 from phid_ros.errors import PhidError
 from phid_ros.fleet.history import DRIFT_SIGMAS
 from phid_ros.io.outputs import atomic_output, refuse_inputs
-from phid_ros.io.recording import DEFAULT_BLOCK_SIZE
+from phid_ros.io.recording import DEFAULT_BLOCK_SIZE, Recording
 
 EXIT_USER_ERROR = 2
 
@@ -65,7 +65,6 @@ def _parse_effects(items: Sequence[str]) -> tuple:
 
 def cmd_simulate(args: argparse.Namespace, console: Console) -> int:
     from phid_ros.cli.simulate import recording_from_runs, truth_document
-    from phid_ros.io.bags import write_recording
     from phid_ros.io.results import truth_path_for, write_json
     from phid_ros.sim.runner import SimulationConfig, simulate_scenarios
     from phid_ros.sim.scenarios import find_scenario, paper_catalogue, validation_scenarios
@@ -96,13 +95,7 @@ def cmd_simulate(args: argparse.Namespace, console: Console) -> int:
         runs = simulate_scenarios(scenarios, cfg)
         progress.update(f"writing {out}")
         rec = recording_from_runs(runs, cfg)
-        if out.name == "manifest.json":
-            from phid_ros.io.csv_export import write_csv_set
-
-            write_csv_set(out.parent, rec)  # the manifest last: a killed run leaves no set that looks complete
-        else:
-            with atomic_output(out) as tmp:  # a kill leaves no half-written bag that looks complete
-                write_recording(tmp, rec, block_size=args.block_size)
+        write_output(out, rec, args.block_size)
     truth = write_json(truth_path_for(out), truth_document(cfg, scenarios))
     start, end = rec.span_ns()
     console.print(f"wrote {out} ({len(scenarios)} scenarios, {(end - start) / 1e9:.1f} s of data) and {truth}")
@@ -183,6 +176,36 @@ def cmd_import_csv(args: argparse.Namespace, console: Console) -> int:
             write_recording(tmp, rec, block_size=args.block_size)
     for w in warnings:
         warn(w)
+    console.print(f"wrote {out} ({len(rec.scenarios)} scenarios)")
+    return 0
+
+
+def cmd_import_comtrade(args: argparse.Namespace, console: Console) -> int:
+    from phid_ros.io.comtrade_import import import_comtrade
+
+    return _import_field(args, console, import_comtrade)
+
+
+def cmd_import_pmu(args: argparse.Namespace, console: Console) -> int:
+    from phid_ros.io.pmu_csv import import_pmu_csv
+
+    return _import_field(args, console, import_pmu_csv)
+
+
+def _import_field(args: argparse.Namespace, console: Console, read: Callable[..., Recording]) -> int:
+    """Field recordings through a channel map -> one scenario set, written as ``phid simulate`` writes."""
+    from phid_ros.io.channel_map import load_channel_map
+
+    out = Path(args.out)
+    if out.name == "manifest.json":  # a CSV scenario set: its folder is the output
+        out.parent.mkdir(parents=True, exist_ok=True)
+    refuse_inputs([out], [*args.recordings, args.map])
+    if out.exists():
+        raise PhidError(f"{out}: already exists, not overwriting")
+    with ProgressLine(f"importing {len(args.recordings)} recording(s)") as progress:
+        rec = read(args.recordings, load_channel_map(args.map))
+        progress.update(f"writing {out}")
+        write_output(out, rec, args.block_size)
     console.print(f"wrote {out} ({len(rec.scenarios)} scenarios)")
     return 0
 
@@ -403,6 +426,30 @@ def build_parser() -> argparse.ArgumentParser:
         help=f"samples per sensor message (default {DEFAULT_BLOCK_SIZE})",
     )
     p.set_defaults(func=cmd_import_csv)
+
+    for name, what, helptext in (
+        (
+            "import-comtrade",
+            "REC.cfg",
+            "COMTRADE recordings (.cfg+.dat or .cff), one scenario each, through a channel map",
+        ),
+        ("import-pmu", "EXPORT.csv", "PMU data-concentrator CSV exports, one scenario each, through a channel map"),
+    ):
+        p = sub.add_parser(name, help=helptext)
+        p.add_argument("recordings", nargs="+", metavar=what, help="the recordings (several make one scenario set)")
+        p.add_argument("--map", required=True, metavar="MAP.yaml", help="channel map (YAML or JSON; README)")
+        p.add_argument(
+            "--out",
+            required=True,
+            help="output: a rosbag2 folder, a file ending in .mcap, or DIR/manifest.json for a CSV scenario set",
+        )
+        p.add_argument(
+            "--block-size",
+            type=POSITIVE_INT,
+            default=DEFAULT_BLOCK_SIZE,
+            help=f"samples per sensor message (default {DEFAULT_BLOCK_SIZE})",
+        )
+        p.set_defaults(func=cmd_import_comtrade if name == "import-comtrade" else cmd_import_pmu)
 
     p = sub.add_parser("identify", help="three-stage identification of the eight parameters")
     p.add_argument("input", help="rosbag2 folder, .mcap file, or CSV manifest.json")

@@ -16,7 +16,7 @@ from phid_ros.ident.scenario import (
     find_events,
     make_scenario,
 )
-from phid_ros.io.recording import NS, Recording
+from phid_ros.io.recording import MEASUREMENT_WINDOW_KEY, NS, Recording
 
 PRE_EVENT_S = 1.0
 POST_EVENT_S = 29.0
@@ -144,6 +144,7 @@ def scenarios_from_recording(
                     k_clear=k_cl,
                     start_ns=int(t[a]),
                     thresholds=thresholds,
+                    measurement_window_s=float(rec.metadata.get(MEASUREMENT_WINDOW_KEY, 0.0)),
                 )
             )
         except ScenarioError as exc:

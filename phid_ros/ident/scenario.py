@@ -63,6 +63,9 @@ class ScenarioData:
     start_ns: int = 0
     notes: list[str] = field(default_factory=list)
     extra_switching: list[int] = field(default_factory=list)  # further steps inside a long window
+    # the window the samples were measured over (a one-cycle DFT's phasors, a PMU's filter): a
+    # switching instant is smeared over it, so stage 3 leaves it out around each switch
+    measurement_window_s: float = 0.0
 
     def __post_init__(self) -> None:
         n = len(self.signals["v_t"])
@@ -194,6 +197,7 @@ def make_scenario(
     k_clear: int | None = None,
     start_ns: int = 0,
     thresholds: StepThresholds = DEFAULT_THRESHOLDS,
+    measurement_window_s: float = 0.0,
 ) -> ScenarioData:
     """Check a window and build its :class:`ScenarioData`; classify it where the input does not say.
 
@@ -256,6 +260,7 @@ def make_scenario(
         k_clear=None if k_clear is None else int(k_clear),
         start_ns=start_ns,
         notes=notes,
+        measurement_window_s=measurement_window_s,
     )
 
 

@@ -16,7 +16,7 @@ import numpy as np
 from phid_ros.errors import PhidError
 from phid_ros.io.csv_import import CSV_COLUMNS
 from phid_ros.io.outputs import atomic_output, write_text
-from phid_ros.io.recording import NS, Recording
+from phid_ros.io.recording import MEASUREMENT_WINDOW_KEY, NS, Recording
 from phid_ros.io.topics import CHANNELS, STREAMS
 
 MANIFEST = "manifest.json"
@@ -49,6 +49,8 @@ def write_csv_set(folder: str | Path, rec: Recording) -> Path:
     manifest = {"f_nominal_hz": rec.f_nominal_hz, "scenarios": entries}
     if "base_mva" in rec.metadata:
         manifest["base_mva"] = float(rec.metadata["base_mva"])
+    if MEASUREMENT_WINDOW_KEY in rec.metadata:
+        manifest[MEASUREMENT_WINDOW_KEY] = float(rec.metadata[MEASUREMENT_WINDOW_KEY])
     return write_text(out / MANIFEST, json.dumps(manifest, indent=2) + "\n")
 
 

@@ -15,7 +15,7 @@ import difflib
 import gzip
 import io
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -23,7 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from phid_ros.errors import CsvImportError
-from phid_ros.io.recording import NS, Recording, ScenarioInfo, StreamSamples
+from phid_ros.io.recording import MEASUREMENT_WINDOW_KEY, NS, Recording, ScenarioInfo, StreamSamples
 from phid_ros.io.results import read_json
 from phid_ros.io.topics import CHANNELS, STREAMS, unit_problem
 
@@ -36,14 +36,17 @@ MAX_PERIOD_JITTER = 0.01  # relative
 
 
 @dataclass
-class CsvScenario:
+class ScenarioTable:
+    """One scenario as the importers read it: its own time axis (s) and the CSV channels on it."""
+
     name: str
     kind: str
     role: str
     generator_damping: bool
     t: NDArray[np.float64]
     columns: dict[str, NDArray[np.float64]]
-    ignored_columns: list[str] = field(default_factory=list)
+    event_time_s: float | None = None  # on ``t``'s axis
+    source: str = ""  # the file it came from, for messages
 
 
 def _open_text(path: Path) -> io.TextIOBase:
@@ -189,49 +192,74 @@ def import_csv_set(
         raise CsvImportError(f"{manifest}: f_nominal_hz must be a positive number, got {f_nom!r}")
     base_mva = meta.get("base_mva")
     warnings: list[str] = []
+    tables: list[ScenarioTable] = []
+    for k, entry in enumerate(scenarios):
+        path, kind, role, damping, event_s = _manifest_entry(entry, k, manifest)
+        cols, extra = read_scenario_csv(path, strict=strict)
+        if extra:
+            warnings.append(f"{path}: ignored extra column(s) {extra}")
+        t = cols.pop("t")
+        if event_s is not None and not t[0] < event_s < t[-1]:
+            raise CsvImportError(
+                f"{manifest}: scenarios[{k}]: event_time_s {event_s:g} lies outside {path.name}'s "
+                f"t = {t[0]:g} .. {t[-1]:g} s"
+            )
+        tables.append(ScenarioTable(_scenario_name(path), kind, role, damping, t, cols, event_s, str(path)))
+    rec = recording_from_tables(tables, float(f_nom), base_mva, f"import-csv {manifest.name}", start_ns=start_ns)
+    window = meta.get(MEASUREMENT_WINDOW_KEY)
+    if window is not None:
+        if isinstance(window, bool) or not isinstance(window, (int, float)) or not 0 <= window < 1:
+            raise CsvImportError(f"{manifest}: {MEASUREMENT_WINDOW_KEY} must be seconds in [0, 1), got {window!r}")
+        rec.metadata[MEASUREMENT_WINDOW_KEY] = repr(float(window))
+    return rec, warnings
+
+
+def recording_from_tables(
+    tables: list[ScenarioTable],
+    f_nominal_hz: float,
+    base_mva: float | None,
+    source: str,
+    *,
+    start_ns: int = DEFAULT_START_NS,
+) -> Recording:
+    """Scenario tables -> one continuous recording, one after another with a gap between them.
+
+    The one place every importer (CSV sets, COMTRADE, PMU exports) turns its scenarios into
+    the recording ``phid identify`` reads, so all give the same frames and markers.
+    """
     t_parts: list[NDArray[np.int64]] = []
     c_parts: dict[str, list[NDArray[np.float64]]] = {c: [] for c in CHANNELS}
     infos: list[ScenarioInfo] = []
     period_ns: int | None = None
     cursor = start_ns
-    for k, entry in enumerate(scenarios):
-        path, kind, role, damping, event_s = _manifest_entry(entry, k, manifest)
-        cols, extra = read_scenario_csv(path, strict=strict)
+    for tab in tables:
         for c in CHANNELS:
-            problem = unit_problem(c, cols[c])
+            problem = unit_problem(c, tab.columns[c])
             if problem:
-                raise CsvImportError(f"{path}: {problem}")
-        if extra:
-            warnings.append(f"{path}: ignored extra column(s) {extra}")
-        t = cols["t"]
+                raise CsvImportError(f"{tab.source}: {problem}")
+        t = tab.t
         p_ns = int(round(float(np.median(np.diff(t))) * NS))
         if period_ns is None:
             period_ns = p_ns
         elif p_ns != period_ns:
-            raise CsvImportError(f"{path}: sample period {p_ns} ns differs from the first scenario's {period_ns} ns")
-        n = len(t)
-        stamps = cursor + np.arange(n, dtype=np.int64) * p_ns
-        event_ns = 0
-        if event_s is not None:
-            if not t[0] < event_s < t[-1]:
-                raise CsvImportError(
-                    f"{manifest}: scenarios[{k}]: event_time_s {event_s:g} lies outside {path.name}'s "
-                    f"t = {t[0]:g} .. {t[-1]:g} s"
-                )
-            event_ns = int(stamps[0]) + int(round((event_s - t[0]) * NS))
+            raise CsvImportError(
+                f"{tab.source}: sample period {p_ns} ns differs from the first scenario's {period_ns} ns"
+            )
+        stamps = cursor + np.arange(len(t), dtype=np.int64) * p_ns
+        event_ns = 0 if tab.event_time_s is None else int(stamps[0]) + int(round((tab.event_time_s - t[0]) * NS))
         t_parts.append(stamps)
         for c in CHANNELS:
-            c_parts[c].append(cols[c])
+            c_parts[c].append(tab.columns[c])
         infos.append(
             ScenarioInfo(
-                name=_scenario_name(path),
-                kind=kind,
-                role=role,
-                generator_damping=damping,
+                name=tab.name,
+                kind=tab.kind,
+                role=tab.role,
+                generator_damping=tab.generator_damping,
                 start_ns=int(stamps[0]),
                 event_ns=event_ns,
                 end_ns=int(stamps[-1]),
-                description=f"imported from {path.name}",
+                description=f"imported from {Path(tab.source).name}",
             )
         )
         cursor = int(stamps[-1]) + int(GAP_BETWEEN_SCENARIOS_S * NS)
@@ -241,7 +269,7 @@ def import_csv_set(
         spec.name: StreamSamples(t_all.copy(), period_ns, {c: np.concatenate(c_parts[c]) for c in spec.channels})
         for spec in STREAMS
     }
-    metadata = {"f_nominal_hz": str(float(f_nom)), "source": f"import-csv {manifest.name}"}
+    metadata = {"f_nominal_hz": str(float(f_nominal_hz)), "source": source}
     if base_mva is not None:
         metadata["base_mva"] = str(base_mva)
-    return Recording(streams=streams, scenarios=infos, metadata=metadata), warnings
+    return Recording(streams=streams, scenarios=infos, metadata=metadata)

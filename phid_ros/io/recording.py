@@ -56,6 +56,11 @@ class StreamSamples:
         return int(self.t_ns.shape[0])
 
 
+# metadata key: the window (s) the samples were measured over, when an importer knows it (the
+# one-cycle DFT of COMTRADE waveforms); stage 3 leaves that much out around each switching
+MEASUREMENT_WINDOW_KEY = "measurement_window_s"
+
+
 @dataclass(frozen=True)
 class ScenarioInfo:
     name: str

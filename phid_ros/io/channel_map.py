@@ -1,0 +1,224 @@
+"""The channel map of a field recording: which recorded channel is which quantity, and its scale.
+
+One format for COMTRADE and PMU exports (YAML or JSON)::
+
+    machine: {mva: 1000, kv: 20, f_nominal_hz: 50}   # kv: rated line-to-line terminal voltage
+    time: Timestamp                                     # PMU exports: the report-time column
+    ratios: {pt: "20000/110", ct: "30000/1"}            # primary/secondary, or a number
+    values: secondary                                   # the recorded values' side (default primary)
+    channels:
+      v_a: VA                                           # a channel's name, or {name, unit, side}
+      i_a: {name: IA, unit: A}
+      load_angle: {name: ROTOR, unit: deg}
+      omega: {name: SPEED, unit: Hz}
+      v_f: EFD
+      p_m: {name: PMECH, unit: MW}
+    scenarios:                                          # optional, by recording file stem
+      trip_0412: {kind: fault, role: identify, event_time_s: 0.1}
+
+Everything becomes per unit on the machine base: V_base = kv/sqrt(3) per phase, I_base =
+mva/(sqrt(3) kv), S_base = mva. Secondary values are scaled by the PT ratio (voltages), the CT
+ratio (currents) or both (powers); a secondary value without its ratio is refused.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from phid_ros.errors import PhidError
+
+# quantity -> (physical kind, units accepted, default unit)
+QUANTITIES: dict[str, tuple[str, tuple[str, ...], str]] = {
+    **{f"v_{p}": ("voltage", ("V", "kV"), "V") for p in "abc"},  # instantaneous, phase to neutral
+    **{f"i_{p}": ("current", ("A", "kA"), "A") for p in "abc"},
+    "v_t": ("voltage", ("V", "kV", "V_ll", "kV_ll", "pu"), "kV_ll"),  # RMS magnitude
+    "theta_t": ("angle", ("deg", "rad"), "deg"),
+    "i_t": ("current", ("A", "kA", "pu"), "A"),
+    "phi_i": ("angle", ("deg", "rad"), "deg"),
+    "p_e": ("power", ("W", "kW", "MW", "pu"), "MW"),
+    "q_e": ("power", ("var", "kvar", "Mvar", "pu"), "Mvar"),
+    "p_m": ("power", ("W", "kW", "MW", "pu"), "MW"),
+    "delta": ("angle", ("deg", "rad"), "deg"),  # rotor angle against a nominal-frequency reference
+    "load_angle": ("angle", ("deg", "rad"), "deg"),  # rotor angle against the terminal voltage
+    "omega": ("speed", ("pu", "Hz", "rpm"), "pu"),
+    "v_f": ("field", ("pu",), "pu"),  # the field voltage's base is the machine's (IEEE 115): per unit only
+}
+WAVEFORMS = ("v_a", "v_b", "v_c", "i_a", "i_b", "i_c")
+SCALE = {"V": 1.0, "kV": 1e3, "V_ll": 1.0, "kV_ll": 1e3, "A": 1.0, "kA": 1e3, "W": 1.0, "kW": 1e3, "MW": 1e6}
+SCALE.update({"var": 1.0, "kvar": 1e3, "Mvar": 1e6, "deg": math.pi / 180, "rad": 1.0})
+RATIO_OF = {"voltage": ("pt",), "current": ("ct",), "power": ("pt", "ct")}
+
+
+class ChannelMapError(PhidError):
+    """A channel map that is malformed or does not fit the recording."""
+
+
+@dataclass(frozen=True)
+class ChannelSpec:
+    quantity: str
+    name: str
+    unit: str
+    side: str  # primary | secondary
+
+
+@dataclass
+class ChannelMap:
+    path: str
+    mva: float
+    kv: float
+    f_nominal_hz: float
+    channels: dict[str, ChannelSpec]
+    ratios: dict[str, float] = field(default_factory=dict)
+    rated_rpm: float | None = None
+    scenarios: dict[str, dict[str, Any]] = field(default_factory=dict)
+    time_column: str = "Timestamp"  # PMU exports: the report-time column
+    phasor_window_cycles: float = 0.0  # PMU exports: the cycles the PMU's phasor filter spans (0: unknown)
+
+    @property
+    def v_base(self) -> float:  # per phase, RMS volts
+        return self.kv * 1e3 / math.sqrt(3.0)
+
+    @property
+    def i_base(self) -> float:
+        return self.mva * 1e6 / (math.sqrt(3.0) * self.kv * 1e3)
+
+    def has(self, *quantities: str) -> bool:
+        return all(q in self.channels for q in quantities)
+
+    def ratio(self, spec: ChannelSpec) -> float:
+        """What turns the recorded value into a primary one (1 for primary values)."""
+        kind = QUANTITIES[spec.quantity][0]
+        if spec.side == "primary" or kind not in RATIO_OF or spec.unit == "pu":
+            return 1.0
+        missing = [r for r in RATIO_OF[kind] if r not in self.ratios]
+        if missing:
+            raise ChannelMapError(
+                f"{self.path}: {spec.quantity} ({spec.name}) is a secondary value but the map gives no "
+                f"{' and '.join(missing).upper()} ratio (ratios: {{pt: ..., ct: ...}})"
+            )
+        return math.prod(self.ratios[r] for r in RATIO_OF[kind])
+
+    def to_pu(self, spec: ChannelSpec, x: Any) -> Any:
+        """A recorded channel in per unit on the machine base (angles in radians, speed as recorded)."""
+        kind = QUANTITIES[spec.quantity][0]
+        if spec.unit == "pu" or kind in ("speed", "field"):
+            return x
+        if kind == "angle":
+            return x * SCALE[spec.unit]
+        value = x * SCALE[spec.unit] * self.ratio(spec)
+        if kind == "voltage":
+            return value / (self.v_base * (math.sqrt(3.0) if spec.unit.endswith("_ll") else 1.0))
+        if kind == "current":
+            return value / self.i_base
+        return value / (self.mva * 1e6)
+
+
+def _positive(doc: Mapping[str, Any], key: str, where: str) -> float:
+    v = doc.get(key)
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
+        raise ChannelMapError(f"{where}: {key} must be a positive number, got {v!r}")
+    return float(v)
+
+
+def _ratio(value: Any, where: str) -> float:
+    if isinstance(value, str) and "/" in value:
+        a, _, b = value.partition("/")
+        try:
+            r = float(a) / float(b)
+        except (ValueError, ZeroDivisionError):
+            raise ChannelMapError(f"{where}: ratio {value!r} is not PRIMARY/SECONDARY") from None
+    elif isinstance(value, (int, float)) and not isinstance(value, bool):
+        r = float(value)
+    else:
+        raise ChannelMapError(f"{where}: ratio {value!r} is not a number or PRIMARY/SECONDARY")
+    if not (math.isfinite(r) and r > 0):
+        raise ChannelMapError(f"{where}: ratio {value!r} must be positive")
+    return r
+
+
+def _channel(quantity: str, entry: Any, side: str, where: str) -> ChannelSpec:
+    _, units, default = QUANTITIES[quantity]
+    if isinstance(entry, str):
+        entry = {"name": entry}
+    if not isinstance(entry, Mapping) or not isinstance(entry.get("name"), str) or not entry["name"]:
+        raise ChannelMapError(f"{where}: {quantity} needs a channel name (NAME or {{name: NAME, unit: ...}})")
+    unit = entry.get("unit", default)
+    if unit not in units:
+        raise ChannelMapError(f"{where}: {quantity} unit {unit!r} not one of {', '.join(units)}")
+    s = entry.get("side", side)
+    if s not in ("primary", "secondary"):
+        raise ChannelMapError(f"{where}: {quantity} side {s!r} must be primary or secondary")
+    return ChannelSpec(quantity, entry["name"], unit, s)
+
+
+def load_channel_map(path: str | Path) -> ChannelMap:
+    import yaml
+
+    p = Path(path)
+    if not p.is_file():
+        raise ChannelMapError(f"{p}: no such channel map")
+    try:
+        text = p.read_text(encoding="utf-8")
+        doc = json.loads(text) if p.suffix == ".json" else yaml.safe_load(text)
+    except (json.JSONDecodeError, yaml.YAMLError) as exc:
+        raise ChannelMapError(f"{p}: not valid {'JSON' if p.suffix == '.json' else 'YAML'} ({exc})".replace("\n", " "))
+    where = str(p)
+    if not isinstance(doc, Mapping) or not isinstance(doc.get("machine"), Mapping):
+        raise ChannelMapError(f"{where}: needs a 'machine' section with mva, kv and f_nominal_hz")
+    m = doc["machine"]
+    side = doc.get("values", "primary")
+    if side not in ("primary", "secondary"):
+        raise ChannelMapError(f"{where}: values {side!r} must be primary or secondary")
+    raw = doc.get("channels")
+    if not isinstance(raw, Mapping) or not raw:
+        raise ChannelMapError(f"{where}: needs a 'channels' section naming the recorded channels")
+    unknown = sorted(set(raw) - set(QUANTITIES))
+    if unknown:
+        raise ChannelMapError(f"{where}: unknown quantity {unknown}; known: {', '.join(QUANTITIES)}")
+    ratios_doc = doc.get("ratios") or {}
+    if not isinstance(ratios_doc, Mapping) or set(ratios_doc) - {"pt", "ct"}:
+        raise ChannelMapError(f"{where}: ratios takes pt and ct only")
+    scenarios = doc.get("scenarios") or {}
+    if not isinstance(scenarios, Mapping) or not all(isinstance(v, Mapping) for v in scenarios.values()):
+        raise ChannelMapError(f"{where}: scenarios must map a recording's file stem to {{kind, role, event_time_s}}")
+    cmap = ChannelMap(
+        path=where,
+        mva=_positive(m, "mva", f"{where}: machine"),
+        kv=_positive(m, "kv", f"{where}: machine"),
+        f_nominal_hz=_positive(m, "f_nominal_hz", f"{where}: machine") if "f_nominal_hz" in m else 50.0,
+        channels={q: _channel(q, e, side, where) for q, e in raw.items()},
+        ratios={k: _ratio(v, f"{where}: ratios.{k}") for k, v in ratios_doc.items()},
+        rated_rpm=_positive(m, "rated_rpm", f"{where}: machine") if "rated_rpm" in m else None,
+        scenarios={str(k): dict(v) for k, v in scenarios.items()},
+        time_column=str(doc.get("time", "Timestamp")),
+        phasor_window_cycles=_positive(m, "phasor_window_cycles", f"{where}: machine")
+        if "phasor_window_cycles" in m
+        else 0.0,
+    )
+    for spec in cmap.channels.values():
+        cmap.ratio(spec)  # a secondary value without its ratio is refused now, not after reading
+    if cmap.has("omega") and cmap.channels["omega"].unit == "rpm" and cmap.rated_rpm is None:
+        raise ChannelMapError(f"{where}: omega in rpm needs machine.rated_rpm")
+    return cmap
+
+
+def require_complete(cmap: ChannelMap, source: str, available: list[str]) -> None:
+    """Every quantity the identification needs can be formed from what is mapped; else name what
+    is missing and the recording's channels to choose from."""
+    needs = []
+    if not (cmap.has("v_a", "v_b", "v_c") or cmap.has("v_t", "theta_t")):
+        needs.append("the terminal voltage (v_a, v_b, v_c waveforms, or v_t and theta_t)")
+    if not (cmap.has("i_a", "i_b", "i_c") or cmap.has("i_t", "phi_i") or cmap.has("p_e", "q_e")):
+        needs.append("the stator current (i_a, i_b, i_c waveforms, or i_t and phi_i, or p_e and q_e)")
+    if not (cmap.has("delta") or cmap.has("load_angle")):
+        needs.append("the rotor angle (delta or load_angle)")
+    needs += [q for q in ("omega", "v_f", "p_m") if not cmap.has(q)]
+    if needs:
+        raise ChannelMapError(
+            f"{cmap.path}: no channel mapped for {'; '.join(needs)}; {source} has: {', '.join(available)}"
+        )

@@ -1,0 +1,138 @@
+"""Mapped field channels -> the identification's channels (t, v_t, theta_t, i_d, i_q, ...).
+
+Shared by the COMTRADE and PMU importers: a reader hands over a function that returns a
+recorded channel by name, the sample rate and the recording's name; this turns them into the
+per-unit channels of a scenario, in the recording's synchronous frame (a reference rotating
+at the system frequency before the disturbance: the single-machine model's infinite bus).
+With waveforms, every channel goes through the same one-cycle window as the phasors (the DFT
+for the waveforms, its moving average for the channels recorded as values), so all share one
+delay and one bandwidth and are stamped at the window's centre.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from phid_ros.io.channel_map import QUANTITIES, WAVEFORMS, ChannelMap, ChannelMapError
+from phid_ros.io.csv_import import KINDS, ROLES, ScenarioTable, recording_from_tables
+from phid_ros.io.phasors import (
+    PhasorError,
+    moving_average,
+    samples_per_cycle,
+    system_frequency,
+    three_phase_phasors,
+)
+from phid_ros.io.recording import MEASUREMENT_WINDOW_KEY, Recording
+from phid_ros.io.topics import CHANNELS
+from phid_ros.model.conventions import terminal_to_dq
+
+Array = NDArray[np.float64]
+MIN_OUTPUT_RATE_HZ = 1000.0  # waveforms above twice this are decimated to at least this rate
+
+
+def identification_channels(
+    cmap: ChannelMap, recorded: Callable[[str], Array], fs: float, source: str
+) -> tuple[Array, dict[str, Array], float]:
+    """(t from the first sample in s, the CHANNELS in per unit, the system frequency in Hz)."""
+    f0 = cmap.f_nominal_hz
+
+    def pu(q: str) -> Array:
+        x = np.asarray(cmap.to_pu(cmap.channels[q], recorded(cmap.channels[q].name)), dtype=float)
+        return np.unwrap(x) if QUANTITIES[q][0] == "angle" else x  # recorders wrap angles to +-180 deg
+
+    waveforms = cmap.has(*WAVEFORMS[:3])
+    if waveforms:
+        try:
+            v1, _ = three_phase_phasors(pu("v_a"), pu("v_b"), pu("v_c"), fs, f0)
+            n = samples_per_cycle(fs, f0)
+        except PhasorError as exc:
+            raise ChannelMapError(f"{source}: {exc}") from None
+        t = (np.arange(len(v1)) + (n - 1) / 2) / fs
+        f_sys = system_frequency(v1, fs, f0, n)
+
+        def value(q: str) -> Array:
+            return moving_average(pu(q), n)
+
+    else:
+        n = 1
+        value = pu
+        theta_nominal = value("theta_t")
+        t = np.arange(len(theta_nominal)) / fs
+        v1 = value("v_t") * np.exp(1j * theta_nominal)
+        m = min(len(t), max(int(0.5 * fs), 10))
+        f_sys = f0 + np.polyfit(t[:m], np.unwrap(theta_nominal[:m]), 1)[0] / (2 * np.pi)
+    frame = np.exp(-2j * np.pi * (f_sys - f0) * t)  # nominal-frequency reference -> synchronous frame
+    v = v1 * frame
+    if cmap.has("i_a", "i_b", "i_c"):
+        try:
+            i1, _ = three_phase_phasors(pu("i_a"), pu("i_b"), pu("i_c"), fs, f0)
+        except PhasorError as exc:
+            raise ChannelMapError(f"{source}: {exc}") from None
+        i = i1 * frame
+    elif cmap.has("i_t", "phi_i"):
+        i = value("i_t") * np.exp(1j * value("phi_i")) * frame
+    else:
+        i = np.conj((value("p_e") + 1j * value("q_e")) / v)
+    theta_t = np.unwrap(np.angle(v))
+    if cmap.has("load_angle"):
+        delta = theta_t + value("load_angle")
+    else:
+        delta = value("delta") - 2 * np.pi * (f_sys - f0) * t
+    s = v * np.conj(i)
+    out = {
+        "v_t": np.abs(v),
+        "theta_t": theta_t,
+        "omega": _speed(cmap, value("omega"), f_sys),
+        "delta": delta,
+        "v_f": value("v_f"),
+        "p_m": value("p_m"),
+        "p_e": value("p_e") if cmap.has("p_e") else s.real,
+        "q_e": value("q_e") if cmap.has("q_e") else s.imag,
+    }
+    out["i_d"], out["i_q"] = terminal_to_dq(np.abs(i), delta, np.angle(i))
+    step = int(fs // MIN_OUTPUT_RATE_HZ) if waveforms and fs >= 2 * MIN_OUTPUT_RATE_HZ else 1
+    return t[::step], {c: np.ascontiguousarray(out[c][::step]) for c in CHANNELS}, float(f_sys)
+
+
+def _speed(cmap: ChannelMap, x: Array, f_sys: float) -> Array:
+    """Speed per unit of the synchronous frame (the grid's frequency before the disturbance)."""
+    unit = cmap.channels["omega"].unit
+    if unit == "Hz":
+        return x / f_sys
+    per_nominal = x / cmap.rated_rpm if unit == "rpm" and cmap.rated_rpm else x
+    return per_nominal * cmap.f_nominal_hz / f_sys
+
+
+def scenario_table(path: Path, cmap: ChannelMap, t: Array, channels: dict[str, Array]) -> ScenarioTable:
+    """One recording's channels as a scenario, with what the map says of it (by the file's stem)."""
+    meta = cmap.scenarios.get(path.stem, {})
+    kind, role = meta.get("kind", "unknown"), meta.get("role", "identify")
+    if kind not in KINDS or role not in ROLES:
+        raise ChannelMapError(f"{cmap.path}: scenarios.{path.stem}: kind must be one of {KINDS}, role one of {ROLES}")
+    event = meta.get("event_time_s")
+    if event is not None and not (isinstance(event, (int, float)) and t[0] < float(event) < t[-1]):
+        raise ChannelMapError(
+            f"{cmap.path}: scenarios.{path.stem}: event_time_s {event!r} lies outside the recording's "
+            f"{t[0]:.3f} .. {t[-1]:.3f} s"
+        )
+    damping = meta.get("generator_damping", True)
+    if not isinstance(damping, bool):
+        raise ChannelMapError(f"{cmap.path}: scenarios.{path.stem}: generator_damping must be true or false")
+    ev = None if event is None else float(event)
+    return ScenarioTable(path.stem, kind, role, damping, t, channels, ev, str(path))
+
+
+def field_recording(tables: list[ScenarioTable], cmap: ChannelMap, source: str, window_s: float) -> Recording:
+    """The scenario set of several field recordings, with the window their phasors were measured over."""
+    names = [t.name for t in tables]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise ChannelMapError(f"recordings with the same name {dup}: scenario names must differ")
+    rec = recording_from_tables(tables, cmap.f_nominal_hz, cmap.mva, source)
+    if window_s > 0:
+        rec.metadata[MEASUREMENT_WINDOW_KEY] = repr(window_s)
+    return rec

@@ -1,0 +1,96 @@
+"""PMU exports in: phasor columns through the channel map give the simulator's channels back."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from phid_ros.io.channel_map import load_channel_map
+from phid_ros.io.pmu_csv import PmuImportError, import_pmu_csv
+from phid_ros.model.conventions import dq_to_terminal
+from phid_ros.sim.runner import SimulationConfig, simulate_scenarios
+from phid_ros.sim.scenarios import find_scenario, with_duration
+
+KV, MVA = 20.0, 1000.0
+V_BASE = KV * 1e3 / np.sqrt(3)
+I_BASE = MVA * 1e6 / (np.sqrt(3) * KV * 1e3)
+STEP = 10  # 1 kHz simulation -> 100 reports per second
+MAP = """
+machine: {mva: 1000, kv: 20, f_nominal_hz: 50, phasor_window_cycles: 2}
+time: Timestamp
+channels:
+  v_t: {name: "GEN1:V1_MAG", unit: V}
+  theta_t: {name: "GEN1:V1_ANG", unit: deg}
+  i_t: {name: "GEN1:I1_MAG", unit: A}
+  phi_i: {name: "GEN1:I1_ANG", unit: deg}
+  omega: {name: SPEED, unit: pu}
+  delta: {name: ROTOR_ANGLE, unit: deg}
+  v_f: EFD
+  p_m: {name: PMECH, unit: MW}
+scenarios:
+  S09: {kind: voltage_step, event_time_s: 1.0}
+"""
+
+
+@pytest.fixture(scope="module")
+def export(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("pmu")
+    run = simulate_scenarios([with_duration(find_scenario("S09"), 6.0)], SimulationConfig())[0]
+    m = {c: x[: run.n_analysis : STEP] for c, x in run.measured.items()}
+    i_mag, i_ang = dq_to_terminal(m["i_d"], m["i_q"], m["delta"])
+    t0 = np.datetime64("2026-03-04T05:06:07.000000000")
+    stamps = [str(t0 + np.timedelta64(int(k * STEP * 1e6), "ns")) for k in range(len(m["v_t"]))]
+    cols = {
+        "Timestamp": stamps,
+        "GEN1:V1_MAG": m["v_t"] * V_BASE,
+        "GEN1:V1_ANG": np.degrees(np.angle(np.exp(1j * m["theta_t"]))),  # wrapped, as PMUs report
+        "GEN1:I1_MAG": i_mag * I_BASE,
+        "GEN1:I1_ANG": np.degrees(np.angle(np.exp(1j * i_ang))),
+        "GEN1:FREQ": 50.0 * m["omega"],
+        "SPEED": m["omega"],
+        "ROTOR_ANGLE": np.degrees(m["delta"]),
+        "EFD": m["v_f"],
+        "PMECH": m["p_m"] * MVA,
+    }
+    lines = [",".join(cols)] + [
+        ",".join(v if isinstance(v, str) else repr(float(v)) for v in row) for row in zip(*cols.values())
+    ]
+    path = folder / "S09.csv"
+    path.write_text("\n".join(lines) + "\n")
+    (folder / "map.yaml").write_text(MAP)
+    return path, load_channel_map(folder / "map.yaml"), m
+
+
+def test_pmu_export_gives_the_channels_back(export) -> None:
+    path, cmap, m = export
+    rec = import_pmu_csv([path], cmap)
+    [sc] = rec.scenarios
+    assert (sc.name, sc.kind) == ("S09", "voltage_step") and sc.event_ns - sc.start_ns == 1_000_000_000
+    assert rec.streams["pt_ct"].period_ns == 10_000_000 and rec.metadata["measurement_window_s"] == repr(0.04)
+    got = {c: x for s in rec.streams.values() for c, x in s.channels.items()}
+    for c in ("v_t", "i_d", "i_q", "v_f", "p_m"):
+        assert np.allclose(got[c], m[c], atol=1e-9), c
+    assert np.allclose(got["delta"] - got["theta_t"], m["delta"] - m["theta_t"], atol=1e-9)
+    # the synchronous frame is the frequency before the event, fitted from the angle: a tiny ramp at most
+    ramp = (got["theta_t"] - m["theta_t"]) - (got["theta_t"] - m["theta_t"])[0]
+    assert np.max(np.abs(ramp)) < 5e-3 and np.allclose(got["omega"], m["omega"], rtol=2e-5)
+    assert np.allclose(got["p_e"], m["p_e"], atol=0.02)  # from V and I: the sensors' own noise differs
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (lambda rows: rows.__setitem__(5, rows[6]), r"S09\.csv: report times do not increase \(line 7"),
+        (lambda rows: rows.pop(9), r"S09\.csv: reports missing or uneven at line 10 \(20\.000 ms"),
+        (lambda rows: rows.__setitem__(0, rows[0].replace("EFD", "E_FD")), r"column 'EFD' for v_f is not in S09\.csv"),
+        (lambda rows: rows.__setitem__(4, rows[4].rsplit(",", 1)[0] + ",n/a"), r"line 5, column 'PMECH': 'n/a'"),
+    ],
+)
+def test_bad_exports_are_named(export, tmp_path, edit, message) -> None:
+    path, cmap, _ = export
+    rows = path.read_text().splitlines()
+    edit(rows)
+    bad = tmp_path / "S09.csv"
+    bad.write_text("\n".join(rows) + "\n")
+    with pytest.raises(PmuImportError, match=message):
+        import_pmu_csv([bad], cmap)
