@@ -17,6 +17,7 @@ from phid_ros.cli.progress import ProgressLine
 from phid_ros.cli.scenarios import scenarios_from_recording
 from phid_ros.cli.tables import Col, fmt, pct, print_table
 from phid_ros.errors import PhidError
+from phid_ros.ident.constraints import parse_constraints
 from phid_ros.ident.pipeline import IdentificationResult, IdentifyOptions, identify
 from phid_ros.ident.scenario import ScenarioData, StepThresholds
 from phid_ros.io.recording import Recording
@@ -73,6 +74,8 @@ def print_parameters(console: Console, res: IdentificationResult, truth: Generat
         base = res.baseline.get(name)
         v = est.value if est else math.nan
         note = "missing" if est is None else ("" if est.identifiable else "not identified")
+        if name in res.constraints.fixed:
+            note = "held (--fix)"
         rows.append(
             [
                 SYMBOLS[name],
@@ -176,6 +179,7 @@ def run(args: Any, console: Console) -> int:
             baseline=not args.no_baseline,
             paper_maxiter=args.paper_maxiter,
             step_thresholds=step_thresholds(args),
+            constraints=parse_constraints(args.fix, args.bounds, args.start),
         )
         scenarios, res = identify_recording(rec, source, options, truth, progress.update)
     res.timing = {"read": round(t_read, 6), **res.timing}

@@ -468,6 +468,27 @@ def build_parser() -> argparse.ArgumentParser:
         "--paper-maxiter", type=POSITIVE_INT, default=300, help="generations of the paper's DE (default 300)"
     )
     add_step_thresholds(p)
+    p.add_argument(
+        "--fix",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="hold a parameter at a known (datasheet) value in every stage, repeatable; e.g. --fix H=3.5",
+    )
+    p.add_argument(
+        "--bounds",
+        action="append",
+        default=[],
+        metavar="NAME=LO:HI",
+        help="confine a parameter, repeatable; an estimate the data push onto a bound is flagged",
+    )
+    p.add_argument(
+        "--start",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="starting value for the searches that take one (--method paper), repeatable",
+    )
     p.set_defaults(func=cmd_identify)
 
     p = sub.add_parser("diagnose", help="find and name the physics the fourth-order model is missing")

@@ -167,9 +167,11 @@ def build_record(
         if not isinstance(refit, Mapping):
             raise ExportError(f"{diagnosis_source}: the diagnosis has no final 'parameters'")
         base, base_origin = refit, "diagnosis refit"
+    held = (result.get("constraints") or {}).get("fixed") or {}
     for name, f in BASE_FIELDS.items():
         values[f] = _number(base, name, diagnosis_source if diagnosis is not None else source)
-        sources[f] = f"{base_origin} ({name})" + (" NOT IDENTIFIED" if name in flagged else "")
+        origin = f"held by the user ({name}, --fix)" if name in held else f"{base_origin} ({name})"
+        sources[f] = origin + (" NOT IDENTIFIED" if name in flagged else "")
     warnings: list[str] = []
     _fill_subtransient(values, sources, effects.get("subtransient_dynamics"), warnings)
     _fill_saturation(values, sources, effects.get("magnetic_saturation"), warnings)

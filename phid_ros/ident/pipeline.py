@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from phid_ros.ident import ieee115, stage1, stage2, stage3, validation
+from phid_ros.ident.constraints import NONE, Constraints, at_user_bound, held
 from phid_ros.ident.results import Estimate
 from phid_ros.ident.scenario import DEFAULT_THRESHOLDS, ScenarioData, StepThresholds
 from phid_ros.model.conventions import DEFAULT_F_NOMINAL_HZ
@@ -37,6 +38,7 @@ class IdentifyOptions:
     paper_maxiter: int = 300
     # the smallest unlabelled steps taken as disturbances when windows are cut (labelled ones count at any size)
     step_thresholds: StepThresholds = DEFAULT_THRESHOLDS
+    constraints: Constraints = NONE  # --fix, --bounds, --start: held values, bounds, starting values
 
 
 @dataclass
@@ -53,6 +55,7 @@ class IdentificationResult:
     validation_truth: validation.ValidationResult | None = None
     problems: list[str] = field(default_factory=list)
     timing: dict[str, float] = field(default_factory=dict)
+    constraints: Constraints = NONE
 
     @property
     def parameters(self) -> dict[str, float]:
@@ -94,6 +97,8 @@ class IdentificationResult:
             "problems": self.problems,
             "timing_s": self.timing,
         }
+        if self.constraints:
+            doc["constraints"] = self.constraints.as_dict()
         if self.stage1_paper is not None:
             doc["stage1_differential_damping"] = {
                 "H": self.stage1_paper.H.value,
@@ -137,6 +142,21 @@ class IdentificationResult:
         return out
 
 
+def _apply_constraints(res: IdentificationResult, c: Constraints) -> None:
+    """Held parameters reported as held; an estimate that ended on a user's bound flagged (stage 3's
+    searches stop at the bound without saying how far beyond the data pulled)."""
+    for name in PARAMETER_NAMES:
+        if name in c.fixed:
+            res.estimates[name] = held(name, c.fixed[name])
+            continue
+        est, b = res.estimates.get(name), c.bounds.get(name)
+        if est is None or b is None or est.at_bound or not math.isfinite(est.value):
+            continue
+        for bound in b:
+            if abs(est.value - bound) <= 1e-3 * abs(bound):
+                at_user_bound(est, name, math.nan, bound)
+
+
 def _timed(timing: dict[str, float], key: str, t0: float) -> None:
     timing[key] = round(time.perf_counter() - t0, 6)
 
@@ -153,7 +173,7 @@ def identify(
     if opt.method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {opt.method!r}")
     scs = list(scenarios)
-    res = IdentificationResult({}, opt.method, scs)
+    res = IdentificationResult({}, opt.method, scs, constraints=opt.constraints)
     for s in scs:
         res.problems.extend(f"{s.name}: {n}" for n in s.notes if "kept the label" in n)
     ident = [s for s in scs if s.role == "identify"]
@@ -165,7 +185,7 @@ def identify(
     say("stage 1: H and D from the swing equation")
     t0 = time.perf_counter()
     try:
-        res.stage1 = stage1.swing_regression(ident, opt.stage1_cutoff_hz)
+        res.stage1 = stage1.swing_regression(ident, opt.stage1_cutoff_hz, opt.constraints)
         res.estimates["H"], res.estimates["D"] = res.stage1.H, res.stage1.D
     except stage1.Stage1Error as exc:
         res.problems.append(f"stage 1 (H, D) did not run: {exc}")
@@ -184,9 +204,22 @@ def identify(
         res.stage2 = stage2.identify_reactances(ident)
         res.estimates["X_d"], res.estimates["X_q"] = res.stage2.X_d, res.stage2.X_q
         res.problems.extend(f"stage 2: {p}" for p in res.stage2.problems)
-        x_d, x_q = res.stage2.X_d.value, res.stage2.X_q.value
+        for name in ("X_d", "X_q"):  # each a line of its own: holding one leaves the other's fit as it is
+            est = res.estimates[name]
+            if opt.constraints.outside(name, est.value):
+                wanted = est.value
+                est.value = opt.constraints.clip(name, wanted)
+                at_user_bound(est, name, wanted, est.value)
+        x_d, x_q = res.estimates["X_d"].value, res.estimates["X_q"].value
     except stage2.Stage2Error as exc:
         res.problems.append(f"stage 2 (X_d, X_q) did not run: {exc}")
+    for name in ("X_d", "X_q"):
+        if name in opt.constraints.fixed:
+            res.estimates[name] = held(name, opt.constraints.fixed[name])
+    if "X_d" in opt.constraints.fixed:
+        x_d = opt.constraints.fixed["X_d"]
+    if "X_q" in opt.constraints.fixed:
+        x_q = opt.constraints.fixed["X_q"]
     _timed(res.timing, "stage2", t0)
 
     # -- IEEE 115 baseline (needs a reference X_d, X_q for its bounds (18), (21)) -----
@@ -209,7 +242,7 @@ def identify(
         data = stage3.prepare(ident, opt.prefilter_hz)
         refine = opt.refine_synchronous or x_d is None or x_q is None
         if opt.method == "fast":
-            r3 = stage3.fast(data, x_d or 2.0, x_q or 2.0, refine_synchronous=refine)
+            r3 = stage3.fast(data, x_d or 2.0, x_q or 2.0, refine_synchronous=refine, constraints=opt.constraints)
             if refine and (x_d is None or x_q is None):
                 res.estimates["X_d"] = Estimate(r3.X_d, note="refined in stage 3 (stage 2 could not run)")
                 res.estimates["X_q"] = Estimate(r3.X_q, note="refined in stage 3 (stage 2 could not run)")
@@ -219,7 +252,9 @@ def identify(
             prior = None
             if opt.use_prior and base is not None:
                 prior = [base.d.x_prime, base.q.x_prime, base.d.t_open, base.q.t_open]
-            r3 = stage3.paper(data, x_d, x_q, prior=prior, seed=opt.seed, maxiter=opt.paper_maxiter)
+            r3 = stage3.paper(
+                data, x_d, x_q, prior=prior, seed=opt.seed, maxiter=opt.paper_maxiter, constraints=opt.constraints
+            )
         res.stage3 = r3
         for n in ("X_d_prime", "X_q_prime", "T_d0_prime", "T_q0_prime"):
             res.estimates[n] = getattr(r3, n)
@@ -228,6 +263,7 @@ def identify(
         res.problems.append(f"stage 3 (X'_d, X'_q, T'_d0, T'_q0) did not run: {exc}")
     _timed(res.timing, "stage3", t0)
 
+    _apply_constraints(res, opt.constraints)
     for name, est in res.estimates.items():
         if not est.identifiable and est.note:
             res.problems.append(est.note)

@@ -31,6 +31,7 @@ import numpy as np
 from scipy.optimize import curve_fit
 
 from phid_ros.errors import PhidError
+from phid_ros.ident.constraints import NONE, Constraints, at_user_bound, held
 from phid_ros.ident.results import STD_CALIBRATION, Estimate, flag
 from phid_ros.ident.scenario import ScenarioData
 from phid_ros.ident.uncertainty import block_ids, cluster_robust_cov, information_share
@@ -70,7 +71,9 @@ def _impulse_response(cutoff_hz: float, dt: float) -> np.ndarray:
     return h[: keep[-1] + 1]
 
 
-def swing_regression(scenarios: Sequence[ScenarioData], cutoff_hz: float = DEFAULT_CUTOFF_HZ) -> Stage1Result:
+def swing_regression(
+    scenarios: Sequence[ScenarioData], cutoff_hz: float = DEFAULT_CUTOFF_HZ, constraints: Constraints = NONE
+) -> Stage1Result:
     scs = [s for s in scenarios if usable_for_stage1(s)]
     if not scs:
         raise Stage1Error("stage 1 needs at least one disturbance (a torque step or a fault)")
@@ -116,16 +119,26 @@ def swing_regression(scenarios: Sequence[ScenarioData], cutoff_hz: float = DEFAU
         lengths.append(end)
     X = np.vstack(xs)
     Y = np.concatenate(ys)
-    theta, *_ = np.linalg.lstsq(X, Y, rcond=None)
+    theta, free, clipped = _constrained_fit(X, Y, constraints)
     resid = Y - X @ theta
     blocks = block_ids(lengths, max(1, int(round(BLOCK_SECONDS / scs[0].dt))))
-    cov = cluster_robust_cov(X, resid, blocks)
+    # the held and clipped columns leave the regression: the free ones' covariance without them
+    cov = np.zeros((2, 2))
+    if free:
+        cov[np.ix_(free, free)] = cluster_robust_cov(X[:, free], resid, blocks)
     names = [s.name for s in scs]
     h_share = information_share(X, lengths, 0)
     d_share = information_share(X, lengths, 1)
     sd = STD_CALIBRATION * np.sqrt(np.maximum(np.diag(cov), 0.0))
     H = flag(Estimate(float(theta[0]), float(sd[0]), drivers=_top(names, h_share)), "H")
     D = flag(Estimate(float(theta[1]), float(sd[1]), drivers=_top(names, d_share)), "D")
+    ests = [H, D]
+    for j, name in enumerate(SWING_PARAMETERS):
+        if name in constraints.fixed:
+            ests[j] = held(name, constraints.fixed[name])
+        elif name in clipped:  # no error bar: the number is the bound's
+            ests[j] = at_user_bound(Estimate(float(theta[j]), math.nan), name, clipped[name], float(theta[j]))
+    H, D = ests
     damped = [s for s in scs if s.generator_damping]
     if len(damped) < 2 and D.identifiable:
         # D is a few percent of the plant's total damping; one swing's estimate scattered up to
@@ -147,6 +160,34 @@ def swing_regression(scenarios: Sequence[ScenarioData], cutoff_hz: float = DEFAU
             "information_share_D": dict(zip(names, d_share.round(4).tolist())),
         },
     )
+
+
+SWING_PARAMETERS = ("H", "D")  # the regression's two columns
+
+
+def _constrained_fit(
+    x: np.ndarray, y: np.ndarray, constraints: Constraints
+) -> tuple[np.ndarray, list[int], dict[str, float]]:
+    """Least squares with held columns and bounds (an active set over two columns).
+
+    Returns the coefficients, the free columns, and for each parameter held at a bound the
+    value the data wanted.
+    """
+    theta = np.array([constraints.fixed.get(n, math.nan) for n in SWING_PARAMETERS])
+    clipped: dict[str, float] = {}
+    while True:
+        free = [j for j in range(2) if math.isnan(theta[j])]
+        if not free:
+            return theta, free, clipped
+        rhs = y - x[:, [j for j in range(2) if j not in free]] @ theta[[j for j in range(2) if j not in free]]
+        sol, *_ = np.linalg.lstsq(x[:, free], rhs, rcond=None)
+        out = [(j, v) for j, v in zip(free, sol) if constraints.outside(SWING_PARAMETERS[j], float(v))]
+        if not out:
+            theta[free] = sol
+            return theta, free, clipped
+        j, v = out[0]
+        clipped[SWING_PARAMETERS[j]] = float(v)
+        theta[j] = constraints.clip(SWING_PARAMETERS[j], float(v))
 
 
 def _top(names: list[str], share: np.ndarray, k: int = 3) -> list[str]:

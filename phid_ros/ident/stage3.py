@@ -39,6 +39,7 @@ from numpy.typing import NDArray
 from scipy.optimize import differential_evolution, minimize, minimize_scalar
 
 from phid_ros.errors import PhidError
+from phid_ros.ident.constraints import NONE, Constraints
 from phid_ros.ident.results import STD_CALIBRATION, Estimate, flag
 from phid_ros.ident.scenario import ScenarioData
 from phid_ros.ident.uncertainty import block_ids, cluster_robust_cov, information_share
@@ -53,6 +54,9 @@ DEFAULT_DECIMATE = 5  # samples kept for the least squares after the prefilter (
 LAMBDA_PRIOR = 0.2  # paper, section 4.1.3
 LAMBDA_PENALTY = 1e3
 BLOCK_SECONDS = 1.0
+
+
+TRANSIENT_NAMES = ("X_d_prime", "X_q_prime", "T_d0_prime", "T_q0_prime")  # theta's order
 
 
 class Stage3Error(PhidError):
@@ -295,15 +299,33 @@ def objective(
 
 
 def _profile(
-    data: Stage3Data, d_axis: bool, x_sync: float | None, bounds: tuple[float, float], counter: list[int]
+    data: Stage3Data,
+    d_axis: bool,
+    x_sync: float | None,
+    bounds: tuple[float, float],
+    counter: list[int],
+    constraints: Constraints = NONE,
 ) -> AxisFit:
     ax = data.d if d_axis else data.q
+    x_name, tau_name = ("X_d_prime", "T_d0_prime") if d_axis else ("X_q_prime", "T_q0_prime")
+    x_held = constraints.fixed.get(x_name)
+
+    def fit_at(tau: float, keep_residual: bool = False) -> AxisFit:
+        fit = solve_axis(ax, tau, data.dt, d_axis, x_sync, x_prime=x_held, keep_residual=keep_residual)
+        if x_held is None and constraints.outside(x_name, fit.x_prime):  # held at the bound it crossed
+            x_bound = constraints.clip(x_name, fit.x_prime)
+            fit = solve_axis(ax, tau, data.dt, d_axis, x_sync, x_prime=x_bound, keep_residual=keep_residual)
+        return fit
+
+    if tau_name in constraints.fixed:
+        counter[0] += 1
+        return fit_at(constraints.fixed[tau_name])
 
     def f(log_tau: float) -> float:
         counter[0] += 1
-        return solve_axis(ax, math.exp(log_tau), data.dt, d_axis, x_sync).sse
+        return fit_at(math.exp(log_tau)).sse
 
-    lo, hi = math.log(bounds[0]), math.log(bounds[1])
+    lo, hi = (math.log(b) for b in constraints.limits(tau_name, bounds))  # type: ignore[union-attr]
     # coarse grid first (the profile can have a shallow second minimum near the bounds), about
     # one point per 0.5 in log(tau): 9 over the full range, fewer for a warm start's narrow one
     grid = np.linspace(lo, hi, int(np.clip(math.ceil((hi - lo) / 0.5) + 1, 4, 9)))
@@ -313,7 +335,7 @@ def _profile(
     # 1e-7 in log(tau) costs one evaluation more than 1e-5 and lands on the global
     # optimisers' J to the last digits they print (a looser stop leaves J visibly above)
     res = minimize_scalar(f, bounds=(a, b), method="bounded", options={"xatol": 1e-7})
-    return solve_axis(ax, math.exp(float(res.x)), data.dt, d_axis, x_sync)
+    return fit_at(math.exp(float(res.x)))
 
 
 def fast(
@@ -324,20 +346,24 @@ def fast(
     refine_synchronous: bool = False,
     bounds_d: tuple[float, float] | None = None,
     bounds_q: tuple[float, float] | None = None,
+    constraints: Constraints = NONE,
 ) -> Stage3Result:
     """Variable projection: two 1-D searches over the time constants, everything else linear.
 
-    ``bounds_d`` / ``bounds_q`` narrow the searches (warm starts of a tracker around its last value).
+    ``bounds_d`` / ``bounds_q`` narrow the searches (warm starts of a tracker around its last value);
+    ``constraints`` hold parameters or bound them (the user's datasheet values).
     """
     t0 = time.perf_counter()
     counter = [0]
-    fd = _profile(data, True, None if refine_synchronous else x_d, bounds_d or T_D0_BOUNDS, counter)
-    fq = _profile(data, False, None if refine_synchronous else x_q, bounds_q or T_Q0_BOUNDS, counter)
+    sync_d = None if refine_synchronous and "X_d" not in constraints.fixed else x_d
+    sync_q = None if refine_synchronous and "X_q" not in constraints.fixed else x_q
+    fd = _profile(data, True, sync_d, bounds_d or T_D0_BOUNDS, counter, constraints)
+    fq = _profile(data, False, sync_q, bounds_q or T_Q0_BOUNDS, counter, constraints)
     theta = (fd.x_prime, fq.x_prime, fd.tau, fq.tau)
     j = objective(data, theta, fd.x_sync, fq.x_sync)
     result = Stage3Result(
         "fast",
-        *_estimates(data, fd, fq),
+        *_estimates(data, fd, fq, set(constraints.fixed)),
         X_d=fd.x_sync,
         X_q=fq.x_sync,
         objective=j,
@@ -360,26 +386,51 @@ def paper(
     popsize: int = 12,
     starts: int = 4,
     optimizer: str = "de",
+    constraints: Constraints = NONE,
 ) -> Stage3Result:
-    """The paper's global search on J: DE (or dual annealing / basin hopping) + multi-start L-BFGS-B."""
+    """The paper's global search on J: DE (or dual annealing / basin hopping) + multi-start L-BFGS-B.
+
+    Held parameters leave the search; bounds narrow it; starting values seed DE's population
+    and the first L-BFGS-B start.
+    """
     t0 = time.perf_counter()
-    bounds = [(0.05, 0.95 * x_d), (0.05, 0.95 * x_q), T_D0_BOUNDS, T_Q0_BOUNDS]
+    full_bounds = [(0.05, 0.95 * x_d), (0.05, 0.95 * x_q), T_D0_BOUNDS, T_Q0_BOUNDS]
+    free = [k for k, n in enumerate(TRANSIENT_NAMES) if n not in constraints.fixed]
+    theta_full = np.array([constraints.fixed.get(n, math.nan) for n in TRANSIENT_NAMES])
+    bounds = [constraints.limits(TRANSIENT_NAMES[k], full_bounds[k]) for k in free]
+    start = [constraints.start.get(TRANSIENT_NAMES[k]) for k in free]
+    x0 = np.array([v if v is not None else 0.5 * (b[0] + b[1]) for v, b in zip(start, bounds)])
     count = [0]
     best = [math.inf]
     history: list[tuple[int, float]] = []
 
+    def full(th: Array) -> Array:
+        out = theta_full.copy()
+        out[free] = th
+        return out
+
     def f(th: Array) -> float:
         count[0] += 1
-        v = objective(data, th, x_d, x_q, prior)
+        v = objective(data, full(th), x_d, x_q, prior)
         if v < best[0]:
             best[0] = v
             history.append((count[0], v))
         return v
 
     rng = np.random.default_rng(seed)
-    if optimizer == "de":
+    if not free:
+        x_best = np.zeros(0)
+    elif optimizer == "de":
         res = differential_evolution(
-            f, bounds, popsize=popsize, maxiter=maxiter, init="latinhypercube", seed=seed, tol=1e-8, polish=False
+            f,
+            bounds,
+            popsize=popsize,
+            maxiter=maxiter,
+            init="latinhypercube",
+            seed=seed,
+            tol=1e-8,
+            polish=False,
+            x0=x0 if any(v is not None for v in start) else None,
         )
         x_best = res.x
     elif optimizer == "dual_annealing":
@@ -390,7 +441,8 @@ def paper(
     elif optimizer == "basin_hopping":
         from scipy.optimize import basinhopping
 
-        x0 = np.array([lo + rng.random() * (hi - lo) for lo, hi in bounds])
+        if not any(v is not None for v in start):
+            x0 = np.array([lo + rng.random() * (hi - lo) for lo, hi in bounds])
         res = basinhopping(
             f, x0, niter=max(1, maxiter // 10), seed=seed, minimizer_kwargs={"method": "L-BFGS-B", "bounds": bounds}
         )
@@ -400,14 +452,17 @@ def paper(
     # multi-start L-BFGS-B refinement around the global result (Algorithm 1, line 18)
     candidates = [np.asarray(x_best)] + [
         np.clip(
-            np.asarray(x_best) * (1 + 0.05 * rng.standard_normal(4)), [b[0] for b in bounds], [b[1] for b in bounds]
+            np.asarray(x_best) * (1 + 0.05 * rng.standard_normal(len(free))),
+            [b[0] for b in bounds],
+            [b[1] for b in bounds],
         )
-        for _ in range(max(0, starts - 1))
+        for _ in range(max(0, starts - 1) if free else 0)
     ]
-    for c in candidates:
+    for c in candidates if free else []:
         r = minimize(f, c, method="L-BFGS-B", bounds=bounds, options={"ftol": 1e-14, "gtol": 1e-12})
         if r.fun <= best[0] + 1e-15:
             x_best = r.x
+    x_best = full(np.asarray(x_best))
     xdp, xqp, td0, tq0 = (float(v) for v in x_best)
     fd = solve_axis(data.d, td0, data.dt, True, x_d, x_prime=xdp)
     fq = solve_axis(data.q, tq0, data.dt, False, x_q, x_prime=xqp)
@@ -415,7 +470,7 @@ def paper(
     j = objective(data, x_best, x_d, x_q, prior)
     result = Stage3Result(
         f"paper:{optimizer}",
-        *_estimates(data, fd, fq),
+        *_estimates(data, fd, fq, set(constraints.fixed)),
         X_d=x_d,
         X_q=x_q,
         objective=j,
@@ -427,8 +482,13 @@ def paper(
     return result
 
 
-def _estimates(data: Stage3Data, fd: AxisFit, fq: AxisFit) -> tuple[Estimate, Estimate, Estimate, Estimate]:
-    """Cluster-robust standard errors from the linearised residual in (x', log tau)."""
+def _estimates(
+    data: Stage3Data, fd: AxisFit, fq: AxisFit, held_names: set[str] | frozenset[str] = frozenset()
+) -> tuple[Estimate, Estimate, Estimate, Estimate]:
+    """Cluster-robust standard errors from the linearised residual in (x', log tau).
+
+    A held parameter's column leaves the Jacobian: the free one's error bar is recomputed without it.
+    """
     out = []
     for ax, fit, d_axis, names in (
         (data.d, fd, True, ("X_d_prime", "T_d0_prime")),
@@ -446,7 +506,10 @@ def _estimates(data: Stage3Data, fd: AxisFit, fq: AxisFit) -> tuple[Estimate, Es
         jac = np.column_stack([(r_x - r0) / h_x, (r_t - r0) / (fit.tau * h_t)])
         rows_per_scn = ax.mask[:, ax.keep].sum(axis=1).tolist()
         step = max(1, int(round(BLOCK_SECONDS / (data.dt * (ax.keep.step or 1)))))
-        cov = cluster_robust_cov(jac, r0, block_ids(rows_per_scn, step))
+        free = [k for k in range(2) if names[k] not in held_names]
+        cov = np.zeros((2, 2))
+        if free:
+            cov[np.ix_(free, free)] = cluster_robust_cov(jac[:, free], r0, block_ids(rows_per_scn, step))
         share_x = information_share(jac, rows_per_scn, 0)
         share_t = information_share(jac, rows_per_scn, 1)
         top = lambda s: [ax.names[i] for i in np.argsort(s)[::-1][:3] if s[i] > 0.05]  # noqa: E731

@@ -86,3 +86,9 @@ def test_an_impossible_record_is_refused() -> None:
     diag = diagnosis(("subtransient_dynamics", {"x_dpp": 0.6, "x_qpp": 0.6, "t_d0pp": 0.03, "t_q0pp": 0.05}))
     with pytest.raises(ExportError, match=r"X''=0.6 must not exceed X'_d"):
         build_record(result(), source="r.json", mva=1000.0, diagnosis=diag, diagnosis_source="d.json")
+
+
+def test_a_held_parameter_says_so() -> None:
+    doc = {**result(), "constraints": {"fixed": {"D": 0.4}, "bounds": {}, "start": {}}}
+    rec = build_record(doc, source="r.json", mva=1000.0)
+    assert rec.sources["D"] == "held by the user (D, --fix)" and rec.sources["H"] == "identified (H)"

@@ -1,0 +1,131 @@
+"""What the user tells the estimation: values held (a datasheet's), bounds, starting values.
+
+``--fix NAME=VALUE`` holds a parameter: every stage uses the value and estimates the others
+with it (the held column leaves the regression, so the free parameters' uncertainty is
+recomputed without it); a held parameter is reported as held, with no error bar of its own.
+``--bounds NAME=LO:HI`` confines an estimate: a stage whose data pull it beyond a bound
+holds it at the bound, re-estimates the rest, and flags it not identified (the data and the
+bound disagree; the number is the user's, not the data's). ``--start NAME=VALUE`` seeds the
+searches that have a start (the paper's DE and L-BFGS-B); the fast method's searches are
+global over their bounds and need none.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+from phid_ros.errors import ParameterError
+from phid_ros.ident.results import Estimate
+from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME
+
+
+@dataclass(frozen=True)
+class Constraints:
+    fixed: dict[str, float] = field(default_factory=dict)
+    bounds: dict[str, tuple[float, float]] = field(default_factory=dict)
+    start: dict[str, float] = field(default_factory=dict)
+
+    def __bool__(self) -> bool:
+        return bool(self.fixed or self.bounds or self.start)
+
+    def limits(self, name: str, default: tuple[float, float] | None = None) -> tuple[float, float] | None:
+        """The user's bounds on ``name`` within ``default`` (a stage's own search range), or None."""
+        b = self.bounds.get(name)
+        if b is None:
+            return default
+        if default is None:
+            return b
+        lo, hi = max(b[0], default[0]), min(b[1], default[1])
+        return (lo, hi) if lo < hi else b
+
+    def clip(self, name: str, value: float) -> float:
+        b = self.bounds.get(name)
+        return value if b is None else min(max(value, b[0]), b[1])
+
+    def outside(self, name: str, value: float) -> bool:
+        b = self.bounds.get(name)
+        return b is not None and not b[0] <= value <= b[1]
+
+    def as_dict(self) -> dict[str, object]:
+        return {"fixed": self.fixed, "bounds": {k: list(v) for k, v in self.bounds.items()}, "start": self.start}
+
+
+NONE = Constraints()
+
+
+def held(name: str, value: float) -> Estimate:
+    """A held parameter: the user's value, no error bar, not a finding of the data."""
+    return Estimate(value, 0.0, identifiable=True, note=f"{name} held at {value:g} (--fix)")
+
+
+def at_user_bound(est: Estimate, name: str, wanted: float, bound: float) -> Estimate:
+    """An estimate the data pushed onto a user's bound: the number is the bound's, so not identified."""
+    est.at_bound = True
+    est.identifiable = False
+    pull = f"to {wanted:.4g}, beyond" if math.isfinite(wanted) else "onto"
+    est.note = (est.note + "; " if est.note else "") + (
+        f"{name}: the data pull it {pull} the bound {bound:g} (--bounds); held at the bound"
+    )
+    return est
+
+
+def _pairs(items: Sequence[str], option: str) -> list[tuple[str, str]]:
+    out = []
+    for item in items:
+        name, sep, value = item.partition("=")
+        name = name.strip()
+        if not sep or not value.strip():
+            raise ParameterError(f"{option} {item!r}: expected NAME=...")
+        if name not in SPECS_BY_NAME:
+            raise ParameterError(f"{option} {item!r}: unknown parameter {name!r}; one of {', '.join(PARAMETER_NAMES)}")
+        out.append((name, value.strip()))
+    return out
+
+
+def _number(text: str, where: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise ParameterError(f"{where}: {text!r} is not a number") from None
+    if not math.isfinite(v):
+        raise ParameterError(f"{where}: {text!r} is not finite")
+    return v
+
+
+def _in_range(name: str, v: float, where: str) -> None:
+    spec = SPECS_BY_NAME[name]
+    if not spec.low <= v <= spec.high:
+        raise ParameterError(
+            f"{where}: {name}={v:g} {spec.unit} lies outside its physical range [{spec.low:g}, {spec.high:g}]"
+        )
+
+
+def parse_constraints(fix: Sequence[str] = (), bounds: Sequence[str] = (), start: Sequence[str] = ()) -> Constraints:
+    """``NAME=VALUE`` (fix, start) and ``NAME=LO:HI`` (bounds) as the command line gives them."""
+    fixed: dict[str, float] = {}
+    for name, text in _pairs(fix, "--fix"):
+        fixed[name] = _number(text, f"--fix {name}")
+        _in_range(name, fixed[name], "--fix")
+    lims: dict[str, tuple[float, float]] = {}
+    for name, text in _pairs(bounds, "--bounds"):
+        lo_s, sep, hi_s = text.partition(":")
+        if not sep:
+            raise ParameterError(f"--bounds {name}={text}: expected LO:HI")
+        lo, hi = _number(lo_s, f"--bounds {name}"), _number(hi_s, f"--bounds {name}")
+        if not lo < hi:
+            raise ParameterError(f"--bounds {name}={text}: LO must be below HI")
+        if name in fixed:
+            raise ParameterError(f"--bounds {name}: {name} is held by --fix; give one or the other")
+        lims[name] = (lo, hi)
+    starts: dict[str, float] = {}
+    for name, text in _pairs(start, "--start"):
+        starts[name] = _number(text, f"--start {name}")
+        _in_range(name, starts[name], "--start")
+        if name in lims and not lims[name][0] <= starts[name] <= lims[name][1]:
+            raise ParameterError(f"--start {name}={starts[name]:g} lies outside its --bounds {lims[name]}")
+    for small, large in (("X_d_prime", "X_d"), ("X_q_prime", "X_q")):
+        if small in fixed and large in fixed and not fixed[small] < fixed[large]:
+            raise ParameterError(f"--fix: {small}={fixed[small]:g} must be below {large}={fixed[large]:g}")
+    return Constraints(fixed, lims, starts)
