@@ -26,7 +26,7 @@ from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, SYMBOLS, G
 
 
 def step_thresholds(args: Any) -> StepThresholds:
-    return StepThresholds(torque_step=args.min_torque_step, voltage_step=args.min_voltage_step)
+    return StepThresholds(args.min_torque_step, args.min_voltage_step, args.min_field_step)
 
 
 def load_input(path: str | Path) -> tuple[Recording, str]:

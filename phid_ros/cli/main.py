@@ -340,7 +340,7 @@ def cmd_history(args: argparse.Namespace, console: Console) -> int:
 
 
 def add_step_thresholds(p: argparse.ArgumentParser) -> None:
-    from phid_ros.ident.scenario import MIN_TORQUE_STEP, MIN_VOLTAGE_STEP
+    from phid_ros.ident.scenario import MIN_FIELD_STEP, MIN_TORQUE_STEP, MIN_VOLTAGE_STEP
 
     p.add_argument(
         "--min-torque-step",
@@ -356,6 +356,13 @@ def add_step_thresholds(p: argparse.ArgumentParser) -> None:
         default=MIN_VOLTAGE_STEP,
         metavar="PU",
         help=f"smallest V_t step taken as a disturbance where nothing says so (default {MIN_VOLTAGE_STEP})",
+    )
+    p.add_argument(
+        "--min-field-step",
+        type=POSITIVE,
+        default=MIN_FIELD_STEP,
+        metavar="PU",
+        help=f"smallest V_f step (exciter/AVR reference step) taken where nothing says so (default {MIN_FIELD_STEP})",
     )
 
 

@@ -29,7 +29,7 @@ if TYPE_CHECKING:
     from phid_ros.stream.pipeline import Outputs
     from phid_ros.stream.tracker import TrackPoint
 
-KIND_COLORS = {"fault": "#c0392b", "torque_step": "#1f5fbf", "voltage_step": "#2e8b57"}
+KIND_COLORS = {"fault": "#c0392b", "torque_step": "#1f5fbf", "voltage_step": "#2e8b57", "field_step": "#8e44ad"}
 LEVEL_COLORS = {"OK": "#2e8b57", "WARN": "#e69f00", "ERROR": "#c0392b", "STALE": "#888888"}
 MAX_POINTS = 4000  # samples drawn per trace: a day at 1 kHz would not be readable anyway
 

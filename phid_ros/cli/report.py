@@ -14,6 +14,7 @@ import numpy as np
 
 from phid_ros.cli.tables import pct
 from phid_ros.ident.pipeline import IdentificationResult
+from phid_ros.ident.scenario import KINDS as KIND_ORDER
 from phid_ros.ident.validation import play_in
 from phid_ros.io.outputs import write_text
 from phid_ros.model.parameters import (
@@ -82,9 +83,7 @@ def _scenario_figure(res: IdentificationResult) -> str | None:
     used = [s for s in res.scenarios if s.role == "identify"]
     kinds = sorted(
         {s.kind for s in used},
-        key=lambda k: (
-            ("torque_step", "voltage_step", "fault").index(k) if k in ("torque_step", "voltage_step", "fault") else 9
-        ),
+        key=lambda k: KIND_ORDER.index(k) if k in KIND_ORDER else 9,
     )
     if not kinds:
         return None

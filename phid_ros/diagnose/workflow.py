@@ -37,6 +37,7 @@ from phid_ros.diagnose.candidates import Candidate, library
 from phid_ros.diagnose.fit import FitResult, ModelSpec, Problem, chi_square, fit
 from phid_ros.diagnose.localise import noise_std
 from phid_ros.diagnose.playin import OUTPUTS, PlayIn, play_in
+from phid_ros.errors import PhidError
 from phid_ros.ident.scenario import ScenarioData
 from phid_ros.model.conventions import DEFAULT_F_NOMINAL_HZ
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, GeneratorParameters
@@ -257,6 +258,32 @@ def starting_point(values: Mapping[str, float]) -> tuple[dict[str, float], list[
     return out, notes
 
 
+class DiagnoseError(PhidError):
+    """Measurements the diagnosis cannot weigh honestly."""
+
+
+def _check_measurements(scenarios: Sequence[ScenarioData], sigma: Mapping[str, float]) -> None:
+    """The diagnosis weighs residuals by each channel's white sensor noise, estimated from first
+    differences. Phasors measured over a window (a one-cycle DFT) have correlated noise whose
+    first differences understate it, and the window smears each switching into something that
+    looks like fast physics: tried on COMTRADE waveforms of a plain fourth-order machine, it
+    named subtransient dynamics and a 4 ms excitation latency that were not there. Refused
+    until the play-in models the window, rather than publishing invented effects."""
+    windowed = sorted({s.measurement_window_s for s in scenarios if s.measurement_window_s > 0})
+    if windowed:
+        raise DiagnoseError(
+            f"the samples were measured over a {1e3 * windowed[0]:g} ms window (phasors of a DFT or a PMU): "
+            "the diagnosis assumes sample-by-sample measurements with white noise and would name effects "
+            "the window makes; identify these recordings, diagnose sample-by-sample ones"
+        )
+    flat = [c for c, v in sigma.items() if v <= 1e-12]
+    if flat:
+        raise DiagnoseError(
+            f"channel(s) {', '.join(flat)} show no sample-to-sample noise (quantised or smoothed below their "
+            "resolution): the diagnosis cannot weigh their residuals"
+        )
+
+
 def diagnose(
     scenarios: Sequence[ScenarioData],
     identified: Mapping[str, float],
@@ -272,6 +299,7 @@ def diagnose(
     fit_w = [window(s, opt.pre_s, opt.post_s) for s in fit_s]
     held_w = [window(s, opt.pre_s, opt.post_s) for s in held_s]
     sigma = channel_sigma(scenarios)
+    _check_measurements(scenarios, sigma)
 
     say("refitting the fourth-order model by output error")
     start, problems = starting_point(identified)

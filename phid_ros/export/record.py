@@ -153,7 +153,8 @@ def build_record(
     flagged = [n for n in PARAMETER_NAMES if flags.get(n) is not True]
     if flagged and not allow_flagged:
         raise ExportError(
-            f"{source}: {', '.join(flagged)} not identified; refusing to export them as a planning model "
+            f"{source}: {', '.join(flagged)} not identified; refusing to export a planning model with "
+            f"{'it' if len(flagged) == 1 else 'them'} "
             "(--allow-flagged writes them anyway, marked in the record's comment)"
         )
     f_nominal = float(result.get("f_nominal_hz", 50.0))

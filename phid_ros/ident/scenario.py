@@ -23,11 +23,12 @@ from phid_ros.io.topics import CHANNELS  # the one channel table, shared by ever
 from phid_ros.model.conventions import terminal_to_dq
 
 Array = NDArray[np.float64]
-KINDS = ("torque_step", "voltage_step", "fault")
+KINDS = ("torque_step", "voltage_step", "fault", "field_step")
 
 FAULT_VOLTAGE_RATIO = 0.3  # paper, section 3.2.2: V_t < 0.3 V_pf
 MIN_TORQUE_STEP = 0.02  # pu of P_m
 MIN_VOLTAGE_STEP = 0.02  # pu of V_t
+MIN_FIELD_STEP = 0.02  # pu of V_f (about 1 % of a loaded machine's field voltage)
 STEADY_FRACTION = 0.2  # paper: steady state from the final 20 % of a scenario
 # A labelled step is located without the thresholds above (MOD-026/027 staged tests are
 # small on purpose: a 2 % AVR reference step, a small load change), but it must stand this
@@ -41,6 +42,7 @@ class StepThresholds:
 
     torque_step: float = MIN_TORQUE_STEP
     voltage_step: float = MIN_VOLTAGE_STEP
+    field_step: float = MIN_FIELD_STEP
 
 
 DEFAULT_THRESHOLDS = StepThresholds()
@@ -146,16 +148,21 @@ def classify(
             None,
             f"P_m stepped {d_pm:+.3f} pu",
         )
+    # an exciter/AVR reference step moves V_f at once and V_t only through the field's time
+    # constant: it is looked for before V_t's own steps
+    k_f, d_f = _largest_step(np.asarray(signals["v_f"], float), span)
+    if abs(d_f) >= thresholds.field_step:
+        return "field_step", _refine(np.asarray(signals["v_f"], float), k_f, span), None, f"V_f stepped {d_f:+.3f} pu"
     k_v, d_v = _largest_step(v, span)
     if abs(d_v) >= thresholds.voltage_step:
         return "voltage_step", _refine(v, k_v, span), None, f"V_t stepped {d_v:+.3f} pu"
     raise ScenarioError(
         f"no disturbance found (no fault, no P_m step >= {thresholds.torque_step:g} pu, "
-        f"no V_t step >= {thresholds.voltage_step:g} pu)"
+        f"no V_f step >= {thresholds.field_step:g} pu, no V_t step >= {thresholds.voltage_step:g} pu)"
     )
 
 
-STEP_SIGNAL = {"torque_step": "p_m", "voltage_step": "v_t"}
+STEP_SIGNAL = {"torque_step": "p_m", "voltage_step": "v_t", "field_step": "v_f"}
 
 
 def locate_labelled_step(signals: Mapping[str, Array], dt: float, kind: str) -> tuple[int, str]:
@@ -332,7 +339,10 @@ def find_events(
         return any(abs(k0 - e[1]) < quiet or (e[2] is not None and abs(k0 - e[2]) < quiet) for e in events)
 
     span = max(5, int(round(0.2 / dt)))
-    steps = (("torque_step", signals["p_m"], thresholds.torque_step), ("voltage_step", v, thresholds.voltage_step))
+    steps = [("torque_step", signals["p_m"], thresholds.torque_step)]
+    if "v_f" in signals:  # a detector that does not watch the excitation stream does not see field steps
+        steps.append(("field_step", signals["v_f"], thresholds.field_step))
+    steps.append(("voltage_step", v, thresholds.voltage_step))
     for kind, x, thr in steps:
         d = np.abs(_moving_step(np.asarray(x, float), span))
         cand = np.flatnonzero(d >= thr)

@@ -80,7 +80,7 @@ def steady_points(scenarios: Sequence[ScenarioData], problems: list[str] | None 
     """Steady states after the disturbance (final 20 %) of the step scenarios; unsettled ones are left out."""
     out = []
     for s in scenarios:
-        if s.role != "identify" or s.kind not in ("torque_step", "voltage_step"):
+        if s.role != "identify" or s.kind not in ("torque_step", "voltage_step", "field_step"):
             continue
         why = unsteady(s)
         if why is not None:

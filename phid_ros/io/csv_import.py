@@ -28,7 +28,7 @@ from phid_ros.io.results import read_json
 from phid_ros.io.topics import CHANNELS, STREAMS, unit_problem
 
 CSV_COLUMNS: tuple[str, ...] = ("t",) + CHANNELS
-KINDS = ("torque_step", "voltage_step", "fault", "unknown")
+KINDS = ("torque_step", "voltage_step", "fault", "field_step", "unknown")
 ROLES = ("identify", "validate")
 DEFAULT_START_NS = 1_767_225_600 * NS  # 2026-01-01T00:00:00Z
 GAP_BETWEEN_SCENARIOS_S = 5.0

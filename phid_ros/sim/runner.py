@@ -72,6 +72,7 @@ def build_inputs(scenarios: Sequence[Scenario], plant: Plant, ss: SteadyState, c
     dt = cfg.dt
     p_m = np.full((n_steps, n), ss.p_m)
     v_inf = np.full((n_steps, n), ss.v_inf)
+    v_f = np.full((n_steps, n), ss.v_f)
     z_f = np.full((n_steps, n), np.nan, dtype=complex)
     k_ramp = int(round(cfg.restore_ramp / dt))
     for j, sc in enumerate(scenarios):
@@ -81,10 +82,11 @@ def build_inputs(scenarios: Sequence[Scenario], plant: Plant, ss: SteadyState, c
         if sc.kind == "torque_step":
             p_m[k_ev:k_end, j] += sc.magnitude
             p_m[k_end : k_end + k_ramp, j] += sc.magnitude * ramp[: max(0, min(k_ramp, n_steps - k_end))]
-        elif sc.kind == "voltage_step":
-            dv = ss.v_inf * (sc.magnitude - 1.0)
-            v_inf[k_ev:k_end, j] += dv
-            v_inf[k_end : k_end + k_ramp, j] += dv * ramp[: max(0, min(k_ramp, n_steps - k_end))]
+        elif sc.kind in ("voltage_step", "field_step"):
+            x, x0 = (v_inf, ss.v_inf) if sc.kind == "voltage_step" else (v_f, ss.v_f)
+            dv = x0 * (sc.magnitude - 1.0)
+            x[k_ev:k_end, j] += dv
+            x[k_end : k_end + k_ramp, j] += dv * ramp[: max(0, min(k_ramp, n_steps - k_end))]
         else:
             k_clear = int(round((sc.t_event + sc.magnitude) / dt))
             z_f[k_ev:k_clear, j] = 1j * sc.fault_reactance
@@ -92,7 +94,7 @@ def build_inputs(scenarios: Sequence[Scenario], plant: Plant, ss: SteadyState, c
     damping = np.array([plant.params.D if sc.generator_damping else 0.0 for sc in scenarios])
     return Inputs(
         p_m=p_m,
-        v_f=np.full((n_steps, n), ss.v_f),
+        v_f=v_f,
         v_th_abs=np.abs(v_th),
         v_th_angle=np.angle(v_th),
         r_th=z_th.real,

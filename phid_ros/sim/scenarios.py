@@ -15,7 +15,7 @@ from dataclasses import dataclass, replace
 
 from phid_ros.errors import SimulationError
 
-KINDS: tuple[str, ...] = ("torque_step", "voltage_step", "fault")
+KINDS: tuple[str, ...] = ("torque_step", "voltage_step", "fault", "field_step")
 ROLES: tuple[str, ...] = ("identify", "validate")
 
 
@@ -24,7 +24,9 @@ class Scenario:
     """One disturbance from the operating point.
 
     ``magnitude`` is ΔP_m (pu) for a torque step, the ratio V_inf,new / V_inf,0
-    for a voltage step, and the fault duration (s) for a fault.
+    for a voltage step, the fault duration (s) for a fault, and the ratio V_f,new / V_f,0
+    for a field step (an exciter or AVR reference step seen at the field, the plant's
+    MOD-026 staged test).
     """
 
     name: str
@@ -44,7 +46,7 @@ class Scenario:
             raise SimulationError(f"scenario {self.name}: role {self.role!r} not one of {ROLES}")
         if not 0.0 < self.t_event < self.duration:
             raise SimulationError(f"scenario {self.name}: t_event must lie inside (0, duration)")
-        if self.kind == "voltage_step" and self.magnitude <= 0:
+        if self.kind in ("voltage_step", "field_step") and self.magnitude <= 0:
             raise SimulationError(f"scenario {self.name}: voltage ratio must be positive")
         if self.kind == "fault" and not 0.0 < self.magnitude < self.duration - self.t_event:
             raise SimulationError(f"scenario {self.name}: fault duration must be positive and end inside the run")

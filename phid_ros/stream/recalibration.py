@@ -38,7 +38,7 @@ class RecalibrationPolicy:
 
     def ready(self, counts: dict[str, int]) -> tuple[bool, str]:
         swings = counts.get("fault", 0) + counts.get("torque_step", 0)
-        steps = counts.get("torque_step", 0) + counts.get("voltage_step", 0)
+        steps = counts.get("torque_step", 0) + counts.get("voltage_step", 0) + counts.get("field_step", 0)
         if swings < self.min_swing_events:
             return False, f"needs {self.min_swing_events} fault or torque-step event(s), has {swings}"
         if steps < self.min_step_events:
