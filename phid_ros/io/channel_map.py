@@ -207,6 +207,17 @@ def load_channel_map(path: str | Path) -> ChannelMap:
     return cmap
 
 
+def check_recording(cmap: ChannelMap, source: str, available: list[str]) -> None:
+    """The map against one recording's channels: what the identification needs is mapped, and
+    every mapped channel is there; the message lists the recording's channels to choose from."""
+    require_complete(cmap, source, available)
+    for q, spec in cmap.channels.items():
+        if spec.name not in available:
+            raise ChannelMapError(
+                f"{cmap.path}: channel {spec.name!r} for {q} is not in {source} (channels: {', '.join(available)})"
+            )
+
+
 def require_complete(cmap: ChannelMap, source: str, available: list[str]) -> None:
     """Every quantity the identification needs can be formed from what is mapped; else name what
     is missing and the recording's channels to choose from."""

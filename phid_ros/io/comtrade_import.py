@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from phid_ros.errors import PhidError
-from phid_ros.io.channel_map import WAVEFORMS, ChannelMap, ChannelMapError, require_complete
+from phid_ros.io.channel_map import WAVEFORMS, ChannelMap, ChannelMapError, check_recording
 from phid_ros.io.csv_import import ScenarioTable
 from phid_ros.io.field_channels import field_recording, identification_channels, scenario_table
 from phid_ros.io.recording import Recording
@@ -107,15 +107,7 @@ def read_comtrade(path: str | Path, cmap: ChannelMap) -> ScenarioTable:
     fs = _sample_rate(p, rec)
     names = [str(n).strip() for n in rec.analog_channel_ids]
     columns = {n: i for i, n in enumerate(names)}
-    try:
-        require_complete(cmap, p.name, names)
-    except ChannelMapError as exc:
-        raise ComtradeImportError(str(exc)) from None
-    for q, spec in cmap.channels.items():
-        if spec.name not in columns:
-            raise ComtradeImportError(
-                f"{cmap.path}: channel {spec.name!r} for {q} is not in {p.name} (analog channels: {', '.join(names)})"
-            )
+    check_recording(cmap, p.name, names)
     analog = rec.analog
 
     def recorded(name: str) -> np.ndarray:

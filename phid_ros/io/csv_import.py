@@ -127,7 +127,7 @@ def _raise_parse_error(path: Path, header: list[str], idx: list[int], body: str)
         if len(row) != len(header):
             raise CsvImportError(f"{path}: line {r + 2} has {len(row)} fields, header has {len(header)}")
         for j, i in enumerate(idx):
-            if not _is_float(row[i]):
+            if not is_number(row[i]):
                 raise CsvImportError(f"{path}: line {r + 2}, column {CSV_COLUMNS[j]!r}: not a number ({row[i]!r})")
     raise CsvImportError(f"{path}: cannot parse as CSV of numbers")
 
@@ -141,7 +141,7 @@ def _scenario_name(path: Path) -> str:
     return name
 
 
-def _is_float(s: str) -> bool:
+def is_number(s: str) -> bool:
     try:
         float(s)
     except ValueError:

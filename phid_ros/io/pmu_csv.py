@@ -17,7 +17,8 @@ from pathlib import Path
 import numpy as np
 
 from phid_ros.errors import PhidError
-from phid_ros.io.channel_map import WAVEFORMS, ChannelMap, ChannelMapError, require_complete
+from phid_ros.io.channel_map import WAVEFORMS, ChannelMap, check_recording
+from phid_ros.io.csv_import import is_number
 from phid_ros.io.field_channels import field_recording, identification_channels, scenario_table
 from phid_ros.io.recording import Recording
 
@@ -56,15 +57,7 @@ def read_pmu_csv(path: str | Path, cmap: ChannelMap) -> tuple[np.ndarray, dict[s
     time_col = cmap.time_column
     if time_col not in columns:
         raise PmuImportError(f"{p}: no time column {time_col!r} (map: time); columns: {', '.join(header)}")
-    try:
-        require_complete(cmap, p.name, [h for h in header if h != time_col])
-    except ChannelMapError as exc:
-        raise PmuImportError(str(exc)) from None
-    for q, spec in cmap.channels.items():
-        if spec.name not in columns:
-            raise PmuImportError(
-                f"{cmap.path}: column {spec.name!r} for {q} is not in {p.name} (columns: {', '.join(header)})"
-            )
+    check_recording(cmap, p.name, [h for h in header if h != time_col])
     body = rows[1:]
     ragged = next((k for k, r in enumerate(body) if len(r) != len(header)), None)
     if ragged is not None:
@@ -88,7 +81,7 @@ def read_pmu_csv(path: str | Path, cmap: ChannelMap) -> tuple[np.ndarray, dict[s
         try:
             x = np.array([float(r[col]) for r in body])
         except ValueError:
-            k = next(k for k, r in enumerate(body) if not _is_number(r[col]))
+            k = next(k for k, r in enumerate(body) if not is_number(r[col]))
             raise PmuImportError(f"{p}: line {k + 2}, column {name!r}: {body[k][col]!r} is not a number") from None
         if not np.all(np.isfinite(x)):
             k = int(np.flatnonzero(~np.isfinite(x))[0])
@@ -97,14 +90,6 @@ def read_pmu_csv(path: str | Path, cmap: ChannelMap) -> tuple[np.ndarray, dict[s
 
     t_out, channels, _ = identification_channels(cmap, recorded, 1.0 / period, str(p))
     return t[0] + t_out, channels, 1.0 / period
-
-
-def _is_number(s: str) -> bool:
-    try:
-        float(s)
-    except ValueError:
-        return False
-    return True
 
 
 def import_pmu_csv(paths: Sequence[str | Path], cmap: ChannelMap) -> Recording:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from phid_ros.io.channel_map import load_channel_map
+from phid_ros.io.channel_map import ChannelMapError, load_channel_map
 from phid_ros.io.pmu_csv import PmuImportError, import_pmu_csv
 from phid_ros.model.conventions import dq_to_terminal
 from phid_ros.sim.runner import SimulationConfig, simulate_scenarios
@@ -82,7 +82,7 @@ def test_pmu_export_gives_the_channels_back(export) -> None:
     [
         (lambda rows: rows.__setitem__(5, rows[6]), r"S09\.csv: report times do not increase \(line 7"),
         (lambda rows: rows.pop(9), r"S09\.csv: reports missing or uneven at line 10 \(20\.000 ms"),
-        (lambda rows: rows.__setitem__(0, rows[0].replace("EFD", "E_FD")), r"column 'EFD' for v_f is not in S09\.csv"),
+        (lambda rows: rows.__setitem__(0, rows[0].replace("EFD", "E_FD")), r"channel 'EFD' for v_f is not in S09\.csv"),
         (lambda rows: rows.__setitem__(4, rows[4].rsplit(",", 1)[0] + ",n/a"), r"line 5, column 'PMECH': 'n/a'"),
     ],
 )
@@ -92,5 +92,5 @@ def test_bad_exports_are_named(export, tmp_path, edit, message) -> None:
     edit(rows)
     bad = tmp_path / "S09.csv"
     bad.write_text("\n".join(rows) + "\n")
-    with pytest.raises(PmuImportError, match=message):
+    with pytest.raises((PmuImportError, ChannelMapError), match=message):
         import_pmu_csv([bad], cmap)
