@@ -23,11 +23,10 @@ from phid_ros.export.record import MachineRecord, build_record
 from phid_ros.model.parameters import PARAMETER_NAMES, TABLE1, GeneratorParameters
 from phid_ros.sim.runner import SimulationConfig, simulate_scenarios
 from phid_ros.sim.scenarios import Scenario
+from test.andes_plant import MACHINE_MVA, run, system
 
 andes = pytest.importorskip("andes")
 
-SYSTEM_MVA = 100.0
-MACHINE_MVA = 1000.0
 DURATION_S = 10.0
 TORQUE_STEP = Scenario("T", "torque_step", 0.1, duration=DURATION_S)
 FAULT = Scenario("F", "fault", 0.1, duration=DURATION_S)
@@ -43,55 +42,14 @@ def export(params: GeneratorParameters) -> MachineRecord:
 
 
 def andes_run(record_file: Path, fmt: str, scenario: Scenario, cfg: SimulationConfig) -> tuple[np.ndarray, ...]:
-    andes.config_logger(stream_level=40)
-    ss = cfg.plant().steady_state(cfg.operating_point)
-    to_system = SYSTEM_MVA / MACHINE_MVA
-    s = andes.System(default_config=True)
-    s.config.freq = 50.0
-    s.add("Bus", {"idx": 1, "name": "G", "Vn": 20.0, "v0": 1.0})
-    s.add("Bus", {"idx": 2, "name": "INF", "Vn": 20.0, "v0": ss.v_inf})
-    x_e = (cfg.network.x_transformer + cfg.network.x_line) * to_system
-    s.add("Line", {"idx": "L", "bus1": 1, "bus2": 2, "x": x_e, "r": 0.0, "b": 0.0, "Vn1": 20.0, "Vn2": 20.0})
-    p_sys = cfg.operating_point.p_e / to_system
-    s.add("PV", {"idx": "1_1", "bus": 1, "subidx": 1, "Sn": MACHINE_MVA, "Vn": 20.0, "p0": p_sys, "v0": 1.0})
-    s.add("Slack", {"idx": "S", "bus": 2, "Sn": 1e5, "Vn": 20.0, "v0": ss.v_inf, "a0": 0.0})
     if fmt == "psse-dyr":
-        andes.io.psse.read_add(s, str(record_file))
-        s.GENROU.fn.v[0] = 50.0  # PSS/E takes the frequency from the case, ANDES's reader defaults it to 60 Hz
+        s = system(dyr=record_file, cfg=cfg)
     else:
+        s = system(cfg=cfg)
         andes.io.json.read(s, str(record_file))
     assert s.GENROU.n == 1
-    if scenario.kind == "torque_step":
-        dev = s.GENROU.idx.v[0]
-        s.add(
-            "Alter",
-            {
-                "t": scenario.t_event,
-                "model": "GENROU",
-                "dev": dev,
-                "src": "tm0",
-                "attr": "v",
-                "method": "+",
-                "amount": scenario.magnitude / to_system,
-            },
-        )
-    else:
-        s.add(
-            "Fault",
-            {
-                "bus": 1,
-                "tf": scenario.t_event,
-                "tc": scenario.t_clear,
-                "xf": scenario.fault_reactance * to_system,
-                "rf": 0.0,
-            },
-        )
-    s.setup()
-    assert s.PFlow.run()
-    s.TDS.config.update(tf=DURATION_S, tstep=0.01, fixt=1, shrinkt=0, no_tqdm=1)
-    assert s.TDS.run()
-    ts = s.dae.ts
-    return ts.t, ts.x[:, s.GENROU.delta.a[0]], ts.x[:, s.GENROU.omega.a[0]]
+    ch = run(s, scenario, dt=0.01)  # ANDES's trapezoidal rule at 10 ms: 0.002 deg against phid (below)
+    return ch["t"], ch["delta"], ch["omega"]
 
 
 def compare(tmp_path: Path, params: GeneratorParameters, fmt: str, scenario: Scenario) -> tuple[float, float]:

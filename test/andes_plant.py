@@ -1,0 +1,146 @@
+"""An independent plant: ANDES's GENROU/GENSAL on a single-machine infinite-bus case.
+
+None of phid's equations produce these recordings (ANDES is a test extra). The case is phid's
+simulator's own (phid_ros.sim: 0.12 + 0.08 pu to the infinite bus, P = 0.8, Q = 0.4 at
+V_t = 1.0 on a 1000 MVA machine, here on ANDES's 100 MVA system base); V_f and P_m are held
+(no exciter or governor) except where a scenario steps them. ``run`` returns the channels of
+phid's CSV contract on the machine base; ``write_set`` adds sensor noise and writes a CSV
+scenario set (``benchmarks/andes_sets.py`` makes the sets from the command line).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from phid_ros.io.csv_export import write_csv_set
+from phid_ros.io.csv_import import ScenarioTable, recording_from_tables
+from phid_ros.sim.runner import SimulationConfig
+from phid_ros.sim.scenarios import Scenario
+
+SYSTEM_MVA = 100.0
+MACHINE_MVA = 1000.0
+KV = 20.0
+TO_SYSTEM = SYSTEM_MVA / MACHINE_MVA
+# the simulator's sensor noise (phid_ros.sim.sensors defaults), per channel
+NOISE = {"v_t": 0.002, "i_d": 0.003, "i_q": 0.003, "p_e": 0.003, "q_e": 0.003, "omega": 1e-5}
+NOISE.update({"p_m": 0.002, "theta_t": 0.001, "delta": 0.001, "v_f": 0.005})
+
+
+# machines for the independent sets (ANDES GENROU fields, machine base). ANDES has no GENSAL:
+# its .dyr reader maps GENSAL onto GENROU with X'_q = X'_d, and so do these sets.
+TABLE1_GENROU = {"fn": 50.0, "M": 6.96, "D": 0.4, "xd": 2.54, "xq": 2.41, "xd1": 0.5, "xq1": 0.814, "xl": 0.15}
+TABLE1_GENROU.update({"Td10": 1.437, "Tq10": 0.1351, "S10": 0.0, "S12": 1.0})
+MACHINES: dict[str, dict[str, float]] = {
+    # X'_d = X'_q = X'': both dampers inert, GENROU is exactly the fourth-order model
+    "genrou-4th": {**TABLE1_GENROU, "xq1": 0.5, "xd2": 0.5, "xq2": 0.5, "Td20": 0.03, "Tq20": 0.03},
+    "genrou-sat": {**TABLE1_GENROU, "xd2": 0.3, "xq2": 0.3, "Td20": 0.03, "Tq20": 0.05, "S10": 0.07, "S12": 0.45},
+    "genrou-sub": {**TABLE1_GENROU, "xd2": 0.25, "xq2": 0.25, "Td20": 0.04, "Tq20": 0.08},
+    "gensal-sat": {
+        **TABLE1_GENROU,
+        "xq1": 0.5,
+        "Tq10": 1.437,
+        "xd2": 0.3,
+        "xq2": 0.3,
+        "Td20": 0.03,
+        "Tq20": 0.05,
+        "S10": 0.07,
+        "S12": 0.45,
+    },  # fmt: skip
+}
+
+
+def system(record: Mapping[str, object] | None = None, dyr: Path | None = None, cfg: SimulationConfig | None = None):
+    """The SMIB case with one machine, from an ANDES GENROU row or a PSS/E .dyr (not yet set up)."""
+    import andes
+
+    andes.config_logger(stream_level=40)
+    cfg = cfg or SimulationConfig()
+    ss = cfg.plant().steady_state(cfg.operating_point)
+    s = andes.System(default_config=True)
+    s.config.freq = cfg.f_nominal_hz
+    s.add("Bus", {"idx": 1, "name": "G", "Vn": KV, "v0": 1.0})
+    s.add("Bus", {"idx": 2, "name": "INF", "Vn": KV, "v0": ss.v_inf})
+    x_e = (cfg.network.x_transformer + cfg.network.x_line) * TO_SYSTEM
+    s.add("Line", {"idx": "L", "bus1": 1, "bus2": 2, "x": x_e, "r": 0.0, "b": 0.0, "Vn1": KV, "Vn2": KV})
+    p_sys = cfg.operating_point.p_e / TO_SYSTEM
+    s.add("PV", {"idx": "1_1", "bus": 1, "subidx": 1, "Sn": MACHINE_MVA, "Vn": KV, "p0": p_sys, "v0": 1.0})
+    s.add("Slack", {"idx": "S", "bus": 2, "Sn": 1e5, "Vn": KV, "v0": ss.v_inf, "a0": 0.0})
+    if dyr is not None:
+        andes.io.psse.read_add(s, str(dyr))
+        s.GENROU.fn.v[0] = cfg.f_nominal_hz  # the frequency is the case's; ANDES's reader defaults it to 60 Hz
+    if record is not None:
+        s.add("GENROU", {"idx": "G1", "bus": 1, "gen": "1_1", "Sn": MACHINE_MVA, "Vn": KV, **record})
+    return s
+
+
+def disturb(s, scenario: Scenario) -> None:
+    """The scenario's disturbance as ANDES events (the ramp back of phid's runner is left out)."""
+    dev = s.GENROU.idx.v[0]
+    if scenario.kind == "torque_step":
+        s.add("Alter", {"t": scenario.t_event, "model": "GENROU", "dev": dev, "src": "tm0", "attr": "v",
+                        "method": "+", "amount": scenario.magnitude / TO_SYSTEM})  # fmt: skip
+    elif scenario.kind == "field_step":
+        s.add("Alter", {"t": scenario.t_event, "model": "GENROU", "dev": dev, "src": "vf0", "attr": "v",
+                        "method": "*", "amount": scenario.magnitude})  # fmt: skip
+    elif scenario.kind == "voltage_step":
+        s.add("Alter", {"t": scenario.t_event, "model": "Slack", "dev": "S", "src": "v0", "attr": "v",
+                        "method": "*", "amount": scenario.magnitude})  # fmt: skip
+    else:
+        s.add("Fault", {"bus": 1, "tf": scenario.t_event, "tc": scenario.t_clear,
+                        "xf": scenario.fault_reactance * TO_SYSTEM, "rf": 0.0})  # fmt: skip
+
+
+def run(s, scenario: Scenario, dt: float = 0.001) -> dict[str, np.ndarray]:
+    """Simulate the set-up-to-be system through ``scenario``; the CSV contract's channels on a ``dt`` grid."""
+    disturb(s, scenario)
+    s.setup()
+    assert s.PFlow.run(), "ANDES power flow did not converge"
+    s.TDS.config.update(tf=scenario.duration, tstep=dt, fixt=1, shrinkt=0, no_tqdm=1)
+    assert s.TDS.run(), f"ANDES could not simulate {scenario.name}"
+    ts = s.dae.ts
+    g = s.GENROU
+    t = np.arange(int(round(scenario.duration / dt))) * dt
+
+    def series(kind: str, var) -> np.ndarray:
+        x = (ts.x if kind == "x" else ts.y)[:, var.a[0]]
+        return np.interp(t, ts.t, x)
+
+    out = {
+        "v_t": series("y", s.Bus.v),  # the first bus is the machine's
+        "theta_t": series("y", s.Bus.a),
+        "omega": series("x", g.omega),
+        "delta": series("x", g.delta),
+        "v_f": series("y", g.vf),
+        "p_m": series("y", g.tm) * TO_SYSTEM,
+        "p_e": series("y", g.Pe) * TO_SYSTEM,
+        "q_e": series("y", g.Qe) * TO_SYSTEM,
+        "i_d": series("y", g.Id) * TO_SYSTEM,
+        "i_q": series("y", g.Iq) * TO_SYSTEM,
+    }
+    return {"t": t, **out}
+
+
+def write_set(
+    folder: Path,
+    record: Mapping[str, object],
+    scenarios: Sequence[Scenario],
+    *,
+    seed: int = 0,
+    noise: float = 1.0,
+) -> Path:
+    """Each scenario simulated by ANDES, sensor noise added (``noise`` x the simulator's), as a CSV set."""
+    rng = np.random.default_rng(seed)
+    tables = []
+    for sc in scenarios:
+        ch = run(system(record), sc)
+        t = ch.pop("t")
+        for c, x in ch.items():
+            ch[c] = x + noise * NOISE[c] * rng.standard_normal(x.size)
+        tables.append(
+            ScenarioTable(sc.name, sc.kind, sc.role, sc.generator_damping, t, ch, sc.t_event, f"andes:{sc.name}")
+        )
+    rec = recording_from_tables(tables, 50.0, MACHINE_MVA, "andes GENROU single machine, infinite bus")
+    return write_csv_set(folder, rec)
