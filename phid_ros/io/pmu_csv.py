@@ -30,10 +30,8 @@ class PmuImportError(PhidError):
 
 
 def _seconds(values: list[str], path: Path, column: str) -> np.ndarray:
-    try:
+    if all(is_number(v) for v in values):  # seconds (UNIX or from the start); else ISO 8601 times
         return np.array([float(v) for v in values])
-    except ValueError:
-        pass
     try:
         stamps = np.array([np.datetime64(v.strip().replace("Z", "")) for v in values], dtype="datetime64[ns]")
     except ValueError as exc:
