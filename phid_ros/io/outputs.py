@@ -22,10 +22,18 @@ class OutputError(PhidError):
     """An output path cannot be written as asked."""
 
 
+PARTIAL = ".partial"
+
+
 def partial_path(path: str | Path) -> Path:
     """Where an output is built: ``x.mcap`` -> ``x.partial.mcap``, a folder ``x`` -> ``x.partial``."""
     p = Path(path)
-    return p.with_name(p.stem + ".partial" + p.suffix) if p.suffix else p.with_name(p.name + ".partial")
+    return p.with_name(p.stem + PARTIAL + p.suffix) if p.suffix else p.with_name(p.name + PARTIAL)
+
+
+def final_name(name: str) -> str:
+    """The name an output built under :func:`partial_path`'s folder name will have."""
+    return name.removesuffix(PARTIAL)
 
 
 def _same(a: Path, b: Path) -> bool:

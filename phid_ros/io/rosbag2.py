@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import shutil
 from collections.abc import Iterable, Iterator
 from pathlib import Path
@@ -12,6 +13,7 @@ from rosbags.rosbag2.errors import ReaderError, WriterError
 
 from phid_ros.errors import BagError
 from phid_ros.io.msg_schemas import typestore
+from phid_ros.io.outputs import final_name
 from phid_ros.io.recording import (
     DEFAULT_BLOCK_SIZE,
     Recording,
@@ -61,7 +63,22 @@ class Rosbag2MessageWriter:
 
     def close(self) -> Path:
         self._writer.close()
+        self._name_storage(final_name(self.path.name))
         return self.path
+
+    def _name_storage(self, name: str) -> None:
+        """The storage file named after the bag's final folder name.
+
+        rosbags names it after the folder, which is still the ``.partial`` staging folder while
+        an output is written (phid_ros.io.outputs): shipped bags said ``x.partial.mcap``, which
+        reads as an interrupted recording.
+        """
+        built = f"{self.path.name}.mcap"
+        if name == self.path.name or not (self.path / built).exists():
+            return
+        meta = self.path / "metadata.yaml"
+        os.replace(self.path / built, self.path / f"{name}.mcap")
+        meta.write_text(meta.read_text(encoding="utf-8").replace(built, f"{name}.mcap"), encoding="utf-8")
 
     def abort(self) -> None:
         if self._writer.storage is not None:

@@ -144,3 +144,16 @@ def test_warnings_go_to_stderr(tmp_path, small_bag, capsys):
     cap = capsys.readouterr()
     assert "phid: warning:" in cap.err and "phid: warning:" not in cap.out and "note:" not in cap.out
     assert json.loads(out.read_text())["parameters"]["H"] is not None
+
+
+def test_a_bag_folder_output_names_its_storage_after_the_folder(tmp_path):
+    # built in x.partial/ and renamed at the end: the storage file inside must not keep the
+    # staging name (a shipped bag read "saturation.partial.mcap", as if it were cut short)
+    from phid_ros.io.bags import read_recording
+
+    out = tmp_path / "run"
+    assert main(["simulate", "--scenario", "S04", "--duration", "3", "--out", str(out)]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["metadata.yaml", "run.mcap"]
+    assert "partial" not in (out / "metadata.yaml").read_text()
+    rec = read_recording(out)
+    assert len(rec.scenarios) == 1 and not rec.warnings
