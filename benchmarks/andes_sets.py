@@ -3,10 +3,10 @@
     python benchmarks/andes_sets.py --machine genrou-sat --out sets/genrou_sat [--duration 30] [--seed 0]
 
 Machines (``test/andes_plant.py``, machine base, Table 1 otherwise): ``genrou-4th`` (X'_d =
-X'_q = X'': exactly the fourth-order model), ``genrou-sat`` (S(1.0) 0.07, S(1.2) 0.45 on the
-air-gap flux, X'' 0.3), ``genrou-sub`` (X'' 0.25, T''_d0 0.04 s, T''_q0 0.08 s),
-``gensal-sat`` (ANDES has no GENSAL; GENROU with X'_q = X'_d and T'_q0 = T'_d0, as its .dyr
-reader maps GENSAL). Scenarios: the paper's catalogue (15 for identification, 3 validation),
+X'_q = X'': exactly the fourth-order model), ``genrou-sat`` (the same with S(1.0) 0.07, S(1.2)
+0.45, quadratic on the air-gap flux), ``genrou-sub`` (X'' 0.25, T''_d0 0.04 s, T''_q0 0.08 s),
+``genrou-sat-sub`` (saturation and X'' 0.3, T''_d0 0.03 s, T''_q0 0.05 s). ANDES 2.0 has no
+GENSAL. Scenarios: the paper's catalogue (15 for identification, 3 validation),
 each simulated by ANDES with the simulator's sensor noise added; ``phid identify`` and
 ``phid diagnose`` read the set's manifest.json.
 """
@@ -14,6 +14,7 @@ each simulated by ANDES with the simulator's sensor noise added; ``phid identify
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 from pathlib import Path
@@ -22,7 +23,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from phid_ros.sim.scenarios import paper_catalogue, with_duration  # noqa: E402
-from test.andes_plant import MACHINES, write_set  # noqa: E402
+from test.andes_plant import MACHINES, TRUTH, write_set  # noqa: E402
 
 
 def main() -> None:
@@ -36,7 +37,10 @@ def main() -> None:
     scenarios = [with_duration(s, args.duration) for s in paper_catalogue()]
     t0 = time.perf_counter()
     manifest = write_set(Path(args.out), MACHINES[args.machine], scenarios, seed=args.seed, noise=args.noise)
-    print(f"wrote {manifest}: {len(scenarios)} scenarios of {args.machine} in {time.perf_counter() - t0:.0f} s")
+    truth = Path(args.out).with_suffix(".truth.json") if Path(args.out).suffix else Path(f"{args.out}.truth.json")
+    truth.write_text(json.dumps({"parameters": TRUTH[args.machine], "andes_genrou": MACHINES[args.machine]}, indent=1))
+    seconds = time.perf_counter() - t0
+    print(f"wrote {manifest} and {truth}: {len(scenarios)} scenarios of {args.machine} in {seconds:.0f} s")
 
 
 if __name__ == "__main__":

@@ -29,26 +29,42 @@ NOISE = {"v_t": 0.002, "i_d": 0.003, "i_q": 0.003, "p_e": 0.003, "q_e": 0.003, "
 NOISE.update({"p_m": 0.002, "theta_t": 0.001, "delta": 0.001, "v_f": 0.005})
 
 
-# machines for the independent sets (ANDES GENROU fields, machine base). ANDES has no GENSAL:
-# its .dyr reader maps GENSAL onto GENROU with X'_q = X'_d, and so do these sets.
+# machines for the independent sets (ANDES GENROU fields, machine base). ANDES 2.0 has no GENSAL
+# (its .dyr reader maps GENSAL onto GENROU), so no set here is a salient-pole machine.
 TABLE1_GENROU = {"fn": 50.0, "M": 6.96, "D": 0.4, "xd": 2.54, "xq": 2.41, "xd1": 0.5, "xq1": 0.814, "xl": 0.15}
 TABLE1_GENROU.update({"Td10": 1.437, "Tq10": 0.1351, "S10": 0.0, "S12": 1.0})
 MACHINES: dict[str, dict[str, float]] = {
     # X'_d = X'_q = X'': both dampers inert, GENROU is exactly the fourth-order model
     "genrou-4th": {**TABLE1_GENROU, "xq1": 0.5, "xd2": 0.5, "xq2": 0.5, "Td20": 0.03, "Tq20": 0.03},
-    "genrou-sat": {**TABLE1_GENROU, "xd2": 0.3, "xq2": 0.3, "Td20": 0.03, "Tq20": 0.05, "S10": 0.07, "S12": 0.45},
-    "genrou-sub": {**TABLE1_GENROU, "xd2": 0.25, "xq2": 0.25, "Td20": 0.04, "Tq20": 0.08},
-    "gensal-sat": {
+    # the same with saturation (quadratic, on the air-gap flux, both axes): one effect missing
+    "genrou-sat": {
         **TABLE1_GENROU,
         "xq1": 0.5,
-        "Tq10": 1.437,
-        "xd2": 0.3,
-        "xq2": 0.3,
+        "xd2": 0.5,
+        "xq2": 0.5,
         "Td20": 0.03,
-        "Tq20": 0.05,
+        "Tq20": 0.03,
         "S10": 0.07,
         "S12": 0.45,
     },  # fmt: skip
+    # strong dampers, no saturation: one effect missing
+    "genrou-sub": {**TABLE1_GENROU, "xd2": 0.25, "xq2": 0.25, "Td20": 0.04, "Tq20": 0.08},
+    # both
+    "genrou-sat-sub": {**TABLE1_GENROU, "xd2": 0.3, "xq2": 0.3, "Td20": 0.03, "Tq20": 0.05, "S10": 0.07, "S12": 0.45},
+}
+# the eight fourth-order parameters each machine has (GENROU's H = M / 2; its X', T' are the base)
+TRUTH = {
+    name: {
+        "H": m["M"] / 2,
+        "D": m["D"],
+        "X_d": m["xd"],
+        "X_q": m["xq"],
+        "X_d_prime": m["xd1"],
+        "X_q_prime": m["xq1"],
+        "T_d0_prime": m["Td10"],
+        "T_q0_prime": m["Tq10"],
+    }  # fmt: skip
+    for name, m in MACHINES.items()
 }
 
 

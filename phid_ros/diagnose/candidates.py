@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from phid_ros.sim.effects import REGISTRY as EFFECTS
-from phid_ros.sim.effects import EffectParameter, PlantEffect
+from phid_ros.sim.effects import EffectParameter, PlantEffect, leakage_default
 
 Array = NDArray[np.float64]
 
@@ -112,14 +112,40 @@ class Candidate:
         return ()
 
     @classmethod
+    def presence(cls, values: dict[str, Any], std: dict[str, float], base: dict[str, float]) -> float | None:
+        """How many standard deviations the fitted effect stands from its absence, or None.
+
+        The largest over the parameters that declare the value at which the effect vanishes
+        (``EffectParameter.absent``) and have a standard deviation; None when none can say
+        (a searched latency, a torsional mode: there the information criteria decide alone).
+        """
+        z = []
+        bounds = {p.name: p for p in cls.free()}
+        for p in cls.effect.parameters:
+            if p.absent is None or p.name not in std or not std[p.name] > 0:
+                continue
+            null = float(base[p.absent] if isinstance(p.absent, str) else p.absent)
+            v = float(values[p.name])
+            # pressed onto the bound on the side of its absence (r_a at its 0.001 floor, X'' at its
+            # ceiling below X'): the data pull it towards "absent", whatever its interval says
+            fp = bounds.get(p.name)
+            edge = None if fp is None else (fp.low if null < v else fp.high)
+            if edge is not None and abs(v - edge) <= 1e-6 * max(abs(edge), 1e-12) + 1e-12:
+                z.append(0.0)
+                continue
+            z.append(abs(v - null) / std[p.name])
+        return max(z) if z else None
+
+    @classmethod
     def joint_screen(
-        cls, base: dict[str, float], pre: dict[str, float]
+        cls, base: dict[str, float], pre: dict[str, float], setting: dict[str, str] | None = None
     ) -> tuple[dict[str, Array], dict[str, Array]] | None:
         """Trial values of the effect *and* of the base parameters it distorts, or None.
 
         For an effect that breaks the three-stage identification itself (its estimates land
         far from any model a local fit can start from), the screen also re-grids the base
-        parameters it corrupts. ``pre`` holds the mean pre-event terminal quantities.
+        parameters it corrupts. ``pre`` holds the mean pre-event terminal quantities, ``setting``
+        the effect's discrete settings the screen chose.
         """
         return None
 
@@ -165,14 +191,24 @@ class SaturationCandidate(Candidate):
     def admissible(cls, values: dict[str, Array], base: dict[str, float]) -> Array:
         return values["s12"] > values["s10"]
 
-    # Saturation adds S(E'_q) E'_q to the field-flux balance, a steady offset on V_f that makes
-    # stage 3 place T'_d0 an order of magnitude too long (+900 % seen with S(1.0) = 0.07) and
-    # stage 2 X_d 15 % too large; a local fit from there stays there. So the d-axis parameters
-    # are screened with the saturation curve: X'_d and T'_d0 on a grid, X_d from the pre-event
-    # field balance V_f = E'_q + (X_d - X'_d) I_d + S(E'_q) E'_q.
+    # Disturbances around one operating point see S(psi) only near that flux, where the quadratic
+    # and the exponential curve fit alike: on ANDES's quadratic GENROU the screen chose the
+    # exponential, fitted with S(1.0) = 0.137 for the true 0.07, and so exported a wrong S(1.0).
+    # The diagnosis therefore fits the planning models' own quadratic (GENROU, GENSAL) and
+    # chooses only the form; the exponential curve (GENROE, GENSAE) is for simulation.
+    @classmethod
+    def choices(cls) -> list[dict[str, str]]:
+        return [c for c in super().choices() if c["curve"] == "quadratic"]
+
+    # Saturation adds S psi''_d to the field-flux balance (and, in GENROU's form, S psi''_q to the
+    # q-axis one), a steady offset on V_f that makes stage 3 place T'_d0 an order of magnitude too
+    # long (+900 % seen with S(1.0) = 0.07), stage 2 X_d 15 % too large and, on GENROU's q axis,
+    # X_q 20 % too small; a local fit from there stays there. So the d-axis parameters are
+    # screened with the saturation curve: X'_d and T'_d0 on a grid, X_d and X_q from the pre-event
+    # balances V_f = E'_q + (X_d - X'_d) I_d + loss_d and E'_d = (X_q - X'_q) I_q - loss_q.
     @classmethod
     def joint_screen(
-        cls, base: dict[str, float], pre: dict[str, float]
+        cls, base: dict[str, float], pre: dict[str, float], setting: dict[str, str] | None = None
     ) -> tuple[dict[str, Array], dict[str, Array]] | None:
         s10, s12, xdp, td0 = (
             a.ravel()
@@ -184,13 +220,29 @@ class SaturationCandidate(Candidate):
                 indexing="ij",
             )
         )
+        setting = setting or {p.name: p.default for p in cls.effect.parameters if p.choices}
+        effect = cls.effect.from_arrays(s10=s10, s12=s12, **setting)
         e_q = pre["v_q"] + xdp * pre["i_d"]
-        loss = cls.effect.from_arrays(s10=s10, s12=s12).flux_loss_d(e_q)
-        xd = xdp + (pre["v_f"] - e_q - loss) / pre["i_d"]
-        ok = (s12 > s10) & (xd > 1.05 * xdp)
+        e_d = pre["v_d"] - base["X_q_prime"] * pre["i_q"]
+        x_l = leakage_default(np.minimum(xdp, base["X_q_prime"]))
+        xd, xq = np.full_like(xdp, base["X_d"]), np.full_like(xdp, base["X_q"])
+        for _ in range(3):  # the q-axis share (X_q - X_l)/(X_d - X_l) depends on both: a few passes
+            ctx = {"e_q": e_q, "e_d": e_d, "psi_d": e_q, "psi_q": e_d, "x_l": x_l}
+            loss_d, loss_q = effect.transient_losses(np.empty(0), ctx, _Reactances(xd, xq))
+            xd = xdp + (pre["v_f"] - e_q - loss_d) / pre["i_d"]
+            xq = np.broadcast_to(base["X_q_prime"] + (e_d + loss_q) / pre["i_q"], xdp.shape)
+        ok = (s12 > s10) & (xd > 1.05 * xdp) & (xq > 1.05 * base["X_q_prime"])
         trial_base = {k: np.full(ok.sum(), v) for k, v in base.items()}
-        trial_base.update(X_d_prime=xdp[ok], T_d0_prime=td0[ok], X_d=xd[ok])
-        return {"s10": s10[ok], "s12": s12[ok]}, trial_base
+        trial_base.update(X_d_prime=xdp[ok], T_d0_prime=td0[ok], X_d=xd[ok], X_q=xq[ok])
+        return {"s10": s10[ok], "s12": s12[ok], **setting}, trial_base
+
+
+@dataclass(frozen=True)
+class _Reactances:
+    """The synchronous reactances an effect's losses read, one value per trial."""
+
+    X_d: Any
+    X_q: Any
 
 
 @register
@@ -232,6 +284,12 @@ class SensorDelayCandidate(Candidate):
 class SubtransientCandidate(Candidate):
     effect = EFFECTS["subtransient_dynamics"]
     signature = "current and power errors in the first 100 ms after each switching; fast band"
+
+    # X_l is held at its planning default min(0.15, 0.8 X''): it only sets how GENROU splits the
+    # flux between the transient and damper windings, which terminal measurements barely see
+    @classmethod
+    def free(cls) -> tuple[FreeParameter, ...]:
+        return tuple(p for p in super().free() if p.name != "x_l")
 
     @classmethod
     def admissible(cls, values: dict[str, Array], base: dict[str, float]) -> Array:

@@ -32,12 +32,15 @@ def to_json(
 ) -> dict[str, Any]:
     effects = []
     prev = d.before
-    for (cand, values), (name, sc) in zip(d.final.model.effects, d.steps):
+    stds = d.final.effect_std or [{} for _ in d.final.model.effects]
+    for (cand, values), (name, sc), std in zip(d.final.model.effects, d.steps, stds):
         trial = next(t for r in d.rounds for t in r.trials if t.accepted and t.candidate == name)
         effects.append(
             {
                 "name": name,
                 "parameters": dict(values),
+                "parameters_std": dict(std),
+                "presence_sigma": trial.presence,
                 "rmse_before": prev.overall,
                 "rmse_after": sc.overall,
                 "delta_bic": trial.delta_bic,
@@ -69,6 +72,7 @@ def to_json(
                         "delta_bic": None if math.isnan(t.delta_bic) else t.delta_bic,
                         "heldout_rmse": t.heldout.overall if t.heldout else None,
                         "heldout_gain": None if math.isnan(t.heldout_gain) else t.heldout_gain,
+                        "presence_sigma": t.presence,
                         "accepted": t.accepted,
                     }
                     for t in r.trials

@@ -21,6 +21,7 @@ from typing import Any
 
 from phid_ros.errors import PhidError
 from phid_ros.model.parameters import PARAMETER_NAMES
+from phid_ros.sim.effects import leakage_default
 
 MODELS = ("GENROU", "GENSAL")
 
@@ -62,8 +63,6 @@ BASE_FIELDS = {
 # on a torque step, 0.32 deg on a fault; with 0.05 s it was 0.07 and 0.49 deg).
 DEFAULT_TD20_S = 0.03
 DEFAULT_TQ20_S = 0.03
-DEFAULT_XL_PU = 0.15
-XL_SHARE_OF_XD2 = 0.8  # Xl must stay below X''_d: GENROU's flux split divides by X'_d - Xl
 
 
 class ExportError(PhidError):
@@ -175,7 +174,7 @@ def build_record(
         sources[f] = origin + (" NOT IDENTIFIED" if name in flagged else "")
     warnings: list[str] = []
     _fill_subtransient(values, sources, effects.get("subtransient_dynamics"), warnings)
-    _fill_saturation(values, sources, effects.get("magnetic_saturation"), warnings)
+    _fill_saturation(values, sources, effects.get("magnetic_saturation"), warnings, model)
     ra = effects.get("stator_resistance")
     values["ra"], sources["ra"] = (float(ra["r_a"]), "diagnosis: stator_resistance r_a") if ra else (0.0, "default")
     if model == "GENSAL":
@@ -209,20 +208,34 @@ def _fill_subtransient(
         sources["Xd2"] = "default: min(X'_d, X'_q), the damper of that axis inert"
         values["Td20"], sources["Td20"] = DEFAULT_TD20_S, "default"
         values["Tq20"], sources["Tq20"] = DEFAULT_TQ20_S, "default"
-    values["Xl"] = min(DEFAULT_XL_PU, XL_SHARE_OF_XD2 * values["Xd2"])
-    sources["Xl"] = f"default: min({DEFAULT_XL_PU:g}, {XL_SHARE_OF_XD2:g} X''_d)"
+    x_l = float((effect or {}).get("x_l", math.nan))
+    if math.isfinite(x_l):
+        values["Xl"], sources["Xl"] = x_l, "diagnosis: subtransient_dynamics x_l"
+    else:  # the rule the diagnosis's damper model used too (GENROU's flux split needs X_l < X'')
+        x_pp = min(float(effect["x_dpp"]), float(effect["x_qpp"])) if effect else values["Xd2"]
+        values["Xl"] = float(leakage_default(x_pp))
+        sources["Xl"] = "default: min(0.15, 0.8 X'')"
 
 
 def _fill_saturation(
-    values: dict[str, float], sources: dict[str, str], effect: Mapping[str, Any] | None, warnings: list[str]
+    values: dict[str, float],
+    sources: dict[str, str],
+    effect: Mapping[str, Any] | None,
+    warnings: list[str],
+    model: str,
 ) -> None:
     if effect:
         values["S10"], sources["S10"] = float(effect["s10"]), "diagnosis: magnetic_saturation s10"
         values["S12"], sources["S12"] = float(effect["s12"]), "diagnosis: magnetic_saturation s12"
-        warnings.append(
-            "phid's saturation is exponential on E'_q (d axis); GENROU's is quadratic on the air-gap flux: "
-            "the two agree at 1.0 and 1.2 pu, not between or beyond"
-        )
+        # a diagnosis from before the planning forms had S(1.0) exp(b (E'_q - 1)) on E'_q
+        form = str(effect.get("form", "exponential on E'_q (phid before 2026-11)"))
+        curve = str(effect.get("curve", "exponential"))
+        wanted = ("gensal" if model == "GENSAL" else "genrou", "quadratic")
+        if (form, curve) != wanted:
+            warnings.append(
+                f"the diagnosis found saturation of {form} form with a {curve} curve; {model} has the "
+                f"{wanted[0]} form with a quadratic curve: they agree at 1.0 and 1.2 pu, not between or beyond"
+            )
     else:
         values["S10"], sources["S10"] = 0.0, "default: no saturation"
         values["S12"], sources["S12"] = 0.0, "default: no saturation"

@@ -61,6 +61,10 @@ class IdentificationResult:
     def parameters(self) -> dict[str, float]:
         return {n: self.estimates[n].value if n in self.estimates else math.nan for n in PARAMETER_NAMES}
 
+    def at_bound(self) -> tuple[str, ...]:
+        """Parameters left at a search bound of their stage: their values carry no information."""
+        return tuple(n for n in PARAMETER_NAMES if n in self.estimates and self.estimates[n].at_bound)
+
     def complete(self) -> GeneratorParameters | None:
         """The identified set as a model, if all eight exist and are physically valid."""
         p = self.parameters

@@ -7,11 +7,13 @@ without touching the others. An effect acts through a few hooks, each a no-op
 by default:
 
 - ``configure(plant)``: change plant constants (stator resistance);
-- ``flux_loss_d(e_q)``: an extra term subtracted in T'_d0 dE'_q/dt (saturation);
+- ``transient_losses(states, ctx, params)``: terms subtracted in T'_d0 dE'_q/dt and
+  T'_q0 dE'_d/dt (saturation; the damper currents of GENROU's rotor);
 - ``on_measurements(measured, dt)``: act on the sensor outputs (a delayed stream).
 
 - ``initial_states`` / ``derivatives``: states of its own after the base four;
 - ``emf``: replace the EMF behind the stator reactances (damper windings);
+- ``leakage(params)``: the stator leakage reactance X_l the rotor's equations assume.
 - ``swing``: replace the rotor's d(omega)/dt (a second mass on the shaft).
 
 Effects: ``stator_resistance``, ``magnetic_saturation``, ``sensor_delay``,
@@ -20,6 +22,7 @@ Effects: ``stator_resistance``, ``magnetic_saturation``, ``sensor_delay``,
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cached_property
@@ -43,6 +46,9 @@ class EffectParameter:
     low: float | None = None
     high: float | None = None
     choices: tuple[str, ...] = ()
+    # the value at which the effect vanishes (a number, or the name of the base parameter it
+    # then equals); the diagnosis names an effect only when its estimate is clearly away from it
+    absent: float | str | None = None
 
 
 class PlantEffect:
@@ -95,8 +101,14 @@ class PlantEffect:
     def configure(self, plant: Any) -> None:
         return None
 
-    def flux_loss_d(self, e_q: Array) -> Array | float:
-        return 0.0
+    def transient_losses(self, states: Array, ctx: dict[str, Any], params: Any) -> tuple[Any, Any]:
+        """(d, q): subtracted from the right-hand sides of T'_d0 dE'_q/dt and T'_q0 dE'_d/dt.
+
+        ``ctx`` carries the base states and currents, and ``psi_d``, ``psi_q`` (the EMF behind the
+        stator reactances: the air-gap flux of GENROU, E'_q and E'_d in the fourth-order model) and
+        ``x_l``. Free of side effects: the steady state calls it while it searches the equilibrium.
+        """
+        return 0.0, 0.0
 
     def on_measurements(self, measured: dict[str, Array], dt: float) -> dict[str, Array]:
         return measured
@@ -117,8 +129,13 @@ class PlantEffect:
         """Values of this effect's states at the operating point (dx/dt = 0)."""
         return []
 
-    def emf(self, states: Array, params: Any) -> tuple[Array, Array, float, float]:
+    def emf(self, x: Array, states: Array, params: Any) -> tuple[Array, Array, Any, Any]:
+        """(psi''_d, psi''_q, X''_d, X''_q) from all states ``x`` and this effect's ``states``."""
         raise SimulationError(f"effect {self.name} does not replace the stator EMF")
+
+    def leakage(self, params: Any) -> Any:
+        """X_l, when this effect's equations define it (the EMF owner's is the plant's)."""
+        return None
 
     def swing(self, states: Array, ctx: dict[str, Any], params: Any) -> Array | None:
         """A replacement for d(omega)/dt of the generator rotor, or None."""
@@ -142,7 +159,7 @@ class StatorResistance(PlantEffect):
     """Armature resistance R_a (the base model has R_a = 0)."""
 
     name = "stator_resistance"
-    parameters = (EffectParameter("r_a", 0.005, "pu", "stator resistance", 0.001, 0.02),)
+    parameters = (EffectParameter("r_a", 0.005, "pu", "stator resistance", 0.001, 0.02, absent=0.0),)
 
     def configure(self, plant: Any) -> None:
         plant.r_a = self["r_a"]
@@ -151,17 +168,56 @@ class StatorResistance(PlantEffect):
         return {}  # the plant's r_a, which the kernel reads
 
 
+def leakage_default(x_pp: Any) -> Any:
+    """X_l where none is known: min(0.15, 0.8 X''), the planning default (GENROU needs X_l < X'')."""
+    return np.minimum(0.15, 0.8 * np.asarray(x_pp, float))
+
+
+def saturation_curve(curve: str, s10: Any, s12: Any) -> tuple[Any, Any]:
+    """The two constants of S(psi) through S(1.0) = s10 and S(1.2) = s12 (PSS/E's definitions).
+
+    quadratic (GENROU, GENSAL): S = B (psi - A)^2 / psi above A, 0 below;
+    exponential (GENROE, GENSAE): S = s10 psi^X with X = ln(s12 / s10) / ln 1.2.
+    """
+    s10, s12 = np.asarray(s10, float), np.asarray(s12, float)
+    if curve == "exponential":
+        return s10, np.log(s12 / s10) / np.log(1.2)
+    r = np.sqrt(1.2 * s12 / s10)
+    a = (1.2 - r) / (1.0 - r)
+    return a, s10 / (1.0 - a) ** 2
+
+
+def saturation_factor(curve: str, c1: Any, c2: Any, psi: Any) -> Any:
+    """S(psi) for the constants of :func:`saturation_curve`."""
+    if curve == "exponential":
+        return c1 * np.power(psi, c2)
+    over = np.maximum(psi - c1, 0.0)
+    return c2 * over * over / psi
+
+
 @register
 class MagneticSaturation(PlantEffect):
-    """Open-circuit saturation of the d axis: T'_d0 dE'_q/dt gains -S_E(E'_q) E'_q.
+    """Open-circuit saturation as the planning models define it, through S(1.0) and S(1.2).
 
-    S_E(E) = A exp(B E), fitted through the usual two points S(1.0) and S(1.2).
+    ``form=genrou`` (round rotor): on the air-gap flux magnitude |psi''| (the EMF behind the
+    stator reactances), both axes: T'_d0 dE'_q/dt gains -S psi''_d and T'_q0 dE'_d/dt gains
+    -S psi''_q (X_q - X_l)/(X_d - X_l). ``form=gensal`` (salient pole): on E'_q, d axis only,
+    T'_d0 dE'_q/dt gains -S(E'_q) E'_q. ``curve``: quadratic (GENROU/GENSAL) or exponential
+    (GENROE/GENSAE), see :func:`saturation_curve`.
+
+    Before this form, phid's saturation was S(1.0) exp(b (E'_q - 1)) E'_q on the d axis: the
+    GENSAL form with a curve no planning model uses. On a GENROU machine (ANDES) it explained
+    only part of the gap and left X_q 20 % off, because GENROU saturates the q axis too.
     """
 
     name = "magnetic_saturation"
     parameters = (
-        EffectParameter("s10", 0.08, "pu", "saturation factor at 1.0 pu", 0.02, 0.2),
-        EffectParameter("s12", 0.35, "pu", "saturation factor at 1.2 pu", 0.1, 0.8),
+        EffectParameter("s10", 0.08, "pu", "saturation factor at 1.0 pu", 0.02, 0.2, absent=0.0),
+        EffectParameter("s12", 0.35, "pu", "saturation factor at 1.2 pu", 0.1, 0.8, absent=0.0),
+        EffectParameter("form", "genrou", "", "where it acts (planning model)", choices=("genrou", "gensal")),
+        EffectParameter(
+            "curve", "quadratic", "", "S(psi) through S(1.0), S(1.2)", choices=("quadratic", "exponential")
+        ),
     )
 
     def __init__(self, **values: Any) -> None:
@@ -170,14 +226,32 @@ class MagneticSaturation(PlantEffect):
             raise SimulationError("effect magnetic_saturation: s12 must exceed s10")
 
     @cached_property
-    def _exponent(self) -> Any:
-        return np.log(self["s12"] / self["s10"]) / 0.2
+    def _constants(self) -> tuple[Any, Any]:
+        return saturation_curve(self["curve"], self["s10"], self["s12"])
 
-    def flux_loss_d(self, e_q: Array) -> Array:
-        return self["s10"] * np.exp(self._exponent * (e_q - 1.0)) * e_q
+    def factor(self, psi: Any) -> Any:
+        return saturation_factor(self["curve"], *self._constants, psi)
+
+    def transient_losses(self, states: Array, ctx: dict[str, Any], params: Any) -> tuple[Any, Any]:
+        if self["form"] == "gensal":
+            e_q = ctx["e_q"]
+            return self.factor(e_q) * e_q, 0.0
+        psi_d, psi_q, x_l = ctx["psi_d"], ctx["psi_q"], ctx["x_l"]
+        s = self.factor(np.sqrt(psi_d * psi_d + psi_q * psi_q))
+        return s * psi_d, s * psi_q * (params.X_q - x_l) / (params.X_d - x_l)
 
     def kernel_terms(self, plant: Any) -> dict[str, Any]:
-        return {"saturation": True, "s10": self["s10"], "sat_b": self._exponent}
+        from phid_ros.sim.kernel import SATURATION_FORMS
+
+        c1, c2 = self._constants
+        p, x_l = plant.params, plant.x_l
+        return {
+            "saturation": SATURATION_FORMS[self["form"]],
+            "sat_curve": 1.0 if self["curve"] == "exponential" else 0.0,
+            "sat_c1": c1,
+            "sat_c2": c2,
+            "sat_q": (p.X_q - x_l) / (p.X_d - x_l),
+        }
 
 
 @register
@@ -211,47 +285,90 @@ class SensorDelay(PlantEffect):
 
 @register
 class SubtransientDynamics(PlantEffect):
-    """Damper windings: two more flux states behind the subtransient reactances (sixth order).
+    """Damper windings as GENROU writes them (PSS/E; ANDES, OpenIPSL): psi_kd, psi_kq behind X''.
 
-    T''_d0 dE''_q/dt = E'_q - E''_q - (X'_d - X''_d) I_d
-    T''_q0 dE''_d/dt = E'_d - E''_d + (X'_q - X''_q) I_q
-    V_q = E''_q - X''_d I_d,   V_d = E''_d + X''_q I_q
+    T''_d0 dpsi_kd/dt = E'_q - psi_kd - (X'_d - X_l) I_d
+    T''_q0 dpsi_kq/dt = E'_d - psi_kq + (X'_q - X_l) I_q
+    psi''_d = g_d E'_q + (1 - g_d) psi_kd,   g_d = (X''_d - X_l)/(X'_d - X_l)   (same for q)
+    V_q = psi''_d - X''_d I_d,   V_d = psi''_q + X''_q I_q
+    and the damper currents load the transient windings: T'_d0 dE'_q/dt gains
+    -(X_d - X'_d)(X'_d - X''_d)/(X'_d - X_l)^2 (E'_q - psi_kd - (X'_d - X_l) I_d), and likewise q.
+
+    Before, phid used the simplified form T''_d0 dE''_q/dt = E'_q - E''_q - (X'_d - X''_d) I_d
+    (no load on the field): on ANDES's GENROU the diagnosis then explained the damper transient
+    with X'' and T'' 5-20 % off and left T'_q0 24 % off. With X''_q = X'_q the q damper is inert
+    (GENSAL's single q winding is then X'_q, T'_q0). X_l is the leakage reactance; unset, it is
+    :func:`leakage_default` of X''.
     """
 
     name = "subtransient_dynamics"
     parameters = (
-        EffectParameter("x_dpp", 0.25, "pu", "d-axis subtransient reactance X''_d", 0.12, 0.4),
-        EffectParameter("x_qpp", 0.30, "pu", "q-axis subtransient reactance X''_q", 0.12, 0.5),
+        EffectParameter("x_dpp", 0.25, "pu", "d-axis subtransient reactance X''_d", 0.12, 0.4, absent="X_d_prime"),
+        EffectParameter("x_qpp", 0.30, "pu", "q-axis subtransient reactance X''_q", 0.12, 0.5, absent="X_q_prime"),
         EffectParameter("t_d0pp", 0.03, "s", "d-axis subtransient time constant T''_d0", 0.01, 0.1),
         EffectParameter("t_q0pp", 0.05, "s", "q-axis subtransient time constant T''_q0", 0.01, 0.2),
+        EffectParameter("x_l", math.nan, "pu", "stator leakage reactance X_l (unset: min(0.15, 0.8 X''))", 0.05, 0.3),
     )
-    state_names = ("e_q_pp", "e_d_pp")
+    state_names = ("psi_kd", "psi_kq")
     provides_emf = True
+
+    def leakage(self, params: Any) -> Any:
+        x_l = np.asarray(self["x_l"], float)
+        rule = leakage_default(np.minimum(self["x_dpp"], self["x_qpp"]))
+        return np.where(np.isnan(x_l), rule, x_l)
 
     def configure(self, plant: Any) -> None:
         p = plant.params
-        if self.checked and not (self["x_dpp"] < p.X_d_prime and self["x_qpp"] < p.X_q_prime):
-            raise SimulationError("effect subtransient_dynamics: X''_d, X''_q must lie below X'_d, X'_q")
+        if self.checked:
+            if not (self["x_dpp"] < p.X_d_prime and self["x_qpp"] < p.X_q_prime):
+                raise SimulationError("effect subtransient_dynamics: X''_d, X''_q must lie below X'_d, X'_q")
+            if not self.leakage(p) < min(self["x_dpp"], self["x_qpp"]):
+                raise SimulationError("effect subtransient_dynamics: X_l must lie below X''_d and X''_q")
+        self._constants = self._gains(p)
+
+    def _gains(self, p: Any) -> tuple[Any, ...]:
+        """Once per plant: X_l, g_d, g_q and the two load factors on the transient windings."""
+        x_l = self.leakage(p)
+        xdp_l, xqp_l = p.X_d_prime - x_l, p.X_q_prime - x_l
+        g_d = (self["x_dpp"] - x_l) / xdp_l
+        g_q = (self["x_qpp"] - x_l) / xqp_l
+        load_d = (p.X_d - p.X_d_prime) * (p.X_d_prime - self["x_dpp"]) / (xdp_l * xdp_l)
+        load_q = (p.X_q - p.X_q_prime) * (p.X_q_prime - self["x_qpp"]) / (xqp_l * xqp_l)
+        return x_l, g_d, g_q, load_d, load_q
 
     def initial_states(self, ctx: dict[str, Any], plant: Any) -> list[float]:
-        p = plant.params
-        return [
-            ctx["e_q"] - (p.X_d_prime - self["x_dpp"]) * ctx["i_d"],
-            ctx["e_d"] + (p.X_q_prime - self["x_qpp"]) * ctx["i_q"],
-        ]
+        p, x_l = plant.params, self.leakage(plant.params)
+        return [ctx["e_q"] - (p.X_d_prime - x_l) * ctx["i_d"], ctx["e_d"] + (p.X_q_prime - x_l) * ctx["i_q"]]
 
-    def emf(self, states: Array, params: Any) -> tuple[Array, Array, float, float]:
-        return states[0], states[1], self["x_dpp"], self["x_qpp"]
+    def emf(self, x: Array, states: Array, params: Any) -> tuple[Array, Array, Any, Any]:
+        _, g_d, g_q, _, _ = self._constants
+        return (
+            g_d * x[2] + (1.0 - g_d) * states[0],
+            g_q * x[3] + (1.0 - g_q) * states[1],
+            self["x_dpp"],
+            self["x_qpp"],
+        )
 
-    def kernel_terms(self, plant: Any) -> dict[str, Any]:
-        return {"subtransient": True, **{k: self[k] for k in ("x_dpp", "x_qpp", "t_d0pp", "t_q0pp")}}
+    def _drives(self, states: Array, ctx: dict[str, Any], params: Any) -> tuple[Array, Array]:
+        x_l = self._constants[0]
+        return (
+            ctx["e_q"] - states[0] - (params.X_d_prime - x_l) * ctx["i_d"],
+            ctx["e_d"] - states[1] + (params.X_q_prime - x_l) * ctx["i_q"],
+        )
+
+    def transient_losses(self, states: Array, ctx: dict[str, Any], params: Any) -> tuple[Any, Any]:
+        d, q = self._drives(states, ctx, params)
+        _, _, _, load_d, load_q = self._constants
+        return load_d * d, load_q * q
 
     def derivatives(self, states: Array, ctx: dict[str, Any], params: Any) -> list[Array]:
-        e_qpp, e_dpp = states[0], states[1]
-        return [
-            (ctx["e_q"] - e_qpp - (params.X_d_prime - self["x_dpp"]) * ctx["i_d"]) / self["t_d0pp"],
-            (ctx["e_d"] - e_dpp + (params.X_q_prime - self["x_qpp"]) * ctx["i_q"]) / self["t_q0pp"],
-        ]
+        d, q = self._drives(states, ctx, params)
+        return [d / self["t_d0pp"], q / self["t_q0pp"]]
+
+    def kernel_terms(self, plant: Any) -> dict[str, Any]:
+        x_l, g_d, g_q, load_d, load_q = self._constants
+        terms = {k: self[k] for k in ("x_dpp", "x_qpp", "t_d0pp", "t_q0pp")}
+        return {"subtransient": True, **terms, "x_l": x_l, "g_d": g_d, "g_q": g_q, "load_d": load_d, "load_q": load_q}
 
 
 @register

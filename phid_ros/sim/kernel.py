@@ -35,12 +35,19 @@ ROWS = (
     "x_q_prime",
     "r_a",
     "damping",
-    "s10",  # magnetic saturation: S(1.0), and the exponent of S(E) = S(1.0) exp(b (E - 1))
-    "sat_b",
-    "x_dpp",  # subtransient dynamics
-    "x_qpp",
+    "sat_curve",  # magnetic saturation: 1 exponential, 0 quadratic; the curve's two constants;
+    "sat_c1",  # the q-axis share (X_q - X_l)/(X_d - X_l) of GENROU's form
+    "sat_c2",
+    "sat_q",
+    "x_dpp",  # subtransient dynamics (GENROU's dampers): reactances, time constants, X_l,
+    "x_qpp",  # the flux shares g_d, g_q and the dampers' load on the transient windings
     "t_d0pp",
     "t_q0pp",
+    "x_l",
+    "g_d",
+    "g_q",
+    "load_d",
+    "load_q",
     "h_t",  # shaft torsion: turbine and generator inertia, stiffness, shaft damping
     "h_g",
     "k_shaft",
@@ -49,7 +56,10 @@ ROWS = (
 ROW = {name: i for i, name in enumerate(ROWS)}
 # the same indices as constants, which the compiled code reads as literals
 INV_2H, XD_DIFF, XQ_DIFF, INV_TD0, INV_TQ0, XDP, XQP, R_A, DAMPING = range(9)
-S10, SAT_B, X_DPP, X_QPP, T_D0PP, T_Q0PP, H_T, H_G, K_SHAFT, D_SHAFT = range(9, 19)
+SAT_CURVE, SAT_C1, SAT_C2, SAT_Q = range(9, 13)
+X_DPP, X_QPP, T_D0PP, T_Q0PP, X_L, G_D, G_Q, LOAD_D, LOAD_Q = range(13, 22)
+H_T, H_G, K_SHAFT, D_SHAFT = range(22, 26)
+SATURATION_FORMS = {"gensal": 1, "genrou": 2}  # the kernel's `sat` flag; 0: none
 
 try:
     from numba import njit
@@ -129,7 +139,7 @@ def _terms(plant: Any, cols: int, damping: Array) -> tuple[Array, tuple[int, int
             return None
         for name, value in found.items():
             if name in flags:
-                flags[name] = 1 if name == "saturation" else sl.start
+                flags[name] = int(value) if name == "saturation" else sl.start
             else:
                 put(name, value)
     return coef, (flags["saturation"], flags["subtransient"], flags["torsion"])
@@ -156,8 +166,11 @@ def _rhs_column(
 ) -> None:
     """dx/dt of one column: the same operations, in the same order, as ``Plant._rhs``."""
     delta, omega, e_q, e_d = x[0], x[1], x[2], x[3]
-    if sub_at >= 0:  # subtransient dynamics provide the EMF behind X''_d, X''_q
-        eq_i, ed_i, xd_i, xq_i = x[sub_at], x[sub_at + 1], coef[X_DPP, c], coef[X_QPP, c]
+    if sub_at >= 0:  # GENROU's dampers: the EMF behind X''_d, X''_q is the air-gap flux psi''
+        g_d, g_q = coef[G_D, c], coef[G_Q, c]
+        eq_i = g_d * e_q + (1.0 - g_d) * x[sub_at]
+        ed_i = g_q * e_d + (1.0 - g_q) * x[sub_at + 1]
+        xd_i, xq_i = coef[X_DPP, c], coef[X_QPP, c]
     else:
         eq_i, ed_i, xd_i, xq_i = e_q, e_d, coef[XDP, c], coef[XQP, c]
     ang = delta - th
@@ -175,21 +188,38 @@ def _rhs_column(
     slip = omega - 1.0
     damping = coef[DAMPING, c]
     d_omega = (pm - p_airgap - damping * slip) * coef[INV_2H, c]
-    loss = 0.0
-    if sat:
-        loss = 0.0 + coef[S10, c] * np.exp(coef[SAT_B, c] * (e_q - 1.0)) * e_q
+    loss_d = 0.0
+    loss_q = 0.0
+    if sat > 0:
+        psi = e_q if sat == 1 else np.sqrt(eq_i * eq_i + ed_i * ed_i)
+        c1, c2 = coef[SAT_C1, c], coef[SAT_C2, c]
+        if coef[SAT_CURVE, c] > 0.5:
+            s = c1 * psi**c2
+        else:
+            over = max(psi - c1, 0.0)
+            s = c2 * over * over / psi
+        if sat == 1:
+            loss_d = loss_d + s * e_q
+        else:
+            loss_d = loss_d + s * eq_i
+            loss_q = loss_q + s * ed_i * coef[SAT_Q, c]
+    if sub_at >= 0:
+        x_l = coef[X_L, c]
+        drive_d = e_q - x[sub_at] - (coef[XDP, c] - x_l) * i_d
+        drive_q = e_d - x[sub_at + 1] + (coef[XQP, c] - x_l) * i_q
+        loss_d = loss_d + coef[LOAD_D, c] * drive_d
+        loss_q = loss_q + coef[LOAD_Q, c] * drive_q
+        out[sub_at] = drive_d / coef[T_D0PP, c]
+        out[sub_at + 1] = drive_q / coef[T_Q0PP, c]
     out[0] = ws * slip
-    out[2] = (vf - e_q - coef[XD_DIFF, c] * i_d - loss) * coef[INV_TD0, c]
-    out[3] = (coef[XQ_DIFF, c] * i_q - e_d) * coef[INV_TQ0, c]
+    out[2] = (vf - e_q - coef[XD_DIFF, c] * i_d - loss_d) * coef[INV_TD0, c]
+    out[3] = (coef[XQ_DIFF, c] * i_q - e_d - loss_q) * coef[INV_TQ0, c]
     if tor_at >= 0:
         h_t, h_g, k = coef[H_T, c], coef[H_G, c], coef[K_SHAFT, c]
         torque = k * (x[tor_at] - delta) + coef[D_SHAFT, c] * (x[tor_at + 1] - omega)
         d_omega = (torque - p_airgap - damping * (omega - 1.0)) / (2 * h_g)
         out[tor_at] = ws * (x[tor_at + 1] - 1.0)
         out[tor_at + 1] = (pm - torque) / (2 * h_t)
-    if sub_at >= 0:
-        out[sub_at] = (e_q - x[sub_at] - (coef[XDP, c] - coef[X_DPP, c]) * i_d) / coef[T_D0PP, c]
-        out[sub_at + 1] = (e_d - x[sub_at + 1] + (coef[XQP, c] - coef[X_QPP, c]) * i_q) / coef[T_Q0PP, c]
     out[1] = d_omega
 
 

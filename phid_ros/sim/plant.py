@@ -13,6 +13,7 @@ stator resistance ``r_a`` is already carried through the algebraic solve.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -21,7 +22,7 @@ from phid_ros.errors import SimulationError
 from phid_ros.model.conventions import DEFAULT_F_NOMINAL_HZ, electrical_power, omega_s
 from phid_ros.model.parameters import GeneratorParameters
 from phid_ros.numerics import rk4
-from phid_ros.sim.effects import PlantEffect
+from phid_ros.sim.effects import PlantEffect, leakage_default
 from phid_ros.sim.network import Network
 
 Array = NDArray[np.float64]
@@ -135,41 +136,74 @@ class Plant:
             self.slots.append(slice(start, start + len(effect.state_names)))
             start += len(effect.state_names)
         self.n_states = start
-        self._flux_effects = [e for e in self.effects if type(e).flux_loss_d is not PlantEffect.flux_loss_d]
+        self._loss_effects = [
+            (e, sl)
+            for e, sl in zip(self.effects, self.slots)
+            if type(e).transient_losses is not PlantEffect.transient_losses
+        ]
         emf_owners = [e for e in self.effects if e.provides_emf]
         if len(emf_owners) > 1:
             raise SimulationError("only one effect may replace the stator EMF")
+        # X_l, which GENROU's rotor equations assume: the damper model's, else the planning default
+        owned = [x for x in (e.leakage(p) for e in emf_owners) if x is not None]
+        self.x_l = owned[0] if owned else leakage_default(np.minimum(p.X_d_prime, p.X_q_prime))
 
     # -- steady state ---------------------------------------------------
     def steady_state(self, op: OperatingPoint) -> SteadyState:
-        """Equilibrium with ω = 1 that delivers ``op`` at the terminals; dx/dt = 0 there."""
+        """Equilibrium with ω = 1 that delivers ``op`` at the terminals; dx/dt = 0 there.
+
+        Without effects on the q axis the rotor lies on E_Q = V + (R_a + jX_q) I. An effect that
+        loads the q-axis transient winding in steady state (GENROU's saturation) moves it; the
+        angle is then found by a secant search on the q-axis balance (E'_d's derivative zero).
+        """
         p = self.params
         if op.v_t <= 0:
             raise SimulationError(f"operating point voltage must be positive, got {op.v_t}")
         v = complex(op.v_t, 0.0)
         i = complex(op.p_e, -op.q_e) / op.v_t
-        e_qaxis = v + complex(self.r_a, p.X_q) * i
-        delta_t = float(np.angle(e_qaxis))  # rotor angle relative to the terminal phasor
-        i_dq = 1j * i * np.exp(-1j * delta_t)
-        v_dq = 1j * v * np.exp(-1j * delta_t)
-        i_d, i_q, v_d, v_q = i_dq.real, i_dq.imag, v_dq.real, v_dq.imag
-        e_d = v_d + self.r_a * i_d - p.X_q_prime * i_q
-        e_q = v_q + self.r_a * i_q + p.X_d_prime * i_d
         v_inf = v - self.network.z_e * i
         ref = float(np.angle(v_inf))
-        p_airgap = e_d * i_d + e_q * i_q + (p.X_q_prime - p.X_d_prime) * i_d * i_q
-        ctx = {"delta": delta_t - ref, "e_q": e_q, "e_d": e_d, "i_d": i_d, "i_q": i_q, "p_m": p_airgap}
-        extra = tuple(float(v) for effect in self.effects for v in effect.initial_states(ctx, self))
+
+        def at(delta_t: float) -> tuple[dict, tuple[float, ...], float, float]:
+            """The rotor at angle ``delta_t`` from the terminal phasor: its context, effect states
+            and the residual losses (d, q) the transient windings carry."""
+            i_dq = 1j * i * np.exp(-1j * delta_t)
+            v_dq = 1j * v * np.exp(-1j * delta_t)
+            i_d, i_q, v_d, v_q = i_dq.real, i_dq.imag, v_dq.real, v_dq.imag
+            e_d = v_d + self.r_a * i_d - p.X_q_prime * i_q
+            e_q = v_q + self.r_a * i_q + p.X_d_prime * i_d
+            ctx = {"delta": delta_t - ref, "e_q": e_q, "e_d": e_d, "i_d": i_d, "i_q": i_q, "v_d": v_d, "v_q": v_q}
+            ctx["p_m"] = e_d * i_d + e_q * i_q + (p.X_q_prime - p.X_d_prime) * i_d * i_q
+            extra = tuple(float(x) for effect in self.effects for x in effect.initial_states(ctx, self))
+            x = np.array([delta_t - ref, 1.0, e_q, e_d, *extra])
+            loss_d, loss_q = self._transient_losses(x, self._context(x, i_d, i_q))
+            return ctx, extra, float(loss_d), float(loss_q)
+
+        def q_balance(delta_t: float) -> float:
+            ctx, _, _, loss_q = at(delta_t)
+            return self.xq_diff * ctx["i_q"] - ctx["e_d"] - loss_q
+
+        delta_t = float(np.angle(v + complex(self.r_a, p.X_q) * i))  # rotor angle relative to the terminal
+        if self._loss_effects:
+            a, fa = delta_t, q_balance(delta_t)
+            b = a + 1e-3
+            for _ in range(50):
+                fb = q_balance(b)
+                if abs(fb) < 1e-13 or fb == fa:
+                    break
+                a, fa, b = b, fb, b - fb * (b - a) / (fb - fa)
+            delta_t = b
+        ctx, extra, loss_d, _ = at(delta_t)
         return SteadyState(
             delta=delta_t - ref,
-            e_q=float(e_q),
-            e_d=float(e_d),
-            v_f=float(e_q + (p.X_d - p.X_d_prime) * i_d + self._flux_loss_d(np.asarray(e_q))),
-            p_m=float(p_airgap),
-            i_d=float(i_d),
-            i_q=float(i_q),
-            v_d=float(v_d),
-            v_q=float(v_q),
+            e_q=float(ctx["e_q"]),
+            e_d=float(ctx["e_d"]),
+            v_f=float(ctx["e_q"] + (p.X_d - p.X_d_prime) * ctx["i_d"] + loss_d),
+            p_m=float(ctx["p_m"]),
+            i_d=float(ctx["i_d"]),
+            i_q=float(ctx["i_q"]),
+            v_d=float(ctx["v_d"]),
+            v_q=float(ctx["v_q"]),
             theta_t=-ref,
             v_inf=float(abs(v_inf)),
             extra=extra,
@@ -181,7 +215,7 @@ class Plant:
         p = self.params
         for effect, sl in zip(self.effects, self.slots):
             if effect.provides_emf:
-                return effect.emf(x[sl], p)
+                return effect.emf(x, x[sl], p)
         return x[2], x[3], p.X_d_prime, p.X_q_prime
 
     def _currents(
@@ -225,39 +259,55 @@ class Plant:
         p_airgap = ed_i * i_d + eq_i * i_q + (xq_i - xd_i) * i_d * i_q
         slip = omega - 1.0
         d_omega = (p_m - p_airgap - damping * slip) * self.inv_2h
+        if not self.effects:
+            return np.array(
+                [
+                    self.ws * slip,
+                    d_omega,
+                    (v_f - e_q - self.xd_diff * i_d) * self.inv_td0,
+                    (self.xq_diff * i_q - e_d) * self.inv_tq0,
+                ]
+            )  # 3x faster than np.stack for a handful of rows, same values
+        ctx = self._context(x, i_d, i_q, eq_i, ed_i)
+        ctx.update(omega=omega, p_m=p_m, p_airgap=p_airgap, damping=damping, ws=self.ws)
+        loss_d, loss_q = self._transient_losses(x, ctx)
         derivs = [
             self.ws * slip,
             d_omega,
-            (v_f - e_q - self.xd_diff * i_d - self._flux_loss_d(e_q)) * self.inv_td0,
-            (self.xq_diff * i_q - e_d) * self.inv_tq0,
+            (v_f - e_q - self.xd_diff * i_d - loss_d) * self.inv_td0,
+            (self.xq_diff * i_q - e_d - loss_q) * self.inv_tq0,
         ]
-        if self.effects:
-            ctx = {
-                "x": x,
-                "delta": delta,
-                "omega": omega,
-                "e_q": e_q,
-                "e_d": e_d,
-                "i_d": i_d,
-                "i_q": i_q,
-                "p_m": p_m,
-                "p_airgap": p_airgap,
-                "damping": damping,
-                "ws": self.ws,
-            }
-            for effect, sl in zip(self.effects, self.slots):
-                swing = effect.swing(x[sl], ctx, self.params)
-                if swing is not None:
-                    derivs[1] = swing
-                derivs.extend(effect.derivatives(x[sl], ctx, self.params))
-        return np.array(derivs)  # 3x faster than np.stack for a handful of rows, same values
+        for effect, sl in zip(self.effects, self.slots):
+            swing = effect.swing(x[sl], ctx, self.params)
+            if swing is not None:
+                derivs[1] = swing
+            derivs.extend(effect.derivatives(x[sl], ctx, self.params))
+        return np.array(derivs)
 
-    def _flux_loss_d(self, e_q: Array) -> Array | float:
-        """Extra losses in the field-flux equation from switched-on effects (0 for the base model)."""
-        total: Array | float = 0.0
-        for effect in self._flux_effects:
-            total = total + effect.flux_loss_d(e_q)
-        return total
+    def _context(self, x: Array, i_d: Any, i_q: Any, psi_d: Any = None, psi_q: Any = None) -> dict[str, Any]:
+        """What the effects' hooks read: the base states, the currents and the air-gap flux."""
+        if psi_d is None:
+            psi_d, psi_q, _, _ = self._emf(x)
+        return {
+            "x": x,
+            "delta": x[0],
+            "e_q": x[2],
+            "e_d": x[3],
+            "i_d": i_d,
+            "i_q": i_q,
+            "psi_d": psi_d,
+            "psi_q": psi_q,
+            "x_l": self.x_l,
+        }
+
+    def _transient_losses(self, x: Array, ctx: dict[str, Any]) -> tuple[Any, Any]:
+        """Terms the switched-on effects subtract in the two transient windings' equations."""
+        loss_d: Any = 0.0
+        loss_q: Any = 0.0
+        for effect, sl in self._loss_effects:
+            d, q = effect.transient_losses(x[sl], ctx, self.params)
+            loss_d, loss_q = loss_d + d, loss_q + q
+        return loss_d, loss_q
 
     def derivatives(self, x: Array, inputs: Inputs, step: int = 0) -> Array:
         """dx/dt for states ``x`` (4, n) under the inputs of one step."""

@@ -27,16 +27,19 @@ def baseline():
 @pytest.mark.parametrize(
     "effect, channel, band, phases",
     [
-        ("shaft_torsion", "omega", "fast (3-20 Hz)", {"settling", "first_second"}),
-        ("sensor_delay=stream=pmu,delay_ms=20", "omega", "electromechanical (0.5-3 Hz)", {"first_second"}),
-        ("magnetic_saturation=s10=0.1,s12=0.4", "delta", "slow (< 0.5 Hz)", {"settling", "steady_state"}),
-        ("stator_resistance=r_a=0.01", "delta", "slow (< 0.5 Hz)", {"settling"}),
+        ("shaft_torsion", {"omega"}, "fast (3-20 Hz)", {"settling", "first_second"}),
+        ("sensor_delay=stream=pmu,delay_ms=20", {"omega"}, "electromechanical (0.5-3 Hz)", {"first_second"}),
+        # GENSAL's form loads the field winding alone: the rotor angle drifts. GENROU's also loads
+        # the q-axis winding, and Q_e and the angle carry the gap about equally (17 500 and 17 200)
+        ("magnetic_saturation=s10=0.1,s12=0.4,form=gensal", {"delta"}, "slow (< 0.5 Hz)", {"settling", "steady_state"}),
+        ("magnetic_saturation=s10=0.1,s12=0.4", {"q_e", "delta"}, "slow (< 0.5 Hz)", {"settling", "steady_state"}),
+        ("stator_resistance=r_a=0.01", {"delta"}, "slow (< 0.5 Hz)", {"settling"}),
     ],
 )
 def test_a_missing_effect_stands_out_where_its_physics_acts(baseline, effect, channel, band, phases):
     rep = report(effect)
     assert rep.total > 20 * baseline.total  # the model without the effect leaves a large gap
-    assert rep.top("by_channel", 1)[0][0] == channel
+    assert rep.top("by_channel", 1)[0][0] in channel
     assert rep.top("by_band", 1)[0][0] == band
     assert rep.top("by_phase", 1)[0][0] in phases
 
