@@ -51,12 +51,16 @@ def print_parameters(console: Console, doc: dict[str, Any]) -> None:
     rows = []
     for n in PARAMETER_NAMES:
         row = [SYMBOLS[n], fmt(doc["parameters_identified"][n]), fmt(doc["parameters_base_refit"][n])]
-        row.append(fmt(doc["parameters"][n]))
+        # n.d.: the data do not determine it (a two-point profile, diagnose.workflow.determined)
+        determined = doc.get("identifiable", {}).get(n, True)
+        row.append(fmt(doc["parameters"][n]) + ("" if determined else " n.d."))
         if truth:
             e = doc["errors_pct"]
             row += [fmt(truth[n]), pct(e["identified"][n]), pct(e["after"][n])]
         rows.append(row)
     print_table(console, "base parameters", cols, rows)
+    if not all(doc.get("identifiable", {}).get(n, True) for n in PARAMETER_NAMES):
+        console.print("n.d. = not determined by these data: held 10 % away, the rest refit as well (warnings)")
 
 
 def print_rounds(console: Console, doc: dict[str, Any]) -> None:
@@ -108,6 +112,7 @@ def run(args: Any, console: Console) -> int:
                 workers=args.workers,
                 scheduler=args.scheduler,
                 wide=res.at_bound(),
+                held=res.stage1_held(),
             ),
             progress=progress.update,
         )

@@ -63,22 +63,28 @@ class FitResult:
     message: str = ""
     # standard deviation of each free effect parameter (linear units), per effect of the model
     effect_std: list[dict[str, float]] = field(default_factory=list)
+    base_std: dict[str, float] = field(default_factory=dict)  # the same for the base parameters
 
     @property
     def bic(self) -> float:
         return self.n * math.log(self.chi2 / self.n) + self.k * math.log(self.n)
 
 
-def base_free(start: Mapping[str, float], wide: Collection[str] = ()) -> list[FreeParameter]:
+def base_free(
+    start: Mapping[str, float], wide: Collection[str] = (), held: Collection[str] = ()
+) -> list[FreeParameter]:
     """Base parameters free within a factor of 3 of the start (and their physical range).
 
     ``wide``: parameters whose start carries no information (the identification left them at a
     search bound) are free over their whole physical range. Saturation on GENROU's q axis sent
     stage 3's T'_q0 to its 3 s bound; within a factor of 3 of each previous fit it could not get
     below 0.33 s in the round that named saturation (truth 0.135 s), and the fit stalled there.
+    ``held``: parameters kept at their start (not free).
     """
     out = []
     for n in PARAMETER_NAMES:
+        if n in held:
+            continue
         s = SPECS_BY_NAME[n]
         v = float(start[n])
         if n == "D":  # may be near zero: linear scale
@@ -145,11 +151,13 @@ class Problem:
         f_nominal_hz: float = DEFAULT_F_NOMINAL_HZ,
         basin: bool = False,
         wide: Collection[str] = (),
+        held: Collection[str] = (),
     ) -> None:
         """``basin``: the last effect's searched parameters are free too (see ``basin_free``);
-        ``wide``: base parameters free over their physical range (see :func:`base_free`)."""
+        ``wide``, ``held``: base parameters free over their physical range, and not free
+        (see :func:`base_free`)."""
         self.windows, self.sigma, self.spec, self.f = list(windows), dict(sigma), spec, f_nominal_hz
-        self.free: list[tuple[int, FreeParameter]] = [(-1, p) for p in base_free(spec.base, wide)]
+        self.free: list[tuple[int, FreeParameter]] = [(-1, p) for p in base_free(spec.base, wide, held)]
         for i, (cand, _) in enumerate(spec.effects):
             self.free.extend((i, p) for p in cand.free())
         if basin and spec.effects:
@@ -243,12 +251,14 @@ def fit(problem: Problem, max_nfev: int = 12) -> FitResult:
     r = evaluate(sol.x, False)[0]
     k = len(x0) + sum(len(c.searched()) for c, _ in problem.spec.effects)
     spec = problem.spec_at(sol.x)
-    std = _effect_std(problem, sol.x, np.asarray(sol.jac), r, k, spec)
-    return FitResult(spec, float(r @ r), len(r), k, sol.nfev, sol.message, std)
+    base_std, effect_std = _std(problem, sol.x, np.asarray(sol.jac), r, k, spec)
+    return FitResult(spec, float(r @ r), len(r), k, sol.nfev, sol.message, effect_std, base_std)
 
 
-def _effect_std(problem: Problem, x: Array, J: Array, r: Array, k: int, spec: ModelSpec) -> list[dict[str, float]]:
-    """Standard deviations of the effect parameters from the Jacobian at the solution.
+def _std(
+    problem: Problem, x: Array, J: Array, r: Array, k: int, spec: ModelSpec
+) -> tuple[dict[str, float], list[dict[str, float]]]:
+    """Standard deviations of the base and effect parameters from the Jacobian at the solution.
 
     The covariance (J'J)^-1 s^2 takes s^2 from the residual itself (model error counts as noise),
     widened by (1 + rho)/(1 - rho) for the residual's lag-one correlation rho: the play-in's
@@ -261,12 +271,12 @@ def _effect_std(problem: Problem, x: Array, J: Array, r: Array, k: int, spec: Mo
     widen = (1 + rho) / (1 - rho) if 0 < rho < 1 else 1.0
     cov = np.linalg.pinv(J.T @ J) * s2 * widen
     sd_x = np.sqrt(np.maximum(np.diag(cov), 0.0))
-    out: list[dict[str, float]] = [{} for _ in spec.effects]
+    base: dict[str, float] = {}
+    effects: list[dict[str, float]] = [{} for _ in spec.effects]
     for row, (i, p) in enumerate(problem.free):
-        if i >= 0:
-            v = float(np.ravel(p.from_x(x[row]))[0])
-            out[i][p.name] = float(abs(v) * sd_x[row]) if p.log else float(sd_x[row])
-    return out
+        v = float(np.ravel(p.from_x(x[row]))[0])
+        (base if i < 0 else effects[i])[p.name] = float(abs(v) * sd_x[row]) if p.log else float(sd_x[row])
+    return base, effects
 
 
 def evaluate(

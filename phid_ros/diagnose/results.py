@@ -56,6 +56,8 @@ def to_json(
         "rmse_definition": RMSE_DEFINITION,
         "channels": _channels(d.before, d.after),
         "parameters": d.final.model.base,
+        "uncertainty": d.uncertainty,
+        "identifiable": d.identifiable,
         "parameters_identified": d.identified,
         "parameters_base_refit": d.base_fit.model.base,
         "fit": {"chi2_before": d.base_fit.chi2, "chi2_after": d.final.chi2, "samples": d.final.n},

@@ -149,28 +149,22 @@ def build_record(
             f"{source}: not an identification result "
             "(it needs 'parameters' and 'identifiable', as phid identify --json writes)"
         )
-    flagged = [n for n in PARAMETER_NAMES if flags.get(n) is not True]
+    effects = _effects(diagnosis, diagnosis_source)
+    held = (result.get("constraints") or {}).get("fixed") or {}
+    chosen = _base_values(result, diagnosis, source, diagnosis_source, held)
+    flagged = [n for n in PARAMETER_NAMES if not chosen[n][2]]
     if flagged and not allow_flagged:
+        where = f"{source} and {diagnosis_source}" if diagnosis is not None else source
         raise ExportError(
-            f"{source}: {', '.join(flagged)} not identified; refusing to export a planning model with "
+            f"{where}: {', '.join(flagged)} not identified; refusing to export a planning model with "
             f"{'it' if len(flagged) == 1 else 'them'} "
             "(--allow-flagged writes them anyway, marked in the record's comment)"
         )
     f_nominal = float(result.get("f_nominal_hz", 50.0))
     values: dict[str, float] = {}
     sources: dict[str, str] = {}
-    base = params
-    base_origin = "identified"
-    effects = _effects(diagnosis, diagnosis_source)
-    if diagnosis is not None:
-        refit = diagnosis.get("parameters")
-        if not isinstance(refit, Mapping):
-            raise ExportError(f"{diagnosis_source}: the diagnosis has no final 'parameters'")
-        base, base_origin = refit, "diagnosis refit"
-    held = (result.get("constraints") or {}).get("fixed") or {}
     for name, f in BASE_FIELDS.items():
-        values[f] = _number(base, name, diagnosis_source if diagnosis is not None else source)
-        origin = f"held by the user ({name}, --fix)" if name in held else f"{base_origin} ({name})"
+        values[f], origin, _ = chosen[name]
         sources[f] = origin + (" NOT IDENTIFIED" if name in flagged else "")
     warnings: list[str] = []
     _fill_subtransient(values, sources, effects.get("subtransient_dynamics"), warnings)
@@ -188,6 +182,44 @@ def build_record(
         )
     _check(rec)
     return rec
+
+
+def _base_values(
+    result: Mapping[str, Any],
+    diagnosis: Mapping[str, Any] | None,
+    source: str,
+    diagnosis_source: str,
+    held: Mapping[str, Any],
+) -> dict[str, tuple[float, str, bool]]:
+    """Each base parameter's (value, source, identified).
+
+    With a diagnosis, its refit (with the named effects) is taken where it determined the value;
+    where it did not (its ``identifiable`` false: held 10 % away, the rest refit as well), the
+    identification's value is taken if that was identified, else the parameter is flagged. The
+    output-error refit leaves D within about +-15 %, where stage 1's swing integral had it within
+    a few per cent, and on ANDES's GENROU with close q-axis time constants it put X'_q anywhere
+    between +15 % and +63 % at the same fit: exporting the refit whole would publish those.
+    """
+    params, flags = result["parameters"], result["identifiable"]
+    out: dict[str, tuple[float, str, bool]] = {}
+    refit = fitted = None
+    if diagnosis is not None:
+        refit = diagnosis.get("parameters")
+        if not isinstance(refit, Mapping):
+            raise ExportError(f"{diagnosis_source}: the diagnosis has no final 'parameters'")
+        fitted = diagnosis.get("identifiable")  # absent in diagnoses of phid before 2026-11: all taken
+    for name in PARAMETER_NAMES:
+        ident_ok = flags.get(name) is True
+        if name in held:
+            out[name] = (_number(params, name, source), f"held by the user ({name}, --fix)", ident_ok)
+        elif refit is not None and (fitted is None or fitted.get(name) is True):
+            out[name] = (_number(refit, name, diagnosis_source), f"diagnosis refit ({name})", True)
+        elif refit is not None and ident_ok:
+            note = f"identified ({name}; the diagnosis's refit did not determine it)"
+            out[name] = (_number(params, name, source), note, True)
+        else:
+            out[name] = (_number(params, name, source), f"identified ({name})", ident_ok)
+    return out
 
 
 def _fill_subtransient(

@@ -57,15 +57,22 @@ def _identify_into(row: Row, path: str, diagnose: bool) -> None:
             row.flags.append(f"{name}: {est.note}")
     row.flags += [p for p in res.problems if "kept the label" not in p]
     if diagnose:
-        _diagnose_into(row, scenarios, res.parameters, rec.f_nominal_hz, res.at_bound())
+        _diagnose_into(row, scenarios, res.parameters, rec.f_nominal_hz, res.at_bound(), res.stage1_held())
 
 
-def _diagnose_into(row: Row, scenarios: list, start: dict[str, float], f_hz: float, wide: tuple[str, ...] = ()) -> None:
+def _diagnose_into(
+    row: Row,
+    scenarios: list,
+    start: dict[str, float],
+    f_hz: float,
+    wide: tuple[str, ...] = (),
+    held: tuple[str, ...] = (),
+) -> None:
     from phid_ros.diagnose.results import to_json
     from phid_ros.diagnose.workflow import DiagnoseOptions, diagnose
 
     # workers=0: the candidates of a round go to the fleet's own cluster (phid_ros.cluster.Jobs)
-    d = diagnose(scenarios, start, DiagnoseOptions(f_nominal_hz=f_hz, workers=0, wide=wide))
+    d = diagnose(scenarios, start, DiagnoseOptions(f_nominal_hz=f_hz, workers=0, wide=wide, held=held))
     doc = to_json(d, None, None)
     row.effects = [{"name": e["name"], "parameters": e["parameters"]} for e in doc["effects"]]
     row.method += " + diagnosis"

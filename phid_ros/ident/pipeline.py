@@ -65,6 +65,12 @@ class IdentificationResult:
         """Parameters left at a search bound of their stage: their values carry no information."""
         return tuple(n for n in PARAMETER_NAMES if n in self.estimates and self.estimates[n].at_bound)
 
+    def stage1_held(self) -> tuple[str, ...]:
+        """What a diagnosis holds at this result: D, when stage 1 identified it (see
+        ``DiagnoseOptions.held``)."""
+        d = self.estimates.get("D")
+        return ("D",) if d is not None and d.identifiable and math.isfinite(d.value) else ()
+
     def complete(self) -> GeneratorParameters | None:
         """The identified set as a model, if all eight exist and are physically valid."""
         p = self.parameters

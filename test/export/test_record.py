@@ -92,3 +92,25 @@ def test_a_held_parameter_says_so() -> None:
     doc = {**result(), "constraints": {"fixed": {"D": 0.4}, "bounds": {}, "start": {}}}
     rec = build_record(doc, source="r.json", mva=1000.0)
     assert rec.sources["D"] == "held by the user (D, --fix)" and rec.sources["H"] == "identified (H)"
+
+
+def test_what_the_diagnosis_did_not_determine_comes_from_the_identification_or_is_flagged() -> None:
+    # the diagnosis refit put D 15 % high and could not pin X'_q (held 10 % away, the rest refit as well)
+    diag = diagnosis(H=3.5, D=0.46, X_q_prime=0.95)
+    diag["identifiable"] = {n: n not in ("D", "X_q_prime") for n in PARAMETER_NAMES}
+    rec = build_record(result(), source="r.json", mva=1000.0, diagnosis=diag, diagnosis_source="d.json")
+    assert rec.values["H"] == 3.5 and rec.sources["H"] == "diagnosis refit (H)"
+    assert rec.values["D"] == 0.4 and "the diagnosis's refit did not determine it" in rec.sources["D"]
+    assert rec.values["Xq1"] == 0.814 and not rec.flagged
+    # not determined by either: refused, named, unless allowed (then marked)
+    with pytest.raises(ExportError, match=r"r\.json and d\.json: X_q_prime not identified; refusing"):
+        build_record(result(X_q_prime=False), source="r.json", mva=1000.0, diagnosis=diag, diagnosis_source="d.json")
+    rec = build_record(
+        result(X_q_prime=False), source="r.json", mva=1000.0, diagnosis=diag, diagnosis_source="d.json",
+        allow_flagged=True,
+    )  # fmt: skip
+    assert rec.flagged == ["X_q_prime"] and rec.sources["Xq1"].endswith("NOT IDENTIFIED")
+    # a parameter the identification left at a bound but the diagnosis determined is taken, identified
+    diag["identifiable"]["T_q0_prime"] = True
+    rec = build_record(result(T_q0_prime=False), source="r.json", mva=1000.0, diagnosis=diag, diagnosis_source="d.json")
+    assert "T_q0_prime" not in rec.flagged and rec.sources["Tq10"] == "diagnosis refit (T_q0_prime)"
