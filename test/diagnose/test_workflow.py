@@ -55,8 +55,16 @@ def run(effects: tuple[PlantEffect, ...], seed: int = 0) -> dict:
     cat = [replace(s, duration=12.0) if s.role == "identify" else s for s in paper_catalogue()]
     cfg = SimulationConfig(restore_ramp=1.0, restore_hold=1.0, effects=effects)
     scs = [scenario_from_run(r) for r in simulate_scenarios(cat, cfg, seed_offset=100 * seed)]
-    start = identify(scs, IdentifyOptions(baseline=False, validate=False)).parameters
-    return to_json(diagnose(scs, start, DiagnoseOptions(workers=0)), TABLE1, [e.as_dict() for e in effects])
+    res = identify(scs, IdentifyOptions(baseline=False, validate=False))
+    opts = DiagnoseOptions(workers=0, wide=res.at_bound(), held=res.stage1_held())  # as phid diagnose
+    doc = to_json(diagnose(scs, res.parameters, opts), TABLE1, [e.as_dict() for e in effects])
+    m = doc["mean_abs_error_pct_without_D"]
+    print(  # the README's table is read from these lines (pytest -s)
+        f"\nSTUDY hidden={doc['truth_effects']} named={[(e['name'], e['parameters']) for e in doc['effects']]} "
+        f"heldout={doc['rmse_before']:.2f}->{doc['rmse_after']:.2f} base={m['identified']:.2f}/{m['base_refit']:.2f}/"
+        f"{m['after']:.2f} undetermined={[n for n, ok in doc['identifiable'].items() if not ok]}"
+    )
+    return doc
 
 
 @pytest.mark.parametrize(
