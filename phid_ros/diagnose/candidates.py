@@ -92,6 +92,11 @@ class Candidate:
         return np.ones(len(next(iter(values.values()))), bool) if values else np.ones(1, bool)
 
     @classmethod
+    def physical(cls, values: dict[str, Any], base: dict[str, float]) -> bool:
+        """Whether fitted values describe a machine (the orderings the effect's equations need)."""
+        return True
+
+    @classmethod
     def searched(cls) -> tuple[str, ...]:
         """Parameters set by the screening search alone (held in the local fit; they count in BIC)."""
         return ()
@@ -190,6 +195,10 @@ class SaturationCandidate(Candidate):
     @classmethod
     def admissible(cls, values: dict[str, Array], base: dict[str, float]) -> Array:
         return values["s12"] > values["s10"]
+
+    @classmethod
+    def physical(cls, values: dict[str, Any], base: dict[str, float]) -> bool:
+        return bool(values["s12"] > values["s10"])
 
     # Disturbances around one operating point see S(psi) only near that flux, where the quadratic
     # and the exponential curve fit alike: on ANDES's quadratic GENROU the screen chose the
@@ -294,6 +303,10 @@ class SubtransientCandidate(Candidate):
     @classmethod
     def admissible(cls, values: dict[str, Array], base: dict[str, float]) -> Array:
         return (values["x_dpp"] < 0.95 * base["X_d_prime"]) & (values["x_qpp"] < 0.95 * base["X_q_prime"])
+
+    @classmethod
+    def physical(cls, values: dict[str, Any], base: dict[str, float]) -> bool:
+        return bool(values["x_dpp"] < base["X_d_prime"] and values["x_qpp"] < base["X_q_prime"])
 
 
 @register

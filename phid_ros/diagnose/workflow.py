@@ -532,7 +532,12 @@ def _trial(
     chosen = {k: v for k, v in res.model.effects[-1][1].items() if isinstance(v, str)}
     trial = Trial(cand.name(), chosen, res, chi2)
     trial.heldout = held_score(res.model, held_w, sigma, f_hz)
-    trial.presence = cand.presence(res.model.effects[-1][1], res.effect_std[-1], res.model.base)
+    found = res.model.effects[-1][1]
+    trial.presence = cand.presence(found, res.effect_std[-1], res.model.base)
+    # the local fit keeps each parameter in its own bounds, not in the effect's orderings (seen: a
+    # saturation trial with S(1.2) < S(1.0)); a fit that breaks them describes no machine: not named
+    if not cand.physical(found, res.model.base):
+        trial.presence = 0.0
     trial.delta_bic = res.bic - current.bic
     trial.heldout_gain = 1.0 - trial.heldout.overall / max(current_score.overall, 1e-12)
     return trial

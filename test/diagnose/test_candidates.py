@@ -101,3 +101,38 @@ def test_a_new_effect_is_a_candidate_without_touching_the_others():
     finally:
         REGISTRY.pop("test_field_offset")
         CANDIDATES.pop("test_field_offset", None)
+
+
+def test_presence_is_standard_deviations_from_absent_and_a_bound_on_that_side_is_absent():
+    base = TABLE1.as_dict()
+    sat, ra, sub = (candidate(n) for n in ("magnetic_saturation", "stator_resistance", "subtransient_dynamics"))
+    # S(1.0) 0.07 +- 0.007 stands 10 std from 0; S(1.2) 0.45 +- 0.09 five: the larger counts
+    assert sat.presence({"s10": 0.07, "s12": 0.45}, {"s10": 0.007, "s12": 0.09}, base) == pytest.approx(10.0)
+    # R_a pressed onto its 0.001 floor: the data pull it towards absent, however narrow its interval
+    assert ra.presence({"r_a": 0.001}, {"r_a": 1e-6}, base) == 0.0
+    # X''_d at its 0.4 ceiling below X'_d = 0.5 is absent; X''_q 0.3 +- 0.01 below X'_q 0.814 is not
+    values = {"x_dpp": 0.4, "x_qpp": 0.3, "t_d0pp": 0.03, "t_q0pp": 0.05}
+    stds = {"x_dpp": 0.001, "x_qpp": 0.01, "t_d0pp": 0.001, "t_q0pp": 0.001}
+    assert sub.presence(values, stds, base) == pytest.approx((0.814 - 0.3) / 0.01)
+    assert sub.presence({**values, "x_qpp": 0.5}, {**stds, "x_qpp": 0.001}, base) == 0.0  # both at the ceiling
+    # fitted values breaking the effect's orderings describe no machine
+    assert not sat.physical({"s10": 0.12, "s12": 0.10}, base) and sat.physical({"s10": 0.07, "s12": 0.45}, base)
+    assert not sub.physical({**values, "x_dpp": 0.55}, base)
+
+
+def test_a_further_effect_must_explain_a_quarter_of_what_is_left_and_stand_clear_of_absent():
+    from phid_ros.diagnose.workflow import DiagnoseOptions, Score, Trial, _passes
+
+    opt = DiagnoseOptions()
+    current = Score({}, 2.0)  # 4 noise variances left
+
+    def trial(after: float, presence: float | None, delta_bic: float = -5000.0) -> Trial:
+        return Trial("x", {}, None, 0.0, heldout=Score({}, after), delta_bic=delta_bic, presence=presence)
+
+    assert _passes(trial(1.5, 50.0), current, True, opt)  # 4 -> 2.25: 44 % of what was left
+    assert not _passes(trial(1.9, 50.0), current, True, opt)  # 4 -> 3.61: 10 %, an imperfect first effect's
+    assert _passes(trial(1.9, 50.0), current, False, opt)  # as the first effect the absolute drop suffices
+    assert not _passes(trial(1.0, 2.0), current, False, opt)  # 2 std from absent
+    assert not _passes(trial(1.0, 0.0), current, False, opt)  # on the bound of its absent side
+    assert _passes(trial(1.0, None), current, False, opt)  # a latency: no std, the criteria decide
+    assert not _passes(trial(1.0, 50.0, delta_bic=-100.0), current, False, opt)  # BIC margin 200
