@@ -58,6 +58,7 @@ def to_json(
         "parameters": d.final.model.base,
         "uncertainty": d.uncertainty,
         "identifiable": d.identifiable,
+        "held": d.held,
         "parameters_identified": d.identified,
         "parameters_base_refit": d.base_fit.model.base,
         "fit": {"chi2_before": d.base_fit.chi2, "chi2_after": d.final.chi2, "samples": d.final.n},

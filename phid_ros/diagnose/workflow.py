@@ -138,6 +138,7 @@ class Diagnosis:
     # the final base parameters the data determine (determined(): a two-point profile each)
     identifiable: dict[str, bool] = field(default_factory=dict)
     uncertainty: dict[str, float] = field(default_factory=dict)
+    held: list[str] = field(default_factory=list)  # base parameters kept at their identified values
 
     @property
     def named(self) -> list[str]:
@@ -405,6 +406,7 @@ def diagnose(
         problems=problems,
         identifiable=identifiable,
         uncertainty=uncertainty,
+        held=list(opt.held),
     )
 
 

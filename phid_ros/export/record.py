@@ -212,11 +212,16 @@ def _base_values(
         ident_ok = flags.get(name) is True
         if name in held:
             out[name] = (_number(params, name, source), f"held by the user ({name}, --fix)", ident_ok)
+        elif refit is not None and name in (diagnosis or {}).get("held", ()):
+            note = f"identified ({name}; held at that value in the diagnosis)"
+            out[name] = (_number(params, name, source), note, ident_ok)
         elif refit is not None and (fitted is None or fitted.get(name) is True):
             out[name] = (_number(refit, name, diagnosis_source), f"diagnosis refit ({name})", True)
         elif refit is not None and ident_ok:
             note = f"identified ({name}; the diagnosis's refit did not determine it)"
             out[name] = (_number(params, name, source), note, True)
+        elif refit is not None:  # determined by neither: the refit's, flagged (it has the named effects)
+            out[name] = (_number(refit, name, diagnosis_source), f"diagnosis refit ({name})", False)
         else:
             out[name] = (_number(params, name, source), f"identified ({name})", ident_ok)
     return out

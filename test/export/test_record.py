@@ -109,7 +109,13 @@ def test_what_the_diagnosis_did_not_determine_comes_from_the_identification_or_i
         result(X_q_prime=False), source="r.json", mva=1000.0, diagnosis=diag, diagnosis_source="d.json",
         allow_flagged=True,
     )  # fmt: skip
-    assert rec.flagged == ["X_q_prime"] and rec.sources["Xq1"].endswith("NOT IDENTIFIED")
+    # the refit's value, marked: it belongs with the damper and saturation values the refit named
+    assert rec.flagged == ["X_q_prime"] and rec.values["Xq1"] == 0.95
+    assert rec.sources["Xq1"] == "diagnosis refit (X_q_prime) NOT IDENTIFIED"
+    # D held at stage 1's value in the diagnosis is the identification's, and says so
+    diag["held"] = ["D"]
+    rec = build_record(result(), source="r.json", mva=1000.0, diagnosis=diag, diagnosis_source="d.json")
+    assert rec.values["D"] == 0.4 and rec.sources["D"] == "identified (D; held at that value in the diagnosis)"
     # a parameter the identification left at a bound but the diagnosis determined is taken, identified
     diag["identifiable"]["T_q0_prime"] = True
     rec = build_record(result(T_q0_prime=False), source="r.json", mva=1000.0, diagnosis=diag, diagnosis_source="d.json")
