@@ -14,7 +14,7 @@ from phid_ros.cli.scenarios import scenarios_from_recording
 from phid_ros.cli.tables import CHANNEL_LABELS, Col, fmt, pct, print_table, signed_int
 from phid_ros.diagnose.localise import localise
 from phid_ros.diagnose.playin import OUTPUTS
-from phid_ros.diagnose.results import to_json
+from phid_ros.diagnose.results import is_determined, to_json
 from phid_ros.diagnose.workflow import DiagnoseOptions, diagnose
 from phid_ros.errors import PhidError
 from phid_ros.ident.pipeline import IdentifyOptions, identify
@@ -52,14 +52,13 @@ def print_parameters(console: Console, doc: dict[str, Any]) -> None:
     for n in PARAMETER_NAMES:
         row = [SYMBOLS[n], fmt(doc["parameters_identified"][n]), fmt(doc["parameters_base_refit"][n])]
         # n.d.: the data do not determine it (a two-point profile, diagnose.workflow.determined)
-        determined = doc.get("identifiable", {}).get(n, True)
-        row.append(fmt(doc["parameters"][n]) + ("" if determined else " n.d."))
+        row.append(fmt(doc["parameters"][n]) + ("" if is_determined(doc, n) else " n.d."))
         if truth:
             e = doc["errors_pct"]
             row += [fmt(truth[n]), pct(e["identified"][n]), pct(e["after"][n])]
         rows.append(row)
     print_table(console, "base parameters", cols, rows)
-    if not all(doc.get("identifiable", {}).get(n, True) for n in PARAMETER_NAMES):
+    if not all(is_determined(doc, n) for n in PARAMETER_NAMES):
         console.print("n.d. = not determined by these data: held 10 % away, the rest refit as well (warnings)")
 
 

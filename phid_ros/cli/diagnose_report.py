@@ -12,6 +12,7 @@ from phid_ros.cli.report import STYLE, html_table, png_data_uri
 from phid_ros.cli.tables import CHANNEL_LABELS, axis_label, fmt, pct, signed_int
 from phid_ros.diagnose.fit import evaluate
 from phid_ros.diagnose.playin import OUTPUTS, PlayIn
+from phid_ros.diagnose.results import is_determined
 from phid_ros.diagnose.workflow import Diagnosis
 from phid_ros.io.outputs import write_text
 from phid_ros.model.parameters import PARAMETER_NAMES, SYMBOLS
@@ -128,7 +129,7 @@ def write_report(path: str | Path, d: Diagnosis, doc: dict[str, Any], source: st
             SYMBOLS[n],
             fmt(doc["parameters_identified"][n]),
             fmt(doc["parameters_base_refit"][n]),
-            fmt(doc["parameters"][n]),
+            fmt(doc["parameters"][n]) + ("" if is_determined(doc, n) else " (not determined by these data)"),
         ]
         if truth:
             row += [fmt(truth[n]), pct(doc["errors_pct"]["identified"][n]), pct(doc["errors_pct"]["after"][n])]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import Any
 
 from phid_ros.diagnose.workflow import Diagnosis, Score, parameter_errors
@@ -105,6 +106,11 @@ def to_json(
     if truth_effects is not None:
         doc["truth_effects"] = truth_effects
     return doc
+
+
+def is_determined(doc: Mapping[str, Any], name: str) -> bool:
+    """Whether the diagnosis (its JSON) determined base parameter ``name``; older JSON: yes."""
+    return bool(doc.get("identifiable", {}).get(name, True))
 
 
 def _mean_abs(errors: dict[str, float]) -> float:

@@ -48,3 +48,21 @@ def test_diagnose_with_a_negative_worker_count_is_a_one_line_error():
     r = run_phid("diagnose", str(BAGS / "saturation"), "--workers", "-1")
     assert r.returncode == 2
     assert r.stderr.strip() == "phid: error: --workers -1: give 0 (every core) or a positive number of processes"
+
+
+def test_parameters_the_diagnosis_did_not_determine_are_marked_in_the_table():
+    from rich.console import Console
+
+    from phid_ros.cli.diagnose import print_parameters
+    from phid_ros.model.parameters import PARAMETER_NAMES, TABLE1
+
+    p = TABLE1.as_dict()
+    doc = {"parameters_identified": p, "parameters_base_refit": p, "parameters": {**p, "X_q_prime": 0.9}}
+    doc["identifiable"] = {n: n != "X_q_prime" for n in PARAMETER_NAMES}
+    console = Console(width=80, record=True)
+    print_parameters(console, doc)
+    lines = console.export_text().splitlines()
+    assert [ln for ln in lines if "n.d." in ln and "X'_q" in ln] and not [
+        ln for ln in lines if "X'_d" in ln and "n.d." in ln
+    ]
+    assert any(ln.startswith("n.d. = not determined") for ln in lines)
