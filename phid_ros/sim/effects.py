@@ -312,6 +312,13 @@ class SubtransientDynamics(PlantEffect):
     state_names = ("psi_kd", "psi_kq")
     provides_emf = True
 
+    def as_dict(self) -> dict[str, Any]:
+        # The X_l in force, not the "unset" NaN: a truth file names the machine that was simulated.
+        doc = super().as_dict()
+        if self.checked:
+            doc["x_l"] = float(self.leakage(None))
+        return doc
+
     def leakage(self, params: Any) -> Any:
         x_l = np.asarray(self["x_l"], float)
         rule = leakage_default(np.minimum(self["x_dpp"], self["x_qpp"]))

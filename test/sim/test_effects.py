@@ -132,3 +132,14 @@ def test_shaft_torsion_adds_its_mode_to_the_measured_speed():
     freqs = np.fft.rfftfreq(len(w), 1e-3)
     band = (freqs > 5) & (freqs < 40)
     assert abs(freqs[band][np.argmax(spectrum[band])] - 18.0) < 1.5
+
+
+def test_truth_names_the_leakage_reactance_in_force():
+    # Unset, X_l follows the planning rule min(0.15, 0.8 X''); the truth file must carry that
+    # number (a "null" would leave a reader to guess which X_l the simulated machine had).
+    from phid_ros.sim.effects import SubtransientDynamics, effects_summary
+
+    unset = SubtransientDynamics(x_dpp=0.16, x_qpp=0.2)
+    assert effects_summary([unset])[0]["x_l"] == pytest.approx(0.128)
+    assert SubtransientDynamics(x_dpp=0.25, x_qpp=0.3).as_dict()["x_l"] == pytest.approx(0.15)
+    assert SubtransientDynamics(x_l=0.1).as_dict()["x_l"] == pytest.approx(0.1)
