@@ -97,12 +97,28 @@ def base_free(
 
 
 def residuals(runs: Sequence[PlayIn], sigma: Mapping[str, float]) -> Array:
-    """Noise-normalised residuals, shape (samples, models)."""
-    return np.concatenate([(r.sim[c] - r.meas[c]) / sigma[c] for r in runs for c in OUTPUTS], axis=0)
+    """Noise-normalised residuals, shape (samples, models).
+
+    Written into one array block by block (no per-block temporaries, no concatenation): a fit
+    assembles it at every evaluation, and the copies cost as much as the arithmetic."""
+    rows = sum(r.sim[c].shape[0] for r in runs for c in OUTPUTS)
+    out = np.empty((rows, runs[0].sim[OUTPUTS[0]].shape[1]))
+    at = 0
+    for r in runs:
+        for c in OUTPUTS:
+            block = out[at : at + r.sim[c].shape[0]]
+            np.subtract(r.sim[c], r.meas[c], out=block)
+            np.divide(block, sigma[c], out=block)
+            at += len(block)
+    return out
 
 
 def finite(r: Array) -> Array:
-    return np.where(np.isfinite(r), r, 1e6)  # a diverged model is simply a very bad one
+    """``r`` with every non-finite value at 1e6, in place: a diverged model is simply a very bad one."""
+    bad = ~np.isfinite(r)
+    if bad.any():
+        r[bad] = 1e6
+    return r
 
 
 def chi_square(

@@ -64,7 +64,7 @@ SATURATION_FORMS = {"gensal": 1, "genrou": 2}  # the kernel's `sat` flag; 0: non
 try:
     from numba import njit
 
-    _jit: Any = njit(cache=True, nogil=True)  # cache: compiled once per machine, not per process
+    _jit: Any = njit(cache=True, nogil=True, error_model="numpy")  # cache: compiled once per machine, not per process
 except ImportError:  # the numpy path runs instead
     njit = None
     _jit = None
@@ -73,6 +73,9 @@ except ImportError:  # the numpy path runs instead
 def available() -> bool:
     """numba importable and not switched off (``PHID_NO_JIT=1``)."""
     return njit is not None and not os.environ.get("PHID_NO_JIT")
+
+
+OUTPUTS = ("delta", "omega", "i_d", "i_q", "p_e", "q_e")  # rows of what :func:`integrate` returns
 
 
 def integrate(
@@ -84,12 +87,15 @@ def integrate(
     source: NDArray[np.int64],
     damping: Array,
 ) -> Array | None:
-    """RK4 of ``plant`` from ``x0`` (n_states, cols): states (n_steps + 1, n_states, cols), or None.
+    """RK4 of ``plant`` from ``x0`` (n_states, cols): its OUTPUTS (6, n_steps + 1, cols), or None.
 
     ``staged`` = (P_m, V_f, V_t, theta_t) at every half step (rows 2k + j at t_k + j h/2),
     as :func:`phid_ros.numerics.rk4` reads them; ``source[i, c]`` is the column of input ``i``
     that model column ``c`` reads (models of one scenario share its measured inputs unless an
-    effect re-times them per model). None when the compiled path cannot run.
+    effect re-times them per model). The outputs at step k are the plant's at its state x_k and
+    the inputs of row 2k (the play-in's terminal is the source: V = V_th), computed where the
+    step computes them anyway, so no trajectory of states is stored. None when the compiled
+    path cannot run.
     """
     if not available():
         return None
@@ -98,7 +104,7 @@ def integrate(
         return None
     coef, flags = terms
     p_m, v_f, v_t, theta = (np.ascontiguousarray(a, dtype=np.float64) for a in staged)
-    return _rk4_columns(
+    return _rk4_outputs(
         np.ascontiguousarray(x0, dtype=np.float64),
         p_m,
         v_f,
@@ -163,8 +169,10 @@ def _rhs_column(
     sub_at: int,
     tor_at: int,
     ws: float,
-) -> None:
-    """dx/dt of one column: the same operations, in the same order, as ``Plant._rhs``."""
+) -> tuple[float, float, float, float]:
+    """dx/dt of one column: the same operations, in the same order, as ``Plant._rhs``.
+
+    Returns the stator solution it used, (I_d, I_q, V_d, V_q), for the outputs."""
     delta, omega, e_q, e_d = x[0], x[1], x[2], x[3]
     if sub_at >= 0:  # GENROU's dampers: the EMF behind X''_d, X''_q is the air-gap flux psi''
         g_d, g_q = coef[G_D, c], coef[G_Q, c]
@@ -221,10 +229,11 @@ def _rhs_column(
         out[tor_at] = ws * (x[tor_at + 1] - 1.0)
         out[tor_at + 1] = (pm - torque) / (2 * h_t)
     out[1] = d_omega
+    return i_d, i_q, vth_d, vth_q
 
 
 @_maybe_jit
-def _rk4_columns(
+def _rk4_outputs(
     x0: Array,
     p_m: Array,
     v_f: Array,
@@ -239,20 +248,33 @@ def _rk4_columns(
     n_steps: int,
     h: float,
 ) -> Array:
+    # Steps outer, columns inner: every write of a step is contiguous over the columns. Written
+    # per column (steps inner) the outputs' rows were a cache line apart, and the play-in spent
+    # most of its time on those misses. Each column's arithmetic is the same in either order.
     n_states, cols = x0.shape
-    states = np.empty((n_steps + 1, n_states, cols))
-    states[0] = x0
+    out = np.empty((6, n_steps + 1, cols))
+    xall = x0.copy()
     h2, h6 = 0.5 * h, h / 6.0
     x = np.empty(n_states)
     xs = np.empty(n_states)
     k1, k2, k3, k4 = np.empty(n_states), np.empty(n_states), np.empty(n_states), np.empty(n_states)
-    for c in range(cols):
-        pm, vf, vt, th = source[0, c], source[1, c], source[2, c], source[3, c]
-        for i in range(n_states):
-            x[i] = x0[i, c]
-        for k in range(n_steps):
-            a, b, e = 2 * k, 2 * k + 1, 2 * k + 2
-            _rhs_column(x, k1, c, p_m[a, pm], v_f[a, vf], v_t[a, vt], theta[a, th], coef, sat, sub_at, tor_at, ws)
+    for k in range(n_steps + 1):
+        a, b, e = 2 * k, 2 * k + 1, 2 * k + 2
+        for c in range(cols):
+            pm, vf, vt, th = source[0, c], source[1, c], source[2, c], source[3, c]
+            for i in range(n_states):
+                x[i] = xall[i, c]
+            i_d, i_q, v_d, v_q = _rhs_column(
+                x, k1, c, p_m[a, pm], v_f[a, vf], v_t[a, vt], theta[a, th], coef, sat, sub_at, tor_at, ws
+            )
+            out[0, k, c] = x[0]
+            out[1, k, c] = x[1]
+            out[2, k, c] = i_d
+            out[3, k, c] = i_q
+            out[4, k, c] = v_d * i_d + v_q * i_q  # electrical_power: P_e (13) and Q_e
+            out[5, k, c] = v_q * i_d - v_d * i_q
+            if k == n_steps:
+                continue
             for i in range(n_states):
                 xs[i] = x[i] + h2 * k1[i]
             _rhs_column(xs, k2, c, p_m[b, pm], v_f[b, vf], v_t[b, vt], theta[b, th], coef, sat, sub_at, tor_at, ws)
@@ -263,6 +285,5 @@ def _rk4_columns(
                 xs[i] = x[i] + h * k3[i]
             _rhs_column(xs, k4, c, p_m[e, pm], v_f[e, vf], v_t[e, vt], theta[e, th], coef, sat, sub_at, tor_at, ws)
             for i in range(n_states):
-                x[i] = x[i] + h6 * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i])
-                states[k + 1, i, c] = x[i]
-    return states
+                xall[i, c] = x[i] + h6 * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i])
+    return out

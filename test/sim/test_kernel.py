@@ -98,7 +98,7 @@ def test_an_effect_without_compiled_terms_runs_in_numpy(windows, monkeypatch):
     def refuse(*args):
         raise AssertionError("the compiled kernel ran a plant it has no terms for")
 
-    monkeypatch.setattr(kernel, "_rk4_columns", refuse)
+    monkeypatch.setattr(kernel, "_rk4_outputs", refuse)
     out = play_in(windows, base, [(Uncompiled, {})])
     # the extra loss changes E'_q and so the currents: the numpy plant ran it
     assert np.max(np.abs(out[0].sim["i_d"] - plain[0].sim["i_d"])) > 1e-4
