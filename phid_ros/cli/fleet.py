@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 import time
-from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
@@ -17,6 +16,7 @@ from phid_ros.cli.tables import CONCISE_LEGEND, Col, estimate_text, print_table
 from phid_ros.errors import PhidError
 from phid_ros.fleet.history import Change, History, Row, changes, iter_units
 from phid_ros.fleet.run import HISTORY_FILE, FleetOptions, run_fleet
+from phid_ros.model.conventions import utc_of_stamp
 from phid_ros.model.parameters import PARAMETER_NAMES, SYMBOLS
 
 
@@ -82,7 +82,7 @@ def run(args: Any, console: Console) -> int:
 def _iso(ns: int | None) -> str:
     if ns is None:
         return "—"
-    return datetime.fromtimestamp(ns / 1e9, tz=timezone.utc).strftime("%Y-%m-%d %H:%M")
+    return utc_of_stamp(ns).strftime("%Y-%m-%d %H:%M")
 
 
 def _value(row: Row, name: str) -> str:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import html
 import math
-from datetime import datetime, timezone
+from datetime import datetime
 from pathlib import Path
 
 import numpy as np
@@ -13,11 +13,12 @@ from phid_ros.cli.report import STYLE, html_table, png_data_uri
 from phid_ros.cli.tables import CONCISE_LEGEND, estimate_text
 from phid_ros.fleet.history import Change, Row
 from phid_ros.io.outputs import write_text
+from phid_ros.model.conventions import utc_of_stamp
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, SYMBOLS
 
 
 def _when(ns: int | None) -> datetime | None:
-    return None if ns is None else datetime.fromtimestamp(ns / 1e9, tz=timezone.utc)
+    return None if ns is None else utc_of_stamp(ns)
 
 
 def _figure(rows: list[Row], flagged: list[Change]) -> str:

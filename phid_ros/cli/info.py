@@ -6,7 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from phid_ros.io.recording import NS, Recording
+from phid_ros.io.recording import Recording
+from phid_ros.model.conventions import NS
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,6 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Callable, Sequence
-from datetime import datetime, timezone
 from pathlib import Path
 
 from rich.console import Console
@@ -24,6 +23,7 @@ from phid_ros.errors import PhidError
 from phid_ros.fleet.history import DRIFT_SIGMAS
 from phid_ros.io.outputs import atomic_output, refuse_inputs
 from phid_ros.io.recording import DEFAULT_BLOCK_SIZE, Recording
+from phid_ros.model.conventions import utc_of_stamp
 
 EXIT_USER_ERROR = 2
 
@@ -133,9 +133,10 @@ def _simulate_ambient(args: argparse.Namespace, console: Console) -> int:
 
     from phid_ros.cli.simulate import DEFAULT_START_NS, recording_metadata, truth_document
     from phid_ros.io.bags import write_recording
-    from phid_ros.io.recording import NS, Recording, StreamSamples
+    from phid_ros.io.recording import Recording, StreamSamples
     from phid_ros.io.results import truth_path_for, write_json
     from phid_ros.io.topics import STREAMS
+    from phid_ros.model.conventions import NS
     from phid_ros.sim.ambient import AmbientSettings, simulate_ambient
     from phid_ros.sim.runner import SimulationConfig
     from phid_ros.sim.sensors import SensorModel
@@ -212,7 +213,7 @@ def _import_field(args: argparse.Namespace, console: Console, read: Callable[...
 
 # -- info --------------------------------------------------------------------------
 def _iso(ns: int) -> str:
-    return datetime.fromtimestamp(ns / 1e9, tz=timezone.utc).isoformat(timespec="milliseconds")
+    return utc_of_stamp(ns).isoformat(timespec="milliseconds")
 
 
 def cmd_info(args: argparse.Namespace, console: Console) -> int:

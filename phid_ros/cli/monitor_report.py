@@ -20,7 +20,8 @@ from phid_ros.cli.report import STYLE, html_table, png_data_uri
 from phid_ros.cli.tables import CONCISE_LEGEND, estimate_text
 from phid_ros.fleet.history import DRIFT_SIGMAS
 from phid_ros.io.outputs import write_text
-from phid_ros.io.recording import NS, Recording
+from phid_ros.io.recording import Recording
+from phid_ros.model.conventions import NS
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, SYMBOLS
 
 if TYPE_CHECKING:

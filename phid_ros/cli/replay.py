@@ -9,8 +9,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from phid_ros.io.recording import DEFAULT_BLOCK_SIZE, NS, Recording, block_bounds
-from phid_ros.io.topics import STREAMS_BY_NAME
+from phid_ros.io.recording import DEFAULT_BLOCK_SIZE, Recording, block_bounds
+from phid_ros.io.topics import OUTPUT_TOPICS, STREAMS_BY_NAME, output_topic
+from phid_ros.model.conventions import NS
 from phid_ros.stream.pipeline import Marker, MonitorPipeline, Outputs
 
 if TYPE_CHECKING:
@@ -106,13 +107,7 @@ def event_times(outputs: Outputs) -> np.ndarray:
 
 
 # -- the command -----------------------------------------------------------------------------
-OUTPUT_TOPICS = {
-    "events": ("/phid/events", "phid_msgs/msg/DisturbanceEvent"),
-    "windows": ("/phid/event_windows", "phid_msgs/msg/EventWindow"),
-    "parameters": ("/phid/parameters", "phid_msgs/msg/GeneratorParameters"),
-    "hamiltonian": ("/phid/hamiltonian", "phid_msgs/msg/HamiltonianState"),
-    "diagnostics": ("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray"),
-}
+BAG_TOPICS = {key: (output_topic(key), msgtype) for key, (_, msgtype) in OUTPUT_TOPICS.items()}
 
 
 class OutputCollector:
@@ -140,7 +135,7 @@ class OutputCollector:
         self.health_log: list[tuple[int, dict[str, tuple[str, int, int, int]]]] = []
 
     def _add(self, key: str, log_ns: int, msg: object) -> None:
-        topic, msgtype = OUTPUT_TOPICS[key]
+        topic, msgtype = BAG_TOPICS[key]
         self._batch.append((int(log_ns), topic, msgtype, msg))
         self.counts[topic] = self.counts.get(topic, 0) + 1
 
@@ -276,7 +271,7 @@ def print_summary(
         console.print("parameters in force at the end: none (not enough events for a recalibration)")
     if pipeline.recalibrator.last_good is not None and outputs.energy:
         e = outputs.energy[-1]
-        n_energy = collector.counts.get(OUTPUT_TOPICS["hamiltonian"][0], 0)
+        n_energy = collector.counts.get(BAG_TOPICS["hamiltonian"][0], 0)
         console.print(
             f"Hamiltonian at the end: {e.value[-1]:.5f} pu·s (MJ per MVA of rating): kinetic {fmt(e.kinetic[-1], 3)}, "
             f"magnetic d {e.magnetic_d[-1]:.4f}, q {e.magnetic_q[-1]:.4f} pu·s; "

@@ -16,10 +16,9 @@ from phid_ros.ident.scenario import (
     find_events,
     make_scenario,
 )
-from phid_ros.io.recording import MEASUREMENT_WINDOW_KEY, NS, Recording
-
-PRE_EVENT_S = 1.0
-POST_EVENT_S = 29.0
+from phid_ros.io.recording import MEASUREMENT_WINDOW_KEY, Recording
+from phid_ros.model.conventions import NS
+from phid_ros.stream.detector import POST_EVENT_S, PRE_EVENT_S
 
 
 def aligned_channels(
@@ -36,7 +35,7 @@ def aligned_channels(
     between the scenarios of a CSV set are gaps by design and skip nothing.
     """
     from phid_ros.io.recording import block_bounds
-    from phid_ros.io.topics import STREAMS, STREAMS_BY_NAME, unit_problem
+    from phid_ros.io.topics import CHANNEL_INDEX, STREAMS, STREAMS_BY_NAME, channel_columns, unit_problem
     from phid_ros.stream.align import Aligner
 
     missing_streams = [s.name for s in STREAMS if s.name not in rec.streams]
@@ -76,9 +75,9 @@ def aligned_channels(
         for what, count in dropped.items():
             if count:
                 notes.append(f"{source}: stream {name}: {count} samples dropped: {what}")
-        if h.gaps and _gap_in_windows(t, values[:, CHANNELS.index(STREAMS_BY_NAME[name].channels[0])], windows):
+        if h.gaps and _gap_in_windows(t, values[:, CHANNEL_INDEX[STREAMS_BY_NAME[name].channels[0]]], windows):
             notes.append(f"{source}: stream {name}: {h.gaps} gap(s); windows over a gap are skipped")
-    return t, period / NS, {c: values[:, i] for i, c in enumerate(CHANNELS)}, notes
+    return t, period / NS, channel_columns(values), notes
 
 
 def _gap_in_windows(t: np.ndarray, column: np.ndarray, windows: list[tuple[int, int]] | None) -> bool:

@@ -9,8 +9,9 @@ from typing import Any
 import numpy as np
 
 from phid_ros import __version__
-from phid_ros.io.recording import NS, Recording, ScenarioInfo, StreamSamples
+from phid_ros.io.recording import Recording, ScenarioInfo, StreamSamples
 from phid_ros.io.topics import STREAMS
+from phid_ros.model.conventions import NS
 from phid_ros.sim.runner import ScenarioRun, SimulationConfig, simulate_scenarios
 from phid_ros.sim.scenarios import Scenario
 

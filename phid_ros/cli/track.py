@@ -18,7 +18,8 @@ from phid_ros.cli.tables import CONCISE_LEGEND, estimate_text
 from phid_ros.errors import PhidError
 from phid_ros.io.bags import write_messages
 from phid_ros.io.outputs import atomic_output
-from phid_ros.io.recording import NS
+from phid_ros.io.topics import OUTPUT_TOPICS, output_topic
+from phid_ros.model.conventions import NS
 from phid_ros.model.parameters import SYMBOLS, TABLE1, GeneratorParameters
 from phid_ros.stream.align import Aligner
 from phid_ros.stream.tracker import TRACKED, SlidingTracker, TrackerSettings, TrackPoint
@@ -181,8 +182,8 @@ def run(args: Any, console: Any) -> int:
             msgs.append(
                 (
                     p.t_ns,
-                    "/phid/tracked_parameters",
-                    "phid_msgs/msg/GeneratorParameters",
+                    output_topic("tracked_parameters"),
+                    OUTPUT_TOPICS["tracked_parameters"][1],
                     types["phid_msgs/msg/GeneratorParameters"](
                         header=header(types, p.t_ns),
                         names=names,

@@ -31,10 +31,10 @@ STEP_SECONDS = 0.004  # RK4 step of the play-in (an even number of samples at 1 
 
 def play_in_samples(scenario: ScenarioData, step: float = STEP_SECONDS) -> np.ndarray:
     """The sample indices at which play_in reports (every play-in step)."""
-    return np.arange(0, scenario.n, _stride(scenario.dt, step))
+    return np.arange(0, scenario.n, play_in_stride(scenario.dt, step))
 
 
-def _stride(dt: float, step: float = STEP_SECONDS) -> int:
+def play_in_stride(dt: float, step: float = STEP_SECONDS) -> int:
     """Samples per play-in step; even, so the mid-step input is a sample too."""
     return max(2, 2 * int(round(step / dt / 2)))
 
@@ -91,7 +91,7 @@ def play_in(
     """
     m = len(params)
     dt = scenarios[0].dt
-    stride = _stride(dt, step)
+    stride = play_in_stride(dt, step)
     h = stride * dt
     idx = [np.arange(0, s.n, stride) for s in scenarios]
     steps = max(len(i) for i in idx)
@@ -247,7 +247,7 @@ def validate(
     sets = [params] + ([reference] if reference is not None else [])
     vs_ref, vs_meas = [], []
     for s, traj in zip(chosen, play_in(chosen, sets, f_nominal_hz)):
-        idx = np.arange(0, s.n, _stride(s.dt))
+        idx = np.arange(0, s.n, play_in_stride(s.dt))
         meas = {"delta": s["delta"][idx], "omega": s["omega"][idx], "p_e": s["p_e"][idx], "q_e": s["q_e"][idx]}
         vs_meas.append(_metrics(s.name, "measurement", traj, 0, meas))
         if reference is not None:

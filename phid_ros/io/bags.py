@@ -58,9 +58,9 @@ def recording_source(path: str | Path) -> str | None:
 
             meta = YAML(typ="safe").load((p / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
             return (meta.get("custom_data") or {}).get("phid.source")
-        from phid_ros.io.mcap_file import _metadata
+        from phid_ros.io.mcap_file import file_metadata
 
-        return _metadata(p).get("source")
+        return file_metadata(p).get("source")
     except Exception:  # not a bag, damaged, foreign: then it is not ours
         return None
 

@@ -22,6 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from phid_ros.model.conventions import NS
+
 CDR_LE_HEADER = b"\x00\x01\x00\x00"
 ENCAPSULATION = 4
 
@@ -119,7 +121,7 @@ def decode_group(
     nsec = field(layout.nanosec, "<u4")[:, 0].astype(np.int64)
     return DecodedGroup(
         order=np.asarray(order, dtype=np.int64),
-        t0_ns=sec * 1_000_000_000 + nsec,
+        t0_ns=sec * NS + nsec,
         period_s=field(layout.period, "<f8")[:, 0],
         values=[field(d, "<f8", layout.n) for d in layout.data],
     )

@@ -23,9 +23,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from phid_ros.errors import CsvImportError
-from phid_ros.io.recording import MEASUREMENT_WINDOW_KEY, NS, Recording, ScenarioInfo, StreamSamples
+from phid_ros.io.recording import MEASUREMENT_WINDOW_KEY, Recording, ScenarioInfo, StreamSamples
 from phid_ros.io.results import read_json
 from phid_ros.io.topics import CHANNELS, STREAMS, unit_problem
+from phid_ros.model.conventions import NS
 
 CSV_COLUMNS: tuple[str, ...] = ("t",) + CHANNELS
 KINDS = ("torque_step", "voltage_step", "fault", "field_step", "unknown")

@@ -105,13 +105,13 @@ def read_mcap(path: str | Path) -> Recording:
         raise BagError(f"{source}: {cut}, and what comes before the cut is not enough: {exc}") from exc
     cut = status.truncation()
     if cut is None:
-        rec.metadata = _metadata(path)
+        rec.metadata = file_metadata(path)
     else:  # the metadata index sits at the end that is missing: the recording is read without it
         rec.warnings.append(f"{source}: {cut}; {describe_span(rec)}")
     return rec
 
 
-def _metadata(path: Path) -> dict[str, str]:
+def file_metadata(path: Path) -> dict[str, str]:
     from mcap.reader import make_reader
 
     try:
@@ -132,7 +132,7 @@ def read_mcap_reference(path: str | Path) -> Recording:
     if not path.is_file():
         raise BagError(f"{source}: no such MCAP file")
     store = typestore()
-    metadata = _metadata(path)
+    metadata = file_metadata(path)
     try:
         with path.open("rb") as fh:
             reader = make_reader(fh)

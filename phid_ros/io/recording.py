@@ -24,8 +24,8 @@ from phid_ros.io.topics import (
     STREAMS_BY_NAME,
     topic_for,
 )
+from phid_ros.model.conventions import NS, split_stamp, stamp_ns
 
-NS = 1_000_000_000
 DEFAULT_BLOCK_SIZE = 100  # 100 ms blocks at 1 kHz: 10 messages/s per stream
 
 
@@ -107,12 +107,8 @@ def describe_span(rec: Recording) -> str:
 # -- time stamps -------------------------------------------------------------
 def ns_to_time(ns: int) -> object:
     store = typestore()
-    sec, nanosec = divmod(int(ns), NS)
+    sec, nanosec = split_stamp(ns)
     return store.types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec)
-
-
-def time_to_ns(t: object) -> int:
-    return int(t.sec) * NS + int(t.nanosec)  # type: ignore[attr-defined]
 
 
 def _header(stamp_ns: int) -> object:
@@ -341,7 +337,7 @@ def recording_from_messages(
         index = counts.get(name, 0)
         counts[name] = index + 1
         arrays = [np.asarray(getattr(msg, c), dtype=np.float64) for c in spec.channels]
-        asm.add_message(name, topic, index, time_to_ns(msg.header.stamp), msg.sample_period, arrays, seq)  # type: ignore[attr-defined]
+        asm.add_message(name, topic, index, stamp_ns(msg.header.stamp), msg.sample_period, arrays, seq)  # type: ignore[attr-defined]
     return asm.finish(required, metadata)
 
 
@@ -400,7 +396,7 @@ def recording_from_raw(
                 name,
                 topics[name],
                 i,
-                time_to_ns(msg.header.stamp),
+                stamp_ns(msg.header.stamp),
                 msg.sample_period,
                 arrays,
                 int(seq_of[i]),  # type: ignore[attr-defined]
@@ -453,10 +449,10 @@ def _scenario_from_msg(msg: object) -> ScenarioInfo:
         role=m.role,
         generator_damping=bool(m.generator_damping),  # type: ignore[attr-defined]
         magnitude=float(m.magnitude),
-        start_ns=time_to_ns(m.start),
-        event_ns=time_to_ns(m.event),  # type: ignore[attr-defined]
-        clearing_ns=time_to_ns(m.clearing),
-        end_ns=time_to_ns(m.end),
+        start_ns=stamp_ns(m.start),
+        event_ns=stamp_ns(m.event),  # type: ignore[attr-defined]
+        clearing_ns=stamp_ns(m.clearing),
+        end_ns=stamp_ns(m.end),
         description=m.description,  # type: ignore[attr-defined]
     )
 

@@ -7,6 +7,7 @@ may use it without depending on the bag and file code in the rest of io/.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 
 @dataclass(frozen=True)
@@ -31,10 +32,36 @@ STREAMS: tuple[StreamSpec, ...] = (
 STREAMS_BY_NAME: dict[str, StreamSpec] = {s.name: s for s in STREAMS}
 CHANNELS: tuple[str, ...] = ("v_t", "theta_t", "i_d", "i_q", "omega", "delta", "v_f", "p_m", "p_e", "q_e")
 STREAM_OF_CHANNEL: dict[str, str] = {c: s.name for s in STREAMS for c in s.channels}
+CHANNEL_INDEX: dict[str, int] = {c: i for i, c in enumerate(CHANNELS)}  # column of a channel in an aligned frame
+
+
+def channel_columns(values: Any) -> dict[str, Any]:
+    """The columns of an aligned (samples x CHANNELS) matrix by channel name (views, no copies)."""
+    return {c: values[:, i] for i, c in enumerate(CHANNELS)}
+
 
 DEFAULT_NAMESPACE = "/generator"
 SCENARIO_TOPIC = "/phid/scenarios"
 SCENARIO_MSGTYPE = "phid_msgs/msg/ScenarioMarker"
+
+# What the nodes publish: key -> (topic relative to the node's namespace, type). The nodes run in the
+# launch file's namespace (DEFAULT_NAMESPACE); phid replay and phid track write the same topics under
+# OUTPUT_NAMESPACE in their output bags, next to the /phid/scenarios markers.
+OUTPUT_NAMESPACE = "/phid"
+OUTPUT_TOPICS: dict[str, tuple[str, str]] = {
+    "events": ("events", "phid_msgs/msg/DisturbanceEvent"),
+    "windows": ("event_windows", "phid_msgs/msg/EventWindow"),
+    "parameters": ("parameters", "phid_msgs/msg/GeneratorParameters"),
+    "tracked_parameters": ("tracked_parameters", "phid_msgs/msg/GeneratorParameters"),
+    "hamiltonian": ("hamiltonian", "phid_msgs/msg/HamiltonianState"),
+    "diagnostics": ("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray"),  # absolute: the ROS convention
+}
+
+
+def output_topic(key: str, namespace: str = OUTPUT_NAMESPACE) -> str:
+    """The absolute name of output ``key`` under ``namespace`` (an absolute topic stays as it is)."""
+    name = OUTPUT_TOPICS[key][0]
+    return name if name.startswith("/") else f"{namespace.rstrip('/')}/{name}"
 
 
 # Plausible ranges in per unit / rad on the machine base: anything outside is a wrong feed (a kV, MW

@@ -14,14 +14,41 @@
   ``d + j q = j z exp(-j delta)`` (Sauer & Pai), the same map for voltages and
   currents.
 - Nominal frequency is a parameter (paper: 50 Hz).
+- Time: every stamp is an integer of nanoseconds (``NS`` per second); a ROS ``Time``
+  is its (sec, nanosec) split.
 """
 
 from __future__ import annotations
+
+from datetime import datetime, timedelta, timezone
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 DEFAULT_F_NOMINAL_HZ = 50.0
+NS = 1_000_000_000  # nanoseconds per second
+
+
+def split_stamp(ns: int) -> tuple[int, int]:
+    """(sec, nanosec) of a stamp in ns, as builtin_interfaces/Time holds it (nanosec in [0, 1e9))."""
+    sec, nanosec = divmod(int(ns), NS)
+    return sec, nanosec
+
+
+def seconds_to_ns(seconds: float) -> int:
+    """A duration in s (a message's sample period) as whole ns."""
+    return int(round(float(seconds) * NS))
+
+
+def utc_of_stamp(ns: int) -> datetime:
+    """The wall-clock moment of a stamp (ns since the Unix epoch), in UTC."""
+    sec, nanosec = split_stamp(ns)
+    return datetime.fromtimestamp(sec, tz=timezone.utc) + timedelta(microseconds=nanosec // 1000)
+
+
+def stamp_ns(t: object) -> int:
+    """A builtin_interfaces/Time (anything with ``sec`` and ``nanosec``) in ns."""
+    return int(t.sec) * NS + int(t.nanosec)  # type: ignore[attr-defined]
 
 
 def omega_s(f_nominal_hz: float = DEFAULT_F_NOMINAL_HZ) -> float:

@@ -22,6 +22,7 @@ from rclpy.qos import (
     qos_profile_sensor_data,
 )
 
+from phid_ros.io.topics import OUTPUT_TOPICS
 from phid_ros.stream.params import Tunable, validate
 
 SENSOR_TOPICS = ("pt_ct", "encoder", "pmu", "excitation")
@@ -58,6 +59,12 @@ def latched_qos() -> QoSProfile:
         reliability=ReliabilityPolicy.RELIABLE,
         durability=DurabilityPolicy.TRANSIENT_LOCAL,
     )
+
+
+def output_publisher(node: Any, key: str, qos: QoSProfile) -> Any:
+    """A publisher of output ``key`` of phid_ros.io.topics.OUTPUT_TOPICS (its topic and type)."""
+    topic, msgtype = OUTPUT_TOPICS[key]
+    return node.create_publisher(node.types[msgtype], topic, qos)
 
 
 def reliable_qos(depth: int = 50) -> QoSProfile:

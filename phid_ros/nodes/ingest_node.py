@@ -19,6 +19,7 @@ from phid_ros.nodes.common import (
     msg_types,
     now_ns,
     on_set,
+    output_publisher,
     reliable_qos,
     sensor_qos,
     spin_until_shutdown,
@@ -41,10 +42,8 @@ class IngestNode(Node):
         for name in SENSOR_TOPICS:
             cls = self.types[STREAMS_BY_NAME[name].msgtype]
             self.create_subscription(cls, name, self._sensor_callback(name), qos)
-        self.events_pub = self.create_publisher(self.types["phid_msgs/msg/DisturbanceEvent"], "events", reliable_qos())
-        self.windows_pub = self.create_publisher(
-            self.types["phid_msgs/msg/EventWindow"], "event_windows", reliable_qos()
-        )
+        self.events_pub = output_publisher(self, "events", reliable_qos())
+        self.windows_pub = output_publisher(self, "windows", reliable_qos())
         self.add_on_set_parameters_callback(on_set(INGEST, self._apply))
         steady_timer(self, self.values["process_period_s"], self.process)
         self.get_logger().info(
@@ -56,8 +55,8 @@ class IngestNode(Node):
         channels = STREAMS_BY_NAME[stream].channels
 
         def callback(msg: Any) -> None:
-            t0 = m.time_ns(msg.header.stamp)  # a zero stamp is counted and dropped by the pipeline
-            period = int(round(float(msg.sample_period) * 1e9))
+            t0 = m.stamp_ns(msg.header.stamp)  # a zero stamp is counted and dropped by the pipeline
+            period = m.seconds_to_ns(msg.sample_period)
             self.pipeline.ingest_message(stream, t0, period, m.block_arrays(msg, channels), receive_ns=now_ns(self))
 
         return callback

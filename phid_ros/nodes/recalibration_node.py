@@ -14,7 +14,7 @@ from typing import Any
 from rclpy.node import Node
 from std_srvs.srv import Trigger
 
-from phid_ros.io.topics import SCENARIO_TOPIC, STREAMS_BY_NAME
+from phid_ros.io.topics import OUTPUT_TOPICS, SCENARIO_TOPIC, STREAMS_BY_NAME
 from phid_ros.nodes.common import (
     SENSOR_TOPICS,
     byte_level,
@@ -23,6 +23,7 @@ from phid_ros.nodes.common import (
     latched_qos,
     msg_types,
     on_set,
+    output_publisher,
     reliable_qos,
     sensor_qos,
     spin_until_shutdown,
@@ -58,24 +59,15 @@ class RecalibrationNode(Node):
         for name in SENSOR_TOPICS:
             cls = self.types[STREAMS_BY_NAME[name].msgtype]
             self.create_subscription(cls, name, self._sensor_callback(name), qos)
-        self.create_subscription(
-            self.types["phid_msgs/msg/EventWindow"], "event_windows", self._on_window, reliable_qos()
-        )
+        windows, window_type = OUTPUT_TOPICS["windows"]  # the ingest node's output is our input
+        self.create_subscription(self.types[window_type], windows, self._on_window, reliable_qos())
         self.create_subscription(
             self.types["phid_msgs/msg/ScenarioMarker"], SCENARIO_TOPIC, self._on_marker, reliable_qos()
         )
-        self.params_pub = self.create_publisher(
-            self.types["phid_msgs/msg/GeneratorParameters"], "parameters", latched_qos()
-        )
-        self.tracked_pub = self.create_publisher(
-            self.types["phid_msgs/msg/GeneratorParameters"], "tracked_parameters", latched_qos()
-        )
-        self.energy_pub = self.create_publisher(
-            self.types["phid_msgs/msg/HamiltonianState"], "hamiltonian", reliable_qos(HAMILTONIAN_DEPTH)
-        )
-        self.diag_pub = self.create_publisher(
-            self.types["diagnostic_msgs/msg/DiagnosticArray"], "/diagnostics", reliable_qos(10)
-        )
+        self.params_pub = output_publisher(self, "parameters", latched_qos())
+        self.tracked_pub = output_publisher(self, "tracked_parameters", latched_qos())
+        self.energy_pub = output_publisher(self, "hamiltonian", reliable_qos(HAMILTONIAN_DEPTH))
+        self.diag_pub = output_publisher(self, "diagnostics", reliable_qos(10))
         self.create_service(Trigger, "~/recalibrate", self._recalibrate)
         self.create_service(Trigger, "~/reset", self._reset)
         self.add_on_set_parameters_callback(on_set(RECALIBRATION, self._apply))
@@ -94,10 +86,10 @@ class RecalibrationNode(Node):
 
         def callback(msg: Any) -> None:
             self._last_data, self._ended = time.monotonic(), False
-            period = int(round(float(msg.sample_period) * 1e9))
+            period = m.seconds_to_ns(msg.sample_period)
             self.pipeline.ingest_message(
                 stream,
-                m.time_ns(msg.header.stamp),
+                m.stamp_ns(msg.header.stamp),
                 period,
                 m.block_arrays(msg, channels),
                 receive_ns=int(self.get_clock().now().nanoseconds),

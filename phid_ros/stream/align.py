@@ -33,9 +33,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from phid_ros.io.topics import CHANNELS, PLAUSIBLE, STREAMS, STREAMS_BY_NAME
-
-NS = 1_000_000_000
+from phid_ros.io.topics import CHANNEL_INDEX, CHANNELS, PLAUSIBLE, STREAMS, STREAMS_BY_NAME
+from phid_ros.model.conventions import NS
 
 
 @dataclass
@@ -234,7 +233,6 @@ class Aligner:
         self._pending = {s.name: _Pending(s.channels) for s in STREAMS}
         self._held: dict[str, _Held | None] = {s.name: None for s in STREAMS}
         self._recent_t = {s.name: _RecentStamps() for s in STREAMS}
-        self._col = {c: i for i, c in enumerate(CHANNELS)}
         self._limits = {
             s.name: (np.array([PLAUSIBLE[c][0] for c in s.channels]), np.array([PLAUSIBLE[c][1] for c in s.channels]))
             for s in STREAMS
@@ -408,7 +406,7 @@ class Aligner:
             return
         values = np.full((grid.size, len(CHANNELS)), np.nan)
         for name, p in self._pending.items():
-            cols = [self._col[c] for c in p.channels]
+            cols = [CHANNEL_INDEX[c] for c in p.channels]
             t, x = p.arrays()
             if t.size == 0:
                 self.health[name].gap_grid_points += grid.size

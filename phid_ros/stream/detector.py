@@ -18,16 +18,20 @@ import numpy as np
 from numpy.typing import NDArray
 
 from phid_ros.ident.scenario import find_events
-from phid_ros.io.topics import CHANNELS
+from phid_ros.io.topics import CHANNEL_INDEX, CHANNELS
+from phid_ros.model.conventions import NS, split_stamp
 from phid_ros.stream.ring import RingBuffer
 
-NS = 1_000_000_000
+# The event window (paper: 1 s before the disturbance, 29 s after), one definition for the
+# online detector, the node parameters and the offline cut of phid identify.
+PRE_EVENT_S = 1.0
+POST_EVENT_S = 29.0
 
 
 @dataclass(frozen=True)
 class DetectorSettings:
-    pre_s: float = 1.0
-    post_s: float = 29.0
+    pre_s: float = PRE_EVENT_S
+    post_s: float = POST_EVENT_S
     settle_s: float = 2.0
     context_s: float = 3.5  # history the batch detector needs: 1 s pre-fault mean + 2 s quiet + step span
     detect_every_s: float = 1.0  # stream time between detector runs (latency: this plus settle_s)
@@ -54,7 +58,7 @@ def event_id(kind: str, inception_ns: int) -> str:
     The same disturbance replayed or re-ingested after a restart gets the same id (so the
     store recognises it); ids never restart per process, unlike a counter would.
     """
-    sec, ns = divmod(int(inception_ns), NS)
+    sec, ns = split_stamp(inception_ns)
     stamp = datetime.fromtimestamp(sec, tz=timezone.utc).strftime("%Y-%m-%dT%H:%M:%S")
     return f"{kind}@{stamp}.{ns:09d}Z"
 
@@ -69,7 +73,7 @@ class EventWindow:
     reason: str = ""
 
     def channel(self, name: str) -> NDArray[np.float64]:
-        return self.values[:, CHANNELS.index(name)]
+        return self.values[:, CHANNEL_INDEX[name]]
 
 
 @dataclass
@@ -107,7 +111,7 @@ class Detector:
             t, x = self.ring.window(self._frontier_ns - int(s.context_s * NS), latest)
             if len(t) > 10:
                 # the batch detector reads V_t and P_m only
-                signals = {c: forward_filled(x[:, CHANNELS.index(c)]) for c in ("v_t", "p_m")}
+                signals = {c: forward_filled(x[:, CHANNEL_INDEX[c]]) for c in ("v_t", "p_m")}
                 for kind, k, k_cl in find_events(signals, self.period_ns / NS):
                     if not self._frontier_ns <= t[k] < decided:
                         continue

@@ -13,13 +13,11 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from phid_ros.io.topics import CHANNELS
+from phid_ros.io.topics import CHANNEL_INDEX
 from phid_ros.model.conventions import terminal_to_dq
 from phid_ros.model.equations import reconstruct_fluxes
 from phid_ros.model.hamiltonian import hamiltonian, port_inputs, power_balance
 from phid_ros.model.parameters import GeneratorParameters
-
-_C = {c: i for i, c in enumerate(CHANNELS)}
 
 
 @dataclass
@@ -43,7 +41,7 @@ class EnergySamples:
 
 def energy(t_ns: NDArray[np.int64], values: NDArray[np.float64], params: GeneratorParameters) -> EnergySamples:
     """ℋ and its balance at each given aligned sample (vectorised)."""
-    col = lambda c: values[:, _C[c]]  # noqa: E731
+    col = lambda c: values[:, CHANNEL_INDEX[c]]  # noqa: E731
     v_d, v_q = terminal_to_dq(col("v_t"), col("delta"), col("theta_t"))
     e_q, e_d = reconstruct_fluxes(v_d, v_q, col("i_d"), col("i_q"), params.X_d_prime, params.X_q_prime)
     h = hamiltonian(col("omega"), e_q, e_d, params)

@@ -16,14 +16,14 @@ from typing import Any
 
 import numpy as np
 
-from phid_ros.io.topics import CHANNELS
+from phid_ros.io.topics import CHANNELS, channel_columns
+from phid_ros.model.conventions import NS, seconds_to_ns, split_stamp, stamp_ns
 from phid_ros.model.parameters import PARAMETER_NAMES
 from phid_ros.stream.align import StreamHealth
 from phid_ros.stream.detector import Event, EventWindow
 from phid_ros.stream.energy import EnergySamples
 from phid_ros.stream.recalibration import RecalibrationOutcome
 
-NS = 1_000_000_000
 Types = Mapping[str, Callable[..., Any]]
 Seq = Callable[[Any], Any]
 LEVELS = {"OK": 0, "WARN": 1, "ERROR": 2, "STALE": 3}
@@ -39,7 +39,7 @@ def numpy_bools(a: Any) -> np.ndarray:
 
 
 def stamp(types: Types, ns: int) -> Any:
-    sec, nanosec = divmod(int(ns), NS)
+    sec, nanosec = split_stamp(ns)
     return types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec)
 
 
@@ -61,7 +61,7 @@ def event_message(types: Types, e: Event) -> Any:
 
 def window_message(types: Types, w: EventWindow, seq: Seq = numpy_seq) -> Any:
     e = w.event
-    arrays = {c: seq(w.values[:, i]) for i, c in enumerate(CHANNELS)}
+    arrays = {c: seq(v) for c, v in channel_columns(w.values).items()}
     return types["phid_msgs/msg/EventWindow"](
         header=header(types, int(w.t_ns[0]) if len(w.t_ns) else e.inception_ns),
         event_id=e.event_id,
@@ -187,10 +187,6 @@ def diagnostics_message(
 
 
 # -- incoming messages -> pipeline data ------------------------------------------------------
-def time_ns(t: Any) -> int:
-    return int(t.sec) * NS + int(t.nanosec)
-
-
 def block_arrays(msg: Any, channels: tuple[str, ...]) -> dict[str, np.ndarray]:
     """The channel arrays of a sensor block message, without copying where the buffer allows."""
     return {c: np.asarray(getattr(msg, c), dtype=np.float64) for c in channels}
@@ -198,14 +194,14 @@ def block_arrays(msg: Any, channels: tuple[str, ...]) -> dict[str, np.ndarray]:
 
 def window_from_message(msg: Any) -> EventWindow:
     """An EventWindow message (from the ingest node) back into a window; stale ones are marked."""
-    period = int(round(float(msg.sample_period) * NS))
+    period = seconds_to_ns(msg.sample_period)
     values = np.column_stack([np.asarray(getattr(msg, c), dtype=np.float64) for c in CHANNELS])
-    t = time_ns(msg.header.stamp) + np.arange(len(values), dtype=np.int64) * period
+    t = stamp_ns(msg.header.stamp) + np.arange(len(values), dtype=np.int64) * period
     ev = Event(
         event_id=msg.event_id,
         kind=msg.kind,
-        inception_ns=time_ns(msg.inception),
-        clearing_ns=time_ns(msg.clearing),
+        inception_ns=stamp_ns(msg.inception),
+        clearing_ns=stamp_ns(msg.clearing),
         severity=math.nan,
         v_prefault=math.nan,
         segment=0,
@@ -221,4 +217,4 @@ def window_from_message(msg: Any) -> EventWindow:
 def marker_from_message(msg: Any) -> Any:
     from phid_ros.stream.pipeline import Marker
 
-    return Marker(msg.name, msg.kind, msg.role, bool(msg.generator_damping), time_ns(msg.start), time_ns(msg.end))
+    return Marker(msg.name, msg.kind, msg.role, bool(msg.generator_damping), stamp_ns(msg.start), stamp_ns(msg.end))

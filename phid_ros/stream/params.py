@@ -12,6 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import Any
 
+from phid_ros.stream.detector import POST_EVENT_S, PRE_EVENT_S
 from phid_ros.stream.pipeline import PipelineSettings
 
 
@@ -52,8 +53,8 @@ INGEST: tuple[Tunable, ...] = SENSORS + (
         runtime=False,
     ),
     Tunable("ring_seconds", float, 120.0, "length of the ring buffer of aligned samples", 40.0, 3600.0, runtime=False),
-    Tunable("pre_event_s", float, 1.0, "event window before the disturbance", 0.2, 10.0),
-    Tunable("post_event_s", float, 29.0, "event window after the disturbance", 2.0, 120.0),
+    Tunable("pre_event_s", float, PRE_EVENT_S, "event window before the disturbance", 0.2, 10.0),
+    Tunable("post_event_s", float, POST_EVENT_S, "event window after the disturbance", 2.0, 120.0),
     Tunable(
         "process_period_s", float, 0.1, "how often buffered samples are aligned and scanned", 0.01, 5.0, runtime=False
     ),

@@ -13,6 +13,7 @@ import numpy as np
 
 from phid_ros.ident.pipeline import IdentifyOptions
 from phid_ros.io.topics import CHANNELS
+from phid_ros.model.conventions import NS
 from phid_ros.model.parameters import GeneratorParameters
 from phid_ros.stream.align import Aligner, StreamHealth
 from phid_ros.stream.detector import Detector, DetectorSettings, Event, EventWindow
@@ -20,8 +21,6 @@ from phid_ros.stream.energy import EnergySamples, energy
 from phid_ros.stream.recalibration import RecalibrationOutcome, RecalibrationPolicy, Recalibrator
 from phid_ros.stream.ring import RingBuffer
 from phid_ros.stream.store import EventStore
-
-NS = 1_000_000_000
 
 
 @dataclass

@@ -19,11 +19,10 @@ from dataclasses import dataclass, field
 
 from phid_ros.ident.pipeline import IdentificationResult, IdentifyOptions, identify
 from phid_ros.ident.scenario import ScenarioData, ScenarioError, make_scenario
+from phid_ros.model.conventions import NS
 from phid_ros.model.parameters import GeneratorParameters
 from phid_ros.stream.detector import EventWindow
 from phid_ros.stream.store import EventStore
-
-NS = 1_000_000_000
 
 
 @dataclass
@@ -62,9 +61,9 @@ def scenario_from_window(w: EventWindow) -> ScenarioData:
     dt = w.period_ns / NS
     k_ev = int((e.inception_ns - int(w.t_ns[0])) // w.period_ns)
     k_cl = int((e.clearing_ns - int(w.t_ns[0])) // w.period_ns) if e.clearing_ns else None
-    from phid_ros.io.topics import CHANNELS
+    from phid_ros.io.topics import channel_columns
 
-    signals = {c: w.values[:, i] for i, c in enumerate(CHANNELS)}
+    signals = channel_columns(w.values)
     return make_scenario(
         e.name or e.event_id,
         signals,

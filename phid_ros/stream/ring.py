@@ -19,7 +19,6 @@ class RingBuffer:
             raise ValueError("capacity must be at least 1")
         self.capacity = int(capacity)
         self.channels = tuple(channels)
-        self._col = {c: i for i, c in enumerate(self.channels)}
         self._t = np.zeros(self.capacity, dtype=np.int64)
         self._x = np.zeros((self.capacity, len(self.channels)), dtype=np.float64)
         self._head = 0  # next write position
@@ -84,9 +83,6 @@ class RingBuffer:
     def window(self, t0_ns: int, t1_ns: int) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
         """Samples with t0 <= t <= t1 (the buffer holds increasing stamps)."""
         return self.rows(self._search(t0_ns, "left"), self._search(t1_ns, "right"))
-
-    def column(self, name: str) -> int:
-        return self._col[name]
 
     @property
     def latest_ns(self) -> int | None:

@@ -22,11 +22,11 @@ from numpy.typing import NDArray
 from phid_ros.ident import stage1, stage3
 from phid_ros.ident.results import Estimate
 from phid_ros.ident.scenario import ScenarioData, find_events
-from phid_ros.io.topics import CHANNELS
+from phid_ros.io.topics import CHANNELS, channel_columns
+from phid_ros.model.conventions import NS
 from phid_ros.model.parameters import SYMBOLS, GeneratorParameters
 from phid_ros.stream.ring import RingBuffer
 
-NS = 1_000_000_000
 TRACKED = ("H", "D", "X_d_prime", "X_q_prime", "T_d0_prime", "T_q0_prime")
 
 
@@ -99,7 +99,7 @@ class SlidingTracker:
             point.problems.append("stale window: gaps in the data; no estimate this hop")
             self.history.append(point)
             return point
-        signals = {c: x[:, i] for i, c in enumerate(CHANNELS)}
+        signals = channel_columns(x)
         found = find_events(signals, dt)
         steps = [k for _, k, _ in found] + [k_cl for _, _, k_cl in found if k_cl]
         point.steps = [(kind, int(t[k])) for kind, k, _ in found]

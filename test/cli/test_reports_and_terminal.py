@@ -158,7 +158,8 @@ def test_track_health_over_time_marks_the_bin_with_a_gap(short_recording):
     import numpy as np
 
     from phid_ros.cli.track import health_over_time
-    from phid_ros.io.recording import NS, Recording
+    from phid_ros.io.recording import Recording
+    from phid_ros.model.conventions import NS
 
     pmu = short_recording.streams["pmu"]
     start = int(pmu.t_ns[0])

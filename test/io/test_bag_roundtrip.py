@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from phid_ros.io.bags import read_recording, topic_table, write_recording
-from phid_ros.io.recording import NS, Recording, ScenarioInfo, StreamSamples, block_bounds
+from phid_ros.io.recording import Recording, ScenarioInfo, StreamSamples, block_bounds
+from phid_ros.model.conventions import NS
 
 
 def assert_same(a: Recording, b: Recording) -> None:

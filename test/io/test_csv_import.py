@@ -10,7 +10,7 @@ import pytest
 from phid_ros.errors import CsvImportError
 from phid_ros.io.bags import read_recording, write_recording
 from phid_ros.io.csv_import import CSV_COLUMNS, import_csv_set
-from phid_ros.io.recording import NS
+from phid_ros.model.conventions import NS
 
 
 def write_set(folder: Path, runs, *, gz: bool = False, extra: dict | None = None, mutate=None) -> Path:

@@ -7,7 +7,8 @@ from pathlib import Path
 import numpy as np
 
 from phid_ros.io.bags import read_recording
-from phid_ros.io.recording import NS, recording_messages
+from phid_ros.io.recording import recording_messages
+from phid_ros.model.conventions import NS
 
 BAGS = Path(__file__).resolve().parents[2] / "bags"
 

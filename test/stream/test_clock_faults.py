@@ -10,7 +10,8 @@ import pytest
 
 from phid_ros.cli.replay import replay
 from phid_ros.io.bags import read_recording, write_messages
-from phid_ros.io.recording import NS, ns_to_time, recording_messages, time_to_ns
+from phid_ros.io.recording import ns_to_time, recording_messages
+from phid_ros.model.conventions import NS, stamp_ns
 from phid_ros.stream.detector import DetectorSettings
 from phid_ros.stream.pipeline import MonitorPipeline, PipelineSettings
 
@@ -21,7 +22,7 @@ def _settings() -> PipelineSettings:
 
 
 def _restamp(msg, shift_ns: int):
-    header = dataclasses.replace(msg.header, stamp=ns_to_time(time_to_ns(msg.header.stamp) + shift_ns))
+    header = dataclasses.replace(msg.header, stamp=ns_to_time(stamp_ns(msg.header.stamp) + shift_ns))
     return dataclasses.replace(msg, header=header)
 
 
@@ -55,7 +56,7 @@ def test_a_clock_jumping_back_starts_a_segment_and_the_later_fault_is_found(tmp_
     back = 35 * NS
 
     def edit(i, log, topic, typ, msg):
-        if hasattr(msg, "sample_period") and time_to_ns(msg.header.stamp) >= jump_at:
+        if hasattr(msg, "sample_period") and stamp_ns(msg.header.stamp) >= jump_at:
             return log, topic, typ, _restamp(msg, -back)
         return log, topic, typ, msg
 
@@ -74,7 +75,7 @@ def test_a_single_wild_stamp_a_day_ahead_is_dropped_and_counted(tmp_path, short_
 
     def edit(i, log, topic, typ, msg):
         nonlocal target
-        if topic.endswith("/pt_ct") and target is None and time_to_ns(msg.header.stamp) >= start + 5 * NS:
+        if topic.endswith("/pt_ct") and target is None and stamp_ns(msg.header.stamp) >= start + 5 * NS:
             target = i
             return log, topic, typ, _restamp(msg, 86_400 * NS)
         return log, topic, typ, msg
@@ -91,7 +92,7 @@ def test_a_clock_jumping_a_day_ahead_starts_a_segment_with_bounded_memory(tmp_pa
     jump_at = start + 10 * NS
 
     def edit(i, log, topic, typ, msg):
-        if hasattr(msg, "sample_period") and time_to_ns(msg.header.stamp) >= jump_at:
+        if hasattr(msg, "sample_period") and stamp_ns(msg.header.stamp) >= jump_at:
             return log, topic, typ, _restamp(msg, 86_400 * NS)
         return log, topic, typ, msg
 
@@ -107,7 +108,7 @@ def test_zero_stamps_are_counted_as_such_and_cost_only_the_windows_over_them(tmp
 
     def edit(i, log, topic, typ, msg):
         # two seconds of the excitation stream with an unset clock
-        t = time_to_ns(msg.header.stamp) if hasattr(msg, "sample_period") else 0
+        t = stamp_ns(msg.header.stamp) if hasattr(msg, "sample_period") else 0
         if topic.endswith("/excitation") and start + 5 * NS <= t < start + 7 * NS:
             return log, topic, typ, _restamp(msg, -t)
         return log, topic, typ, msg
@@ -147,7 +148,7 @@ def test_a_stream_that_stops_is_stale_on_stream_time(tmp_path, short_recording):
     start, _ = short_recording.span_ns()
 
     def edit(i, log, topic, typ, msg):
-        if topic.endswith("/excitation") and time_to_ns(msg.header.stamp) >= start + 8 * NS:
+        if topic.endswith("/excitation") and stamp_ns(msg.header.stamp) >= start + 8 * NS:
             return log, topic, typ, None  # the excitation feed ends at 8 s
         return log, topic, typ, msg
 

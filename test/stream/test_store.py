@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 
 from phid_ros.io.topics import CHANNELS
+from phid_ros.model.conventions import NS
 from phid_ros.stream.detector import Event, EventWindow, event_id
 from phid_ros.stream.store import EventStore, StoreError
 
-NS = 1_000_000_000
 T0 = 1_767_225_600 * NS
 
 
