@@ -52,6 +52,9 @@ MACHINES: dict[str, dict[str, float]] = {
     "genrou-sub": {**TABLE1_GENROU, "xd2": 0.25, "xq2": 0.25, "Td20": 0.04, "Tq20": 0.08},
     # the same with faster dampers (T''_q0 4.5 times below T'_q0)
     "genrou-sub-fast": {**TABLE1_GENROU, "xd2": 0.25, "xq2": 0.25, "Td20": 0.03, "Tq20": 0.03},
+    # dampers on a machine whose q-axis transient is as typical round-rotor data have it (T'_q0 0.6 s,
+    # T''_q0 0.05 s): the q axis's two circuits twelve-fold apart, unlike Table 1's 0.135 s
+    "genrou-sub-typical": {**TABLE1_GENROU, "Tq10": 0.6, "xd2": 0.25, "xq2": 0.25, "Td20": 0.03, "Tq20": 0.05},
     # both
     "genrou-sat-sub": {**TABLE1_GENROU, "xd2": 0.3, "xq2": 0.3, "Td20": 0.03, "Tq20": 0.05, "S10": 0.07, "S12": 0.45},
 }
