@@ -171,13 +171,21 @@ def _timed(timing: dict[str, float], key: str, t0: float) -> None:
     timing[key] = round(time.perf_counter() - t0, 6)
 
 
+Say = Callable[[str], None]
+
+
 def identify(
     scenarios: Sequence[ScenarioData],
     options: IdentifyOptions | None = None,
     truth: GeneratorParameters | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> IdentificationResult:
-    """The three stages (and the IEEE 115 baseline and validation when asked); ``progress`` hears each step."""
+    """The three stages (and the IEEE 115 baseline and validation when asked); ``progress`` hears each step.
+
+    Each step below reads what the steps before it put in the result (X_d and X_q from stage 2
+    or the user's held values, the baseline's transient estimates as the paper method's prior)
+    and writes its own estimates, details and problems there; a step that cannot run says why.
+    """
     opt = options or IdentifyOptions()
     say = progress or (lambda step: None)
     if opt.method not in METHODS:
@@ -190,10 +198,23 @@ def identify(
     if not ident:
         res.problems.append("no identification scenarios: nothing to identify")
         return res
-
-    # -- stage 1 -------------------------------------------------------------------
-    say("stage 1: H and D from the swing equation")
+    for key, step in STEPS:
+        t0 = time.perf_counter()
+        step(res, ident, opt, say)
+        _timed(res.timing, key, t0)
+    _apply_constraints(res, opt.constraints)
+    for est in res.estimates.values():
+        if not est.identifiable and est.note:
+            res.problems.append(est.note)
     t0 = time.perf_counter()
+    if opt.validate:
+        _validate(res, scs, opt, say, truth)
+    _timed(res.timing, "validation", t0)
+    return res
+
+
+def _stage1(res: IdentificationResult, ident: list[ScenarioData], opt: IdentifyOptions, say: Say) -> None:
+    say("stage 1: H and D from the swing equation")
     try:
         res.stage1 = stage1.swing_regression(ident, opt.stage1_cutoff_hz, opt.constraints)
         res.estimates["H"], res.estimates["D"] = res.stage1.H, res.stage1.D
@@ -204,12 +225,10 @@ def identify(
             res.stage1_paper = stage1.differential_damping(ident)
         except (stage1.Stage1Error, RuntimeError) as exc:
             res.problems.append(f"paper's differential damping method did not run: {exc}")
-    _timed(res.timing, "stage1", t0)
 
-    # -- stage 2 -------------------------------------------------------------------
+
+def _stage2(res: IdentificationResult, ident: list[ScenarioData], opt: IdentifyOptions, say: Say) -> None:
     say("stage 2: X_d and X_q from the steady states")
-    t0 = time.perf_counter()
-    x_d = x_q = None
     try:
         res.stage2 = stage2.identify_reactances(ident)
         res.estimates["X_d"], res.estimates["X_q"] = res.stage2.X_d, res.stage2.X_q
@@ -220,34 +239,38 @@ def identify(
                 wanted = est.value
                 est.value = opt.constraints.clip(name, wanted)
                 at_user_bound(est, name, wanted, est.value)
-        x_d, x_q = res.estimates["X_d"].value, res.estimates["X_q"].value
     except stage2.Stage2Error as exc:
         res.problems.append(f"stage 2 (X_d, X_q) did not run: {exc}")
     for name in ("X_d", "X_q"):
         if name in opt.constraints.fixed:
             res.estimates[name] = held(name, opt.constraints.fixed[name])
-    if "X_d" in opt.constraints.fixed:
-        x_d = opt.constraints.fixed["X_d"]
-    if "X_q" in opt.constraints.fixed:
-        x_q = opt.constraints.fixed["X_q"]
-    _timed(res.timing, "stage2", t0)
 
-    # -- IEEE 115 baseline (needs a reference X_d, X_q for its bounds (18), (21)) -----
-    t0 = time.perf_counter()
-    base = None
-    if opt.baseline and x_d is not None and x_q is not None:
-        say("IEEE 115 baseline: curve fits of the transients")
-        try:
-            base = ieee115.identify(ident, x_d, x_q, seed=opt.seed)
-            res.baseline = {n: Estimate(res.estimates[n].value) for n in ("H", "D", "X_d", "X_q") if n in res.estimates}
-            res.baseline.update(base.estimates())
-        except ieee115.BaselineError as exc:
-            res.problems.append(f"IEEE 115 baseline did not run: {exc}")
-    _timed(res.timing, "ieee115", t0)
 
-    # -- stage 3 -------------------------------------------------------------------
+def _synchronous(res: IdentificationResult) -> tuple[float | None, float | None]:
+    """X_d and X_q as stage 2 left them (identified, clipped to the user's bounds, or held), or None."""
+    return tuple(res.estimates[n].value if n in res.estimates else None for n in ("X_d", "X_q"))  # type: ignore[return-value]
+
+
+def _baseline(res: IdentificationResult, ident: list[ScenarioData], opt: IdentifyOptions, say: Say) -> None:
+    """The IEEE 115 curve fits; they need a reference X_d, X_q for their bounds (18), (21)."""
+    x_d, x_q = _synchronous(res)
+    if not opt.baseline or x_d is None or x_q is None:
+        return
+    say("IEEE 115 baseline: curve fits of the transients")
+    try:
+        base = ieee115.identify(ident, x_d, x_q, seed=opt.seed)
+        res.baseline = {n: Estimate(res.estimates[n].value) for n in ("H", "D", "X_d", "X_q") if n in res.estimates}
+        res.baseline.update(base.estimates())
+    except ieee115.BaselineError as exc:
+        res.problems.append(f"IEEE 115 baseline did not run: {exc}")
+
+
+TRANSIENT = ("X_d_prime", "X_q_prime", "T_d0_prime", "T_q0_prime")
+
+
+def _stage3(res: IdentificationResult, ident: list[ScenarioData], opt: IdentifyOptions, say: Say) -> None:
     say("stage 3: transient parameters by state consistency")
-    t0 = time.perf_counter()
+    x_d, x_q = _synchronous(res)
     try:
         data = stage3.prepare(ident, opt.prefilter_hz)
         refine = opt.refine_synchronous or x_d is None or x_q is None
@@ -260,33 +283,39 @@ def identify(
             if x_d is None or x_q is None:
                 raise stage3.Stage3Error("the paper method needs X_d and X_q from stage 2")
             prior = None
-            if opt.use_prior and base is not None:
-                prior = [base.d.x_prime, base.q.x_prime, base.d.t_open, base.q.t_open]
+            if opt.use_prior and all(n in res.baseline for n in TRANSIENT):
+                prior = [res.baseline[n].value for n in TRANSIENT]
             r3 = stage3.paper(
                 data, x_d, x_q, prior=prior, seed=opt.seed, maxiter=opt.paper_maxiter, constraints=opt.constraints
             )
         res.stage3 = r3
-        for n in ("X_d_prime", "X_q_prime", "T_d0_prime", "T_q0_prime"):
+        for n in TRANSIENT:
             res.estimates[n] = getattr(r3, n)
         res.problems.extend(f"stage 3: {p}" for p in r3.problems)
     except stage3.Stage3Error as exc:
         res.problems.append(f"stage 3 (X'_d, X'_q, T'_d0, T'_q0) did not run: {exc}")
-    _timed(res.timing, "stage3", t0)
 
-    _apply_constraints(res, opt.constraints)
-    for name, est in res.estimates.items():
-        if not est.identifiable and est.note:
-            res.problems.append(est.note)
 
-    # -- validation ----------------------------------------------------------------
-    t0 = time.perf_counter()
+# the steps in order, each timed under its key (the JSON's timing_s)
+STEPS: tuple[tuple[str, Callable[[IdentificationResult, list[ScenarioData], IdentifyOptions, Say], None]], ...] = (
+    ("stage1", _stage1),
+    ("stage2", _stage2),
+    ("ieee115", _baseline),
+    ("stage3", _stage3),
+)
+
+
+def _validate(
+    res: IdentificationResult,
+    scs: list[ScenarioData],
+    opt: IdentifyOptions,
+    say: Say,
+    truth: GeneratorParameters | None,
+) -> None:
+    say("validation: playing in the held-out scenarios")
     model = res.complete()
-    if opt.validate:
-        say("validation: playing in the held-out scenarios")
-        if model is None:
-            res.problems.append("validation skipped: the identified set is incomplete or not physically valid")
-        else:
-            res.validation, res.validation_truth = validation.validate(scs, model, truth, opt.f_nominal_hz)
-            res.problems.extend(res.validation.problems)
-    _timed(res.timing, "validation", t0)
-    return res
+    if model is None:
+        res.problems.append("validation skipped: the identified set is incomplete or not physically valid")
+        return
+    res.validation, res.validation_truth = validation.validate(scs, model, truth, opt.f_nominal_hz)
+    res.problems.extend(res.validation.problems)
