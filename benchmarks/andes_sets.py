@@ -2,7 +2,7 @@
 
     python benchmarks/andes_sets.py --machine genrou-sat --out sets/genrou_sat [--duration 30] [--seed 0]
 
-Machines (``test/andes_plant.py``, machine base, Table 1 otherwise): ``genrou-4th`` (X'_d =
+Machines (``test/andes_plant.py``, machine base, Table 1 otherwise; the list there is whole): ``genrou-4th`` (X'_d =
 X'_q = X'': exactly the fourth-order model), ``genrou-sat`` (the same with S(1.0) 0.07, S(1.2)
 0.45, quadratic on the air-gap flux), ``genrou-sub`` (X'' 0.25, T''_d0 0.04 s, T''_q0 0.08 s),
 ``genrou-sat-sub`` (saturation and X'' 0.3, T''_d0 0.03 s, T''_q0 0.05 s). ANDES 2.0 has no

@@ -49,7 +49,7 @@ def run(folder: Path) -> dict:
     scenarios, _ = scenarios_from_recording(load_recording(manifest), str(manifest))
     res = identify(scenarios, IdentifyOptions(baseline=False, validate=False))
     # workers=1: a spawned worker would not see --imperfect-saturation's patch
-    d = diagnose(scenarios, res.parameters, DiagnoseOptions(workers=1, wide=res.at_bound(), held=res.stage1_held()))
+    d = diagnose(scenarios, res.parameters, DiagnoseOptions.after(res, workers=1))
     doc = to_json(d, GeneratorParameters(**truth))
     doc["seconds"] = time.perf_counter() - t0
     doc["identification_D_std"] = res.estimates["D"].std

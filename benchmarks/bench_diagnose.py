@@ -58,8 +58,9 @@ def main() -> None:
     args = ap.parse_args()
 
     scs = catalogue_scenarios(BAG)
-    start = identify(scs, IdentifyOptions(baseline=False, validate=False)).parameters
-    opt = DiagnoseOptions()
+    res = identify(scs, IdentifyOptions(baseline=False, validate=False))
+    start = res.parameters
+    opt = DiagnoseOptions.after(res)  # as phid diagnose
     fit_s, _ = split(scs, opt.per_kind)
     windows = [window(s, opt.pre_s, opt.post_s) for s in fit_s]
     base = starting_point(start)[0]

@@ -106,13 +106,7 @@ def run(args: Any, console: Console) -> int:
         d = diagnose(
             scenarios,
             start,
-            DiagnoseOptions(
-                f_nominal_hz=rec.f_nominal_hz,
-                workers=args.workers,
-                scheduler=args.scheduler,
-                wide=res.at_bound(),
-                held=res.stage1_held(),
-            ),
+            DiagnoseOptions.after(res, f_nominal_hz=rec.f_nominal_hz, workers=args.workers, scheduler=args.scheduler),
             progress=progress.update,
         )
     d.problems[:0] = problems + [p for p in res.problems if "kept the label" not in p]

@@ -84,6 +84,15 @@ class DiagnoseOptions:
     # terminal voltage (+10 % and +19 % on ANDES's GENROU, where stage 1 had -3 %)
     held: tuple[str, ...] = ()
 
+    @classmethod
+    def after(cls, identification: Any, **settings: Any) -> DiagnoseOptions:
+        """The options that belong to an identification (``IdentificationResult``): what it left
+        at a search bound is ``wide``, D is ``held`` when stage 1 identified it. phid diagnose, phid
+        fleet and the studies build their options here. Without these, D refits free and absorbs
+        what it should not: on bags/saturation a spurious shaft_torsion was named beside saturation.
+        """
+        return cls(wide=identification.at_bound(), held=identification.stage1_held(), **settings)
+
 
 @dataclass
 class ChannelError:

@@ -12,11 +12,15 @@ import math
 import os
 import socket
 import time
+from typing import TYPE_CHECKING
 
 from phid_ros import __version__
 from phid_ros.errors import PhidError
 from phid_ros.fleet.history import Row
 from phid_ros.model.parameters import PARAMETER_NAMES
+
+if TYPE_CHECKING:  # the pipeline (and scipy.optimize) loads when a task runs, not when this is imported
+    from phid_ros.ident.pipeline import IdentificationResult
 
 
 def one_line(exc: BaseException) -> str:
@@ -57,22 +61,15 @@ def _identify_into(row: Row, path: str, diagnose: bool) -> None:
             row.flags.append(f"{name}: {est.note}")
     row.flags += [p for p in res.problems if "kept the label" not in p]
     if diagnose:
-        _diagnose_into(row, scenarios, res.parameters, rec.f_nominal_hz, res.at_bound(), res.stage1_held())
+        _diagnose_into(row, scenarios, res, rec.f_nominal_hz)
 
 
-def _diagnose_into(
-    row: Row,
-    scenarios: list,
-    start: dict[str, float],
-    f_hz: float,
-    wide: tuple[str, ...] = (),
-    held: tuple[str, ...] = (),
-) -> None:
+def _diagnose_into(row: Row, scenarios: list, res: IdentificationResult, f_hz: float) -> None:
     from phid_ros.diagnose.results import to_json
     from phid_ros.diagnose.workflow import DiagnoseOptions, diagnose
 
     # workers=0: the candidates of a round go to the fleet's own cluster (phid_ros.cluster.Jobs)
-    d = diagnose(scenarios, start, DiagnoseOptions(f_nominal_hz=f_hz, workers=0, wide=wide, held=held))
+    d = diagnose(scenarios, res.parameters, DiagnoseOptions.after(res, f_nominal_hz=f_hz, workers=0))
     doc = to_json(d, None, None)
     row.effects = [{"name": e["name"], "parameters": e["parameters"]} for e in doc["effects"]]
     row.method += " + diagnosis"

@@ -136,3 +136,18 @@ def test_a_further_effect_must_explain_a_quarter_of_what_is_left_and_stand_clear
     assert not _passes(trial(1.0, 0.0), current, False, opt)  # on the bound of its absent side
     assert _passes(trial(1.0, None), current, False, opt)  # a latency: no std, the criteria decide
     assert not _passes(trial(1.0, 50.0, delta_bic=-100.0), current, False, opt)  # BIC margin 200
+
+
+def test_options_after_an_identification_hold_stage1_d_and_free_what_sat_at_a_bound():
+    # phid diagnose, phid fleet and the studies take their options from here; built by hand
+    # without them, D refits free and bags/saturation gained a spurious shaft_torsion
+    from phid_ros.diagnose.workflow import DiagnoseOptions
+    from phid_ros.ident.pipeline import IdentificationResult
+    from phid_ros.ident.results import Estimate
+
+    est = {n: Estimate(v, std=0.01 * v) for n, v in TABLE1.as_dict().items()}
+    est["T_q0_prime"].at_bound = True
+    opt = DiagnoseOptions.after(IdentificationResult(est, "fast", []), workers=3)
+    assert opt.held == ("D",) and opt.wide == ("T_q0_prime",) and opt.workers == 3
+    est["D"] = Estimate(float("nan"))  # stage 1 did not identify D: nothing to hold
+    assert DiagnoseOptions.after(IdentificationResult(est, "fast", [])).held == ()

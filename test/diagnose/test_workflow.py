@@ -56,7 +56,7 @@ def run(effects: tuple[PlantEffect, ...], seed: int = 0) -> dict:
     cfg = SimulationConfig(restore_ramp=1.0, restore_hold=1.0, effects=effects)
     scs = [scenario_from_run(r) for r in simulate_scenarios(cat, cfg, seed_offset=100 * seed)]
     res = identify(scs, IdentifyOptions(baseline=False, validate=False))
-    opts = DiagnoseOptions(workers=0, wide=res.at_bound(), held=res.stage1_held())  # as phid diagnose
+    opts = DiagnoseOptions.after(res, workers=0)  # as phid diagnose
     doc = to_json(diagnose(scs, res.parameters, opts), TABLE1, [e.as_dict() for e in effects])
     m = doc["mean_abs_error_pct_without_D"]
     print(  # the README's table is read from these lines (pytest -s)
