@@ -48,14 +48,15 @@ SYMBOLS: dict[str, str] = {s.name: s.symbol for s in PARAMETER_SPECS}
 class GeneratorParameters:
     """The eight parameters of the fourth-order PH generator model (per unit, seconds)."""
 
-    H: float = 3.480
-    D: float = 0.400
-    X_d: float = 2.540
-    X_q: float = 2.410
-    X_d_prime: float = 0.500
-    X_q_prime: float = 0.814
-    T_d0_prime: float = 1.437
-    T_q0_prime: float = 0.1351
+    # defaults: Table 1, as PARAMETER_SPECS declares it (the values are written there only)
+    H: float = SPECS_BY_NAME["H"].default
+    D: float = SPECS_BY_NAME["D"].default
+    X_d: float = SPECS_BY_NAME["X_d"].default
+    X_q: float = SPECS_BY_NAME["X_q"].default
+    X_d_prime: float = SPECS_BY_NAME["X_d_prime"].default
+    X_q_prime: float = SPECS_BY_NAME["X_q_prime"].default
+    T_d0_prime: float = SPECS_BY_NAME["T_d0_prime"].default
+    T_q0_prime: float = SPECS_BY_NAME["T_q0_prime"].default
 
     def __post_init__(self) -> None:
         problems = validation_problems(self.as_dict())
