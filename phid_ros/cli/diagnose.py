@@ -95,18 +95,20 @@ def run(args: Any, console: Console) -> int:
         truth_effects = read_json(args.truth).get("effects") if args.truth else None
         progress.update(f"cutting the scenarios of {source}")
         scenarios, problems = scenarios_from_recording(rec, source, step_thresholds(args))
+        f_hz = rec.f_nominal_hz
+        del rec  # the windows are cut: the whole recording need not stay in memory for minutes of fitting
         if not any(s.role == "identify" for s in scenarios):
             raise PhidError(f"{source}: no identification scenarios; the diagnosis needs them to fit candidate models")
-        opts = IdentifyOptions(baseline=False, validate=False, f_nominal_hz=rec.f_nominal_hz)
+        opts = IdentifyOptions(baseline=False, validate=False, f_nominal_hz=f_hz)
         res = identify(scenarios, opts, progress=progress.update)
         start = res.parameters
         model = res.complete()
         progress.update("locating the gap between the model and the measurements")
-        gap = localise(scenarios, model, rec.f_nominal_hz) if model is not None else None
+        gap = localise(scenarios, model, f_hz) if model is not None else None
         d = diagnose(
             scenarios,
             start,
-            DiagnoseOptions.after(res, f_nominal_hz=rec.f_nominal_hz, workers=args.workers, scheduler=args.scheduler),
+            DiagnoseOptions.after(res, f_nominal_hz=f_hz, workers=args.workers, scheduler=args.scheduler),
             progress=progress.update,
         )
     d.problems[:0] = problems + [p for p in res.problems if "kept the label" not in p]
