@@ -7,9 +7,9 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from phid_ros.cli.scenarios import scenarios_from_recording
 from phid_ros.ident.scenario import ScenarioData
 from phid_ros.io.bags import read_recording
+from phid_ros.stream.scenarios import scenarios_from_recording
 
 ROOT = Path(__file__).resolve().parents[1]
 CATALOGUE = ROOT / "bags" / "catalogue"

@@ -10,7 +10,6 @@ from rich.console import Console
 from phid_ros.cli.common import warn
 from phid_ros.cli.identify import load_input, load_truth, step_thresholds
 from phid_ros.cli.progress import ProgressLine
-from phid_ros.cli.scenarios import scenarios_from_recording
 from phid_ros.cli.tables import CHANNEL_LABELS, Col, fmt, pct, print_table, signed_int
 from phid_ros.diagnose.localise import localise
 from phid_ros.diagnose.playin import OUTPUTS
@@ -20,6 +19,7 @@ from phid_ros.errors import PhidError
 from phid_ros.ident.pipeline import IdentifyOptions, identify
 from phid_ros.io.results import read_json, write_json
 from phid_ros.model.parameters import PARAMETER_NAMES, SYMBOLS
+from phid_ros.stream.scenarios import scenarios_from_recording
 
 
 def print_before_after(console: Console, doc: dict[str, Any]) -> None:

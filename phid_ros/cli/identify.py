@@ -12,9 +12,6 @@ from rich.console import Console
 
 from phid_ros.cli.common import read_input, warn
 from phid_ros.cli.progress import ProgressLine
-
-# imported here, with the command, so that their import is start-up and not "reading"
-from phid_ros.cli.scenarios import scenarios_from_recording
 from phid_ros.cli.tables import Col, fmt, pct, print_table
 from phid_ros.errors import PhidError
 from phid_ros.ident.constraints import parse_constraints
@@ -23,6 +20,9 @@ from phid_ros.ident.scenario import ScenarioData, StepThresholds
 from phid_ros.io.recording import Recording
 from phid_ros.io.results import read_json, write_json
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, SYMBOLS, GeneratorParameters
+
+# imported here, with the command, so that their import is start-up and not "reading"
+from phid_ros.stream.scenarios import scenarios_from_recording
 
 
 def step_thresholds(args: Any) -> StepThresholds:

@@ -244,8 +244,10 @@ def write_replay_report(
     health = HealthLog()
     for t_ns, snap in collector.health_log:
         health.add((t_ns - start) / NS, snap)
-    reasons = {w.event.event_id: ("ok" if w.usable else w.reason) for w in outputs.windows}
     from phid_ros.cli.replay import severity_text
+    from phid_ros.stream.detector import window_status
+
+    reasons = {w.event.event_id: window_status(w) for w in outputs.windows}
 
     ev_rows = [
         [

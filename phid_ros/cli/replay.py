@@ -7,106 +7,15 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import numpy as np
-
-from phid_ros.io.recording import DEFAULT_BLOCK_SIZE, Recording, block_bounds
-from phid_ros.io.topics import OUTPUT_TOPICS, STREAMS_BY_NAME, output_topic
+from phid_ros.io.recording import Recording
+from phid_ros.io.topics import OUTPUT_TOPICS, output_topic
 from phid_ros.model.conventions import NS
-from phid_ros.stream.pipeline import Marker, MonitorPipeline, Outputs
+from phid_ros.stream.pipeline import MonitorPipeline, Outputs
+from phid_ros.stream.replay import replay
 
 if TYPE_CHECKING:
     from rich.console import Console
 
-PROCESS_EVERY_NS = NS // 2  # stream time between pipeline runs while feeding
-MAX_PACE_STEP_NS = 60 * NS  # a stamp step beyond this is a clock jump, not time to wait for
-
-
-def markers_of(rec: Recording) -> list[Marker]:
-    return [Marker(s.name, s.kind, s.role, s.generator_damping, s.start_ns, s.end_ns) for s in rec.scenarios]
-
-
-def sensor_blocks(rec: Recording, block_size: int = DEFAULT_BLOCK_SIZE) -> list[tuple[int, str, int, int]]:
-    """(stamp of the block's last sample, stream, start, stop), in the order a recorder logged them.
-
-    A bag remembers where each message stood in the file: its messages are fed in that
-    order, as a subscriber received them, so a clock that jumps (back, or ahead) reaches
-    the aligner as a jump and a wild stamp as one wild block. Recordings without that
-    order (CSV imports, simulations) have monotonic stamps; their blocks go by stamp.
-    """
-    recorded = all(s.msg_seq is not None and s.msg_offsets is not None for s in rec.streams.values())
-    keyed: list[tuple[int, int, str, int, int]] = []
-    for name, s in rec.streams.items():
-        if recorded:
-            starts = s.msg_offsets.tolist()  # type: ignore[union-attr]
-            stops = starts[1:] + [len(s)]
-            for seq, a, b in zip(s.msg_seq.tolist(), starts, stops):  # type: ignore[union-attr]
-                if b > a:
-                    keyed.append((seq, int(s.t_ns[b - 1]), name, a, b))
-        else:
-            for a, b in block_bounds(s.t_ns, s.period_ns, block_size):
-                keyed.append((int(s.t_ns[b - 1]), int(s.t_ns[b - 1]), name, a, b))
-    keyed.sort(key=lambda x: x[0])
-    return [(end, name, a, b) for _, end, name, a, b in keyed]
-
-
-def replay(
-    rec: Recording,
-    pipeline: MonitorPipeline,
-    *,
-    rate: float | None = None,
-    block_size: int = DEFAULT_BLOCK_SIZE,
-    on_outputs: Callable[[Outputs], None] | None = None,
-    keep_arrays: bool = True,
-    progress: Callable[[float], None] | None = None,
-) -> Outputs:
-    """Feed every sensor block in stamp order; ``rate`` paces it at R x real time (None: as fast as possible).
-
-    ``on_outputs`` sees every output in full; the returned summary drops the bulk arrays
-    when ``keep_arrays`` is False, so a long replay's memory stays flat. ``progress`` hears
-    the stream time played so far (seconds) after every processing step.
-    """
-    for m in markers_of(rec):
-        pipeline.add_marker(m)
-    total = Outputs()
-    blocks = sensor_blocks(rec, block_size)
-    if not blocks:
-        return total
-    wall0 = time.perf_counter()
-    played = 0  # stream time played so far: stamps advance it, a clock that jumps does not
-    prev_end = blocks[0][0]
-    next_process = PROCESS_EVERY_NS
-    for end_ns, name, a, b in blocks:
-        s = rec.streams[name]
-        spec = STREAMS_BY_NAME[name]
-        if 0 < end_ns - prev_end <= MAX_PACE_STEP_NS:
-            played += end_ns - prev_end
-        if end_ns > prev_end or end_ns < prev_end - MAX_PACE_STEP_NS:
-            prev_end = end_ns
-        if rate:
-            ahead = played / NS / rate - (time.perf_counter() - wall0)
-            if ahead > 0:
-                time.sleep(ahead)
-        pipeline.ingest_message(name, int(s.t_ns[a]), s.period_ns, {c: s.channels[c][a:b] for c in spec.channels})
-        if played >= next_process:
-            out = pipeline.process()
-            next_process = played + PROCESS_EVERY_NS
-            total.extend(out if keep_arrays else out.light())
-            if on_outputs:
-                on_outputs(out)
-            if progress:
-                progress(played / NS)
-    out = pipeline.process(final=True)
-    total.extend(out if keep_arrays else out.light())
-    if on_outputs:
-        on_outputs(out)
-    return total
-
-
-def event_times(outputs: Outputs) -> np.ndarray:
-    return np.array([e.inception_ns for e in outputs.events], dtype=np.int64)
-
-
-# -- the command -----------------------------------------------------------------------------
 BAG_TOPICS = {key: (output_topic(key), msgtype) for key, (_, msgtype) in OUTPUT_TOPICS.items()}
 
 
@@ -219,9 +128,10 @@ def print_summary(
     """What a replay found, in the same words on every run of the same bag (no wall times)."""
     from phid_ros.cli.tables import CONCISE_LEGEND, Col, estimate_text, fmt, print_table
     from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, SYMBOLS
+    from phid_ros.stream.detector import window_status
 
     start = rec.span_ns()[0]
-    usable = {w.event.event_id: ("ok" if w.usable else w.reason) for w in outputs.windows}
+    usable = {w.event.event_id: window_status(w) for w in outputs.windows}
     cols = [
         Col("t s"),
         Col("kind", "left"),

@@ -4,9 +4,14 @@ Detection runs the batch detector of :mod:`phid_ros.ident.scenario` (fault:
 V_t < 0.3 V_pf; steps in P_m; sustained steps in V_t) on a sliding analysis
 window, so the online pipeline and ``phid identify`` on a markerless bag find the
 same events at the same samples. An event is accepted once ``settle_s`` of data
-follows it (enough to see a fault clear and a step settle), and its window
-(``pre_s`` before, ``post_s`` after) is cut from the ring buffer once the post-
-event time has passed.
+follows it (enough to see a fault clear and a step settle). Its window runs from
+``pre_s`` before it to ``post_s`` after it, or to the start of the next event's window
+when that comes first (a second disturbance inside a window would break the single-
+event fits of every stage), and is cut from the ring buffer once detection has passed
+its end, so the next event is known when the end is decided.
+
+``phid identify`` and ``phid diagnose`` cut a recording without scenario markers through
+this detector too (:func:`phid_ros.stream.replay.event_windows`): one rule for windows.
 """
 
 from __future__ import annotations
@@ -17,7 +22,7 @@ from datetime import datetime, timezone
 import numpy as np
 from numpy.typing import NDArray
 
-from phid_ros.ident.scenario import find_events
+from phid_ros.ident.scenario import DEFAULT_THRESHOLDS, StepThresholds, find_events
 from phid_ros.io.topics import CHANNEL_INDEX, CHANNELS
 from phid_ros.model.conventions import NS, split_stamp
 from phid_ros.stream.ring import RingBuffer
@@ -35,6 +40,13 @@ class DetectorSettings:
     settle_s: float = 2.0
     context_s: float = 3.5  # history the batch detector needs: 1 s pre-fault mean + 2 s quiet + step span
     detect_every_s: float = 1.0  # stream time between detector runs (latency: this plus settle_s)
+    # the smallest P_m and V_t steps taken as disturbances (phid identify's --min-*-step)
+    thresholds: StepThresholds = DEFAULT_THRESHOLDS
+
+    @property
+    def lag_s(self) -> float:
+        """How long after its end a window is cut at the latest: detection must have passed it."""
+        return self.settle_s + self.detect_every_s
 
 
 @dataclass
@@ -112,7 +124,7 @@ class Detector:
             if len(t) > 10:
                 # the batch detector reads V_t and P_m only
                 signals = {c: forward_filled(x[:, CHANNEL_INDEX[c]]) for c in ("v_t", "p_m")}
-                for kind, k, k_cl in find_events(signals, self.period_ns / NS):
+                for kind, k, k_cl in find_events(signals, self.period_ns / NS, thresholds=s.thresholds):
                     if not self._frontier_ns <= t[k] < decided:
                         continue
                     new.append(self._event(kind, t, signals, k, k_cl))
@@ -120,20 +132,35 @@ class Detector:
         self._pending.extend(new)
         windows = []
         still = []
-        for ev in self._pending:
-            if latest >= ev.inception_ns + int(s.post_s * NS):
-                windows.append(self._cut(ev))
+        for ev, end in zip(self._pending, self._ends()):
+            # every event before the end is known once detection has passed it
+            if self._frontier_ns > end:
+                windows.append(self._cut(ev, end))
             else:
                 still.append(ev)
         self._pending = still
         return new, windows
 
     def flush(self) -> tuple[list[Event], list[EventWindow]]:
-        """End of input: detect what can still be decided, and cut every waiting window as it is."""
+        """End of input: detect what can still be decided, and cut every waiting window as it is.
+
+        A window the end of the data cuts short is still usable when it holds ``settle_s`` after
+        its event (what the detector needed to accept it); the stages judge whether it is enough.
+        """
         new, windows = self.update(force=True)
-        out = windows + [self._cut(ev) for ev in self._pending]
+        out = windows + [self._cut(ev, end, final=True) for ev, end in zip(self._pending, self._ends())]
         self._pending = []
         return new, out
+
+    def _ends(self) -> list[int]:
+        """Each pending window's last stamp: ``post_s`` after its event, or the sample before the next
+        event's window begins."""
+        s = self.settings
+        pre, post = int(s.pre_s * NS), int(s.post_s * NS)
+        ends = [ev.inception_ns + post - self.period_ns for ev in self._pending]
+        for i in range(len(ends) - 1):
+            ends[i] = min(ends[i], self._pending[i + 1].inception_ns - pre - self.period_ns)
+        return ends
 
     def _event(
         self, kind: str, t: NDArray[np.int64], sig: dict[str, NDArray[np.float64]], k: int, k_cl: int | None
@@ -157,25 +184,35 @@ class Detector:
             segment=self._segment,
         )
 
-    def _cut(self, ev: Event) -> EventWindow:
+    def _cut(self, ev: Event, t1: int, *, final: bool = False) -> EventWindow:
         s = self.settings
         t0 = ev.inception_ns - int(s.pre_s * NS)
-        t1 = ev.inception_ns + int(s.post_s * NS) - self.period_ns
         t, x = self.ring.window(t0, t1)
         t, x = t.copy(), x.copy()
         expected = int(round((t1 - t0) / self.period_ns)) + 1
+        latest = self.ring.latest_ns or 0
         w = EventWindow(ev, t, x, self.period_ns)
         if ev.segment != self._segment:
             w.usable, w.reason = False, "the clock jumped (new segment) before the window was complete"
-        elif len(t) < expected and (self.ring.latest_ns or 0) < t1:
-            short = (t1 - (self.ring.latest_ns or 0)) / NS
-            w.usable, w.reason = False, f"the data ended {short:.1f} s before the end of the window"
+        elif len(t) < expected and latest < t1:
+            short = (t1 - latest) / NS
+            w.reason = f"the data ended {short:.1f} s before the end of the window"
+            have = int(round((latest - t0) / self.period_ns)) + 1
+            if not final or latest - ev.inception_ns < int(s.settle_s * NS) or len(t) < have:
+                w.usable = False
         elif len(t) < expected:
             w.usable, w.reason = False, f"window has {len(t)} of {expected} samples (ring buffer too short or gap)"
-        elif not np.isfinite(x).all():
+        if w.usable and not np.isfinite(x).all():
             bad = [c for i, c in enumerate(CHANNELS) if not np.isfinite(x[:, i]).all()]
             w.usable, w.reason = False, f"stale data in the window: {bad} have gaps"
         return w
+
+
+def window_status(w: EventWindow) -> str:
+    """A window's state in one phrase: ok, ok but shortened (and why), or why it is not used."""
+    if not w.usable:
+        return w.reason
+    return f"ok, shortened: {w.reason}" if w.reason else "ok"
 
 
 def forward_filled(x: NDArray[np.float64]) -> NDArray[np.float64]:

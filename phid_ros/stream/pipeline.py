@@ -39,7 +39,9 @@ class PipelineSettings:
     detect: bool = True  # False: windows arrive from elsewhere (the recalibration node gets them by topic)
 
     def __post_init__(self) -> None:
-        needed = self.detector.pre_s + self.detector.post_s + self.detector.context_s
+        d = self.detector
+        # a window is cut up to lag_s after its end, and detection looks context_s back
+        needed = d.pre_s + d.post_s + max(d.context_s, d.lag_s)
         if self.ring_seconds < needed:
             raise ValueError(
                 f"ring_seconds {self.ring_seconds} s cannot hold an event window plus context ({needed:.1f} s)"
@@ -166,11 +168,8 @@ class MonitorPipeline:
             for e in late_events:
                 self._label(e)
             out.events += late_events
-            for w in rest:
-                if w.usable:
-                    w.usable, w.reason = False, "the recording ended before the post-event time"
             self._store(rest, out)
-        if final:
+        if final and self.settings.auto_recalibrate:
             if self.latest_ns is not None:
                 out.recalibrations += self.recalibrator.finish(self.latest_ns)
         else:

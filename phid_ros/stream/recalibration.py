@@ -18,7 +18,8 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 from phid_ros.ident.pipeline import IdentificationResult, IdentifyOptions, identify
-from phid_ros.ident.scenario import ScenarioData, ScenarioError, make_scenario
+from phid_ros.ident.scenario import DEFAULT_THRESHOLDS, ScenarioData, ScenarioError, StepThresholds, make_scenario
+from phid_ros.io.topics import channel_columns
 from phid_ros.model.conventions import NS
 from phid_ros.model.parameters import GeneratorParameters
 from phid_ros.stream.detector import EventWindow
@@ -56,24 +57,26 @@ class RecalibrationOutcome:
     seconds: float
 
 
-def scenario_from_window(w: EventWindow) -> ScenarioData:
+def scenario_from_window(
+    w: EventWindow, *, thresholds: StepThresholds = DEFAULT_THRESHOLDS, measurement_window_s: float = 0.0
+) -> ScenarioData:
+    """An event window as the identification's scenario: the one conversion, for the worker and
+    for ``phid identify`` on a recording without markers."""
     e = w.event
-    dt = w.period_ns / NS
     k_ev = int((e.inception_ns - int(w.t_ns[0])) // w.period_ns)
     k_cl = int((e.clearing_ns - int(w.t_ns[0])) // w.period_ns) if e.clearing_ns else None
-    from phid_ros.io.topics import channel_columns
-
-    signals = channel_columns(w.values)
     return make_scenario(
         e.name or e.event_id,
-        signals,
-        dt,
+        channel_columns(w.values),
+        w.period_ns / NS,
         kind=e.kind,
         role=e.role,
         generator_damping=e.generator_damping,
         k_event=k_ev,
         k_clear=k_cl,
         start_ns=int(w.t_ns[0]),
+        thresholds=thresholds,
+        measurement_window_s=measurement_window_s,
     )
 
 

@@ -19,12 +19,12 @@ from __future__ import annotations
 import pytest
 
 from phid_ros.cli.common import load_recording
-from phid_ros.cli.scenarios import scenarios_from_recording
 from phid_ros.diagnose.results import to_json
 from phid_ros.diagnose.workflow import DiagnoseOptions, diagnose
 from phid_ros.ident.pipeline import IdentifyOptions, identify
 from phid_ros.model.parameters import GeneratorParameters
 from phid_ros.sim.scenarios import paper_catalogue, with_duration
+from phid_ros.stream.scenarios import scenarios_from_recording
 
 pytestmark = pytest.mark.slow
 

@@ -9,9 +9,9 @@ from __future__ import annotations
 import pytest
 
 from phid_ros.cli.common import load_recording
-from phid_ros.cli.scenarios import scenarios_from_recording
 from phid_ros.ident.pipeline import IdentifyOptions, identify
 from phid_ros.sim.scenarios import paper_catalogue, with_duration
+from phid_ros.stream.scenarios import scenarios_from_recording
 
 SCENARIOS = ("S01_dampingless_torque_+0.10", "S03_torque_+0.05", "S07_torque_-0.10")
 SCENARIOS += ("S09_voltage_1.10", "S10_voltage_0.90", "S13_fault_100ms")

@@ -16,7 +16,7 @@ def test_classify_each_kind_from_the_signals(clean_scenarios):
 
 
 def test_find_events_in_a_continuous_recording(short_recording):
-    from phid_ros.cli.scenarios import aligned_channels
+    from phid_ros.stream.scenarios import aligned_channels
 
     t, dt, ch, _ = aligned_channels(short_recording, "test")
     events = find_events(ch, dt)

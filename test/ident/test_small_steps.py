@@ -11,7 +11,6 @@ import json
 
 import pytest
 
-from phid_ros.cli.scenarios import scenarios_from_recording
 from phid_ros.cli.simulate import simulate_recording
 from phid_ros.ident.pipeline import IdentifyOptions, identify
 from phid_ros.ident.scenario import StepThresholds
@@ -19,6 +18,7 @@ from phid_ros.io.csv_export import write_csv_set
 from phid_ros.io.csv_import import import_csv_set
 from phid_ros.sim.runner import SimulationConfig
 from phid_ros.sim.scenarios import Scenario, paper_catalogue, with_duration
+from phid_ros.stream.scenarios import scenarios_from_recording
 
 SMALL = [
     Scenario("A1_voltage_+2pct", "voltage_step", 1.02, duration=12.0),

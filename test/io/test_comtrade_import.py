@@ -14,7 +14,6 @@ import math
 import numpy as np
 import pytest
 
-from phid_ros.cli.scenarios import scenarios_from_recording
 from phid_ros.cli.simulate import recording_from_runs
 from phid_ros.ident.pipeline import IdentifyOptions, identify
 from phid_ros.io.channel_map import ChannelMapError, load_channel_map
@@ -23,6 +22,7 @@ from phid_ros.model.conventions import dq_to_terminal
 from phid_ros.model.parameters import PARAMETER_NAMES
 from phid_ros.sim.runner import SimulationConfig, simulate_scenarios
 from phid_ros.sim.scenarios import paper_catalogue, with_duration
+from phid_ros.stream.scenarios import scenarios_from_recording
 from test.io.comtrade_writer import write_comtrade
 
 # per test, not at module level: pytest 7 (the ROS tier's) skips the whole package for a module-level skip

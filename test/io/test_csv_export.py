@@ -32,7 +32,7 @@ def test_export_then_import_gives_the_scenarios_back(tmp_path, short_recording, 
 
 
 def test_the_spaces_between_csv_scenarios_are_not_reported_as_gaps(tmp_path, short_recording):
-    from phid_ros.cli.scenarios import scenarios_from_recording
+    from phid_ros.stream.scenarios import scenarios_from_recording
 
     rec, _ = import_csv_set(write_csv_set(tmp_path / "set", short_recording))
     scenarios, problems = scenarios_from_recording(rec, "set")

@@ -91,8 +91,8 @@ def test_reliable_qos_is_an_option(ros):
 
 
 def test_played_bag_gives_the_same_parameters_as_phid_replay(ros):
-    from phid_ros.cli.replay import replay
     from phid_ros.stream.pipeline import MonitorPipeline
+    from phid_ros.stream.replay import replay
 
     rec = read_recording(BAGS / "catalogue")
     ingest, recal = make_nodes(ros)
@@ -245,8 +245,8 @@ def test_launch_file_names_the_installed_executables_and_config_sections():
 def test_the_owed_recalibration_is_published_when_the_data_end_without_a_clock(ros):
     """Under sim time the timers stopped with /clock, so the last set never came. Now the process
     timer is on the steady clock and an input that stays silent counts as ended."""
-    from phid_ros.cli.replay import replay
     from phid_ros.stream.pipeline import MonitorPipeline
+    from phid_ros.stream.replay import replay
 
     rec = read_recording(BAGS / "catalogue")
     ingest, recal = make_nodes(ros)

@@ -51,14 +51,16 @@ def generate_test_description():
 
 def replay_reference():
     """What `phid replay` publishes for the same bag: the final set and the usable windows."""
-    from phid_ros.cli.replay import replay
     from phid_ros.io.bags import read_recording
     from phid_ros.stream.pipeline import MonitorPipeline
+    from phid_ros.stream.replay import replay
 
     p = MonitorPipeline()
     out = replay(read_recording(BAG), p)
     p.close()
-    usable = sorted(w.event.event_id for w in out.windows if w.usable)
+    # a window the end of the bag cut short (V3's) is used by replay, which knows the data ended;
+    # a node's data never end, so it cuts a window only once the data pass its end
+    usable = sorted(w.event.event_id for w in out.windows if w.usable and not w.reason)
     return p.parameters.as_dict(), usable, len(out.events), sum(len(e.t_ns) for e in out.energy)
 
 
@@ -121,7 +123,7 @@ class TestTheMonitorEqualsReplay(unittest.TestCase):
         last = dict(zip(got["parameters"][-1].names, got["parameters"][-1].values))
         self.assertEqual(last, expect, "the final set differs from phid replay's")
         self.assertEqual(got["events"], n_events)
-        self.assertEqual(sorted(got["windows"]), usable_ids, "every event window replay finds usable, and no other")
+        self.assertEqual(sorted(got["windows"]), usable_ids, "every whole window replay finds usable, and no other")
         # measured 3288 of replay's 3301 at 20x (the 13 not yet explained; see README)
         self.assertGreaterEqual(got["hamiltonian"], 0.99 * n_energy)
         self.assertTrue(got["levels"] <= {b"\x00", b"\x01", b"\x02", b"\x03"}, got["levels"])

@@ -8,12 +8,12 @@ import dataclasses
 import numpy as np
 import pytest
 
-from phid_ros.cli.replay import replay
 from phid_ros.io.bags import read_recording, write_messages
 from phid_ros.io.recording import ns_to_time, recording_messages
 from phid_ros.model.conventions import NS, stamp_ns
 from phid_ros.stream.detector import DetectorSettings
 from phid_ros.stream.pipeline import MonitorPipeline, PipelineSettings
+from phid_ros.stream.replay import replay
 
 
 def _settings() -> PipelineSettings:

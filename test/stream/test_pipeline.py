@@ -8,10 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from phid_ros.cli.replay import replay
 from phid_ros.io.bags import read_recording
+from phid_ros.model.conventions import NS
 from phid_ros.model.parameters import PARAMETER_NAMES, TABLE1
 from phid_ros.stream.pipeline import MonitorPipeline, PipelineSettings
+from phid_ros.stream.replay import replay
 from phid_ros.stream.store import EventStore
 
 BAGS = Path(__file__).resolve().parents[2] / "bags"
@@ -74,7 +75,13 @@ def test_events_survive_a_restart(replayed):
                 o.event.name,
                 o.event.generator_damping,
             )
-        assert reopened.counts() == {"torque_step": 8, "voltage_step": 5, "fault": 4}  # V3 lacks post-event data
+        # V3's fault has 20 s of data after it, not 29: its window is shortened to the data and used
+        assert reopened.counts() == {"torque_step": 8, "voltage_step": 5, "fault": 5}
+        v3 = stored[-1]
+        assert v3.usable and v3.reason == "the data ended 10.0 s before the end of the window"
+        # V1 and V2 follow 20 s apart: each window ends the sample before the next one's begins
+        for w, nxt in zip(stored, stored[1:]):
+            assert w.t_ns[-1] == min(w.event.inception_ns + 29 * NS, nxt.event.inception_ns - NS) - 1_000_000
     finally:
         reopened.close()
 

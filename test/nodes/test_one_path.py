@@ -1,0 +1,92 @@
+"""One plant recording, without scenario markers, through the three front-ends.
+
+The two nodes (on the rclpy test double, the ingest node's windows crossing to the
+recalibration node as messages), ``phid replay`` and ``phid identify`` must cut the same
+windows, sample for sample, and publish the same parameters, to the last digit: one path from
+samples to windows to stages, whichever front-end drives it.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from phid_ros.io.topics import channel_columns
+from phid_ros.model.parameters import PARAMETER_NAMES, TABLE1
+from test.conftest import short
+from test.nodes.test_nodes import make_nodes, play, published
+
+
+@pytest.fixture(scope="module")
+def plant(tmp_path_factory):
+    """A torque step, two voltage steps and a fault, recorded with no markers.
+
+    The simulator brings the machine back to its operating point after each (a 1 s ramp): those
+    are disturbances too. The fault's run goes on for 5 s after its window, as a plant's data go
+    on: a node cuts a window once detection has passed its end (up to 3 s later).
+    """
+    from phid_ros.cli.simulate import recording_from_runs
+    from phid_ros.io.bags import read_recording, write_recording
+    from phid_ros.io.recording import Recording
+    from phid_ros.sim.runner import SimulationConfig, simulate_scenarios
+
+    config = SimulationConfig(restore_ramp=1.0, restore_hold=1.0)
+    runs = simulate_scenarios([short("S04", 30.0), short("S08", 30.0), short("S10", 30.0), short("S14", 35.0)], config)
+    rec = recording_from_runs(runs, config)
+    path = write_recording(tmp_path_factory.mktemp("plant") / "plant.mcap", Recording(rec.streams, [], rec.metadata))
+    return path, read_recording(path)
+
+
+def test_nodes_replay_and_identify_cut_the_same_windows_and_publish_the_same_parameters(ros, plant, tmp_path):
+    from phid_ros.cli.main import main
+    from phid_ros.stream.pipeline import MonitorPipeline, PipelineSettings
+    from phid_ros.stream.replay import replay
+    from phid_ros.stream.scenarios import scenarios_from_recording
+
+    path, rec = plant
+    # the nodes: played as `ros2 bag play` would, then the operator's ~/recalibrate at the end
+    ingest, recal = make_nodes(ros)
+    play(ros, rec, ingest, recal)
+    recal.pipeline.recalibrator.join()
+    recal.process()
+    assert recal.services["/generator/recalibration_node/recalibrate"].call().success
+    recal.pipeline.recalibrator.join()
+    recal.process()
+    node_windows = recal.pipeline.store.all()
+    node_params = published(recal, "/generator/parameters")[-1]
+    node = dict(zip(node_params.names, np.asarray(node_params.values).tolist()))
+
+    # phid replay
+    pipeline = MonitorPipeline(PipelineSettings())
+    replayed = replay(rec, pipeline)
+    replay_params = pipeline.parameters.as_dict()
+    pipeline.close()
+
+    # phid identify: its scenarios, and its JSON
+    scenarios, problems = scenarios_from_recording(rec, str(path))
+    out = tmp_path / "r.json"
+    assert main(["identify", str(path), "--json", str(out), "--no-baseline"]) == 0
+    batch = json.loads(out.read_text())["parameters"]
+
+    # the windows: the four disturbances and the three restorations between them, each 30 s or up
+    # to the start of the next one's window
+    kinds = [w.event.kind for w in node_windows]
+    assert kinds == ["torque_step"] * 2 + ["voltage_step"] * 4 + ["fault"]
+    assert all(w.usable for w in node_windows)
+    assert [w.event.event_id for w in replayed.windows] == [w.event.event_id for w in node_windows]
+    assert [s.name for s in scenarios] == [w.event.event_id for w in node_windows]
+    assert any("no scenario markers: 7 disturbance(s)" in p for p in problems)
+    for w_node, w_replay, sc in zip(node_windows, replayed.windows, scenarios):
+        assert np.array_equal(w_node.t_ns, w_replay.t_ns) and np.array_equal(w_node.values, w_replay.values)
+        assert sc.start_ns == int(w_node.t_ns[0]) and sc.kind == w_node.event.kind
+        columns = channel_columns(w_node.values)
+        for c in ("v_t", "i_d", "i_q", "omega", "p_e", "p_m"):
+            assert np.array_equal(sc.signals[c], columns[c]), c
+
+    # the parameters: the same to the last digit, and right
+    assert node == replay_params == batch
+    for name in PARAMETER_NAMES:
+        limit = 0.10 if name == "D" else 0.02
+        assert batch[name] == pytest.approx(getattr(TABLE1, name), rel=limit), name
