@@ -19,7 +19,7 @@ def test_diagnose_names_the_hidden_saturation_in_the_shipped_bag(tmp_path, capsy
     args = ["diagnose", str(bag), "--json", str(out), "--report", str(report)]
     assert main(args + ["--truth", str(BAGS / "saturation.truth.json")]) == 0
     doc = json.loads(out.read_text())
-    # the DESIGN.md contract
+    # the README's contract
     assert [e["name"] for e in doc["effects"]] == ["magnetic_saturation"]
     effect = doc["effects"][0]
     assert set(effect) >= {"name", "parameters", "rmse_before", "rmse_after"}

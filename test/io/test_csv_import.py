@@ -14,7 +14,7 @@ from phid_ros.model.conventions import NS
 
 
 def write_set(folder: Path, runs, *, gz: bool = False, extra: dict | None = None, mutate=None) -> Path:
-    """A CSV scenario set in the DESIGN.md format from simulated runs."""
+    """A CSV scenario set in the README's contract format from simulated runs."""
     entries = []
     for k, run in enumerate(runs):
         n = run.n_analysis  # a CSV export holds the scenario, not the simulator's restore period
