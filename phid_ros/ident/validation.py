@@ -21,7 +21,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from phid_ros.ident.scenario import ScenarioData
-from phid_ros.model.conventions import DEFAULT_F_NOMINAL_HZ, electrical_power, omega_s, terminal_to_dq
+from phid_ros.model.conventions import DEFAULT_F_NOMINAL_HZ, electrical_power, terminal_to_dq
+from phid_ros.model.equations import Coefficients, currents, derivatives
 from phid_ros.model.parameters import GeneratorParameters
 from phid_ros.numerics import rk4
 
@@ -98,30 +99,14 @@ def play_in(
     half = stride // 2
 
     v_t, theta, p_m, v_f = (staged_samples(scenarios, n, m, steps, half) for n in ("v_t", "theta_t", "p_m", "v_f"))
-    col = lambda name: np.tile([getattr(p, name) for p in params], len(scenarios)).astype(float)  # noqa: E731
-    H, D, xd, xq, xdp, xqp, td0, tq0 = (
-        col(n) for n in ("H", "D", "X_d", "X_q", "X_d_prime", "X_q_prime", "T_d0_prime", "T_q0_prime")
-    )
     damping_on = np.repeat([1.0 if s.generator_damping else 0.0 for s in scenarios], m)
-    D = D * damping_on
-    ws = omega_s(f_nominal_hz)
-    inv_2h, xd_diff, xq_diff = 1.0 / (2.0 * H), xd - xdp, xq - xqp
+    coef = Coefficients.of(params, f_nominal_hz, repeat=len(scenarios), damping=damping_on)
+    xdp, xqp = coef.x_d_prime, coef.x_q_prime
 
     def rhs(x: Array, vt: Array, th: Array, pm: Array, vf: Array) -> Array:
-        delta, omega, e_q, e_d = x
-        ang = delta - th
-        v_d, v_q = vt * np.sin(ang), vt * np.cos(ang)
-        i_d = (e_q - v_q) / xdp  # (11)
-        i_q = (v_d - e_d) / xqp  # (12)
-        slip = omega - 1.0
-        return np.array(  # not np.stack: 3x its speed for four rows
-            (
-                ws * slip,
-                (pm - (v_d * i_d + v_q * i_q) - D * slip) * inv_2h,  # (13) in (6)
-                (vf - e_q - xd_diff * i_d) / td0,
-                (xq_diff * i_q - e_d) / tq0,
-            )
-        )
+        v_d, v_q = terminal_to_dq(vt, x[0], th)
+        i_d, i_q = currents(x[2], x[3], v_d, v_q, coef)
+        return derivatives(x, pm, v_d * i_d + v_q * i_q, vf, i_d, i_q, coef)  # P_e by (13)
 
     # initial state: the pre-event steady state as each model sees it
     x0 = np.empty((4, len(scenarios) * m))
@@ -144,7 +129,7 @@ def play_in(
     delta, omega, e_q, e_d = (states[:, i] for i in range(4))
     v_t, theta = v_t[::2], theta[::2]
     v_d, v_q = terminal_to_dq(v_t, delta, theta)
-    i_d, i_q = (e_q - v_q) / xdp, (v_d - e_d) / xqp
+    i_d, i_q = currents(e_q, e_d, v_d, v_q, coef)
     p_e, q_e = electrical_power(v_d, v_q, i_d, i_q)
     out = []
     for j, ii in enumerate(idx):
