@@ -368,17 +368,29 @@ def add_step_thresholds(p: argparse.ArgumentParser) -> None:
 
 
 # -- entry point -----------------------------------------------------------------
-def build_parser() -> argparse.ArgumentParser:
-    parser = Parser(prog="phid", description="Port-Hamiltonian generator identification.")
-    parser.add_argument("-V", "--version", action="version", version=f"phid_ros {__version__}")
-    sub = parser.add_subparsers(dest="command", required=True)
+Subparsers = argparse._SubParsersAction
 
-    p = sub.add_parser("simulate", help="simulate the scenario catalogue (or some scenarios) into a bag")
+
+def _add_recording_output(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--out",
         required=True,
         help="output: a rosbag2 folder, a file ending in .mcap, or DIR/manifest.json for a CSV scenario set",
     )
+
+
+def _add_block_size(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--block-size",
+        type=POSITIVE_INT,
+        default=DEFAULT_BLOCK_SIZE,
+        help=f"samples per sensor message (default {DEFAULT_BLOCK_SIZE})",
+    )
+
+
+def _add_simulate(sub: Subparsers) -> None:
+    p = sub.add_parser("simulate", help="simulate the scenario catalogue (or some scenarios) into a bag")
+    _add_recording_output(p)
     p.add_argument(
         "--catalogue",
         choices=("paper", "validation"),
@@ -392,12 +404,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="sensor noise seed (default 0)")
     p.add_argument("--noiseless", action="store_true", help="write the true signals, no sensor noise")
     p.add_argument("--f-nominal", type=POSITIVE, default=50.0, help="nominal frequency, Hz (default 50)")
-    p.add_argument(
-        "--block-size",
-        type=POSITIVE_INT,
-        default=DEFAULT_BLOCK_SIZE,
-        help=f"samples per sensor message (default {DEFAULT_BLOCK_SIZE})",
-    )
+    _add_block_size(p)
     p.add_argument(
         "--effect",
         action="append",
@@ -419,22 +426,17 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=cmd_simulate)
 
+
+def _add_import_csv(sub: Subparsers) -> None:
     p = sub.add_parser("import-csv", help="turn a CSV scenario set (manifest.json) into a bag")
     p.add_argument("manifest", help="the set's manifest.json (scenarios, their CSV files, kinds and roles)")
-    p.add_argument(
-        "--out",
-        required=True,
-        help="output: a rosbag2 folder, a file ending in .mcap, or DIR/manifest.json for a CSV scenario set",
-    )
+    _add_recording_output(p)
     p.add_argument("--strict", action="store_true", help="refuse extra columns instead of ignoring them")
-    p.add_argument(
-        "--block-size",
-        type=POSITIVE_INT,
-        default=DEFAULT_BLOCK_SIZE,
-        help=f"samples per sensor message (default {DEFAULT_BLOCK_SIZE})",
-    )
+    _add_block_size(p)
     p.set_defaults(func=cmd_import_csv)
 
+
+def _add_field_imports(sub: Subparsers) -> None:
     for name, what, helptext in (
         (
             "import-comtrade",
@@ -446,19 +448,12 @@ def build_parser() -> argparse.ArgumentParser:
         p = sub.add_parser(name, help=helptext)
         p.add_argument("recordings", nargs="+", metavar=what, help="the recordings (several make one scenario set)")
         p.add_argument("--map", required=True, metavar="MAP.yaml", help="channel map (YAML or JSON; README)")
-        p.add_argument(
-            "--out",
-            required=True,
-            help="output: a rosbag2 folder, a file ending in .mcap, or DIR/manifest.json for a CSV scenario set",
-        )
-        p.add_argument(
-            "--block-size",
-            type=POSITIVE_INT,
-            default=DEFAULT_BLOCK_SIZE,
-            help=f"samples per sensor message (default {DEFAULT_BLOCK_SIZE})",
-        )
+        _add_recording_output(p)
+        _add_block_size(p)
         p.set_defaults(func=cmd_import_comtrade if name == "import-comtrade" else cmd_import_pmu)
 
+
+def _add_identify(sub: Subparsers) -> None:
     p = sub.add_parser("identify", help="three-stage identification of the eight parameters")
     p.add_argument("input", help="rosbag2 folder, .mcap file, or CSV manifest.json")
     p.add_argument("--json", metavar="OUT", help="write the results JSON here")
@@ -499,6 +494,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=cmd_identify)
 
+
+def _add_diagnose(sub: Subparsers) -> None:
     p = sub.add_parser("diagnose", help="find and name the physics the fourth-order model is missing")
     p.add_argument("input", help="rosbag2 folder, .mcap file, or CSV manifest.json")
     p.add_argument("--json", metavar="OUT", help="write the diagnosis JSON here")
@@ -513,6 +510,8 @@ def build_parser() -> argparse.ArgumentParser:
     add_step_thresholds(p)
     p.set_defaults(func=cmd_diagnose)
 
+
+def _add_replay(sub: Subparsers) -> None:
     p = sub.add_parser("replay", help="play a bag through the online pipeline (detection, recalibration, energy)")
     p.add_argument("bag", help="rosbag2 folder or .mcap file")
     p.add_argument("--out", required=True, help="output bag for every published message (.mcap or folder)")
@@ -533,6 +532,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=cmd_replay)
 
+
+def _add_track(sub: Subparsers) -> None:
     p = sub.add_parser("track", help="sliding-window tracking of parameter drift over a recording")
     p.add_argument("bag", help="rosbag2 folder or .mcap file")
     p.add_argument("--window", type=POSITIVE, default=300.0, help="window length, s (default 300)")
@@ -549,6 +550,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=cmd_track)
 
+
+def _add_fleet(sub: Subparsers) -> None:
     p = sub.add_parser("fleet", help="identify every recording of many units on a Dask cluster, into a history")
     p.add_argument(
         "inventory",
@@ -565,6 +568,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--summary", action="store_true", help="print one row per unit with its latest set and flags")
     p.set_defaults(func=cmd_fleet)
 
+
+def _add_history(sub: Subparsers) -> None:
     p = sub.add_parser("history", help="one unit's parameters over time from a fleet history, changes flagged")
     p.add_argument("unit", help="the unit's name, as in the fleet's inventory (phid fleet --summary lists them)")
     p.add_argument(
@@ -579,6 +584,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=cmd_history)
 
+
+def _add_export(sub: Subparsers) -> None:
     p = sub.add_parser("export", help="an identified machine as a planning-model record (PSS/E, PSLF, ANDES)")
     p.add_argument("result", help="results JSON of phid identify --json (its identifiability flags are honoured)")
     p.add_argument("--format", choices=("psse-dyr", "pslf-dyd", "andes"), required=True, help="the record's format")
@@ -608,9 +615,32 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=cmd_export)
 
+
+def _add_info(sub: Subparsers) -> None:
     p = sub.add_parser("info", help="topics, message counts, rates, time span and gaps of a bag")
     p.add_argument("bag", help="rosbag2 folder or .mcap file (a bag cut short is read as far as it goes)")
     p.set_defaults(func=cmd_info)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = Parser(prog="phid", description="Port-Hamiltonian generator identification.")
+    parser.add_argument("-V", "--version", action="version", version=f"phid_ros {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    for add in (
+        _add_simulate,
+        _add_import_csv,
+        _add_field_imports,
+        _add_identify,
+        _add_diagnose,
+        _add_replay,
+        _add_track,
+        _add_fleet,
+        _add_history,
+        _add_export,
+        _add_info,
+    ):
+        add(sub)
     for p in sub.choices.values():
         p.add_argument("--wide", action="store_true", help="print tables at full width (default: fit the terminal)")
     return parser

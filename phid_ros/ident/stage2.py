@@ -145,6 +145,85 @@ def _through_origin(x: np.ndarray, y: np.ndarray) -> tuple[float, float, float]:
     return k, se, _r2(y, k * x)
 
 
+def _slope_se(a: np.ndarray, y: np.ndarray, fit: np.ndarray) -> float:
+    """Standard error of the first coefficient of a linear fit ``y ~ a @ coef`` with an intercept."""
+    s2 = float(np.sum((y - fit) ** 2)) / max(len(y) - 2, 1)
+    return math.sqrt(s2 * np.linalg.pinv(a.T @ a)[0, 0]) if len(y) > 2 else math.nan
+
+
+def _paper_d_axis(i_d: np.ndarray, v_q: np.ndarray, problems: list[str]) -> tuple[float, float, float]:
+    """X_d from the paper's (37), V_q = -X_d I_d + E'_q0 by L-BFGS-B: (X_d, its std, R^2)."""
+    if float(np.ptp(i_d)) < MIN_CURRENT_SPREAD:
+        raise Stage2Error(
+            f"stage 2 cannot fit (37): I_d spans only {np.ptp(i_d):.4f} pu across the steady "
+            "states; voltage-step scenarios at several set points would fix it"
+        )
+
+    def cost(th: np.ndarray) -> float:
+        return float(np.sum((v_q - (-th[0] * i_d + th[1])) ** 2))
+
+    res = minimize(
+        cost,
+        x0=[2.0, 1.0],
+        method="L-BFGS-B",
+        bounds=[X_D_BOUNDS, E_Q0_BOUNDS],
+        options={"ftol": 1e-15, "gtol": 1e-12, "maxiter": 10_000},
+    )
+    xd = float(res.x[0])
+
+    def at_bound(v: float, bounds: tuple[float, float]) -> bool:
+        return min(abs(v - bounds[0]), abs(v - bounds[1])) < 1e-4 * (bounds[1] - bounds[0])
+
+    fit = -xd * i_d + res.x[1]
+    if at_bound(xd, X_D_BOUNDS):
+        problems.append(f"X_d = {xd:.3f} pu is at a bound of (37) {X_D_BOUNDS}")
+    if at_bound(float(res.x[1]), E_Q0_BOUNDS):
+        problems.append(
+            f"E'_q0 = {res.x[1]:.3f} pu is at a bound of (37) {E_Q0_BOUNDS}: the field voltage "
+            "lies outside the paper's range, so X_d from (37) is wrong; use measured V_f"
+        )
+    return xd, _slope_se(np.column_stack([-i_d, np.ones_like(i_d)]), v_q, fit), _r2(v_q, fit)
+
+
+def _paper_q_axis(i_q: np.ndarray, v_d: np.ndarray) -> tuple[float, float, float]:
+    """X_q from the paper's (38), V_d = X_q I_q + E'_d0 by polynomial regression: (X_q, its std, R^2)."""
+    if float(np.ptp(i_q)) < MIN_CURRENT_SPREAD:
+        raise Stage2Error(f"stage 2 cannot fit (38): I_q spans only {np.ptp(i_q):.4f} pu; torque steps would fix it")
+    coef = np.polyfit(i_q, v_d, 1)
+    fit = np.polyval(coef, i_q)
+    return float(coef[0]), _slope_se(np.column_stack([i_q, np.ones_like(i_q)]), v_d, fit), _r2(v_d, fit)
+
+
+def _not_identified(est: Estimate, note: str) -> None:
+    if est.identifiable:
+        est.identifiable = False
+        est.note = (est.note + "; " if est.note else "") + note
+
+
+def _flag_origin_offsets(
+    x_d_est: Estimate,
+    x_q_est: Estimate,
+    i_d: np.ndarray,
+    i_q: np.ndarray,
+    v_d: np.ndarray,
+    v_q: np.ndarray,
+    v_f: np.ndarray,
+) -> None:
+    """Steady states whose free line misses the origin: the slope through it is biased."""
+    for est, name, x, y, what in (
+        (x_d_est, "X_d", i_d, v_f - v_q, "V_f - V_q against I_d"),
+        (x_q_est, "X_q", i_q, v_d, "V_d against I_q"),
+    ):
+        b, t, k_free = origin_offset(x, y)
+        if math.isfinite(t) and abs(t) > ORIGIN_T_MAX and abs(k_free / est.value - 1) > ORIGIN_SLOPE_GAP:
+            _not_identified(
+                est,
+                f"{name}: the steady states ({what}) miss the origin by {b:+.4f} pu ({abs(t):.0f} standard "
+                f"errors; a free line's slope is {k_free:.3g}): saturation or a stator resistance the "
+                "fourth-order model lacks; the slope is biased",
+            )
+
+
 def identify_reactances(
     scenarios: Sequence[ScenarioData], *, use_field_voltage: bool = True, paper_intercepts: bool = False
 ) -> Stage2Result:
@@ -155,64 +234,17 @@ def identify_reactances(
             "stage 2 needs steady states after torque or voltage steps; none in the input "
             "(record a voltage step or a torque step and let it settle)"
         )
-    i_d = np.array([p.i_d for p in pts])
-    i_q = np.array([p.i_q for p in pts])
-    v_d = np.array([p.v_d for p in pts])
-    v_q = np.array([p.v_q for p in pts])
-    v_f = np.array([p.v_f for p in pts])
+    i_d, i_q, v_d, v_q, v_f = (np.array([getattr(p, n) for p in pts]) for n in ("i_d", "i_q", "v_d", "v_q", "v_f"))
     names = [p.scenario for p in pts]
-
-    if use_field_voltage and not paper_intercepts:
+    ours = use_field_voltage and not paper_intercepts
+    if ours:
         xd, se_d, r2_d = _through_origin(i_d, v_f - v_q)
         method_d = "V_f - V_q = X_d I_d (measured V_f), through the origin"
     else:
-        if float(np.ptp(i_d)) < MIN_CURRENT_SPREAD:
-            raise Stage2Error(
-                f"stage 2 cannot fit (37): I_d spans only {np.ptp(i_d):.4f} pu across the steady "
-                "states; voltage-step scenarios at several set points would fix it"
-            )
-
-        def cost(th: np.ndarray) -> float:
-            return float(np.sum((v_q - (-th[0] * i_d + th[1])) ** 2))
-
-        res = minimize(
-            cost,
-            x0=[2.0, 1.0],
-            method="L-BFGS-B",
-            bounds=[X_D_BOUNDS, E_Q0_BOUNDS],
-            options={"ftol": 1e-15, "gtol": 1e-12, "maxiter": 10_000},
-        )
-        xd = float(res.x[0])
-
-        def at_bound(v: float, bounds: tuple[float, float]) -> bool:
-            return min(abs(v - bounds[0]), abs(v - bounds[1])) < 1e-4 * (bounds[1] - bounds[0])
-
-        fit = -xd * i_d + res.x[1]
-        r2_d = _r2(v_q, fit)
-        a = np.column_stack([-i_d, np.ones_like(i_d)])
-        s2 = float(np.sum((v_q - fit) ** 2)) / max(len(v_q) - 2, 1)
-        se_d = math.sqrt(s2 * np.linalg.pinv(a.T @ a)[0, 0]) if len(v_q) > 2 else math.nan
+        xd, se_d, r2_d = _paper_d_axis(i_d, v_q, problems)
         method_d = "(37) V_q = -X_d I_d + E'_q0, L-BFGS-B"
-        if at_bound(xd, X_D_BOUNDS):
-            problems.append(f"X_d = {xd:.3f} pu is at a bound of (37) {X_D_BOUNDS}")
-        if at_bound(float(res.x[1]), E_Q0_BOUNDS):
-            problems.append(
-                f"E'_q0 = {res.x[1]:.3f} pu is at a bound of (37) {E_Q0_BOUNDS}: the field voltage "
-                "lies outside the paper's range, so X_d from (37) is wrong; use measured V_f"
-            )
-
     if paper_intercepts:
-        if float(np.ptp(i_q)) < MIN_CURRENT_SPREAD:
-            raise Stage2Error(
-                f"stage 2 cannot fit (38): I_q spans only {np.ptp(i_q):.4f} pu; torque steps would fix it"
-            )
-        coef = np.polyfit(i_q, v_d, 1)
-        xq = float(coef[0])
-        fit = np.polyval(coef, i_q)
-        r2_q = _r2(v_d, fit)
-        a = np.column_stack([i_q, np.ones_like(i_q)])
-        s2 = float(np.sum((v_d - fit) ** 2)) / max(len(v_d) - 2, 1)
-        se_q = math.sqrt(s2 * np.linalg.pinv(a.T @ a)[0, 0]) if len(v_d) > 2 else math.nan
+        xq, se_q, r2_q = _paper_q_axis(i_q, v_d)
         method_q = "(38) V_d = X_q I_q + E'_d0, polynomial regression"
     else:
         xq, se_q, r2_q = _through_origin(i_q, v_d)
@@ -223,28 +255,14 @@ def identify_reactances(
     top = lambda share: [names[i] for i in np.argsort(share)[::-1][:3]]  # noqa: E731
     x_d_est = flag(Estimate(xd, se_d, drivers=top(d_share)), "X_d")
     x_q_est = flag(Estimate(xq, se_q, drivers=top(q_share)), "X_q")
-    if use_field_voltage and not paper_intercepts:
-        for est, name, x, y, what in (
-            (x_d_est, "X_d", i_d, v_f - v_q, "V_f - V_q against I_d"),
-            (x_q_est, "X_q", i_q, v_d, "V_d against I_q"),
-        ):
-            b, t, k_free = origin_offset(x, y)
-            off = math.isfinite(t) and abs(t) > ORIGIN_T_MAX and abs(k_free / est.value - 1) > ORIGIN_SLOPE_GAP
-            if off and est.identifiable:
-                est.identifiable = False
-                est.note = (est.note + "; " if est.note else "") + (
-                    f"{name}: the steady states ({what}) miss the origin by {b:+.4f} pu ({abs(t):.0f} standard "
-                    f"errors; a free line's slope is {k_free:.3g}): saturation or a stator resistance the "
-                    "fourth-order model lacks; the slope is biased"
-                )
+    if ours:
+        _flag_origin_offsets(x_d_est, x_q_est, i_d, i_q, v_d, v_q, v_f)
     if len(pts) < MIN_STEADY_POINTS:
         problems.append(f"only {len(pts)} steady state(s): X_d and X_q rest on too few operating points")
         for est, name in ((x_d_est, "X_d"), (x_q_est, "X_q")):
-            if est.identifiable:
-                est.identifiable = False
-                est.note = (est.note + "; " if est.note else "") + (
-                    f"{name} from {len(pts)} steady state(s): a line through so few points has no honest error bar"
-                )
+            _not_identified(
+                est, f"{name} from {len(pts)} steady state(s): a line through so few points has no honest error bar"
+            )
     return Stage2Result(
         X_d=x_d_est,
         X_q=x_q_est,
