@@ -74,6 +74,8 @@ class OutputCollector:
         for e in out.energy:
             for t, msg in zip(e.t_ns, m.hamiltonian_messages(self.types, e)):
                 self._add("hamiltonian", int(t), msg)
+        for p in out.tracked:
+            self._add("tracked_parameters", p.t_ns, m.tracked_message(self.types, p))
         now = self.pipeline.latest_ns
         if now is not None:
             if self._next_diag is None:

@@ -2,9 +2,7 @@
 
 from __future__ import annotations
 
-import math
 import time
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -21,36 +19,8 @@ from phid_ros.io.outputs import atomic_output
 from phid_ros.io.topics import OUTPUT_TOPICS, output_topic
 from phid_ros.model.conventions import NS
 from phid_ros.model.parameters import SYMBOLS, TABLE1, GeneratorParameters
-from phid_ros.stream.align import Aligner
-from phid_ros.stream.tracker import TRACKED, SlidingTracker, TrackerSettings, TrackPoint
-
-
-def track_recording(
-    rec: Any, tracker: SlidingTracker, on_point: Callable[[TrackPoint], None] | None = None
-) -> list[TrackPoint]:
-    """Align the recording's streams and feed the tracker in one pass (segments respected).
-
-    ``on_point`` sees each hop's estimates as soon as they are made.
-    """
-    aligner = Aligner(rec.streams["pt_ct"].period_ns)
-    for name, s in rec.streams.items():
-        if _uniform(s):
-            aligner.ingest(name, int(s.t_ns[0]), s.period_ns, s.channels)
-        else:
-            _ingest_blocks(aligner, name, s)
-    points: list[TrackPoint] = []
-    segment = 0
-    chunk = max(1, int(10 * NS // rec.streams["pt_ct"].period_ns))  # 10 s at a time: the ring holds one window
-    for block in aligner.pull(final=True):
-        if block.segment != segment:
-            segment = block.segment
-            tracker.reset()
-        for k in range(0, len(block.t_ns), chunk):
-            new = tracker.update(block.t_ns[k : k + chunk], block.values[k : k + chunk])
-            points += new
-            for p in new if on_point else ():
-                on_point(p)  # type: ignore[misc]
-    return points
+from phid_ros.stream.replay import track_recording
+from phid_ros.stream.tracker import TRACKED, TrackerSettings, TrackPoint
 
 
 def health_over_time(rec: Any, bin_s: float) -> HealthLog:
@@ -90,19 +60,6 @@ def hop_line(start_ns: int, p: TrackPoint) -> str:
     return f"{(p.t_ns - start_ns) / NS:>7.0f} " + " ".join(cells)
 
 
-def _uniform(s: Any) -> bool:
-    import numpy as np
-
-    return bool(len(s.t_ns) < 2 or np.all(np.diff(s.t_ns) == s.period_ns))
-
-
-def _ingest_blocks(aligner: Aligner, name: str, s: Any) -> None:
-    from phid_ros.io.recording import block_bounds
-
-    for a, b in block_bounds(s.t_ns, s.period_ns, 1_000_000):
-        aligner.ingest(name, int(s.t_ns[a]), s.period_ns, {c: v[a:b] for c, v in s.channels.items()})
-
-
 def base_parameters(args: Any) -> GeneratorParameters:
     if not args.base:
         warn(
@@ -126,9 +83,6 @@ def run(args: Any, console: Any) -> int:
     base = base_parameters(args)  # checked before the recording is read
     with ProgressLine(f"reading {args.bag}"):
         rec, _ = read_input(args.bag)
-    tracker = SlidingTracker(
-        base, rec.streams["pt_ct"].period_ns, TrackerSettings(window_s=args.window, hop_s=args.hop)
-    )
     start = rec.span_ns()[0]
     console.print(f"sliding-window tracking ({args.window:g} s window, {args.hop:g} s hop)", highlight=False)
     console.print(escape(CONCISE_LEGEND), style="dim", highlight=False)
@@ -144,12 +98,13 @@ def run(args: Any, console: Any) -> int:
 
     t0 = time.perf_counter()
     with ProgressLine("tracking: the first window") as progress:
-        points = track_recording(rec, tracker, show)
+        points = track_recording(rec, base, TrackerSettings(window_s=args.window, hop_s=args.hop), show)
     wall = time.perf_counter() - t0
     if not points:
         raise PhidError(f"{args.bag}: shorter than one tracking window ({args.window:g} s)")
+    alarmed = sorted({n for p in points for n in p.alarmed})
     console.print(
-        f"{len(points)} hops; alarms raised for: {', '.join(SYMBOLS[n] for n in sorted(tracker.alarmed)) or 'none'}; "
+        f"{len(points)} hops; alarms raised for: {', '.join(SYMBOLS[n] for n in alarmed) or 'none'}; "
         f"tracked in {wall:.1f} s (wall time)",
         highlight=False,
     )
@@ -171,33 +126,11 @@ def run(args: Any, console: Any) -> int:
         console.print(f"wrote {args.report}", highlight=False)
     if args.out:
         from phid_ros.io.msg_schemas import typestore
-        from phid_ros.stream.messages import header
+        from phid_ros.stream.messages import tracked_message
 
         types = typestore().types
-        import numpy as np
-
-        msgs = []
-        for p in points:
-            names = [n for n in TRACKED if n in p.estimates]
-            msgs.append(
-                (
-                    p.t_ns,
-                    output_topic("tracked_parameters"),
-                    OUTPUT_TOPICS["tracked_parameters"][1],
-                    types["phid_msgs/msg/GeneratorParameters"](
-                        header=header(types, p.t_ns),
-                        names=names,
-                        values=np.array([p.estimates[n].value for n in names]),
-                        std_dev=np.array([p.estimates[n].std for n in names]),
-                        identifiable=np.array([p.estimates[n].identifiable for n in names], dtype=bool),
-                        method="tracker",
-                        event_ids=[],
-                        objective=math.nan,
-                        fit_rmse=math.nan,
-                        status="; ".join(p.alarms) or "ok",
-                    ),
-                )
-            )
+        topic, msgtype = output_topic("tracked_parameters"), OUTPUT_TOPICS["tracked_parameters"][1]
+        msgs = [(p.t_ns, topic, msgtype, tracked_message(types, p)) for p in points]
         with atomic_output(args.out) as tmp:
             write_messages(tmp, msgs)
         console.print(f"wrote {len(msgs)} messages to {args.out}", highlight=False)

@@ -32,7 +32,6 @@ from phid_ros.nodes.common import (
 from phid_ros.stream import messages as m
 from phid_ros.stream.params import RECALIBRATION, apply, pipeline_settings
 from phid_ros.stream.pipeline import MonitorPipeline, Outputs
-from phid_ros.stream.tracker import SlidingTracker, TrackerSettings
 
 # The Hamiltonian is held until the recalibration that covers it is known, then published at
 # once: the first set releases about 5.5 min of samples (1650 at 5 Hz) in one burst, which a
@@ -52,8 +51,6 @@ class RecalibrationNode(Node):
         )
         self.pipeline = MonitorPipeline(settings)
         self.types = msg_types()
-        self.tracker: SlidingTracker | None = None
-        self._tracked_to: int | None = None  # the last sample handed to the tracker
         self.last_status: str | None = None
         qos = sensor_qos(self.values["reliable_qos"], self.values["queue_depth"])
         for name in SENSOR_TOPICS:
@@ -110,8 +107,6 @@ class RecalibrationNode(Node):
 
     def _reset(self, request: Any, response: Any) -> Any:
         self.pipeline.reset()
-        if self.tracker is not None:
-            self.tracker.reset()
         response.success, response.message = True, "buffers and event store cleared; parameters kept"
         return response
 
@@ -139,39 +134,8 @@ class RecalibrationNode(Node):
         for e in out.energy:
             for msg in m.hamiltonian_messages(self.types, e):
                 self.energy_pub.publish(msg)
-        if self.values["tracking_enabled"] and self.pipeline.parameters is not None:
-            self._track()
-
-    def _track(self) -> None:
-        if self.tracker is None:
-            self.tracker = SlidingTracker(
-                self.pipeline.parameters,
-                self.pipeline.settings.period_ns,  # type: ignore[arg-type]
-                TrackerSettings(window_s=self.values["tracking_window_s"], hop_s=self.values["tracking_hop_s"]),
-            )
-        ring = self.pipeline.ring
-        latest = ring.latest_ns
-        if latest is None:
-            return
-        start = self._tracked_to + 1 if self._tracked_to is not None else (ring.oldest_ns or latest)
-        t, x = ring.window(start, latest)
-        self._tracked_to = latest
-        for point in self.tracker.update(t, x):
-            names = list(point.estimates)
-            self.tracked_pub.publish(
-                self.types["phid_msgs/msg/GeneratorParameters"](
-                    header=m.header(self.types, point.t_ns),
-                    names=names,
-                    values=float_seq([point.estimates[n].value for n in names]),
-                    std_dev=float_seq([point.estimates[n].std for n in names]),
-                    identifiable=[point.estimates[n].identifiable for n in names],
-                    method="tracker",
-                    event_ids=[],
-                    objective=float("nan"),
-                    fit_rmse=float("nan"),
-                    status="; ".join(point.alarms) or "ok",
-                )
-            )
+        for point in out.tracked:
+            self.tracked_pub.publish(m.tracked_message(self.types, point, float_seq, list))
             for alarm in point.alarms:
                 self.get_logger().warning(alarm)
 

@@ -23,6 +23,7 @@ from phid_ros.stream.align import StreamHealth
 from phid_ros.stream.detector import Event, EventWindow
 from phid_ros.stream.energy import EnergySamples
 from phid_ros.stream.recalibration import RecalibrationOutcome
+from phid_ros.stream.tracker import TRACKED, TrackPoint
 
 Types = Mapping[str, Callable[..., Any]]
 Seq = Callable[[Any], Any]
@@ -98,6 +99,23 @@ def parameters_message(
         objective=float(objective),
         fit_rmse=float(fit),
         status=outcome.status,
+    )
+
+
+def tracked_message(types: Types, point: TrackPoint, seq: Seq = numpy_seq, bools: Seq = numpy_bools) -> Any:
+    """One tracker hop: the tracked parameters estimated over the window ending at its stamp."""
+    names = [n for n in TRACKED if n in point.estimates]
+    return types["phid_msgs/msg/GeneratorParameters"](
+        header=header(types, point.t_ns),
+        names=names,
+        values=seq([point.estimates[n].value for n in names]),
+        std_dev=seq([point.estimates[n].std for n in names]),
+        identifiable=bools([bool(point.estimates[n].identifiable) for n in names]),
+        method="tracker",
+        event_ids=[],
+        objective=math.nan,
+        fit_rmse=math.nan,
+        status="; ".join(point.alarms) or "ok",
     )
 
 

@@ -118,6 +118,7 @@ def pipeline_settings(
     """PipelineSettings from parameter values (missing ones take their defaults)."""
     from phid_ros.stream.detector import DetectorSettings
     from phid_ros.stream.recalibration import RecalibrationPolicy
+    from phid_ros.stream.tracker import TrackerSettings
 
     v = {t.name: t.default for t in INGEST + RECALIBRATION}
     v.update(values)
@@ -136,6 +137,8 @@ def pipeline_settings(
             max_relative_jump=float(v["max_relative_jump"]),
         ),
         detect=detect,
+        tracking_enabled=bool(v["tracking_enabled"]),
+        tracking=TrackerSettings(window_s=float(v["tracking_window_s"]), hop_s=float(v["tracking_hop_s"])),
     )
 
 
@@ -146,6 +149,6 @@ def apply(settings: PipelineSettings, name: str, value: Any) -> PipelineSettings
         return replace(settings, detector=replace(settings.detector, **{field: float(value)}))
     if name in ("min_interval_s", "latest_per_kind", "max_relative_jump"):
         return replace(settings, policy=replace(settings.policy, **{name: value}))
-    if name in ("hamiltonian_rate_hz", "auto_recalibrate", "stale_timeout_s"):
+    if name in ("hamiltonian_rate_hz", "auto_recalibrate", "stale_timeout_s", "tracking_enabled"):
         return replace(settings, **{name: value})
     return settings

@@ -21,6 +21,7 @@ from phid_ros.stream.energy import EnergySamples, energy
 from phid_ros.stream.recalibration import RecalibrationOutcome, RecalibrationPolicy, Recalibrator
 from phid_ros.stream.ring import RingBuffer
 from phid_ros.stream.store import EventStore
+from phid_ros.stream.tracker import SlidingTracker, TrackerSettings, TrackPoint
 
 
 @dataclass
@@ -37,6 +38,11 @@ class PipelineSettings:
     identify: IdentifyOptions = field(default_factory=lambda: IdentifyOptions(baseline=False))
     initial_parameters: GeneratorParameters | None = None
     detect: bool = True  # False: windows arrive from elsewhere (the recalibration node gets them by topic)
+    # sliding-window tracking of drift: it starts on tracking_base, or without one on the first set
+    # identified, from the oldest data still in the ring buffer; switched off, it is dropped
+    tracking_enabled: bool = False
+    tracking: TrackerSettings = field(default_factory=TrackerSettings)
+    tracking_base: GeneratorParameters | None = None
 
     def __post_init__(self) -> None:
         d = self.detector
@@ -68,12 +74,14 @@ class Outputs:
     windows: list[EventWindow] = field(default_factory=list)
     recalibrations: list[RecalibrationOutcome] = field(default_factory=list)
     energy: list[EnergySamples] = field(default_factory=list)
+    tracked: list[TrackPoint] = field(default_factory=list)
 
     def extend(self, other: Outputs) -> None:
         self.events += other.events
         self.windows += other.windows
         self.recalibrations += other.recalibrations
         self.energy += other.energy
+        self.tracked += other.tracked
 
     def light(self) -> Outputs:
         """The same outputs without their bulk arrays (windows' samples, all but the last energy
@@ -84,7 +92,7 @@ class Outputs:
         energy = [
             EnergySamples(*(getattr(e, f)[-1:] for f in EnergySamples.__dataclass_fields__)) for e in self.energy[-1:]
         ]
-        return Outputs(list(self.events), windows, list(self.recalibrations), energy)
+        return Outputs(list(self.events), windows, list(self.recalibrations), energy, list(self.tracked))
 
 
 class MonitorPipeline:
@@ -97,6 +105,7 @@ class MonitorPipeline:
         self.recalibrator = Recalibrator(self.store, s.policy, s.identify)
         self.recalibrator.last_good = s.initial_parameters
         self.markers: list[Marker] = []
+        self.tracker: SlidingTracker | None = None
         self.samples_in = 0
         self._segment = 0
         self._energy_slot: int | None = None
@@ -147,6 +156,8 @@ class MonitorPipeline:
                 self._energy_upto(self.latest_ns, out)  # what the old segment still owes, if in hand
                 self.ring.clear()
                 self.detector.reset(block.segment)
+                if self.tracker is not None:
+                    self.tracker.reset()
                 self._energy_slot = None
                 self._energy_done_ns = None
             held = self.recalibrator.open_since_ns
@@ -158,6 +169,7 @@ class MonitorPipeline:
                 self._energy_upto(self.latest_ns, out)
             self.ring.append(block.t_ns, block.values)
             self.latest_ns = int(block.t_ns[-1])
+            self._track(block.t_ns, block.values, out)
             events, windows = self.detector.update() if self.settings.detect else ([], [])
             for e in events:
                 self._label(e)
@@ -195,6 +207,8 @@ class MonitorPipeline:
         self.ring.clear()
         self.detector = Detector(self.ring, self.settings.period_ns, self.settings.detector)
         self.store.clear()
+        if self.tracker is not None:
+            self.tracker.reset()
         self._segment = 0
         self._energy_slot = None
         self._energy_done_ns = None
@@ -213,6 +227,20 @@ class MonitorPipeline:
         self.detector.settings = settings.detector
         self.recalibrator.policy = settings.policy
         self.aligner.stale_ns = int(settings.stale_timeout_s * NS)
+        if not settings.tracking_enabled:
+            self.tracker = None
+
+    def _track(self, t_ns: np.ndarray, values: np.ndarray, out: Outputs) -> None:
+        s = self.settings
+        if not s.tracking_enabled:
+            return
+        if self.tracker is None:
+            base = s.tracking_base or self.parameters
+            if base is None:
+                return
+            self.tracker = SlidingTracker(base, s.period_ns, s.tracking)
+            t_ns, values = self.ring.window(self.ring.oldest_ns, self.latest_ns)  # type: ignore[arg-type]
+        out.tracked += self.tracker.update(t_ns, values)
 
     def _new_aligner(self) -> Aligner:
         return Aligner(self.settings.period_ns, stale_ns=int(self.settings.stale_timeout_s * NS))

@@ -16,9 +16,11 @@ from phid_ros.ident.scenario import DEFAULT_THRESHOLDS, StepThresholds
 from phid_ros.io.recording import DEFAULT_BLOCK_SIZE, Recording, block_bounds
 from phid_ros.io.topics import STREAMS_BY_NAME
 from phid_ros.model.conventions import NS
+from phid_ros.model.parameters import GeneratorParameters
 from phid_ros.stream.align import StreamHealth
 from phid_ros.stream.detector import DetectorSettings, EventWindow
 from phid_ros.stream.pipeline import Marker, MonitorPipeline, Outputs, PipelineSettings
+from phid_ros.stream.tracker import TrackerSettings, TrackPoint
 
 PROCESS_EVERY_NS = NS // 2  # stream time between pipeline runs while feeding
 MAX_PACE_STEP_NS = 60 * NS  # a stamp step beyond this is a clock jump, not time to wait for
@@ -122,5 +124,37 @@ def event_windows(
     try:
         out = replay(rec, pipeline)
         return out.windows, pipeline.health
+    finally:
+        pipeline.close()
+
+
+def track_recording(
+    rec: Recording,
+    base: GeneratorParameters,
+    settings: TrackerSettings,
+    on_point: Callable[[TrackPoint], None] | None = None,
+) -> list[TrackPoint]:
+    """The sliding-window tracker over a recording, as a node with tracking on runs it.
+
+    X_d and X_q are held at ``base``; nothing is detected or recalibrated. ``on_point`` sees each
+    hop as soon as it is estimated.
+    """
+    pipeline = MonitorPipeline(
+        PipelineSettings(
+            period_ns=rec.streams["pt_ct"].period_ns,
+            detect=False,
+            auto_recalibrate=False,
+            tracking_enabled=True,
+            tracking=settings,
+            tracking_base=base,
+        )
+    )
+
+    def hops(out: Outputs) -> None:
+        for p in out.tracked:
+            on_point(p)  # type: ignore[misc]
+
+    try:
+        return replay(rec, pipeline, keep_arrays=False, on_outputs=hops if on_point else None).tracked
     finally:
         pipeline.close()

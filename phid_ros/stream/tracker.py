@@ -81,15 +81,20 @@ class SlidingTracker:
     def update(self, t_ns: NDArray[np.int64], values: NDArray[np.float64]) -> list[TrackPoint]:
         ring = self._ring
         assert ring is not None
-        ring.append(t_ns, values)
+        window = int(self.settings.window_s * NS)
         out = []
-        first = ring.oldest_ns
-        if self._next_hop_ns is None and first is not None:
-            self._next_hop_ns = first + int(self.settings.window_s * NS)
-        while self._next_hop_ns is not None and ring.latest_ns is not None and ring.latest_ns >= self._next_hop_ns:
-            t, x = ring.window(self._next_hop_ns - int(self.settings.window_s * NS) + self.period_ns, self._next_hop_ns)
-            out.append(self._hop(t, x))
-            self._next_hop_ns += int(self.settings.hop_s * NS)
+        while len(t_ns):
+            if self._next_hop_ns is None:
+                self._next_hop_ns = (ring.oldest_ns if ring.oldest_ns is not None else int(t_ns[0])) + window
+            # the ring holds one window: feed up to the next hop's end only, so that none of the
+            # window is overwritten before the hop reads it, whatever the size of the blocks
+            k = max(1, int(np.searchsorted(t_ns, self._next_hop_ns, side="right")))
+            ring.append(t_ns[:k], values[:k])
+            t_ns, values = t_ns[k:], values[k:]
+            while ring.latest_ns is not None and ring.latest_ns >= self._next_hop_ns:
+                t, x = ring.window(self._next_hop_ns - window + self.period_ns, self._next_hop_ns)
+                out.append(self._hop(t, x))
+                self._next_hop_ns += int(self.settings.hop_s * NS)
         return out
 
     def _hop(self, t: NDArray[np.int64], x: NDArray[np.float64]) -> TrackPoint:

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from phid_ros.io.topics import channel_columns
+from phid_ros.model.conventions import split_stamp
 from phid_ros.model.parameters import PARAMETER_NAMES, TABLE1
 from test.conftest import short
 from test.nodes.test_nodes import make_nodes, play, published
@@ -90,3 +91,30 @@ def test_nodes_replay_and_identify_cut_the_same_windows_and_publish_the_same_par
     for name in PARAMETER_NAMES:
         limit = 0.10 if name == "D" else 0.02
         assert batch[name] == pytest.approx(getattr(TABLE1, name), rel=limit), name
+
+
+def test_tracking_on_the_node_equals_tracking_in_replay(ros, plant):
+    """The tracker runs inside the pipeline: the node's /generator/tracked_parameters are replay's hops."""
+    from phid_ros.stream.params import pipeline_settings
+    from phid_ros.stream.pipeline import MonitorPipeline
+    from phid_ros.stream.replay import replay
+
+    _, rec = plant
+    overrides = {"tracking_enabled": True, "tracking_window_s": 30.0, "tracking_hop_s": 30.0, "min_interval_s": 10.0}
+    ingest, recal = make_nodes(ros, **overrides)
+    play(ros, rec, ingest, recal)
+    recal.pipeline.recalibrator.join()
+    recal.process()
+    node = [
+        (m.header.stamp.sec, list(m.names), np.asarray(m.values).tolist())
+        for m in published(recal, "/generator/tracked_parameters")
+    ]
+
+    pipeline = MonitorPipeline(pipeline_settings(overrides, detect=True))
+    out = replay(rec, pipeline)
+    pipeline.close()
+    hops = out.tracked
+    # tracking starts on the first identified set, from the oldest data in the ring (120 s)
+    assert len(hops) >= 3 and all(p.t_ns % (30 * 10**9) == 0 for p in hops)
+    expect = [(split_stamp(p.t_ns)[0], list(p.estimates), [e.value for e in p.estimates.values()]) for p in hops]
+    assert node == expect

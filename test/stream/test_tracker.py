@@ -44,6 +44,25 @@ def test_tracked_t_d0_follows_the_drift_and_raises_the_alarm(drifting_stream):
     assert "errors in variables" in points[-1].estimates["X_q_prime"].note
 
 
+def test_the_hops_do_not_depend_on_the_size_of_the_blocks_fed(drifting_stream):
+    """The ring holds one window: a block reaching past a hop's end must not overwrite its start
+    (20 s blocks once cut up to 20 s off each window)."""
+    run = drifting_stream
+    n = 240_001
+    x = np.column_stack([run.measured[c][:n] for c in CHANNELS])
+    t_ns = np.arange(n, dtype=np.int64) * 1_000_000
+    settings = TrackerSettings(window_s=120.0, hop_s=60.0)
+    fed = []
+    for block in (n, 20_000, 777):
+        tracker = SlidingTracker(TABLE1, settings=settings)
+        points = []
+        for k in range(0, n, block):
+            points += tracker.update(t_ns[k : k + block], x[k : k + block])
+        fed.append([(p.t_ns, {k: (e.value, e.std) for k, e in p.estimates.items()}) for p in points])
+    assert [t for t, _ in fed[0]] == [120 * 10**9, 180 * 10**9, 240 * 10**9]
+    assert fed[0] == fed[1] == fed[2]
+
+
 def test_ambient_integrator_matches_the_plant():
     """The float RK4 of the ambient simulator and the vectorised Plant agree step for step."""
     from phid_ros.sim.plant import Inputs
