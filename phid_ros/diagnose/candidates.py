@@ -21,6 +21,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
+from phid_ros.model.bounds import Bounded
 from phid_ros.sim.effects import REGISTRY as EFFECTS
 from phid_ros.sim.effects import EffectParameter, PlantEffect, leakage_default
 
@@ -28,7 +29,7 @@ Array = NDArray[np.float64]
 
 
 @dataclass(frozen=True)
-class FreeParameter:
+class FreeParameter(Bounded):
     """One fitted parameter: its bounds and whether it is searched on a log scale."""
 
     name: str

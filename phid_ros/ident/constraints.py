@@ -96,10 +96,8 @@ def _number(text: str, where: str) -> float:
 
 def _in_range(name: str, v: float, where: str) -> None:
     spec = SPECS_BY_NAME[name]
-    if not spec.low <= v <= spec.high:
-        raise ParameterError(
-            f"{where}: {name}={v:g} {spec.unit} lies outside its physical range [{spec.low:g}, {spec.high:g}]"
-        )
+    if not spec.contains(v):
+        raise ParameterError(f"{where}: {name}={v:g} {spec.unit} lies outside its physical range {spec.range_text()}")
 
 
 def parse_constraints(fix: Sequence[str] = (), bounds: Sequence[str] = (), start: Sequence[str] = ()) -> Constraints:

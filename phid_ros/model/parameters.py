@@ -13,10 +13,11 @@ from collections.abc import Mapping
 from dataclasses import dataclass, fields
 
 from phid_ros.errors import ParameterError
+from phid_ros.model.bounds import Bounded
 
 
 @dataclass(frozen=True)
-class ParameterSpec:
+class ParameterSpec(Bounded):
     name: str
     unit: str
     default: float
@@ -118,8 +119,8 @@ def validation_problems(values: Mapping[str, float]) -> list[str]:
             continue
         if not math.isfinite(v):
             problems.append(f"{spec.name}={v} is not finite")
-        elif not spec.low <= v <= spec.high:
-            problems.append(f"{spec.name}={v:g} {spec.unit} outside [{spec.low:g}, {spec.high:g}]")
+        elif (problem := spec.outside(v)) is not None:
+            problems.append(problem)
     pairs = (("X_d_prime", "X_d"), ("X_q_prime", "X_q"))
     for small, large in pairs:
         if small in values and large in values and not values[small] < values[large]:

@@ -32,13 +32,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from phid_ros.errors import SimulationError
+from phid_ros.model.bounds import Bounded
 from phid_ros.model.conventions import omega_s
 
 Array = NDArray[np.float64]
 
 
 @dataclass(frozen=True)
-class EffectParameter:
+class EffectParameter(Bounded):
     name: str
     default: Any
     unit: str
@@ -73,10 +74,8 @@ class PlantEffect:
                     raise SimulationError(f"effect {self.name}: {p.name}={v!r} not one of {p.choices}")
             else:
                 v = float(v)
-                if (p.low is not None and v < p.low) or (p.high is not None and v > p.high):
-                    raise SimulationError(
-                        f"effect {self.name}: {p.name}={v:g} {p.unit} outside [{p.low:g}, {p.high:g}] (realistic range)"
-                    )
+                if (problem := p.outside(v)) is not None:
+                    raise SimulationError(f"effect {self.name}: {problem} (realistic range)")
             self.values[p.name] = v
 
     @classmethod

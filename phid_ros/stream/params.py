@@ -12,12 +12,13 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import Any
 
+from phid_ros.model.bounds import Bounded
 from phid_ros.stream.detector import POST_EVENT_S, PRE_EVENT_S
 from phid_ros.stream.pipeline import PipelineSettings
 
 
 @dataclass(frozen=True)
-class Tunable:
+class Tunable(Bounded):
     name: str
     type: type
     default: Any
@@ -107,9 +108,7 @@ def validate(table: tuple[Tunable, ...], name: str, value: Any, *, running: bool
         ok = isinstance(value, spec.type)
     if not ok:
         return f"{name} must be a {spec.type.__name__}, got {value!r}"
-    if spec.low is not None and value < spec.low or spec.high is not None and value > spec.high:
-        return f"{name}={value} outside [{spec.low}, {spec.high}]"
-    return None
+    return spec.outside(value, str)
 
 
 def pipeline_settings(
