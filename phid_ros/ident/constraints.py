@@ -63,11 +63,8 @@ def held(name: str, value: float) -> Estimate:
 def at_user_bound(est: Estimate, name: str, wanted: float, bound: float) -> Estimate:
     """An estimate the data pushed onto a user's bound: the number is the bound's, so not identified."""
     est.at_bound = True
-    est.identifiable = False
     pull = f"to {wanted:.4g}, beyond" if math.isfinite(wanted) else "onto"
-    est.note = (est.note + "; " if est.note else "") + (
-        f"{name}: the data pull it {pull} the bound {bound:g} (--bounds); held at the bound"
-    )
+    est.disqualify(f"{name}: the data pull it {pull} the bound {bound:g} (--bounds); held at the bound")
     return est
 
 

@@ -20,6 +20,14 @@ class Estimate:
     # estimates of one plant under the same conditions, where a common bias cancels
     std_random: float = math.nan
 
+    def add_note(self, note: str) -> None:
+        self.note = f"{self.note}; {note}" if self.note else note
+
+    def disqualify(self, note: str) -> None:
+        """Not identified, and why (added to what is already noted)."""
+        self.identifiable = False
+        self.add_note(note)
+
     @property
     def random_std(self) -> float:
         return self.std_random if math.isfinite(self.std_random) else self.std
@@ -53,11 +61,7 @@ def flag(est: Estimate, name: str) -> Estimate:
         est.note = est.note or f"{name} could not be computed"
     elif not math.isfinite(est.std) or est.std <= 0:
         # a fit with no residual degrees of freedom has no error bar: its number cannot be trusted
-        est.identifiable = False
-        est.note = (est.note + "; " if est.note else "") + f"{name} has no standard deviation (too few data to judge)"
+        est.disqualify(f"{name} has no standard deviation (too few data to judge)")
     elif math.isfinite(est.std) and abs(est.value) > 0 and est.std / abs(est.value) > MAX_RELATIVE_STD:
-        est.identifiable = False
-        est.note = (est.note + "; " if est.note else "") + (
-            f"{name} poorly identified: std is {100 * est.std / abs(est.value):.0f} % of the value"
-        )
+        est.disqualify(f"{name} poorly identified: std is {100 * est.std / abs(est.value):.0f} % of the value")
     return est

@@ -71,6 +71,40 @@ def _impulse_response(cutoff_hz: float, dt: float) -> np.ndarray:
     return h[: keep[-1] + 1]
 
 
+def _scenario_rows(s: ScenarioData, cutoff_hz: float, h_imp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """One scenario's filtered swing equation with its nuisance terms projected out: (y, [H, D] columns)."""
+    dt = s.dt
+    pre = s.pre_slice()
+    end = min(s.n, s.k_event + int(round(WINDOW_AFTER_EVENT_S / dt)))
+    omega = s["omega"][:end]
+    w0 = float(np.mean(omega[pre]))
+    dp = (s["p_m"] - s["p_e"])[:end]
+    # filters start from rest on deviations from the pre-event steady state: exactly
+    # linear, no start-up transient; the D column is then F[omega - omega_0] because the
+    # pre-event balance already holds D(omega_0 - 1) and the transducer offsets
+    y = lowpass2(dp - float(np.mean(dp[pre])), cutoff_hz, dt)
+    main = np.column_stack(
+        [
+            2.0 * lowpass2_derivative(omega - w0, cutoff_hz, dt),
+            lowpass2(omega - w0, cutoff_hz, dt) if s.generator_damping else np.zeros(end),
+        ]
+    )
+    nuisance = [lowpass2(np.ones(end), cutoff_hz, dt)]
+    for k in (k for k in s.switching if k < end):
+        for lag in (0, 1):  # impulse and doublet: any sub-sample switching time
+            col = np.zeros(end)
+            seg = h_imp[: end - k]
+            col[k : k + len(seg)] += seg
+            if lag:
+                seg1 = h_imp[: end - k + 1]
+                col[k - 1 : k - 1 + len(seg1)] -= seg1
+            nuisance.append(col)
+    z = np.column_stack(nuisance)
+    coef, *_ = np.linalg.lstsq(z, np.column_stack([y, main]), rcond=None)
+    resid = np.column_stack([y, main]) - z @ coef
+    return resid[:, 0], resid[:, 1:]
+
+
 def swing_regression(
     scenarios: Sequence[ScenarioData], cutoff_hz: float = DEFAULT_CUTOFF_HZ, constraints: Constraints = NONE
 ) -> Stage1Result:
@@ -82,43 +116,11 @@ def swing_regression(
     # Per-scenario nuisance terms (offset, switching impulses) touch only that scenario's
     # rows, so they are projected out scenario by scenario (Frisch-Waugh-Lovell) and the
     # final fit has two columns: same estimate as one big regression, far less work.
-    xs, ys, lengths = [], [], []
     h_imp = _impulse_response(cutoff_hz, scs[0].dt)
-    for s in scs:
-        dt = s.dt
-        pre = s.pre_slice()
-        end = min(s.n, s.k_event + int(round(WINDOW_AFTER_EVENT_S / dt)))
-        omega = s["omega"][:end]
-        w0 = float(np.mean(omega[pre]))
-        dp = (s["p_m"] - s["p_e"])[:end]
-        # filters start from rest on deviations from the pre-event steady state: exactly
-        # linear, no start-up transient; the D column is then F[omega - omega_0] because the
-        # pre-event balance already holds D(omega_0 - 1) and the transducer offsets
-        y = lowpass2(dp - float(np.mean(dp[pre])), cutoff_hz, dt)
-        main = np.column_stack(
-            [
-                2.0 * lowpass2_derivative(omega - w0, cutoff_hz, dt),
-                lowpass2(omega - w0, cutoff_hz, dt) if s.generator_damping else np.zeros(end),
-            ]
-        )
-        nuisance = [lowpass2(np.ones(end), cutoff_hz, dt)]
-        for k in (k for k in s.switching if k < end):
-            for lag in (0, 1):  # impulse and doublet: any sub-sample switching time
-                col = np.zeros(end)
-                seg = h_imp[: end - k]
-                col[k : k + len(seg)] += seg
-                if lag:
-                    seg1 = h_imp[: end - k + 1]
-                    col[k - 1 : k - 1 + len(seg1)] -= seg1
-                nuisance.append(col)
-        z = np.column_stack(nuisance)
-        coef, *_ = np.linalg.lstsq(z, np.column_stack([y, main]), rcond=None)
-        resid = np.column_stack([y, main]) - z @ coef
-        ys.append(resid[:, 0])
-        xs.append(resid[:, 1:])
-        lengths.append(end)
-    X = np.vstack(xs)
-    Y = np.concatenate(ys)
+    rows = [_scenario_rows(s, cutoff_hz, h_imp) for s in scs]
+    X = np.vstack([x for _, x in rows])
+    Y = np.concatenate([y for y, _ in rows])
+    lengths = [len(y) for y, _ in rows]
     theta, free, clipped = _constrained_fit(X, Y, constraints)
     resid = Y - X @ theta
     blocks = block_ids(lengths, max(1, int(round(BLOCK_SECONDS / scs[0].dt))))
@@ -143,10 +145,7 @@ def swing_regression(
     if len(damped) < 2 and D.identifiable:
         # D is a few percent of the plant's total damping; one swing's estimate scattered up to
         # 3 std in the coverage study (and +19 % on one torque step): it needs a second event
-        D.identifiable = False
-        D.note = (D.note + "; " if D.note else "") + (
-            "D rests on a single swing event; record another torque step or fault to confirm it"
-        )
+        D.disqualify("D rests on a single swing event; record another torque step or fault to confirm it")
     rms = float(np.sqrt(np.mean(resid**2)))
     return Stage1Result(
         "swing_regression",

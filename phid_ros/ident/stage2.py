@@ -196,8 +196,7 @@ def _paper_q_axis(i_q: np.ndarray, v_d: np.ndarray) -> tuple[float, float, float
 
 def _not_identified(est: Estimate, note: str) -> None:
     if est.identifiable:
-        est.identifiable = False
-        est.note = (est.note + "; " if est.note else "") + note
+        est.disqualify(note)
 
 
 def _flag_origin_offsets(

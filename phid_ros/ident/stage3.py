@@ -375,6 +375,68 @@ def fast(
     return result
 
 
+def _global_search(
+    f: Callable[[Array], float],
+    bounds: list[tuple[float, float]],
+    x0: Array | None,
+    optimizer: str,
+    rng: np.random.Generator,
+    *,
+    seed: int,
+    maxiter: int,
+    popsize: int,
+) -> Array:
+    """The paper's global stage: differential evolution, or dual annealing / basin hopping to compare."""
+    if optimizer == "de":
+        res = differential_evolution(
+            f,
+            bounds,
+            popsize=popsize,
+            maxiter=maxiter,
+            init="latinhypercube",
+            seed=seed,
+            tol=1e-8,
+            polish=False,
+            x0=x0,
+        )
+    elif optimizer == "dual_annealing":
+        from scipy.optimize import dual_annealing
+
+        res = dual_annealing(f, bounds, maxfun=popsize * len(bounds) * maxiter, seed=seed, no_local_search=True)
+    elif optimizer == "basin_hopping":
+        from scipy.optimize import basinhopping
+
+        if x0 is None:
+            x0 = np.array([lo + rng.random() * (hi - lo) for lo, hi in bounds])
+        res = basinhopping(
+            f, x0, niter=max(1, maxiter // 10), seed=seed, minimizer_kwargs={"method": "L-BFGS-B", "bounds": bounds}
+        )
+    else:
+        raise Stage3Error(f"unknown optimizer {optimizer!r}")
+    return np.asarray(res.x)
+
+
+def _multistart(
+    f: Callable[[Array], float],
+    x_best: Array,
+    bounds: list[tuple[float, float]],
+    starts: int,
+    rng: np.random.Generator,
+    best: list[float],
+) -> Array:
+    """L-BFGS-B from the global result and ``starts - 1`` points scattered 5 % around it; ``best``
+    holds the lowest objective seen so far (``f`` keeps it)."""
+    lo, hi = [b[0] for b in bounds], [b[1] for b in bounds]
+    candidates = [x_best] + [
+        np.clip(x_best * (1 + 0.05 * rng.standard_normal(len(x_best))), lo, hi) for _ in range(max(0, starts - 1))
+    ]
+    for c in candidates:
+        r = minimize(f, c, method="L-BFGS-B", bounds=bounds, options={"ftol": 1e-14, "gtol": 1e-12})
+        if r.fun <= best[0] + 1e-15:
+            x_best = r.x
+    return x_best
+
+
 def paper(
     data: Stage3Data,
     x_d: float,
@@ -418,50 +480,12 @@ def paper(
         return v
 
     rng = np.random.default_rng(seed)
-    if not free:
-        x_best = np.zeros(0)
-    elif optimizer == "de":
-        res = differential_evolution(
-            f,
-            bounds,
-            popsize=popsize,
-            maxiter=maxiter,
-            init="latinhypercube",
-            seed=seed,
-            tol=1e-8,
-            polish=False,
-            x0=x0 if any(v is not None for v in start) else None,
-        )
-        x_best = res.x
-    elif optimizer == "dual_annealing":
-        from scipy.optimize import dual_annealing
-
-        res = dual_annealing(f, bounds, maxfun=popsize * len(bounds) * maxiter, seed=seed, no_local_search=True)
-        x_best = res.x
-    elif optimizer == "basin_hopping":
-        from scipy.optimize import basinhopping
-
-        if not any(v is not None for v in start):
-            x0 = np.array([lo + rng.random() * (hi - lo) for lo, hi in bounds])
-        res = basinhopping(
-            f, x0, niter=max(1, maxiter // 10), seed=seed, minimizer_kwargs={"method": "L-BFGS-B", "bounds": bounds}
-        )
-        x_best = res.x
-    else:
-        raise Stage3Error(f"unknown optimizer {optimizer!r}")
-    # multi-start L-BFGS-B refinement around the global result (Algorithm 1, line 18)
-    candidates = [np.asarray(x_best)] + [
-        np.clip(
-            np.asarray(x_best) * (1 + 0.05 * rng.standard_normal(len(free))),
-            [b[0] for b in bounds],
-            [b[1] for b in bounds],
-        )
-        for _ in range(max(0, starts - 1) if free else 0)
-    ]
-    for c in candidates if free else []:
-        r = minimize(f, c, method="L-BFGS-B", bounds=bounds, options={"ftol": 1e-14, "gtol": 1e-12})
-        if r.fun <= best[0] + 1e-15:
-            x_best = r.x
+    x_best = np.zeros(0)
+    if free:
+        x0_given = x0 if any(v is not None for v in start) else None
+        x_best = _global_search(f, bounds, x0_given, optimizer, rng, seed=seed, maxiter=maxiter, popsize=popsize)
+        # multi-start L-BFGS-B refinement around the global result (Algorithm 1, line 18)
+        x_best = _multistart(f, np.asarray(x_best), bounds, starts, rng, best)
     x_best = full(np.asarray(x_best))
     xdp, xqp, td0, tq0 = (float(v) for v in x_best)
     fd = solve_axis(data.d, td0, data.dt, True, x_d, x_prime=xdp)
@@ -521,9 +545,8 @@ def _estimates(
         xp_est = flag(Estimate(fit.x_prime, sd_x, drivers=top(share_x)), names[0])
         xp_est.std_random = STD_CALIBRATION * math.sqrt(max(cov[0, 0], 0.0))
         if att > MAX_ATTENUATION:
-            xp_est.identifiable = False
             current = "I_d" if d_axis else "I_q"
-            xp_est.note = (xp_est.note + "; " if xp_est.note else "") + (
+            xp_est.disqualify(
                 f"{names[0]}: {current} barely moves against its sensor noise here (errors in variables bias it "
                 f"about {-100 * att:.0f} %); larger disturbances would fix it"
             )
@@ -531,10 +554,7 @@ def _estimates(
         tau_est = flag(Estimate(fit.tau, sd_t, drivers=top(share_t)), names[1])
         tau_est.std_random = STD_CALIBRATION * math.sqrt(max(cov[1, 1], 0.0))
         if att > MAX_ATTENUATION_TAU:
-            tau_est.identifiable = False
-            tau_est.note = (tau_est.note + "; " if tau_est.note else "") + (
-                f"{names[1]}: the axis is dominated by sensor noise here; not trusted"
-            )
+            tau_est.disqualify(f"{names[1]}: the axis is dominated by sensor noise here; not trusted")
         out.append(tau_est)
     xdp, td0, xqp, tq0 = out
     return xdp, xqp, td0, tq0
