@@ -85,13 +85,8 @@ def _spectra(before: list[PlayIn], after: list[PlayIn], sigma: dict[str, float])
     return png_data_uri(fig)
 
 
-def write_report(path: str | Path, d: Diagnosis, doc: dict[str, Any], source: str) -> Path:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    before, after = _runs(d)
-    worst = _worst(before, d.sigma)
-    eff_table = html_table(
+def _effects_table(doc: dict[str, Any]) -> str:
+    return html_table(
         ["effect", "fitted parameters", "held-out RMSE before (σ)", "held-out RMSE after (σ)", "ΔBIC", "signature"],
         [
             [
@@ -107,7 +102,10 @@ def write_report(path: str | Path, d: Diagnosis, doc: dict[str, Any], source: st
         or [["nothing is missing", "", "", "", "", ""]],
         text_columns=(1, 5),
     )
-    ch_table = html_table(
+
+
+def _channels_table(doc: dict[str, Any]) -> str:
+    return html_table(
         ["channel", "unit", "RMSE before", "RMSE after", "unexplained before", "unexplained after"],
         [
             [
@@ -120,21 +118,10 @@ def write_report(path: str | Path, d: Diagnosis, doc: dict[str, Any], source: st
             for c, v in doc["channels"].items()
         ],
     )
-    truth = doc.get("truth")
-    p_head = ["parameter", "identified", "4th-order refit", "after"]
-    p_head += ["truth", "err identified", "err after"] if truth else []
-    p_rows = []
-    for n in PARAMETER_NAMES:
-        row = [
-            SYMBOLS[n],
-            fmt(doc["parameters_identified"][n]),
-            fmt(doc["parameters_base_refit"][n]),
-            fmt(doc["parameters"][n]) + ("" if is_determined(doc, n) else " (not determined by these data)"),
-        ]
-        if truth:
-            row += [fmt(truth[n]), pct(doc["errors_pct"]["identified"][n]), pct(doc["errors_pct"]["after"][n])]
-        p_rows.append(row)
-    t_table = html_table(
+
+
+def _trials_table(doc: dict[str, Any]) -> str:
+    return html_table(
         ["round", "candidate", "ΔBIC", "held-out change", "named", "fitted values"],
         [
             [
@@ -150,19 +137,48 @@ def write_report(path: str | Path, d: Diagnosis, doc: dict[str, Any], source: st
         ],
         text_columns=(5,),
     )
-    gap = doc.get("gap_before")
-    gap_html = ""
-    if gap:
-        rows = [
-            [part[3:], ", ".join(f"{k}: {fmt(v, 3)}" for k, v in sorted(gap[part].items(), key=lambda kv: -kv[1]))]
-            for part in ("by_kind", "by_phase", "by_channel", "by_band")
+
+
+def _parameters_table(doc: dict[str, Any]) -> str:
+    truth = doc.get("truth")
+    p_head = ["parameter", "identified", "4th-order refit", "after"]
+    p_head += ["truth", "err identified", "err after"] if truth else []
+    p_rows = []
+    for n in PARAMETER_NAMES:
+        row = [
+            SYMBOLS[n],
+            fmt(doc["parameters_identified"][n]),
+            fmt(doc["parameters_base_refit"][n]),
+            fmt(doc["parameters"][n]) + ("" if is_determined(doc, n) else " (not determined by these data)"),
         ]
-        gap_html = (
-            "<h2>Where the identified fourth-order model and the measurement disagree</h2>"
-            "<p>Unexplained residual power of the three-stage model over all scenarios, in sensor-noise "
-            "variances, largest first.</p>"
-            + html_table(["split by", "unexplained power (noise variances)"], rows, text_columns=(1,))
-        )
+        if truth:
+            row += [fmt(truth[n]), pct(doc["errors_pct"]["identified"][n]), pct(doc["errors_pct"]["after"][n])]
+        p_rows.append(row)
+    return html_table(p_head, p_rows)
+
+
+def _gap_section(doc: dict[str, Any]) -> str:
+    gap = doc.get("gap_before")
+    if not gap:
+        return ""
+    rows = [
+        [part[3:], ", ".join(f"{k}: {fmt(v, 3)}" for k, v in sorted(gap[part].items(), key=lambda kv: -kv[1]))]
+        for part in ("by_kind", "by_phase", "by_channel", "by_band")
+    ]
+    return (
+        "<h2>Where the identified fourth-order model and the measurement disagree</h2>"
+        "<p>Unexplained residual power of the three-stage model over all scenarios, in sensor-noise "
+        "variances, largest first.</p>"
+        + html_table(["split by", "unexplained power (noise variances)"], rows, text_columns=(1,))
+    )
+
+
+def write_report(path: str | Path, d: Diagnosis, doc: dict[str, Any], source: str) -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    before, after = _runs(d)
+    worst = _worst(before, d.sigma)
     problems = "".join(f"<li>{html.escape(p)}</li>" for p in doc["problems"]) or "<li>none</li>"
     page = f"""<!doctype html><html><head><meta charset="utf-8"><title>phid diagnose: {html.escape(source)}</title>
 <style>{STYLE}</style></head><body>
@@ -170,16 +186,16 @@ def write_report(path: str | Path, d: Diagnosis, doc: dict[str, Any], source: st
 <p>Input: <code>{html.escape(source)}</code> &middot; fit on {", ".join(map(html.escape, doc["fit_scenarios"]))}
 &middot; held out: {", ".join(map(html.escape, doc["heldout_scenarios"]))}</p>
 <h2>Named effects</h2>
-{eff_table}
+{_effects_table(doc)}
 <p>Overall held-out RMSE, in units of the sensor noise σ: {doc["rmse_before"]:.3g} &rarr;
 <b>{doc["rmse_after"]:.3g}</b>. {html.escape(doc["rmse_definition"])}</p>
 <h2>Per channel (held-out)</h2>
-{ch_table}
+{_channels_table(doc)}
 <h2>Base parameters</h2>
-{html_table(p_head, p_rows)}
+{_parameters_table(doc)}
 <h2>Candidates</h2>
-{t_table}
-{gap_html}
+{_trials_table(doc)}
+{_gap_section(doc)}
 <h2>Notes</h2><ul>{problems}</ul>
 <h2>Worst held-out scenarios</h2>
 <img src="{_traces(before, after, worst)}" alt="worst scenarios before and after">

@@ -194,10 +194,8 @@ def _cell(v: float, digits: int = 5) -> str:
     return "—" if v is None or not math.isfinite(v) else f"{v:.{digits}g}"
 
 
-def write_report(path: str | Path, res: IdentificationResult, truth: GeneratorParameters | None, source: str) -> Path:
-    import matplotlib
-
-    matplotlib.use("Agg")
+def _parameter_table(res: IdentificationResult, truth: GeneratorParameters | None) -> str:
+    """Table 7's layout: IEEE 115 | proposed ± std | truth and errors, what drove each, and flags."""
     t = truth.as_dict() if truth else {}
     rows = []
     for n in PARAMETER_NAMES:
@@ -221,6 +219,11 @@ def write_report(path: str | Path, res: IdentificationResult, truth: GeneratorPa
     if res.baseline:
         head += ["IEEE 115"] + (["err IEEE 115"] if truth else [])
     head += ["proposed", "± std"] + (["err proposed", "truth"] if truth else []) + ["driven by", "note"]
+    return html_table(head, rows, text_columns=(len(head) - 2,))
+
+
+def _validation_table(res: IdentificationResult) -> str:
+    """Tables 8-9 per scenario, and the MOD-026 check."""
     vrows = [
         [
             m.scenario,
@@ -248,6 +251,13 @@ def write_report(path: str | Path, res: IdentificationResult, truth: GeneratorPa
         "max ΔQ (pu)",
         "MOD-026",
     ]
+    return html_table(vhead, vrows)
+
+
+def write_report(path: str | Path, res: IdentificationResult, truth: GeneratorParameters | None, source: str) -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
     figs = []
     f1 = _scenario_figure(res)
     if f1:
@@ -262,11 +272,11 @@ def write_report(path: str | Path, res: IdentificationResult, truth: GeneratorPa
 <p>Input: <code>{html.escape(source)}</code> &middot; method: <b>{html.escape(res.method)}</b> &middot;
 {len(res.scenarios)} scenarios</p>
 <h2>Parameters</h2>
-{html_table(head, rows, text_columns=(len(head) - 2,))}
+{_parameter_table(res, truth)}
 <p>err = estimate / truth − 1. IEEE 115: the standard's test-based method (the paper's baseline);
 "(bound)": at its search bound.</p>
 <h2>Validation against the {against}</h2>
-{html_table(vhead, vrows)}
+{_validation_table(res)}
 <p>RMSE, MAE and STD of the combined state-trajectory error (Table 9); MOD-026: simulated P and Q within
 ±0.05 pu of the measurement.</p>
 <h2>Notes</h2><ul>{problems}</ul>

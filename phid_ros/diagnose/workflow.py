@@ -318,6 +318,75 @@ def _check_measurements(scenarios: Sequence[ScenarioData], sigma: Mapping[str, f
         )
 
 
+def _round_trials(
+    pool: list[Any],
+    current: FitResult,
+    current_score: Score,
+    fit_w: list[ScenarioData],
+    held_w: list[ScenarioData],
+    sigma: Mapping[str, float],
+    opt: DiagnoseOptions,
+    jobs: Jobs,
+    say: Callable[[str], None],
+) -> list[Trial]:
+    """One round's candidates: each screened on the current model's play-in, the best few fitted
+    with the base parameters and scored on held-out data (the rest listed, unfitted)."""
+    say(f"screening {len(pool)} candidates: {_names(pool)}")
+    f_hz = opt.f_nominal_hz
+    runs = play_in(fit_w, current.model.base, current.model.plant_effects(), f_nominal_hz=f_hz)
+    found = jobs.map(screen, [(c, current.model, fit_w, sigma, f_hz, runs) for c in pool])
+    screened = sorted(((chi2, c, v) for c, (v, chi2) in zip(pool, found)), key=lambda t: t[0])
+    shortlist = screened[: opt.shortlist]
+    say(f"fitting {len(shortlist)} candidates with the base parameters: {_names(c for _, c, _ in shortlist)}")
+    longest_first = sorted(shortlist, key=lambda t: -_fit_cost(t[1]))
+    trials = jobs.map(
+        _trial,
+        [(c, v, chi2, current, current_score, fit_w, held_w, sigma, opt) for chi2, c, v in longest_first],
+    )
+    trials.sort(key=lambda t: t.screened_chi2)
+    return trials + [Trial(c.name(), {}, None, chi2) for chi2, c, _ in screened[opt.shortlist :]]
+
+
+def _converged(
+    best: Trial,
+    fit_w: list[ScenarioData],
+    held_w: list[ScenarioData],
+    sigma: Mapping[str, float],
+    opt: DiagnoseOptions,
+    say: Callable[[str], None],
+) -> tuple[FitResult, Score]:
+    """The named model's fit, finished when its evaluation budget stopped it: what it had left to gain
+    would be credited to whichever candidate comes next (seen: a stator resistance at its 0.001
+    floor "explained" 83 % after saturation)."""
+    assert best.fit is not None and best.heldout is not None
+    current, score = best.fit, best.heldout
+    for _ in range(3):
+        if current.nfev < opt.max_nfev:
+            break
+        say(f"refitting the model with {best.candidate} to convergence")
+        more = fit(_problem(fit_w, sigma, current.model, opt), opt.max_nfev)
+        if not more.chi2 < current.chi2:
+            break
+        current = more
+        score = held_score(current.model, held_w, sigma, opt.f_nominal_hz)
+    return current, score
+
+
+def _not_determined_when_unexplained(score: Score, identifiable: dict[str, bool], opt: DiagnoseOptions) -> str:
+    """A final model that still leaves much unexplained: its base parameters absorb what it misses.
+
+    GENSAL's saturation form on GENROU's machine: named, 6.7 sigma left, and X_q -29 % and T'_q0
+    -34 % "determined" by the profile: determined by a model that is still wrong.
+    """
+    unsure = [n for n in PARAMETER_NAMES if n not in opt.held and identifiable.get(n)]
+    identifiable.update({n: False for n in unsure})
+    return (
+        f"the final model leaves {score.overall:.2f} noise sigma unexplained on held-out data "
+        f"(more than {opt.max_unexplained:g}): its base parameters absorb what it still misses and are "
+        "not given as determined"
+    )
+
+
 def diagnose(
     scenarios: Sequence[ScenarioData],
     identified: Mapping[str, float],
@@ -348,58 +417,22 @@ def diagnose(
             pool = [c for c in library() if c.name() not in taken and not _conflicts(c, current.model)]
             if not pool:
                 break
-            say(f"screening {len(pool)} candidates: {_names(pool)}")
-            runs = play_in(fit_w, current.model.base, current.model.plant_effects(), f_nominal_hz=f_hz)
-            found = jobs.map(screen, [(c, current.model, fit_w, sigma, f_hz, runs) for c in pool])
-            screened = sorted(((chi2, c, v) for c, (v, chi2) in zip(pool, found)), key=lambda t: t[0])
-            shortlist = screened[: opt.shortlist]
-            say(f"fitting {len(shortlist)} candidates with the base parameters: {_names(c for _, c, _ in shortlist)}")
-            longest_first = sorted(shortlist, key=lambda t: -_fit_cost(t[1]))
-            trials = jobs.map(
-                _trial,
-                [(c, v, chi2, current, current_score, fit_w, held_w, sigma, opt) for chi2, c, v in longest_first],
-            )
-            trials.sort(key=lambda t: t.screened_chi2)
-            trials += [Trial(c.name(), {}, None, chi2) for chi2, c, _ in screened[opt.shortlist :]]
-            fitted = [t for t in trials if t.fit is not None]
-            passing = [t for t in fitted if _passes(t, current_score, bool(steps), opt)]
-            if passing:
-                best = min(passing, key=lambda t: t.delta_bic)
-                best.accepted = True
-                assert best.fit is not None and best.heldout is not None
-                current, current_score = best.fit, best.heldout
-                # a fit stopped by its evaluation budget is finished before the next round: what
-                # it had left to gain would be credited to whichever candidate comes next (seen:
-                # a stator resistance at its 0.001 floor "explained" 83 % after saturation)
-                for _ in range(3):
-                    if current.nfev < opt.max_nfev:
-                        break
-                    say(f"refitting the model with {best.candidate} to convergence")
-                    more = fit(_problem(fit_w, sigma, current.model, opt), opt.max_nfev)
-                    if not more.chi2 < current.chi2:
-                        break
-                    current = more
-                    current_score = held_score(current.model, held_w, sigma, f_hz)
-                steps.append((best.candidate, current_score))
-                rounds.append(Round(trials, best.candidate))
-                gain = 100 * best.heldout_gain
-                say(f"named {best.candidate}: BIC {best.delta_bic:+.0f}, held-out error -{gain:.0f} %")
-            else:
+            trials = _round_trials(pool, current, current_score, fit_w, held_w, sigma, opt, jobs, say)
+            passing = [t for t in trials if t.fit is not None and _passes(t, current_score, bool(steps), opt)]
+            if not passing:
                 rounds.append(Round(trials, None))
                 break
+            best = min(passing, key=lambda t: t.delta_bic)
+            best.accepted = True
+            current, current_score = _converged(best, fit_w, held_w, sigma, opt, say)
+            steps.append((best.candidate, current_score))
+            rounds.append(Round(trials, best.candidate))
+            say(f"named {best.candidate}: BIC {best.delta_bic:+.0f}, held-out error -{100 * best.heldout_gain:.0f} %")
         say("profiling the final model: which base parameters do the data determine")
         uncertainty, identifiable, notes = determined(current, fit_w, held_w, sigma, opt, jobs)
         problems.extend(notes)
     if current_score.overall > opt.max_unexplained:
-        # GENSAL's saturation form on GENROU's machine: named, 6.7 sigma left, and X_q -29 % and
-        # T'_q0 -34 % "determined" by the profile: determined by a model that is still wrong
-        unsure = [n for n in PARAMETER_NAMES if n not in opt.held and identifiable.get(n)]
-        identifiable.update({n: False for n in unsure})
-        problems.append(
-            f"the final model leaves {current_score.overall:.2f} noise sigma unexplained on held-out data "
-            f"(more than {opt.max_unexplained:g}): its base parameters absorb what it still misses and are "
-            "not given as determined"
-        )
+        problems.append(_not_determined_when_unexplained(current_score, identifiable, opt))
     return Diagnosis(
         identified={n: float(identified.get(n, math.nan)) for n in PARAMETER_NAMES},
         base_fit=base_fit,
