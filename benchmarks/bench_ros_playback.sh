@@ -25,7 +25,7 @@ export ROS_PYTHON_CHECK_FIELDS=1
 OUT=$(mktemp -d)
 python3 - "$BAG" "$OUT/replay.json" <<'PY'
 import json, sys
-from phid_ros.cli.replay import replay
+from phid_ros.stream.replay import replay
 from phid_ros.io.bags import read_recording
 from phid_ros.stream.pipeline import MonitorPipeline
 p = MonitorPipeline(); out = replay(read_recording(sys.argv[1]), p)
