@@ -46,7 +46,9 @@ def _run(job: tuple[str, int, int, float]) -> tuple[str, int, float, float, int,
     if "data" not in _DATA:
         _setup(window)
     t0 = time.perf_counter()
-    r = stage3.paper(_DATA["data"], _DATA["xd"], _DATA["xq"], seed=seed, maxiter=maxiter, optimizer=opt, starts=1)
+    r = stage3.global_search(
+        _DATA["data"], _DATA["xd"], _DATA["xq"], seed=seed, maxiter=maxiter, optimizer=opt, starts=1
+    )
     return opt, seed, r.objective, time.perf_counter() - t0, r.evaluations, r.history
 
 
@@ -62,7 +64,7 @@ def main() -> None:
     out.mkdir(parents=True, exist_ok=True)
     _setup(args.window)
     t0 = time.perf_counter()
-    fast = stage3.fast(_DATA["data"], _DATA["xd"], _DATA["xq"])
+    fast = stage3.variable_projection(_DATA["data"], _DATA["xd"], _DATA["xq"])
     t_fast = time.perf_counter() - t0
     jobs = [(opt, seed, args.maxiter, args.window) for opt in OPTIMIZERS for seed in range(args.seeds)]
     with ProcessPoolExecutor(max_workers=args.workers) as pool:

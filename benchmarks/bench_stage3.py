@@ -30,9 +30,9 @@ def main() -> None:
     r2 = stage2.identify_reactances(scs)
     xd, xq = r2.X_d.value, r2.X_q.value
     t_prep, data = median_time(lambda: stage3.prepare(scs), args.repeats)
-    t_fast, fast = median_time(lambda: stage3.fast(data, xd, xq), args.repeats)
+    t_fast, fast = median_time(lambda: stage3.variable_projection(data, xd, xq), args.repeats)
     t0 = time.perf_counter()
-    paper = stage3.paper(data, xd, xq, maxiter=args.paper_maxiter, seed=0)
+    paper = stage3.global_search(data, xd, xq, maxiter=args.paper_maxiter, seed=0)
     t_paper = time.perf_counter() - t0
     print(f"scenarios: {len(scs)}; X_d = {xd:.5f}, X_q = {xq:.5f} from stage 2; prepare {t_prep * 1e3:.1f} ms")
     print(f"{'method':8s} {'wall s':>9s} {'evals':>7s} {'J':>14s}   X'_d      X'_q      T'_d0     T'_q0")

@@ -275,7 +275,9 @@ def _stage3(res: IdentificationResult, ident: list[ScenarioData], opt: IdentifyO
         data = stage3.prepare(ident, opt.prefilter_hz)
         refine = opt.refine_synchronous or x_d is None or x_q is None
         if opt.method == "fast":
-            r3 = stage3.fast(data, x_d or 2.0, x_q or 2.0, refine_synchronous=refine, constraints=opt.constraints)
+            r3 = stage3.variable_projection(
+                data, x_d or 2.0, x_q or 2.0, refine_synchronous=refine, constraints=opt.constraints
+            )
             if refine and (x_d is None or x_q is None):
                 res.estimates["X_d"] = Estimate(r3.X_d, note="refined in stage 3 (stage 2 could not run)")
                 res.estimates["X_q"] = Estimate(r3.X_q, note="refined in stage 3 (stage 2 could not run)")
@@ -285,7 +287,7 @@ def _stage3(res: IdentificationResult, ident: list[ScenarioData], opt: IdentifyO
             prior = None
             if opt.use_prior and all(n in res.baseline for n in TRANSIENT):
                 prior = [res.baseline[n].value for n in TRANSIENT]
-            r3 = stage3.paper(
+            r3 = stage3.global_search(
                 data, x_d, x_q, prior=prior, seed=opt.seed, maxiter=opt.paper_maxiter, constraints=opt.constraints
             )
         res.stage3 = r3

@@ -21,10 +21,12 @@ methods so that their J values compare:
 For fixed T'_d0 the d-axis residual is linear in X'_d (and X_d) and in the
 initial fluxes, and likewise on the q axis, so J(theta) separates into two
 one-dimensional problems over the time constants with inner least squares
-(variable projection): the ``fast`` method. The ``paper`` method runs the
-paper's differential evolution (population 12, 300 generations, Latin
-hypercube) and multi-start L-BFGS-B over (X'_d, X'_q, T'_d0, T'_q0) on the
-same J, eliminating only the initial fluxes.
+(variable projection): :func:`variable_projection`, the ``fast`` method of
+``phid identify``. :func:`global_search`, its ``paper`` method, runs the paper's
+differential evolution (population 12, 300 generations, Latin hypercube) and
+multi-start L-BFGS-B over (X'_d, X'_q, T'_d0, T'_q0) on the same J, eliminating
+only the initial fluxes. The results keep the method names ``fast`` and
+``paper:<optimizer>``: they are in every results file written so far.
 """
 
 from __future__ import annotations
@@ -338,7 +340,7 @@ def _profile(
     return fit_at(math.exp(float(res.x)))
 
 
-def fast(
+def variable_projection(
     data: Stage3Data,
     x_d: float,
     x_q: float,
@@ -437,7 +439,7 @@ def _multistart(
     return x_best
 
 
-def paper(
+def global_search(
     data: Stage3Data,
     x_d: float,
     x_q: float,

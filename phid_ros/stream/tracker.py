@@ -136,7 +136,7 @@ class SlidingTracker:
 
         try:
             data = stage3.prepare([sc], window_s=None)
-            r3 = stage3.fast(
+            r3 = stage3.variable_projection(
                 data,
                 self.base.X_d,
                 self.base.X_q,
