@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from phid_ros.errors import PhidError
-from phid_ros.io.topics import CHANNELS  # the one channel table, shared by every layer
+from phid_ros.model.channels import CHANNELS  # the one channel table, shared by every layer
 from phid_ros.model.conventions import terminal_to_dq
 
 Array = NDArray[np.float64]

@@ -17,7 +17,8 @@ from phid_ros.errors import PhidError
 from phid_ros.io.csv_import import CSV_COLUMNS
 from phid_ros.io.outputs import atomic_output, write_text
 from phid_ros.io.recording import MEASUREMENT_WINDOW_KEY, Recording
-from phid_ros.io.topics import CHANNELS, STREAMS
+from phid_ros.io.topics import STREAMS
+from phid_ros.model.channels import CHANNELS
 from phid_ros.model.conventions import NS
 
 MANIFEST = "manifest.json"

@@ -25,7 +25,8 @@ from numpy.typing import NDArray
 from phid_ros.errors import CsvImportError
 from phid_ros.io.recording import MEASUREMENT_WINDOW_KEY, Recording, ScenarioInfo, StreamSamples
 from phid_ros.io.results import read_json
-from phid_ros.io.topics import CHANNELS, STREAMS, unit_problem
+from phid_ros.io.topics import STREAMS
+from phid_ros.model.channels import CHANNELS, unit_problem
 from phid_ros.model.conventions import NS
 
 CSV_COLUMNS: tuple[str, ...] = ("t",) + CHANNELS

@@ -27,7 +27,7 @@ from phid_ros.io.phasors import (
     three_phase_phasors,
 )
 from phid_ros.io.recording import MEASUREMENT_WINDOW_KEY, Recording
-from phid_ros.io.topics import CHANNELS
+from phid_ros.model.channels import CHANNELS
 from phid_ros.model.conventions import terminal_to_dq
 
 Array = NDArray[np.float64]

@@ -1,13 +1,13 @@
-"""The sensor streams, their channels and topics: one table, used by every layer.
+"""The sensor streams (which channels each message carries), and the topics: one table.
 
-This module imports nothing from phid_ros, so model-side layers (ident, stream)
-may use it without depending on the bag and file code in the rest of io/.
+The channels themselves, their column in a frame and their plausible ranges are the model's
+(:mod:`phid_ros.model.channels`); this module says how they travel. It imports nothing else
+from phid_ros, so the stream layer may use it without the bag and file code in the rest of io/.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 
 @dataclass(frozen=True)
@@ -30,14 +30,7 @@ STREAMS: tuple[StreamSpec, ...] = (
     StreamSpec("excitation", "phid_msgs/msg/ExcitationBlock", ("v_f",), "excitation system field voltage"),
 )
 STREAMS_BY_NAME: dict[str, StreamSpec] = {s.name: s for s in STREAMS}
-CHANNELS: tuple[str, ...] = ("v_t", "theta_t", "i_d", "i_q", "omega", "delta", "v_f", "p_m", "p_e", "q_e")
 STREAM_OF_CHANNEL: dict[str, str] = {c: s.name for s in STREAMS for c in s.channels}
-CHANNEL_INDEX: dict[str, int] = {c: i for i, c in enumerate(CHANNELS)}  # column of a channel in an aligned frame
-
-
-def channel_columns(values: Any) -> dict[str, Any]:
-    """The columns of an aligned (samples x CHANNELS) matrix by channel name (views, no copies)."""
-    return {c: values[:, i] for i, c in enumerate(CHANNELS)}
 
 
 DEFAULT_NAMESPACE = "/generator"
@@ -62,63 +55,6 @@ def output_topic(key: str, namespace: str = OUTPUT_NAMESPACE) -> str:
     """The absolute name of output ``key`` under ``namespace`` (an absolute topic stays as it is)."""
     name = OUTPUT_TOPICS[key][0]
     return name if name.startswith("/") else f"{namespace.rstrip('/')}/{name}"
-
-
-# Plausible ranges in per unit / rad on the machine base: anything outside is a wrong feed (a kV, MW
-# or A signal by mistake), not a disturbance. One table for replay, identify and import-csv.
-PLAUSIBLE: dict[str, tuple[float, float]] = {
-    "v_t": (0.0, 3.0),
-    "i_d": (-25.0, 25.0),
-    "i_q": (-25.0, 25.0),
-    "p_e": (-25.0, 25.0),
-    "q_e": (-25.0, 25.0),
-    "omega": (0.5, 1.5),
-    "p_m": (-5.0, 5.0),
-    "theta_t": (-1e6, 1e6),
-    "delta": (-1e6, 1e6),
-    "v_f": (-30.0, 30.0),
-}
-
-# What a channel's typical magnitude says it was recorded in, when it is not per unit.
-_UNIT_GUESSES: dict[str, tuple[tuple[float, float, str], ...]] = {
-    "v_t": ((3.0, 1000.0, "kV: divide by the machine's rated kV"), (1000.0, 1e7, "V: divide by the rated voltage")),
-    "i_d": ((25.0, 1e7, "A or kA: divide by the rated current"),),
-    "i_q": ((25.0, 1e7, "A or kA: divide by the rated current"),),
-    "p_e": ((25.0, 1e7, "MW: divide by the machine's MVA base"),),
-    "q_e": ((25.0, 1e7, "Mvar: divide by the machine's MVA base"),),
-    "p_m": ((5.0, 1e7, "MW: divide by the machine's MVA base"),),
-    "omega": (
-        (40.0, 70.0, "Hz: divide by the nominal frequency"),
-        (250.0, 400.0, "rad/s: divide by 2π times the nominal frequency"),
-        (400.0, 4000.0, "rpm: divide by the synchronous speed"),
-    ),
-    "v_f": ((30.0, 1e7, "V: divide by the field voltage base"),),
-}
-
-
-def unit_problem(channel: str, values: object, *, share: float = 0.5) -> str | None:
-    """Why ``values`` of ``channel`` are not per unit (with a guess at their unit), or None.
-
-    A channel is refused when at least ``share`` of its finite samples lie outside its
-    plausible per-unit range; isolated wild samples are the aligner's business (dropped, counted).
-    """
-    import numpy as np
-
-    x = np.asarray(values, dtype=float)
-    x = x[np.isfinite(x)]
-    lo, hi = PLAUSIBLE[channel]
-    if x.size == 0:
-        return None
-    outside = float(np.mean((x < lo) | (x > hi)))
-    if outside < share:
-        return None
-    typical = float(np.median(np.abs(x)))
-    guess = next((text for a, b, text in _UNIT_GUESSES.get(channel, ()) if a <= typical < b), None)
-    what = f"looks like {guess}" if guess else "not per unit on the machine base"
-    return (
-        f"channel {channel}: {100 * outside:.0f} % of samples outside the per-unit range {lo:g} to {hi:g} "
-        f"(typical magnitude {typical:.4g}): {what}"
-    )
 
 
 def topic_for(stream: str, namespace: str = DEFAULT_NAMESPACE) -> str:

@@ -33,7 +33,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from phid_ros.io.topics import CHANNEL_INDEX, CHANNELS, PLAUSIBLE, STREAMS, STREAMS_BY_NAME
+from phid_ros.io.topics import STREAMS, STREAMS_BY_NAME
+from phid_ros.model.channels import CHANNEL_INDEX, CHANNELS, PLAUSIBLE, Frame
 from phid_ros.model.conventions import NS
 
 
@@ -128,10 +129,10 @@ class StreamHealth:
 
 
 @dataclass
-class AlignedBlock:
-    t_ns: NDArray[np.int64]
-    values: NDArray[np.float64]  # (n, len(CHANNELS)), NaN where a stream had a gap
-    segment: int
+class AlignedBlock(Frame):
+    """A run of grid points every stream has passed; ``segment`` counts the clock jumps before it."""
+
+    segment: int = 0
 
 
 class _Pending:
@@ -415,7 +416,7 @@ class Aligner:
             self.health[name].gap_grid_points += int(np.isnan(values[:, cols[0]]).sum())
             p.drop_before(int(grid[-1]))
         self._next_grid = int(grid[-1]) + self.period_ns
-        self._out.append(AlignedBlock(grid, values, self.segment))
+        self._out.append(AlignedBlock(grid, values, self.period_ns, self.segment))
 
     def _sample(self, t: NDArray[np.int64], x: NDArray[np.float64], grid: NDArray[np.int64]) -> NDArray[np.float64]:
         # fast path: the stream sits on the grid itself (same clock and rate)

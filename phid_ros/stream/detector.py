@@ -23,7 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from phid_ros.ident.scenario import DEFAULT_THRESHOLDS, StepThresholds, find_events
-from phid_ros.io.topics import CHANNEL_INDEX, CHANNELS
+from phid_ros.model.channels import CHANNEL_INDEX, CHANNELS, Frame
 from phid_ros.model.conventions import NS, split_stamp
 from phid_ros.stream.ring import RingBuffer
 
@@ -75,17 +75,13 @@ def event_id(kind: str, inception_ns: int) -> str:
     return f"{kind}@{stamp}.{ns:09d}Z"
 
 
-@dataclass
-class EventWindow:
+@dataclass(kw_only=True)
+class EventWindow(Frame):
+    """The frame around one event, as cut from the ring buffer (keyword construction only)."""
+
     event: Event
-    t_ns: NDArray[np.int64]
-    values: NDArray[np.float64]  # (n, len(CHANNELS))
-    period_ns: int
     usable: bool = True
     reason: str = ""
-
-    def channel(self, name: str) -> NDArray[np.float64]:
-        return self.values[:, CHANNEL_INDEX[name]]
 
 
 @dataclass
@@ -191,7 +187,7 @@ class Detector:
         t, x = t.copy(), x.copy()
         expected = int(round((t1 - t0) / self.period_ns)) + 1
         latest = self.ring.latest_ns or 0
-        w = EventWindow(ev, t, x, self.period_ns)
+        w = EventWindow(t_ns=t, values=x, period_ns=self.period_ns, event=ev)
         if ev.segment != self._segment:
             w.usable, w.reason = False, "the clock jumped (new segment) before the window was complete"
         elif len(t) < expected and latest < t1:

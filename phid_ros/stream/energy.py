@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from phid_ros.io.topics import CHANNEL_INDEX
+from phid_ros.model.channels import CHANNEL_INDEX
 from phid_ros.model.conventions import terminal_to_dq
 from phid_ros.model.equations import reconstruct_fluxes
 from phid_ros.model.hamiltonian import hamiltonian, port_inputs, power_balance

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from phid_ros.io.topics import CHANNELS, channel_columns
+from phid_ros.model.channels import CHANNELS, channel_columns
 from phid_ros.model.conventions import NS, seconds_to_ns, split_stamp, stamp_ns
 from phid_ros.model.parameters import PARAMETER_NAMES
 from phid_ros.stream.align import StreamHealth
@@ -224,7 +224,7 @@ def window_from_message(msg: Any) -> EventWindow:
         v_prefault=math.nan,
         segment=0,
     )
-    w = EventWindow(ev, t, values, period)
+    w = EventWindow(t_ns=t, values=values, period_ns=period, event=ev)
     if period <= 0 or len(values) == 0:
         w.usable, w.reason = False, "empty window or bad sample period"
     elif not np.isfinite(values).all():

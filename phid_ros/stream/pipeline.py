@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from phid_ros.ident.pipeline import IdentifyOptions
-from phid_ros.io.topics import CHANNELS
+from phid_ros.model.channels import CHANNELS
 from phid_ros.model.conventions import NS
 from phid_ros.model.parameters import GeneratorParameters
 from phid_ros.stream.align import Aligner, StreamHealth
@@ -87,7 +87,15 @@ class Outputs:
         """The same outputs without their bulk arrays (windows' samples, all but the last energy
         sample), for a running summary that must not grow with the length of a replay."""
         windows = [
-            EventWindow(w.event, w.t_ns[:0], w.values[:0], w.period_ns, w.usable, w.reason) for w in self.windows
+            EventWindow(
+                t_ns=w.t_ns[:0],
+                values=w.values[:0],
+                period_ns=w.period_ns,
+                event=w.event,
+                usable=w.usable,
+                reason=w.reason,
+            )
+            for w in self.windows
         ]
         energy = [
             EnergySamples(*(getattr(e, f)[-1:] for f in EnergySamples.__dataclass_fields__)) for e in self.energy[-1:]
@@ -99,7 +107,7 @@ class MonitorPipeline:
     def __init__(self, settings: PipelineSettings | None = None) -> None:
         self.settings = s = settings or PipelineSettings()
         self.aligner = self._new_aligner()
-        self.ring = RingBuffer(int(s.ring_seconds * NS // s.period_ns), CHANNELS)
+        self.ring = RingBuffer(int(s.ring_seconds * NS // s.period_ns), CHANNELS, s.period_ns)
         self.detector = Detector(self.ring, s.period_ns, s.detector)
         self.store = EventStore(s.store_path, unit=s.unit or None)
         self.recalibrator = Recalibrator(self.store, s.policy, s.identify)

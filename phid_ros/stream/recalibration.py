@@ -19,7 +19,6 @@ from dataclasses import dataclass, field
 
 from phid_ros.ident.pipeline import IdentificationResult, IdentifyOptions, identify
 from phid_ros.ident.scenario import DEFAULT_THRESHOLDS, ScenarioData, ScenarioError, StepThresholds, make_scenario
-from phid_ros.io.topics import channel_columns
 from phid_ros.model.conventions import NS
 from phid_ros.model.parameters import GeneratorParameters
 from phid_ros.stream.detector import EventWindow
@@ -67,7 +66,7 @@ def scenario_from_window(
     k_cl = int((e.clearing_ns - int(w.t_ns[0])) // w.period_ns) if e.clearing_ns else None
     return make_scenario(
         e.name or e.event_id,
-        channel_columns(w.values),
+        w.columns(),
         w.period_ns / NS,
         kind=e.kind,
         role=e.role,

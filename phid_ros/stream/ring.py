@@ -1,4 +1,4 @@
-"""A fixed-capacity ring buffer of aligned samples: stamps plus one column per channel.
+"""A fixed-capacity ring buffer of aligned samples: stamps plus one column per channel, out as frames.
 
 Appending a block is O(block) with at most two slice copies, whatever the fill;
 memory is allocated once (``capacity`` rows), so a replay of any length stays flat.
@@ -12,13 +12,16 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from phid_ros.model.channels import Frame
+
 
 class RingBuffer:
-    def __init__(self, capacity: int, channels: Sequence[str]) -> None:
+    def __init__(self, capacity: int, channels: Sequence[str], period_ns: int = 0) -> None:
         if capacity < 1:
             raise ValueError("capacity must be at least 1")
         self.capacity = int(capacity)
         self.channels = tuple(channels)
+        self.period_ns = int(period_ns)  # of the frames handed out (0: not said)
         self._t = np.zeros(self.capacity, dtype=np.int64)
         self._x = np.zeros((self.capacity, len(self.channels)), dtype=np.float64)
         self._head = 0  # next write position
@@ -80,9 +83,9 @@ class RingBuffer:
             return k
         return len(first) + int(np.searchsorted(self._t[: self._size - len(first)], t_ns, side=side))  # type: ignore[call-overload]
 
-    def window(self, t0_ns: int, t1_ns: int) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    def window(self, t0_ns: int, t1_ns: int) -> Frame:
         """Samples with t0 <= t <= t1 (the buffer holds increasing stamps)."""
-        return self.rows(self._search(t0_ns, "left"), self._search(t1_ns, "right"))
+        return Frame(*self.rows(self._search(t0_ns, "left"), self._search(t1_ns, "right")), self.period_ns)
 
     @property
     def latest_ns(self) -> int | None:

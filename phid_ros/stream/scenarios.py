@@ -42,7 +42,8 @@ def aligned_channels(
     between the scenarios of a CSV set are gaps by design and skip nothing.
     """
     from phid_ros.io.recording import block_bounds
-    from phid_ros.io.topics import CHANNEL_INDEX, STREAMS_BY_NAME, channel_columns
+    from phid_ros.io.topics import STREAMS_BY_NAME
+    from phid_ros.model.channels import CHANNEL_INDEX, channel_columns
     from phid_ros.stream.align import Aligner
 
     check_streams(rec, source)
@@ -71,7 +72,8 @@ def aligned_channels(
 
 def check_streams(rec: Recording, source: str) -> None:
     """Refuse a recording that lacks a sensor stream or carries a channel in other units than per unit."""
-    from phid_ros.io.topics import STREAMS, unit_problem
+    from phid_ros.io.topics import STREAMS
+    from phid_ros.model.channels import unit_problem
 
     missing_streams = [s.name for s in STREAMS if s.name not in rec.streams]
     if missing_streams:

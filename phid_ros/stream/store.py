@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from phid_ros.errors import PhidError
-from phid_ros.io.topics import CHANNELS
+from phid_ros.model.channels import CHANNELS
 from phid_ros.stream.detector import Event, EventWindow
 
 SCHEMA_VERSION = "2"
@@ -242,4 +242,6 @@ class EventStore:
 
         ev = Event(eid, kind, int(inc), int(clr), real(sev), real(vpf), int(seg), name or "", role, bool(damping))
         t = int(start) + np.arange(n, dtype=np.int64) * int(period)
-        return EventWindow(ev, t, values, int(period), bool(usable), reason or "")
+        return EventWindow(
+            t_ns=t, values=values, period_ns=int(period), event=ev, usable=bool(usable), reason=reason or ""
+        )

@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 from phid_ros.ident import stage1, stage3
 from phid_ros.ident.results import Estimate
 from phid_ros.ident.scenario import ScenarioData, find_events
-from phid_ros.io.topics import CHANNELS, channel_columns
+from phid_ros.model.channels import CHANNELS, channel_columns
 from phid_ros.model.conventions import NS
 from phid_ros.model.parameters import SYMBOLS, GeneratorParameters
 from phid_ros.stream.ring import RingBuffer
@@ -70,7 +70,7 @@ class SlidingTracker:
     _alarmed: set[str] = field(default_factory=set)
 
     def __post_init__(self) -> None:
-        self._ring = RingBuffer(int(self.settings.window_s * NS // self.period_ns) + 1, CHANNELS)
+        self._ring = RingBuffer(int(self.settings.window_s * NS // self.period_ns) + 1, CHANNELS, self.period_ns)
 
     def reset(self) -> None:
         """A new segment (clock jump): windows must not span it."""

@@ -13,7 +13,7 @@ import json
 import numpy as np
 import pytest
 
-from phid_ros.io.topics import channel_columns
+from phid_ros.model.channels import channel_columns
 from phid_ros.model.conventions import split_stamp
 from phid_ros.model.parameters import PARAMETER_NAMES, TABLE1
 from test.conftest import short

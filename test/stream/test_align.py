@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from phid_ros.io.topics import CHANNELS, STREAMS
+from phid_ros.io.topics import STREAMS
+from phid_ros.model.channels import CHANNELS
 from phid_ros.stream.align import Aligner
 
 MS = 1_000_000

@@ -1,6 +1,6 @@
 import numpy as np
 
-from phid_ros.io.topics import CHANNELS
+from phid_ros.model.channels import CHANNELS
 from phid_ros.stream.detector import Detector, DetectorSettings
 from phid_ros.stream.ring import RingBuffer
 

@@ -136,12 +136,14 @@ def test_an_implausible_jump_is_rejected_but_uncertain_anchors_are_not(catalogue
 def test_unknown_severity_survives_the_store():
     import math
 
-    from phid_ros.io.topics import CHANNELS
+    from phid_ros.model.channels import CHANNELS
     from phid_ros.stream.detector import Event, EventWindow
 
     store = EventStore()
     ev = Event("ev1", "fault", 10, 20, math.nan, math.nan, 0)
-    store.add(EventWindow(ev, np.arange(3, dtype=np.int64), np.zeros((3, len(CHANNELS))), 1))
+    store.add(
+        EventWindow(t_ns=np.arange(3, dtype=np.int64), values=np.zeros((3, len(CHANNELS))), period_ns=1, event=ev)
+    )
     back = store.all()[0].event
     assert math.isnan(back.severity) and math.isnan(back.v_prefault)
 

@@ -12,7 +12,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from phid_ros.io.topics import CHANNELS
+from phid_ros.model.channels import CHANNELS
 from phid_ros.model.conventions import NS
 from phid_ros.stream.detector import Event, EventWindow, event_id
 from phid_ros.stream.store import EventStore, StoreError
@@ -25,7 +25,9 @@ def window(k: int, *, offset: float = 0.0, usable: bool = True, n: int = 200) ->
     ev = Event(event_id("fault", inc), "fault", inc, inc + NS // 10, 0.8, 1.0, 0)
     t = inc - NS + np.arange(n, dtype=np.int64) * 1_000_000
     x = np.full((n, len(CHANNELS)), 0.9 + offset) + 1e-3 * k
-    return EventWindow(ev, t, x, 1_000_000, usable, "" if usable else "the data ended early")
+    return EventWindow(
+        t_ns=t, values=x, period_ns=1_000_000, event=ev, usable=usable, reason="" if usable else "the data ended early"
+    )
 
 
 def test_ids_come_from_the_event_not_a_counter():

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from phid_ros.io.topics import CHANNELS
+from phid_ros.model.channels import CHANNELS
 from phid_ros.model.parameters import TABLE1
 from phid_ros.sim.ambient import AmbientSettings, Drift, simulate_ambient
 from phid_ros.stream.tracker import SlidingTracker, TrackerSettings

@@ -1,0 +1,107 @@
+"""The measured channels, their column in a frame, their plausible ranges, and the frame itself.
+
+A :class:`Frame` is the one container of samples from the aligner on: stamps, one row per
+sample over every channel in ``CHANNELS`` order, and the sample period. The aligner emits
+frames (``AlignedBlock``), the ring buffer hands them out, an event window is one, the store
+serialises one, and a scenario views one's columns by name.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+CHANNELS: tuple[str, ...] = ("v_t", "theta_t", "i_d", "i_q", "omega", "delta", "v_f", "p_m", "p_e", "q_e")
+CHANNEL_INDEX: dict[str, int] = {c: i for i, c in enumerate(CHANNELS)}  # column of a channel in a frame
+
+
+def channel_columns(values: Any) -> dict[str, Any]:
+    """The columns of a (samples x CHANNELS) matrix by channel name (views, no copies)."""
+    return {c: values[:, i] for i, c in enumerate(CHANNELS)}
+
+
+@dataclass
+class Frame:
+    t_ns: NDArray[np.int64]  # (n,) increasing
+    values: NDArray[np.float64]  # (n, len(CHANNELS)); NaN where a stream had a gap
+    period_ns: int
+
+    def __len__(self) -> int:
+        return len(self.t_ns)
+
+    def __iter__(self) -> Iterator[Any]:
+        """A frame unpacks as ``t_ns, values``."""
+        return iter((self.t_ns, self.values))
+
+    def channel(self, name: str) -> NDArray[np.float64]:
+        return self.values[:, CHANNEL_INDEX[name]]
+
+    def columns(self) -> dict[str, NDArray[np.float64]]:
+        return channel_columns(self.values)
+
+    def between(self, t0_ns: int, t1_ns: int) -> Frame:
+        """The samples with t0 <= t <= t1, as views."""
+        a = int(np.searchsorted(self.t_ns, t0_ns, side="left"))
+        b = int(np.searchsorted(self.t_ns, t1_ns, side="right"))
+        return Frame(self.t_ns[a:b], self.values[a:b], self.period_ns)
+
+
+# Plausible ranges in per unit / rad on the machine base: anything outside is a wrong feed (a kV, MW
+# or A signal by mistake), not a disturbance. One table for replay, identify and import-csv.
+PLAUSIBLE: dict[str, tuple[float, float]] = {
+    "v_t": (0.0, 3.0),
+    "i_d": (-25.0, 25.0),
+    "i_q": (-25.0, 25.0),
+    "p_e": (-25.0, 25.0),
+    "q_e": (-25.0, 25.0),
+    "omega": (0.5, 1.5),
+    "p_m": (-5.0, 5.0),
+    "theta_t": (-1e6, 1e6),
+    "delta": (-1e6, 1e6),
+    "v_f": (-30.0, 30.0),
+}
+
+# What a channel's typical magnitude says it was recorded in, when it is not per unit.
+_UNIT_GUESSES: dict[str, tuple[tuple[float, float, str], ...]] = {
+    "v_t": ((3.0, 1000.0, "kV: divide by the machine's rated kV"), (1000.0, 1e7, "V: divide by the rated voltage")),
+    "i_d": ((25.0, 1e7, "A or kA: divide by the rated current"),),
+    "i_q": ((25.0, 1e7, "A or kA: divide by the rated current"),),
+    "p_e": ((25.0, 1e7, "MW: divide by the machine's MVA base"),),
+    "q_e": ((25.0, 1e7, "Mvar: divide by the machine's MVA base"),),
+    "p_m": ((5.0, 1e7, "MW: divide by the machine's MVA base"),),
+    "omega": (
+        (40.0, 70.0, "Hz: divide by the nominal frequency"),
+        (250.0, 400.0, "rad/s: divide by 2π times the nominal frequency"),
+        (400.0, 4000.0, "rpm: divide by the synchronous speed"),
+    ),
+    "v_f": ((30.0, 1e7, "V: divide by the field voltage base"),),
+}
+
+
+def unit_problem(channel: str, values: object, *, share: float = 0.5) -> str | None:
+    """Why ``values`` of ``channel`` are not per unit (with a guess at their unit), or None.
+
+    A channel is refused when at least ``share`` of its finite samples lie outside its
+    plausible per-unit range; isolated wild samples are the aligner's business (dropped, counted).
+    """
+    import numpy as np
+
+    x = np.asarray(values, dtype=float)
+    x = x[np.isfinite(x)]
+    lo, hi = PLAUSIBLE[channel]
+    if x.size == 0:
+        return None
+    outside = float(np.mean((x < lo) | (x > hi)))
+    if outside < share:
+        return None
+    typical = float(np.median(np.abs(x)))
+    guess = next((text for a, b, text in _UNIT_GUESSES.get(channel, ()) if a <= typical < b), None)
+    what = f"looks like {guess}" if guess else "not per unit on the machine base"
+    return (
+        f"channel {channel}: {100 * outside:.0f} % of samples outside the per-unit range {lo:g} to {hi:g} "
+        f"(typical magnitude {typical:.4g}): {what}"
+    )
