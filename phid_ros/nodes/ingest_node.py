@@ -35,7 +35,8 @@ class IngestNode(Node):
         super().__init__("ingest_node")
         self.values = declare(self, INGEST)
         settings = pipeline_settings(self.values, detect=True)
-        settings.auto_recalibrate = False  # recalibration is the other node's job
+        settings.auto_recalibrate = False  # recalibration is the other node's job, and so is keeping the windows
+        settings.keep_windows = False
         self.pipeline = MonitorPipeline(settings)
         self.types = msg_types()
         qos = sensor_qos(self.values["reliable_qos"], self.values["queue_depth"])

@@ -38,6 +38,9 @@ class PipelineSettings:
     identify: IdentifyOptions = field(default_factory=lambda: IdentifyOptions(baseline=False))
     initial_parameters: GeneratorParameters | None = None
     detect: bool = True  # False: windows arrive from elsewhere (the recalibration node gets them by topic)
+    # False: windows are handed on, not kept (the ingest node: the recalibration node keeps them; an
+    # in-memory store that nothing reads would grow by 2.4 MB an event for as long as the node runs)
+    keep_windows: bool = True
     # sliding-window tracking of drift: it starts on tracking_base, or without one on the first set
     # identified, from the oldest data still in the ring buffer; switched off, it is dropped
     tracking_enabled: bool = False
@@ -262,7 +265,8 @@ class MonitorPipeline:
 
     def _store(self, windows: list[EventWindow], out: Outputs) -> None:
         for w in windows:
-            self.store.add(w)
+            if self.settings.keep_windows:
+                self.store.add(w)
             out.windows.append(w)
             if w.usable and self.settings.auto_recalibrate and w.event.role == "identify":
                 self.recalibrator.request(int(w.t_ns[-1]) if len(w.t_ns) else w.event.inception_ns)

@@ -109,3 +109,30 @@ def test_bad_settings_are_refused():
         Scenario("x", "earthquake", 1.0)
     with pytest.raises(SimulationError, match="non-negative"):
         Network(x_transformer=-0.1)
+
+
+@pytest.mark.parametrize("f0", [50.0, 60.0])
+def test_the_plant_integrates_the_model_equations(f0):
+    """Without effects, the simulator's state equations are model/equations.py's (5)-(8), with its
+    stator currents (solved with the network) satisfying (11)-(12) at the terminals."""
+    from phid_ros.model.equations import Coefficients, currents, derivatives
+    from phid_ros.sim.plant import Inputs
+
+    rng = np.random.default_rng(5)
+    n = 40
+    plant = Plant(TABLE1, f_nominal_hz=f0)
+    x = np.array(
+        [rng.uniform(-1, 1.5, n), rng.uniform(0.97, 1.03, n), rng.uniform(0.6, 1.3, n), rng.uniform(-0.6, 0.2, n)]
+    )
+    row = lambda lo, hi: rng.uniform(lo, hi, (1, n))  # noqa: E731
+    damping = rng.uniform(0.0, 2.0, n)
+    inputs = Inputs(row(0.2, 1.0), row(1.0, 3.0), row(0.8, 1.1), row(-0.3, 0.3), row(0.0, 0.02), row(0.2, 0.6), damping)
+    i_d, i_q, _, _ = plant._currents(
+        x[0], x[2], x[3], inputs.v_th_abs[0], inputs.v_th_angle[0], inputs.r_th[0], inputs.x_th[0]
+    )
+    # the terminal voltage the stator sees, from (11)-(12)
+    v_d, v_q = x[3] + TABLE1.X_q_prime * i_q, x[2] - TABLE1.X_d_prime * i_d
+    c = Coefficients.of(TABLE1, f0, damping=damping / TABLE1.D)
+    assert np.allclose(currents(x[2], x[3], v_d, v_q, c), (i_d, i_q), rtol=1e-12, atol=1e-12)
+    expect = derivatives(x, inputs.p_m[0], v_d * i_d + v_q * i_q, inputs.v_f[0], i_d, i_q, c)
+    assert np.allclose(plant.derivatives(x, inputs), expect, rtol=1e-12, atol=1e-12)
