@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from phid_ros.ident.scenario import ScenarioData
-from phid_ros.ident.validation import play_in_stride, staged_samples
+from phid_ros.ident.validation import play_in_grid, staged_samples
 from phid_ros.model.conventions import DEFAULT_F_NOMINAL_HZ, electrical_power, terminal_to_dq
 from phid_ros.model.parameters import PARAMETER_NAMES
 from phid_ros.numerics import rk4
@@ -82,11 +82,7 @@ def play_in(
     plant = Plant(params, f_nominal_hz=f_nominal_hz, effects=tuple(instances))  # type: ignore[arg-type]
 
     dt = scenarios[0].dt
-    stride = play_in_stride(dt, step)
-    h = stride * dt
-    idx = [np.arange(0, s.n, stride) for s in scenarios]
-    steps = max(len(i) for i in idx)
-    half = stride // 2
+    stride, h, idx, steps, half = play_in_grid(scenarios, step)
     advance: dict[str, Array] = {}
     for e in instances:
         for c, lag in e.delays().items():

@@ -40,6 +40,16 @@ def play_in_stride(dt: float, step: float = STEP_SECONDS) -> int:
     return max(2, 2 * int(round(step / dt / 2)))
 
 
+def play_in_grid(
+    scenarios: Sequence[ScenarioData], step: float = STEP_SECONDS
+) -> tuple[int, float, list[np.ndarray], int, int]:
+    """The play-in's time grid over scenarios run side by side: samples per step, the step in s, each
+    scenario's reported sample indices, the steps of the longest, and samples per half step."""
+    stride = play_in_stride(scenarios[0].dt, step)
+    idx = [np.arange(0, s.n, stride) for s in scenarios]
+    return stride, stride * scenarios[0].dt, idx, max(len(i) for i in idx), stride // 2
+
+
 MOD026_TOLERANCE_PU = 0.05
 
 
@@ -92,11 +102,7 @@ def play_in(
     """
     m = len(params)
     dt = scenarios[0].dt
-    stride = play_in_stride(dt, step)
-    h = stride * dt
-    idx = [np.arange(0, s.n, stride) for s in scenarios]
-    steps = max(len(i) for i in idx)
-    half = stride // 2
+    stride, h, idx, steps, half = play_in_grid(scenarios, step)
 
     v_t, theta, p_m, v_f = (staged_samples(scenarios, n, m, steps, half) for n in ("v_t", "theta_t", "p_m", "v_f"))
     damping_on = np.repeat([1.0 if s.generator_damping else 0.0 for s in scenarios], m)

@@ -22,7 +22,7 @@ from rclpy.qos import (
     qos_profile_sensor_data,
 )
 
-from phid_ros.io.topics import OUTPUT_TOPICS
+from phid_ros.io.topics import OUTPUT_TOPICS, STREAMS_BY_NAME
 from phid_ros.stream.params import Tunable, validate
 
 SENSOR_TOPICS = ("pt_ct", "encoder", "pmu", "excitation")
@@ -144,6 +144,34 @@ def msg_types() -> dict[str, Any]:
 
 def now_ns(node: Node) -> int:
     return int(node.get_clock().now().nanoseconds)
+
+
+def subscribe_sensors(node: Any, on_data: Any = None) -> None:
+    """Both nodes' sensor subscriptions: each block goes to ``node.pipeline.ingest_message``, the entry
+    point phid replay feeds too; ``on_data`` (if given) hears that data arrived."""
+    from phid_ros.stream import messages as m
+
+    values = node.values
+    qos = sensor_qos(values["reliable_qos"], values["queue_depth"])
+    for name in SENSOR_TOPICS:
+        spec = STREAMS_BY_NAME[name]
+
+        def callback(msg: Any, stream: str = name, channels: tuple[str, ...] = spec.channels) -> None:
+            if on_data is not None:
+                on_data()
+            node.pipeline.ingest_message(  # a zero stamp is counted and dropped by the pipeline
+                stream,
+                m.stamp_ns(msg.header.stamp),
+                m.seconds_to_ns(msg.sample_period),
+                m.block_arrays(msg, channels),
+                receive_ns=now_ns(node),
+            )
+
+        node.create_subscription(node.types[spec.msgtype], name, callback, qos)
+    node.get_logger().info(
+        f"ready: {', '.join(SENSOR_TOPICS)} ({'reliable' if values['reliable_qos'] else 'best effort'}, "
+        f"depth {values['queue_depth']})"
+    )
 
 
 def spin_until_shutdown(make_node: Any, args: list[str] | None) -> None:

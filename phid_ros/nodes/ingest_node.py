@@ -11,19 +11,16 @@ from typing import Any
 
 from rclpy.node import Node
 
-from phid_ros.io.topics import STREAMS_BY_NAME
 from phid_ros.nodes.common import (
-    SENSOR_TOPICS,
     declare,
     float_seq,
     msg_types,
-    now_ns,
     on_set,
     output_publisher,
     reliable_qos,
-    sensor_qos,
     spin_until_shutdown,
     steady_timer,
+    subscribe_sensors,
 )
 from phid_ros.stream import messages as m
 from phid_ros.stream.params import INGEST, apply, pipeline_settings
@@ -39,28 +36,11 @@ class IngestNode(Node):
         settings.keep_windows = False
         self.pipeline = MonitorPipeline(settings)
         self.types = msg_types()
-        qos = sensor_qos(self.values["reliable_qos"], self.values["queue_depth"])
-        for name in SENSOR_TOPICS:
-            cls = self.types[STREAMS_BY_NAME[name].msgtype]
-            self.create_subscription(cls, name, self._sensor_callback(name), qos)
         self.events_pub = output_publisher(self, "events", reliable_qos())
         self.windows_pub = output_publisher(self, "windows", reliable_qos())
         self.add_on_set_parameters_callback(on_set(INGEST, self._apply))
         steady_timer(self, self.values["process_period_s"], self.process)
-        self.get_logger().info(
-            f"ready: {', '.join(SENSOR_TOPICS)} ({'reliable' if self.values['reliable_qos'] else 'best effort'}, "
-            f"depth {self.values['queue_depth']})"
-        )
-
-    def _sensor_callback(self, stream: str) -> Any:
-        channels = STREAMS_BY_NAME[stream].channels
-
-        def callback(msg: Any) -> None:
-            t0 = m.stamp_ns(msg.header.stamp)  # a zero stamp is counted and dropped by the pipeline
-            period = m.seconds_to_ns(msg.sample_period)
-            self.pipeline.ingest_message(stream, t0, period, m.block_arrays(msg, channels), receive_ns=now_ns(self))
-
-        return callback
+        subscribe_sensors(self)
 
     def _apply(self, name: str, value: Any) -> None:
         self.pipeline.configure(apply(self.pipeline.settings, name, value))

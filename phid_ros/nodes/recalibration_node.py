@@ -14,9 +14,8 @@ from typing import Any
 from rclpy.node import Node
 from std_srvs.srv import Trigger
 
-from phid_ros.io.topics import OUTPUT_TOPICS, SCENARIO_TOPIC, STREAMS_BY_NAME
+from phid_ros.io.topics import OUTPUT_TOPICS, SCENARIO_TOPIC
 from phid_ros.nodes.common import (
-    SENSOR_TOPICS,
     byte_level,
     declare,
     float_seq,
@@ -25,9 +24,9 @@ from phid_ros.nodes.common import (
     on_set,
     output_publisher,
     reliable_qos,
-    sensor_qos,
     spin_until_shutdown,
     steady_timer,
+    subscribe_sensors,
 )
 from phid_ros.stream import messages as m
 from phid_ros.stream.params import RECALIBRATION, apply, pipeline_settings
@@ -52,10 +51,6 @@ class RecalibrationNode(Node):
         self.pipeline = MonitorPipeline(settings)
         self.types = msg_types()
         self.last_status: str | None = None
-        qos = sensor_qos(self.values["reliable_qos"], self.values["queue_depth"])
-        for name in SENSOR_TOPICS:
-            cls = self.types[STREAMS_BY_NAME[name].msgtype]
-            self.create_subscription(cls, name, self._sensor_callback(name), qos)
         windows, window_type = OUTPUT_TOPICS["windows"]  # the ingest node's output is our input
         self.create_subscription(self.types[window_type], windows, self._on_window, reliable_qos())
         self.create_subscription(
@@ -72,27 +67,11 @@ class RecalibrationNode(Node):
         self._ended = True  # nothing owed before the first data
         steady_timer(self, 1.0 / self.values["hamiltonian_rate_hz"], self.process)
         steady_timer(self, self.values["diagnostics_period_s"], self.publish_diagnostics)
-        self.get_logger().info(
-            f"ready: {', '.join(SENSOR_TOPICS)} ({'reliable' if self.values['reliable_qos'] else 'best effort'}, "
-            f"depth {self.values['queue_depth']})"
-        )
+        subscribe_sensors(self, self._on_data)
 
     # -- callbacks ------------------------------------------------------------------------
-    def _sensor_callback(self, stream: str) -> Any:
-        channels = STREAMS_BY_NAME[stream].channels
-
-        def callback(msg: Any) -> None:
-            self._last_data, self._ended = time.monotonic(), False
-            period = m.seconds_to_ns(msg.sample_period)
-            self.pipeline.ingest_message(
-                stream,
-                m.stamp_ns(msg.header.stamp),
-                period,
-                m.block_arrays(msg, channels),
-                receive_ns=int(self.get_clock().now().nanoseconds),
-            )
-
-        return callback
+    def _on_data(self) -> None:
+        self._last_data, self._ended = time.monotonic(), False
 
     def _on_window(self, msg: Any) -> None:
         self._publish(self.pipeline.add_window(m.window_from_message(msg)))
