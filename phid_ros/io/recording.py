@@ -327,7 +327,7 @@ def recording_from_messages(
     for seq, (topic, msgtype, msg) in enumerate(items):
         if topic == SCENARIO_TOPIC:
             _check_type(source, topic, msgtype, SCENARIO_MSGTYPE)
-            asm.scenarios.append(_scenario_from_msg(msg))
+            asm.scenarios.append(scenario_from_message(msg))
             continue
         name = stream_of_topic(topic)
         if name is None:
@@ -375,7 +375,7 @@ def recording_from_raw(
             route[0].append(raw)
             route[1].append(position)
         elif topic == SCENARIO_TOPIC:
-            asm.scenarios.append(_scenario_from_msg(deserialize(raw, msgtype, topic)))
+            asm.scenarios.append(scenario_from_message(deserialize(raw, msgtype, topic)))
     if not raws and not asm.scenarios:
         present = ", ".join(sorted({t for t, _ in routes})) or "none"
         raise BagError(f"{source}: none of the phid sensor topics found (topics present: {present})")
@@ -441,7 +441,8 @@ def _route(
     return raws.setdefault(name, [])
 
 
-def _scenario_from_msg(msg: object) -> ScenarioInfo:
+def scenario_from_message(msg: object) -> ScenarioInfo:
+    """A ScenarioMarker message (from a bag, or as a node receives it) as the recording's marker."""
     m = msg
     return ScenarioInfo(
         name=m.name,

@@ -14,6 +14,7 @@ from typing import Any
 from rclpy.node import Node
 from std_srvs.srv import Trigger
 
+from phid_ros.io.recording import scenario_from_message
 from phid_ros.io.topics import OUTPUT_TOPICS, SCENARIO_TOPIC
 from phid_ros.nodes.common import (
     byte_level,
@@ -77,7 +78,7 @@ class RecalibrationNode(Node):
         self._publish(self.pipeline.add_window(m.window_from_message(msg)))
 
     def _on_marker(self, msg: Any) -> None:
-        self.pipeline.add_marker(m.marker_from_message(msg))
+        self.pipeline.add_marker(scenario_from_message(msg))
 
     def _recalibrate(self, request: Any, response: Any) -> Any:
         response.message = self.pipeline.recalibrate()

@@ -230,9 +230,3 @@ def window_from_message(msg: Any) -> EventWindow:
     elif not np.isfinite(values).all():
         w.usable, w.reason = False, "stale data in the window (gaps)"
     return w
-
-
-def marker_from_message(msg: Any) -> Any:
-    from phid_ros.stream.pipeline import Marker
-
-    return Marker(msg.name, msg.kind, msg.role, bool(msg.generator_damping), stamp_ns(msg.start), stamp_ns(msg.end))

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from phid_ros.ident.pipeline import IdentifyOptions
+from phid_ros.io.recording import ScenarioInfo
 from phid_ros.model.channels import CHANNELS
 from phid_ros.model.conventions import NS
 from phid_ros.model.parameters import GeneratorParameters
@@ -62,16 +63,6 @@ class PipelineSettings:
 
 
 @dataclass
-class Marker:
-    name: str
-    kind: str
-    role: str
-    generator_damping: bool
-    start_ns: int
-    end_ns: int
-
-
-@dataclass
 class Outputs:
     events: list[Event] = field(default_factory=list)
     windows: list[EventWindow] = field(default_factory=list)
@@ -115,7 +106,7 @@ class MonitorPipeline:
         self.store = EventStore(s.store_path, unit=s.unit or None)
         self.recalibrator = Recalibrator(self.store, s.policy, s.identify)
         self.recalibrator.last_good = s.initial_parameters
-        self.markers: list[Marker] = []
+        self.markers: list[ScenarioInfo] = []  # a recording's scenario markers: they name the events
         self.tracker: SlidingTracker | None = None
         self.samples_in = 0
         self._segment = 0
@@ -144,7 +135,7 @@ class MonitorPipeline:
             return
         self.ingest(stream, t0_ns, period_ns, arrays, receive_ns)
 
-    def add_marker(self, marker: Marker) -> None:
+    def add_marker(self, marker: ScenarioInfo) -> None:
         self.markers.append(marker)
 
     # -- processing ---------------------------------------------------------------------------

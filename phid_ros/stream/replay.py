@@ -19,15 +19,11 @@ from phid_ros.model.conventions import NS
 from phid_ros.model.parameters import GeneratorParameters
 from phid_ros.stream.align import StreamHealth
 from phid_ros.stream.detector import DetectorSettings, EventWindow
-from phid_ros.stream.pipeline import Marker, MonitorPipeline, Outputs, PipelineSettings
+from phid_ros.stream.pipeline import MonitorPipeline, Outputs, PipelineSettings
 from phid_ros.stream.tracker import TrackerSettings, TrackPoint
 
 PROCESS_EVERY_NS = NS // 2  # stream time between pipeline runs while feeding
 MAX_PACE_STEP_NS = 60 * NS  # a stamp step beyond this is a clock jump, not time to wait for
-
-
-def markers_of(rec: Recording) -> list[Marker]:
-    return [Marker(s.name, s.kind, s.role, s.generator_damping, s.start_ns, s.end_ns) for s in rec.scenarios]
 
 
 def sensor_blocks(rec: Recording, block_size: int = DEFAULT_BLOCK_SIZE) -> list[tuple[int, str, int, int]]:
@@ -70,7 +66,7 @@ def replay(
     when ``keep_arrays`` is False, so a long replay's memory stays flat. ``progress`` hears
     the stream time played so far (seconds) after every processing step.
     """
-    for m in markers_of(rec):
+    for m in rec.scenarios:
         pipeline.add_marker(m)
     total = Outputs()
     blocks = sensor_blocks(rec, block_size)
