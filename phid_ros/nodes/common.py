@@ -6,6 +6,9 @@ Only the nodes import rclpy; everything they do is in phid_ros.stream.
 from __future__ import annotations
 
 import array
+import contextlib
+import signal
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -183,6 +186,23 @@ def spin_until_shutdown(make_node: Any, args: list[str] | None) -> None:
     except (KeyboardInterrupt, ExternalShutdownException):
         pass  # asked to stop: leave quietly, the finally block cleans up
     finally:
-        node.pipeline.close()
-        node.destroy_node()
-        rclpy.try_shutdown()
+        # Ctrl-C in a terminal reaches the node twice (the terminal signals the whole process group,
+        # and ros2 launch forwards its own): the second must not cut the cleanup short (seen: a
+        # KeyboardInterrupt inside destroy_node, "process has died" in the launch log)
+        with _sigint_ignored():
+            node.pipeline.close()
+            node.destroy_node()
+            rclpy.try_shutdown()
+
+
+@contextlib.contextmanager
+def _sigint_ignored() -> Iterator[None]:
+    try:
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:  # not the main thread: signals are not ours to handle here
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
