@@ -215,7 +215,12 @@ def run(args: object, console: object) -> int:
     with ProgressLine(f"reading {args.bag}"):  # type: ignore[attr-defined]
         rec, _ = read_input(args.bag)  # type: ignore[attr-defined]
     unit = args.unit or rec.metadata.get("unit", "")  # type: ignore[attr-defined]
-    settings = PipelineSettings(store_path=args.store or ":memory:", unit=unit)  # type: ignore[attr-defined]
+    # the grid at the PT/CT rate, as phid identify aligns the recording (a node: its sample_rate_hz)
+    settings = PipelineSettings(
+        period_ns=rec.streams["pt_ct"].period_ns if "pt_ct" in rec.streams else PipelineSettings.period_ns,
+        store_path=args.store or ":memory:",  # type: ignore[attr-defined]
+        unit=unit,
+    )
     pipeline = MonitorPipeline(settings)
     if len(pipeline.store):
         # a kept store is the deployment's memory: its events take part in every recalibration, so

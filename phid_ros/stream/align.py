@@ -142,6 +142,7 @@ class _Pending:
         self.channels = channels
         self.t: list[NDArray[np.int64]] = []
         self.x: list[NDArray[np.float64]] = []
+        self.period_ns = 0  # the stream's own sample period, as its latest message said
 
     def add(self, t: NDArray[np.int64], x: NDArray[np.float64]) -> None:
         if len(t):
@@ -351,6 +352,7 @@ class Aligner:
             del h._recent[:-50]
         self._recent_t[stream].add(t)
         self._pending[stream].add(t, x)
+        self._pending[stream].period_ns = int(period_ns)
 
     def _new_segment(self) -> None:
         self.flush()
@@ -412,13 +414,17 @@ class Aligner:
             if t.size == 0:
                 self.health[name].gap_grid_points += grid.size
                 continue
-            values[:, cols] = self._sample(t, x, grid)
+            # a stream slower than the grid (a 50 Hz PMU beside 1 kHz PT/CT) is interpolated between its
+            # own samples; a gap is a hole of more than max_bracket_ns or five of its own periods
+            values[:, cols] = self._sample(t, x, grid, max(self.max_bracket_ns, 5 * p.period_ns))
             self.health[name].gap_grid_points += int(np.isnan(values[:, cols[0]]).sum())
             p.drop_before(int(grid[-1]))
         self._next_grid = int(grid[-1]) + self.period_ns
         self._out.append(AlignedBlock(grid, values, self.period_ns, self.segment))
 
-    def _sample(self, t: NDArray[np.int64], x: NDArray[np.float64], grid: NDArray[np.int64]) -> NDArray[np.float64]:
+    def _sample(
+        self, t: NDArray[np.int64], x: NDArray[np.float64], grid: NDArray[np.int64], max_bracket_ns: int
+    ) -> NDArray[np.float64]:
         # fast path: the stream sits on the grid itself (same clock and rate)
         k0 = int(np.searchsorted(t, grid[0]))
         if (
@@ -433,7 +439,7 @@ class Aligner:
         left = np.clip(right - 1, 0, t.size - 1)
         right_c = np.clip(right, 0, t.size - 1)
         span = t[right_c] - t[left]
-        ok = (right > 0) & (right < t.size) & (span <= self.max_bracket_ns)
+        ok = (right > 0) & (right < t.size) & (span <= max_bracket_ns)
         w = np.where(ok & (span > 0), (grid - t[left]) / np.where(span > 0, span, 1), 0.0)
         out = x[left] + (x[right_c] - x[left]) * w[:, None]
         out[~(ok | exact)] = np.nan

@@ -162,3 +162,28 @@ def test_health_status_in_diagnostic_updater_style():
     level, msg = slow.health["pmu"].status()
     assert level == "WARN" and "rate 500 Hz" in msg
     assert al.health["pmu"].status(now_ns=10**12)[0] == "STALE" or al.health["pmu"].last_receive_ns is None
+
+
+def test_a_slower_stream_is_interpolated_between_its_own_samples_and_its_holes_stay_holes():
+    """A 50 Hz PMU beside 1 kHz PT/CT: linear between its samples 20 ms apart (once NaN: five grid
+    periods was the limit, so every window was stale); a hole of more than five of its own periods is a gap."""
+    al = Aligner()
+    t0 = 10**9
+    for spec in STREAMS:
+        period = 20 * MS if spec.name == "pmu" else MS
+        n = 2000 // (period // MS)
+        t = t0 + np.arange(n, dtype=np.int64) * period
+        if spec.name == "pmu":
+            keep = (t < t0 + 1000 * MS) | (t >= t0 + 1200 * MS)  # a 200 ms hole: ten of its periods
+            arrays = {c: v[keep] for c, v in values(spec, t).items()}
+            for a, b in ((0, int(keep[:50].sum())), (int(keep[:50].sum()), int(keep.sum()))):
+                al.ingest("pmu", int(t[keep][a]), period, {c: v[a:b] for c, v in arrays.items()})
+        else:
+            al.ingest(spec.name, t0, period, values(spec, t))
+    t, x = collect(al.pull(final=True))
+    delta = x[:, COL["delta"]]
+    inside = (t <= t0 + 980 * MS) | ((t >= t0 + 1200 * MS) & (t <= t0 + 1980 * MS))
+    assert np.isfinite(delta[inside]).all()
+    assert np.allclose(delta[inside], 0.9 + 0.01 * COL["delta"] + 1e-3 * t[inside] / 1e9, rtol=0, atol=1e-12)
+    assert np.isnan(delta[(t > t0 + 980 * MS) & (t < t0 + 1200 * MS)]).all()
+    assert al.health["pmu"].gaps == 1
