@@ -197,12 +197,23 @@ def spin_until_shutdown(make_node: Any, args: list[str] | None) -> None:
 
 @contextlib.contextmanager
 def _sigint_ignored() -> Iterator[None]:
-    try:
-        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    except ValueError:  # not the main thread: signals are not ours to handle here
-        yield
-        return
+    previous = _set_sigint(signal.SIG_IGN)
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, previous)
+        if previous is not None:
+            _set_sigint(previous)
+
+
+def _set_sigint(handler: Any) -> Any:
+    """Install ``handler`` for SIGINT; the one replaced, or None when that cannot be done here (not the
+    main thread). A SIGINT arriving during the switch makes Python raise "ignored due to race
+    condition" once: the switch is tried again."""
+    for _ in range(3):
+        try:
+            return signal.signal(signal.SIGINT, handler)
+        except ValueError:
+            return None
+        except OSError:
+            continue
+    return None
