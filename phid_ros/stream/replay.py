@@ -90,6 +90,10 @@ def replay(
         pipeline.ingest_message(name, int(s.t_ns[a]), s.period_ns, {c: s.channels[c][a:b] for c in spec.channels})
         if played >= next_process:
             out = pipeline.process()
+            # a run started in this step is waited for, so the next step polls its outcome: when an
+            # outcome is taken, and so the order of the outputs, then never depends on how fast the
+            # worker happened to be (two replays of one bag wrote the same messages in other orders)
+            pipeline.recalibrator.join()
             next_process = played + PROCESS_EVERY_NS
             total.extend(out if keep_arrays else out.light())
             if on_outputs:
