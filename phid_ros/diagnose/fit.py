@@ -231,12 +231,17 @@ def fit(problem: Problem, max_nfev: int = 12) -> FitResult:
     (it does not at the points it rejects). In numpy a run of one model costs nearly what
     a run of a dozen does (the time is per step, not per column), so there every point is
     simulated together with its columns in one run.
+
+    The solver sees the problem compressed (:func:`compress`): a (k + 1)-row residual and
+    Jacobian with the same sum of squares, gradient and J'J as the play-in's hundreds of
+    thousands of rows, so every step it takes is the step it would take on the full rows.
     """
     lo, hi = problem.bounds()
     together = not kernel.available()
     cache: dict[bytes, tuple[Array, Array | None]] = {}
 
     def evaluate(x: Array, want_jac: bool) -> tuple[Array, Array | None]:
+        """The residual at ``x`` and, if asked, the compressed Jacobian there."""
         key = x.tobytes()
         r, J = cache.get(key, (None, None))
         if r is not None and (J is not None or not want_jac):
@@ -245,18 +250,30 @@ def fit(problem: Problem, max_nfev: int = 12) -> FitResult:
         steps = np.where(x + steps > hi, -steps, steps)  # stay inside the bounds
         if r is None and not (want_jac or together):
             r = problem.residual_matrix(x[:, None])[:, 0]
-        elif r is None:
-            R = problem.residual_matrix(np.hstack([x[:, None], x[:, None] + np.diag(steps)]))
-            r, J = R[:, 0], (R[:, 1:] - R[:, :1]) / steps[None, :]
         else:
-            J = (problem.residual_matrix(x[:, None] + np.diag(steps)) - r[:, None]) / steps[None, :]
+            if r is None:  # r and the shifted columns in one run: [r, r(x + h_1 e_1), ...]
+                A = problem.residual_matrix(np.hstack([x[:, None], x[:, None] + np.diag(steps)]))
+            else:
+                A = np.empty((len(r), len(x) + 1))
+                A[:, 0] = r
+                A[:, 1:] = problem.residual_matrix(x[:, None] + np.diag(steps))
+            r = A[:, 0].copy()
+            A[:, 1:] -= A[:, :1]
+            A[:, 1:] /= steps[None, :]  # A = [r, J] in place: no second tall array
+            J = compress(A)
         cache.clear()
         cache[key] = r, J
         return r, J
 
+    def residual(x: Array) -> Array:
+        r = evaluate(x, False)[0]
+        out = np.zeros(len(x) + 1)
+        out[0] = math.sqrt(float(r @ r))
+        return out
+
     x0 = problem.x0()
     sol = least_squares(
-        lambda x: evaluate(x, False)[0],
+        residual,
         x0,
         jac=lambda x: evaluate(x, True)[1],
         bounds=(lo, hi),
@@ -269,6 +286,25 @@ def fit(problem: Problem, max_nfev: int = 12) -> FitResult:
     spec = problem.spec_at(sol.x)
     base_std, effect_std = _std(problem, sol.x, np.asarray(sol.jac), r, k, spec)
     return FitResult(spec, float(r @ r), len(r), k, sol.nfev, sol.message, effect_std, base_std)
+
+
+def compress(A: Array) -> Array:
+    """The Jacobian J~ ((k + 1) x k) that, with the residual ||r|| e_1, is the tall [r, J] ``A`` to the solver.
+
+    R of the QR factorisation [r, J] = Q R (its first row's sign chosen so R[0, 0] = ||r||) gives
+    J~ = R[:, 1:], and Q'[r, J] = R: the pair (||r|| e_1, J~) has the sum of squares, J'r and J'J of
+    (r, J), and so the same Gauss-Newton model, gradient, column scales and covariance. scipy's
+    trust-region solver takes an SVD of its Jacobian at every step; on the play-in's rows (six
+    channels at every 2 ms of every window) that SVD cost as much as the play-ins themselves
+    (38 s of 129 s of phid diagnose bags/saturation, one worker).
+    """
+    m, n = A.shape
+    R = np.zeros((n, n))
+    top = np.linalg.qr(A, mode="r")
+    R[: top.shape[0]] = top
+    if R[0, 0] < 0:
+        R[0] = -R[0]
+    return R[:, 1:]
 
 
 def _std(
