@@ -45,6 +45,8 @@ setup(
         # the diagnosis play-in compiled (phid_ros/sim/kernel.py): 6-9x a numpy play-in; without
         # it (or with PHID_NO_JIT=1) the numpy plant runs, the same numbers, slower
         "numba>=0.60",
+        # one BLAS thread per job thread while a diagnosis's candidates run on threads (cluster.py)
+        "threadpoolctl>=3.1",
         # COMTRADE (IEEE C37.111) reading for phid import-comtrade: a maintained parser, not ours
         "comtrade>=0.1",
     ],
