@@ -17,6 +17,10 @@ class ParameterError(PhidError, ValueError):
     """A generator parameter set violates its physical ranges or orderings."""
 
 
+class StageError(PhidError):
+    """A stage of the identification cannot run on these scenarios (each stage's error is one)."""
+
+
 class SimulationError(PhidError):
     """A scenario cannot be simulated as specified (unstable, bad settings)."""
 

@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import differential_evolution
 
-from phid_ros.errors import PhidError
+from phid_ros.errors import StageError
 from phid_ros.ident.results import Estimate
 from phid_ros.ident.scenario import ScenarioData
 
@@ -29,7 +29,7 @@ FIT_SECONDS = 3.0  # "from fault initiation to several seconds post-clearing"
 DECIMATE = 20  # the envelope is smooth; 50 Hz is plenty for the fit
 
 
-class BaselineError(PhidError):
+class BaselineError(StageError):
     """The IEEE 115 baseline cannot run (it needs fault scenarios)."""
 
 

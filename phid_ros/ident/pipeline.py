@@ -14,14 +14,22 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from phid_ros.ident import ieee115, stage1, stage2, stage3, validation
+from phid_ros.errors import StageError
+from phid_ros.ident import stage1, stage2, stage3, validation
 from phid_ros.ident.constraints import NONE, Constraints, at_user_bound, held
 from phid_ros.ident.results import Estimate
 from phid_ros.ident.scenario import DEFAULT_THRESHOLDS, ScenarioData, StepThresholds
+from phid_ros.ident.stages import (
+    DifferentialDamping,
+    Ieee115CurveFits,
+    SteadyStateReactances,
+    SwingRegression,
+    stage3_methods,
+)
 from phid_ros.model.conventions import DEFAULT_F_NOMINAL_HZ
 from phid_ros.model.parameters import PARAMETER_NAMES, GeneratorParameters, validation_problems
 
-METHODS = ("fast", "paper")
+METHODS = tuple(stage3_methods())  # ("fast", "paper"): the command line's names of stage 3's methods
 
 
 @dataclass
@@ -188,8 +196,8 @@ def identify(
     """
     opt = options or IdentifyOptions()
     say = progress or (lambda step: None)
-    if opt.method not in METHODS:
-        raise ValueError(f"method must be one of {METHODS}, got {opt.method!r}")
+    if opt.method not in stage3_methods():
+        raise ValueError(f"method must be one of {tuple(stage3_methods())}, got {opt.method!r}")
     scs = list(scenarios)
     res = IdentificationResult({}, opt.method, scs, constraints=opt.constraints)
     for s in scs:
@@ -216,85 +224,66 @@ def identify(
 def _stage1(res: IdentificationResult, ident: list[ScenarioData], opt: IdentifyOptions, say: Say) -> None:
     say("stage 1: H and D from the swing equation")
     try:
-        res.stage1 = stage1.swing_regression(ident, opt.stage1_cutoff_hz, opt.constraints)
-        res.estimates["H"], res.estimates["D"] = res.stage1.H, res.stage1.D
-    except stage1.Stage1Error as exc:
+        out = SwingRegression(opt.stage1_cutoff_hz, opt.constraints).run(ident, {})
+        res.stage1 = out.result
+        res.estimates.update(out.estimates)
+    except StageError as exc:
         res.problems.append(f"stage 1 (H, D) did not run: {exc}")
     if any(s.kind == "torque_step" and not s.generator_damping for s in ident):
         try:
-            res.stage1_paper = stage1.differential_damping(ident)
-        except (stage1.Stage1Error, RuntimeError) as exc:
+            res.stage1_paper = DifferentialDamping().run(ident, {}).result
+        except (StageError, RuntimeError) as exc:
             res.problems.append(f"paper's differential damping method did not run: {exc}")
 
 
 def _stage2(res: IdentificationResult, ident: list[ScenarioData], opt: IdentifyOptions, say: Say) -> None:
     say("stage 2: X_d and X_q from the steady states")
     try:
-        res.stage2 = stage2.identify_reactances(ident)
-        res.estimates["X_d"], res.estimates["X_q"] = res.stage2.X_d, res.stage2.X_q
-        res.problems.extend(f"stage 2: {p}" for p in res.stage2.problems)
+        out = SteadyStateReactances().run(ident, {})
+        res.stage2 = out.result
+        res.estimates.update(out.estimates)
+        res.problems.extend(f"stage 2: {p}" for p in out.problems)
         for name in ("X_d", "X_q"):  # each a line of its own: holding one leaves the other's fit as it is
             est = res.estimates[name]
             if opt.constraints.outside(name, est.value):
                 wanted = est.value
                 est.value = opt.constraints.clip(name, wanted)
                 at_user_bound(est, name, wanted, est.value)
-    except stage2.Stage2Error as exc:
+    except StageError as exc:
         res.problems.append(f"stage 2 (X_d, X_q) did not run: {exc}")
     for name in ("X_d", "X_q"):
         if name in opt.constraints.fixed:
             res.estimates[name] = held(name, opt.constraints.fixed[name])
 
 
-def _synchronous(res: IdentificationResult) -> tuple[float | None, float | None]:
-    """X_d and X_q as stage 2 left them (identified, clipped to the user's bounds, or held), or None."""
-    return tuple(res.estimates[n].value if n in res.estimates else None for n in ("X_d", "X_q"))  # type: ignore[return-value]
+def _synchronous(res: IdentificationResult) -> dict[str, float]:
+    """X_d and X_q as stage 2 left them (identified, clipped to the user's bounds, or held), where they exist."""
+    return {n: res.estimates[n].value for n in ("X_d", "X_q") if n in res.estimates}
 
 
 def _baseline(res: IdentificationResult, ident: list[ScenarioData], opt: IdentifyOptions, say: Say) -> None:
     """The IEEE 115 curve fits; they need a reference X_d, X_q for their bounds (18), (21)."""
-    x_d, x_q = _synchronous(res)
-    if not opt.baseline or x_d is None or x_q is None:
+    known = _synchronous(res)
+    if not opt.baseline or len(known) < 2:
         return
     say("IEEE 115 baseline: curve fits of the transients")
     try:
-        base = ieee115.identify(ident, x_d, x_q, seed=opt.seed)
+        out = Ieee115CurveFits(seed=opt.seed).run(ident, known)
         res.baseline = {n: Estimate(res.estimates[n].value) for n in ("H", "D", "X_d", "X_q") if n in res.estimates}
-        res.baseline.update(base.estimates())
-    except ieee115.BaselineError as exc:
+        res.baseline.update(out.estimates)
+    except StageError as exc:
         res.problems.append(f"IEEE 115 baseline did not run: {exc}")
-
-
-TRANSIENT = ("X_d_prime", "X_q_prime", "T_d0_prime", "T_q0_prime")
 
 
 def _stage3(res: IdentificationResult, ident: list[ScenarioData], opt: IdentifyOptions, say: Say) -> None:
     say("stage 3: transient parameters by state consistency")
-    x_d, x_q = _synchronous(res)
     try:
-        data = stage3.prepare(ident, opt.prefilter_hz)
-        refine = opt.refine_synchronous or x_d is None or x_q is None
-        if opt.method == "fast":
-            r3 = stage3.variable_projection(
-                data, x_d or 2.0, x_q or 2.0, refine_synchronous=refine, constraints=opt.constraints
-            )
-            if refine and (x_d is None or x_q is None):
-                res.estimates["X_d"] = Estimate(r3.X_d, note="refined in stage 3 (stage 2 could not run)")
-                res.estimates["X_q"] = Estimate(r3.X_q, note="refined in stage 3 (stage 2 could not run)")
-        else:
-            if x_d is None or x_q is None:
-                raise stage3.Stage3Error("the paper method needs X_d and X_q from stage 2")
-            prior = None
-            if opt.use_prior and all(n in res.baseline for n in TRANSIENT):
-                prior = [res.baseline[n].value for n in TRANSIENT]
-            r3 = stage3.global_search(
-                data, x_d, x_q, prior=prior, seed=opt.seed, maxiter=opt.paper_maxiter, constraints=opt.constraints
-            )
-        res.stage3 = r3
-        for n in TRANSIENT:
-            res.estimates[n] = getattr(r3, n)
-        res.problems.extend(f"stage 3: {p}" for p in r3.problems)
-    except stage3.Stage3Error as exc:
+        method = stage3_methods()[opt.method].from_options(opt, res.baseline)
+        out = method.run(ident, _synchronous(res))
+        res.stage3 = out.result
+        res.estimates.update(out.estimates)
+        res.problems.extend(f"stage 3: {p}" for p in out.problems)
+    except StageError as exc:
         res.problems.append(f"stage 3 (X'_d, X'_q, T'_d0, T'_q0) did not run: {exc}")
 
 

@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import curve_fit
 
-from phid_ros.errors import PhidError
+from phid_ros.errors import StageError
 from phid_ros.ident.constraints import NONE, Constraints, at_user_bound, held
 from phid_ros.ident.results import STD_CALIBRATION, Estimate, flag
 from phid_ros.ident.scenario import ScenarioData
@@ -42,7 +42,7 @@ BLOCK_SECONDS = 1.0
 WINDOW_AFTER_EVENT_S = 15.0  # the swing has died out long before; the steady tail adds only noise
 
 
-class Stage1Error(PhidError):
+class Stage1Error(StageError):
     """Stage 1 cannot run on these scenarios (no swing, no damping to see)."""
 
 

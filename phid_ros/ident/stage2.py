@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import minimize
 
-from phid_ros.errors import PhidError
+from phid_ros.errors import StageError
 from phid_ros.ident.results import Estimate, flag
 from phid_ros.ident.scenario import ScenarioData
 
@@ -34,7 +34,7 @@ STEADY_DRIFT_SIGMAS = 8.0  # halves of the final window differing by more than t
 STEADY_DRIFT_FLOOR = 2e-4  # pu: smaller drifts move X_d, X_q by < 0.05 %, whatever the noise
 
 
-class Stage2Error(PhidError):
+class Stage2Error(StageError):
     """Stage 2 cannot run: no settled steady states, or no spread in the currents."""
 
 

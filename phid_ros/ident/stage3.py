@@ -40,7 +40,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import differential_evolution, minimize, minimize_scalar
 
-from phid_ros.errors import PhidError
+from phid_ros.errors import StageError
 from phid_ros.ident.constraints import NONE, Constraints
 from phid_ros.ident.results import STD_CALIBRATION, Estimate, flag
 from phid_ros.ident.scenario import ScenarioData
@@ -61,7 +61,7 @@ BLOCK_SECONDS = 1.0
 TRANSIENT_NAMES = ("X_d_prime", "X_q_prime", "T_d0_prime", "T_q0_prime")  # theta's order
 
 
-class Stage3Error(PhidError):
+class Stage3Error(StageError):
     """Stage 3 cannot run on these scenarios."""
 
 

@@ -1,7 +1,8 @@
 """Sliding-window tracking of slow parameter drift (the paper's future work, section 5.2).
 
 Every ``hop_s`` of stream time the tracker runs stage 1 (H, D) and stage 3
-(X'_d, X'_q, T'_d0, T'_q0) on the last ``window_s`` of aligned data, with the
+(X'_d, X'_q, T'_d0, T'_q0), the identification's own registered stages
+(``ident/stages.py``) with the tracker's settings, on the last ``window_s`` of aligned data, with the
 steps inside the window (found by the batch detector) as switching instants and
 the time-constant searches warm-started around the previous hop's values.
 X_d and X_q come from the base set (the last recalibration): ambient data has no
@@ -19,9 +20,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from phid_ros.ident import stage1, stage3
+from phid_ros.errors import StageError
+from phid_ros.ident import stage3
 from phid_ros.ident.results import Estimate
 from phid_ros.ident.scenario import ScenarioData, find_events
+from phid_ros.ident.stages import SwingRegression, VariableProjection
 from phid_ros.model.channels import CHANNELS, channel_columns
 from phid_ros.model.conventions import NS
 from phid_ros.model.parameters import SYMBOLS, GeneratorParameters
@@ -121,9 +124,8 @@ class SlidingTracker:
             extra_switching=[k for k in steps if k > k0],
         )
         try:
-            r1 = stage1.swing_regression([sc])
-            point.estimates["H"], point.estimates["D"] = r1.H, r1.D
-        except stage1.Stage1Error as exc:
+            point.estimates.update(SwingRegression().run([sc], {}).estimates)
+        except StageError as exc:
             point.problems.append(f"stage 1: {exc}")
         prev = self.history[-1] if self.history else None
         span = self.settings.warm_start_span
@@ -134,19 +136,17 @@ class SlidingTracker:
                 return None
             return max(bounds[0], v * (1 - span)), min(bounds[1], v * (1 + span))
 
+        # the window is ambient data with a few steps: all of it, not 12 s after one event
+        state_consistency = VariableProjection(
+            window_s=None,
+            bounds_d=around("T_d0_prime", stage3.T_D0_BOUNDS),
+            bounds_q=around("T_q0_prime", stage3.T_Q0_BOUNDS),
+        )
         try:
-            data = stage3.prepare([sc], window_s=None)
-            r3 = stage3.variable_projection(
-                data,
-                self.base.X_d,
-                self.base.X_q,
-                bounds_d=around("T_d0_prime", stage3.T_D0_BOUNDS),
-                bounds_q=around("T_q0_prime", stage3.T_Q0_BOUNDS),
-            )
-            for n in ("X_d_prime", "X_q_prime", "T_d0_prime", "T_q0_prime"):
-                point.estimates[n] = getattr(r3, n)
-            point.problems += r3.problems
-        except stage3.Stage3Error as exc:
+            out = state_consistency.run([sc], {"X_d": self.base.X_d, "X_q": self.base.X_q})
+            point.estimates.update(out.estimates)
+            point.problems += out.problems
+        except StageError as exc:
             point.problems.append(f"stage 3: {exc}")
         self._check_drift(point)
         self.history.append(point)
