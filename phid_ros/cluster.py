@@ -21,6 +21,8 @@ from __future__ import annotations
 
 import logging
 import os
+import sys
+import threading
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import AbstractContextManager, ExitStack, contextmanager
@@ -49,6 +51,39 @@ class ClusterError(PhidError):
 
 def default_workers() -> int:
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+
+
+_running = 0  # calls of Jobs' thread pools running now in this process
+_running_lock = threading.Lock()
+_here = threading.local()  # .job: this thread is running one of them
+
+
+def spare_threads() -> int:
+    """How many threads one compiled call may split over now: its own and the cores no job holds.
+
+    Outside a pool of job threads every core; inside one, the calling job's own thread plus the
+    cores whose threads have run out of jobs (the last, longest candidate of a round gets the
+    core the others have left). 1 in a Dask worker process: its sibling workers hold the others.
+    """
+    if "distributed" in sys.modules and in_worker():
+        return 1
+    with _running_lock:
+        free = default_workers() - _running
+    return max(1, free + (1 if getattr(_here, "job", False) else 0))
+
+
+def _as_job(fn: Callable[..., T], args: tuple[Any, ...]) -> T:
+    """``fn(*args)`` counted as a running job (see :func:`spare_threads`)."""
+    global _running
+    with _running_lock:
+        _running += 1
+    _here.job = True
+    try:
+        return fn(*args)
+    finally:
+        _here.job = False
+        with _running_lock:
+            _running -= 1
 
 
 @dataclass(frozen=True)
@@ -159,7 +194,7 @@ class Jobs(AbstractContextManager["Jobs"]):
             # cores and spin while they wait (bags/saturation, 2 workers: 25.3 s, 45.9 s of CPU;
             # with this 18.3 s, 30.4 s of CPU)
             with threadpool_limits(limits=1, user_api="blas"), ThreadPoolExecutor(n, "phid-jobs") as pool:
-                return list(pool.map(lambda args: fn(*args), calls))
+                return list(pool.map(lambda args: _as_job(fn, args), calls))
         if not _portable(fn, calls):
             return [fn(*args) for args in calls]
         if in_worker():

@@ -64,3 +64,30 @@ def test_jobs_and_the_cluster_context_use_an_existing_cluster_by_its_address():
         with Jobs(0, scheduler=existing.scheduler_address) as jobs:
             assert jobs.map(math.hypot, [(3.0, 4.0), (5.0, 12.0)]) == [5.0, 13.0]
         assert len(existing.scheduler.workers) == 1  # the cluster outlives its clients
+
+
+def test_jobs_on_threads_run_here_in_call_order_and_hand_free_cores_to_the_last_job():
+    """threads=True: a pool of threads in this process (no cluster); a job's compiled calls may
+    use its own thread plus every core no other job holds."""
+    from phid_ros import cluster as cl
+
+    started, measured = threading.Barrier(2), threading.Barrier(2)
+
+    def job(i: int) -> tuple[int, int, str]:
+        if i < 2:
+            started.wait(timeout=10)  # both running: neither may take the other's core
+            spare = cl.spare_threads()
+            measured.wait(timeout=10)
+        else:
+            time.sleep(0.2)  # the other thread has run out of jobs by now
+            spare = cl.spare_threads()
+        return i, spare, threading.current_thread().name
+
+    with Jobs(2, threads=True) as jobs:
+        out = jobs.map(job, [(0,), (1,), (2,)])
+        assert jobs._client is None
+    assert [i for i, _, _ in out] == [0, 1, 2]
+    assert all(name.startswith("phid-jobs") for _, _, name in out)
+    cores = cl.default_workers()
+    assert [s for _, s, _ in out] == [max(1, cores - 1), max(1, cores - 1), cores]
+    assert cl.spare_threads() == cores  # no job running: every core

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from phid_ros.cluster import spare_threads
 from phid_ros.ident.scenario import ScenarioData
 from phid_ros.ident.validation import play_in_grid, staged_samples
 from phid_ros.model.conventions import DEFAULT_F_NOMINAL_HZ, electrical_power, terminal_to_dq
@@ -113,7 +114,7 @@ def play_in(
     x0 = _initial_state(plant, [staged(c) for c in ("delta", "omega", "i_d", "i_q")], v_t, theta, scenarios, stride, m)
     inputs = (p_m, v_f, v_t, theta)
     source = np.array([np.arange(cols) // (m if shared(a) else 1) for a in inputs])  # column -> input column
-    outputs = kernel.integrate(plant, x0, steps - 1, h, inputs, source, damping)
+    outputs = kernel.integrate(plant, x0, steps - 1, h, inputs, source, damping, threads=spare_threads())
     if outputs is not None:
         sim_all = dict(zip(kernel.OUTPUTS, outputs))
     else:  # numba absent or switched off, or an effect without compiled terms

@@ -394,7 +394,24 @@ def diagnose(
     options: DiagnoseOptions | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> Diagnosis:
-    """Name the effects missing from the model ``identified`` (the eight base parameters)."""
+    """Name the effects missing from the model ``identified`` (the eight base parameters).
+
+    With one BLAS thread: the play-ins' threads hold the cores (BLAS threads on top spin and
+    oversubscribe them), and OpenBLAS rounds differently with other thread counts, so a
+    diagnosis in this process gives the same digits with any number of workers.
+    """
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _diagnose(scenarios, identified, options, progress)
+
+
+def _diagnose(
+    scenarios: Sequence[ScenarioData],
+    identified: Mapping[str, float],
+    options: DiagnoseOptions | None,
+    progress: Callable[[str], None] | None,
+) -> Diagnosis:
     opt = options or DiagnoseOptions()
     say = progress or (lambda msg: None)
     t_start = time.perf_counter()

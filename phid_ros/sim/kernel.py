@@ -17,6 +17,7 @@ returns None, so the caller falls back to numpy, when numba is not installed, wh
 from __future__ import annotations
 
 import os
+from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import numpy as np
@@ -86,6 +87,7 @@ def integrate(
     staged: tuple[Array, Array, Array, Array],
     source: NDArray[np.int64],
     damping: Array,
+    threads: int = 1,
 ) -> Array | None:
     """RK4 of ``plant`` from ``x0`` (n_states, cols): its OUTPUTS (6, n_steps + 1, cols), or None.
 
@@ -95,7 +97,8 @@ def integrate(
     effect re-times them per model). The outputs at step k are the plant's at its state x_k and
     the inputs of row 2k (the play-in's terminal is the source: V = V_th), computed where the
     step computes them anyway, so no trajectory of states is stored. None when the compiled
-    path cannot run.
+    path cannot run. ``threads``: the columns split over this many threads (the compiled loop
+    holds no GIL, and each column's arithmetic is the same wherever it runs).
     """
     if not available():
         return None
@@ -104,21 +107,31 @@ def integrate(
         return None
     coef, flags = terms
     p_m, v_f, v_t, theta = (np.ascontiguousarray(a, dtype=np.float64) for a in staged)
-    return _rk4_outputs(
-        np.ascontiguousarray(x0, dtype=np.float64),
-        p_m,
-        v_f,
-        v_t,
-        theta,
-        np.ascontiguousarray(source, dtype=np.int64),
-        coef,
-        flags[0],
-        flags[1],
-        flags[2],
-        float(plant.ws),
-        int(n_steps),
-        float(h),
-    )
+    cols = x0.shape[1]
+
+    def run(a: int, b: int) -> Array:
+        return _rk4_outputs(
+            np.ascontiguousarray(x0[:, a:b], dtype=np.float64),
+            p_m,
+            v_f,
+            v_t,
+            theta,
+            np.ascontiguousarray(source[:, a:b], dtype=np.int64),
+            np.ascontiguousarray(coef[:, a:b]),
+            flags[0],
+            flags[1],
+            flags[2],
+            float(plant.ws),
+            int(n_steps),
+            float(h),
+        )
+
+    parts = min(threads, cols // 2)
+    if parts <= 1:
+        return run(0, cols)
+    edges = np.linspace(0, cols, parts + 1).astype(int)
+    with ThreadPoolExecutor(parts, "phid-kernel") as pool:
+        return np.concatenate(list(pool.map(run, edges[:-1], edges[1:])), axis=2)
 
 
 def _terms(plant: Any, cols: int, damping: Array) -> tuple[Array, tuple[int, int, int]] | None:

@@ -11,8 +11,8 @@ from test.browser import assert_readable, chromium
 from test.cli.test_identify import BAGS, run_phid
 
 
-# The README's run, in the default suite although it takes about 80 s on two cores: it is the one
-# end-to-end diagnosis CI checks (the random-magnitude studies are in test/diagnose/test_workflow.py).
+# The README's run, in the default suite (about 20 s on two cores, and once more with one worker): it is
+# the one end-to-end diagnosis CI checks (the random-magnitude studies are in test/diagnose/test_workflow.py).
 def test_diagnose_names_the_hidden_saturation_in_the_shipped_bag(tmp_path, capsys):
     out, report = tmp_path / "diag.json", tmp_path / "diag.html"
     bag = BAGS / "saturation"
@@ -35,6 +35,25 @@ def test_diagnose_names_the_hidden_saturation_in_the_shipped_bag(tmp_path, capsy
     assert "…" not in out and max(len(line) for line in out.splitlines() if line.startswith(" ")) <= 80
     if chromium() is not None:  # rendered as a reader sees it (the other reports: test_reports_and_terminal.py)
         assert_readable(report, figures=2)
+    # the candidates on one thread or on every core: the same digits (one BLAS thread either way)
+    alone = tmp_path / "alone.json"
+    assert (
+        main(
+            [
+                "diagnose",
+                str(bag),
+                "--json",
+                str(alone),
+                "--workers",
+                "1",
+                "--truth",
+                str(BAGS / "saturation.truth.json"),
+            ]
+        )
+        == 0
+    )
+    doc.pop("seconds")
+    assert {k: v for k, v in json.loads(alone.read_text()).items() if k != "seconds"} == doc
 
 
 def test_diagnose_without_identification_scenarios_is_a_one_line_error():

@@ -102,3 +102,31 @@ def test_an_effect_without_compiled_terms_runs_in_numpy(windows, monkeypatch):
     out = play_in(windows, base, [(Uncompiled, {})])
     # the extra loss changes E'_q and so the currents: the numpy plant ran it
     assert np.max(np.abs(out[0].sim["i_d"] - plain[0].sim["i_d"])) > 1e-4
+
+
+def test_columns_split_over_threads_give_the_same_bits(windows, monkeypatch):
+    """The compiled loop runs its columns on several threads where cores are spare: each column's
+    arithmetic is its own, so the outputs are identical to one thread's."""
+    from phid_ros.diagnose import playin
+
+    base = {k: spread(v, 0.1) for k, v in TABLE1.as_dict().items()}
+    effects = [
+        (REGISTRY["magnetic_saturation"], VALUES["magnetic_saturation"]()),
+        (REGISTRY["shaft_torsion"], VALUES["shaft_torsion"]()),
+    ]
+    calls: list[int] = []
+    real = kernel.integrate
+
+    def counted(*args, threads=1):
+        calls.append(threads)
+        return real(*args, threads=threads)
+
+    monkeypatch.setattr(kernel, "integrate", counted)
+    monkeypatch.setattr(playin, "spare_threads", lambda: 1)
+    one = play_in(windows, base, effects, m=M)
+    monkeypatch.setattr(playin, "spare_threads", lambda: 3)
+    split = play_in(windows, base, effects, m=M)
+    assert calls == [1, 3]
+    for a, b in zip(one, split):
+        for c in OUTPUTS:
+            np.testing.assert_array_equal(a.sim[c], b.sim[c])
