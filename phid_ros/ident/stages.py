@@ -125,6 +125,8 @@ class Ieee115CurveFits(Stage):
     seed: int = 0
 
     def run(self, scenarios: Sequence[ScenarioData], known: Mapping[str, float]) -> StageOutput:
+        if "X_d" not in known or "X_q" not in known:
+            raise ieee115.BaselineError("the IEEE 115 baseline needs X_d and X_q for its bounds (18), (21)")
         r = ieee115.identify(scenarios, known["X_d"], known["X_q"], seed=self.seed)
         return StageOutput(r.estimates(), list(r.problems), r)
 

@@ -15,6 +15,7 @@ from phid_ros.ident.scenario import ScenarioData
 from phid_ros.ident.stages import (
     STAGES,
     GlobalSearch,
+    Ieee115CurveFits,
     Stage,
     StageOutput,
     SteadyStateReactances,
@@ -92,3 +93,5 @@ def test_state_consistency_without_known_reactances_refines_them_or_says_it_cann
     assert "stage 2 could not run" in out.estimates["X_d"].note
     with pytest.raises(StageError, match="needs X_d and X_q"):
         GlobalSearch().run(noisy_scenarios, {"X_d": TABLE1.X_d})
+    with pytest.raises(StageError, match="needs X_d and X_q"):
+        Ieee115CurveFits().run(noisy_scenarios, {})
