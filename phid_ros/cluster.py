@@ -65,7 +65,7 @@ def spare_threads() -> int:
     cores whose threads have run out of jobs (the last, longest candidate of a round gets the
     core the others have left). 1 in a Dask worker process: its sibling workers hold the others.
     """
-    if "distributed" in sys.modules and in_worker():
+    if in_worker():
         return 1
     with _running_lock:
         free = default_workers() - _running
@@ -152,6 +152,8 @@ def _bokeh_available() -> bool:
 
 def in_worker() -> bool:
     """Whether this code runs inside a Dask worker (a fleet task)."""
+    if "distributed" not in sys.modules:  # a worker process has it imported; asking would import it (0.3 s)
+        return False
     try:
         from distributed import get_worker
     except ImportError:
