@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import sys
+from collections.abc import Callable, Iterable
 from pathlib import Path
+from typing import Any
 
 from phid_ros.io.recording import Recording
 
@@ -46,3 +48,24 @@ def write_output(out: Path, rec: Recording, block_size: int) -> None:
     else:
         with atomic_output(out) as tmp:  # a kill leaves no half-written bag that looks complete
             write_recording(tmp, rec, block_size=block_size)
+
+
+def finish(
+    console: Any,
+    problems: Iterable[str],
+    summary: str,
+    json_out: Path | None,
+    report: Path | None,
+    write_report: Callable[[Path], None],
+) -> int:
+    """A command's last words: its problems as warnings, the summary line, then the HTML report if asked."""
+    from phid_ros.cli.progress import ProgressLine
+
+    for p in problems:
+        warn(p)
+    console.print(summary + (f"; wrote {json_out}" if json_out else ""), highlight=False)
+    if report:
+        with ProgressLine(f"writing {report}"):
+            write_report(report)
+        console.print(f"wrote {report}", highlight=False)
+    return 0

@@ -7,7 +7,7 @@ from typing import Any
 
 from rich.console import Console
 
-from phid_ros.cli.common import warn
+from phid_ros.cli.common import finish
 from phid_ros.cli.identify import load_input, load_truth, step_thresholds
 from phid_ros.cli.progress import ProgressLine
 from phid_ros.cli.tables import CHANNEL_LABELS, Col, fmt, pct, print_table, signed_int
@@ -134,19 +134,14 @@ def run(args: Any, console: Console) -> int:
             f"fourth-order refit {m['base_refit']:.2f} %, after {m['after']:.2f} %",
             highlight=False,
         )
-    for p in d.problems:
-        warn(p)
-    console.print(
-        f"diagnosed in {doc['seconds']:.1f} s (wall time)" + (f"; wrote {args.json}" if args.json else ""),
-        highlight=False,
-    )
-    if args.report:
+
+    def report(out: Any) -> None:
         from phid_ros.cli.diagnose_report import write_report
 
-        with ProgressLine(f"writing {args.report}"):
-            write_report(args.report, d, doc, source)
-        console.print(f"wrote {args.report}", highlight=False)
-    return 0
+        write_report(out, d, doc, source)
+
+    summary = f"diagnosed in {doc['seconds']:.1f} s (wall time)"
+    return finish(console, d.problems, summary, args.json, args.report, report)
 
 
 def _fmt_values(values: dict[str, Any]) -> str:

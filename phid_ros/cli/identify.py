@@ -10,7 +10,7 @@ from typing import Any
 
 from rich.console import Console
 
-from phid_ros.cli.common import read_input, warn
+from phid_ros.cli.common import finish, read_input, warn
 from phid_ros.cli.progress import ProgressLine
 from phid_ros.cli.tables import Col, fmt, pct, print_table
 from phid_ros.errors import PhidError
@@ -204,17 +204,11 @@ def run(args: Any, console: Console) -> int:
             f"D = {res.stage1_paper.D.value:.4f} pu",
             highlight=False,
         )
-    for p in res.problems:
-        warn(p)
-    console.print(
-        f"identified from {len(scenarios)} scenarios in {res.timing['total']:.3f} s (wall time)"
-        + (f"; wrote {args.json}" if args.json else ""),
-        highlight=False,
-    )
-    if args.report:
+
+    def report(out: Any) -> None:
         from phid_ros.cli.report import write_report
 
-        with ProgressLine(f"writing {args.report}"):
-            write_report(args.report, res, truth, source)
-        console.print(f"wrote {args.report}", highlight=False)
-    return 0
+        write_report(out, res, truth, source)
+
+    summary = f"identified from {len(scenarios)} scenarios in {res.timing['total']:.3f} s (wall time)"
+    return finish(console, res.problems, summary, args.json, args.report, report)
