@@ -195,8 +195,13 @@ class Jobs(AbstractContextManager["Jobs"]):
             # one BLAS thread per job thread: OpenBLAS's own threads on top oversubscribed the
             # cores and spin while they wait (bags/saturation, 2 workers: 25.3 s, 45.9 s of CPU;
             # with this 18.3 s, 30.4 s of CPU)
-            with threadpool_limits(limits=1, user_api="blas"), ThreadPoolExecutor(n, "phid-jobs") as pool:
-                return list(pool.map(lambda args: _as_job(fn, args), calls))
+            pool = ThreadPoolExecutor(n, "phid-jobs")
+            try:
+                with threadpool_limits(limits=1, user_api="blas"):
+                    return list(pool.map(lambda args: _as_job(fn, args), calls))
+            finally:
+                # on an error or Ctrl-C the jobs not yet started are dropped, not run to the end first
+                pool.shutdown(wait=True, cancel_futures=True)
         if not _portable(fn, calls):
             return [fn(*args) for args in calls]
         if in_worker():

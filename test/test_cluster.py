@@ -91,3 +91,19 @@ def test_jobs_on_threads_run_here_in_call_order_and_hand_free_cores_to_the_last_
     cores = cl.default_workers()
     assert [s for _, s, _ in out] == [max(1, cores - 1), max(1, cores - 1), cores]
     assert cl.spare_threads() == cores  # no job running: every core
+
+
+def test_a_failing_job_on_threads_raises_and_the_jobs_not_yet_started_are_dropped():
+    ran: list[int] = []
+
+    def job(i: int) -> int:
+        ran.append(i)
+        if i == 0:
+            raise ValueError("job 0 failed")
+        time.sleep(0.2)
+        return i
+
+    with Jobs(2, threads=True) as jobs, pytest.raises(ValueError, match="job 0 failed"):
+        jobs.map(job, [(i,) for i in range(20)])
+    time.sleep(0.3)
+    assert len(ran) <= 3  # job 0, the job beside it, at most one more that started in between
