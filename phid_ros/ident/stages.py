@@ -45,16 +45,21 @@ class Stage(ABC):
     name: ClassVar[str]  # the registry's key: what the stage does
     produces: ClassVar[tuple[str, ...]]
     needs: ClassVar[tuple[str, ...]] = ()  # parameters it takes from ``known``
-    method: ClassVar[str | None] = None  # stage 3's name on the command line
 
     @abstractmethod
     def run(self, scenarios: Sequence[ScenarioData], known: Mapping[str, float]) -> StageOutput:
         """The stage's estimates; raises StageError when it cannot run."""
 
+
+class Stage3Method(Stage):
+    """A method of stage 3, chosen by its name on the command line (``phid identify --method``)."""
+
+    method: ClassVar[str]
+
     @classmethod
-    def from_options(cls, opt: IdentifyOptions, earlier: Mapping[str, Estimate]) -> Stage:
-        """The stage as ``phid identify``'s options set it (``earlier``: the baseline's estimates)."""
-        raise NotImplementedError(f"{cls.name} is not chosen by the identification's options")
+    @abstractmethod
+    def from_options(cls, opt: IdentifyOptions, earlier: Mapping[str, Estimate]) -> Stage3Method:
+        """The method as the identification's options set it (``earlier``: the baseline's estimates)."""
 
 
 STAGES: dict[str, type[Stage]] = {}
@@ -68,9 +73,9 @@ def register(cls: S) -> S:
     return cls
 
 
-def stage3_methods() -> dict[str, type[Stage]]:
+def stage3_methods() -> dict[str, type[Stage3Method]]:
     """Stage 3's registered methods by their command-line names (``fast``, ``paper``)."""
-    return {cls.method: cls for cls in STAGES.values() if cls.method is not None}
+    return {cls.method: cls for cls in STAGES.values() if issubclass(cls, Stage3Method)}
 
 
 @register
@@ -132,7 +137,7 @@ class Ieee115CurveFits(Stage):
 
 
 @dataclass(frozen=True)
-class _StateConsistency(Stage):
+class _StateConsistency(Stage3Method):
     """Stage 3's data: the scenarios prefiltered and cut to ``window_s`` after each event (None: whole)."""
 
     produces = TRANSIENT
@@ -166,7 +171,7 @@ class VariableProjection(_StateConsistency):
     bounds_q: tuple[float, float] | None = None
 
     @classmethod
-    def from_options(cls, opt: IdentifyOptions, earlier: Mapping[str, Estimate]) -> Stage:
+    def from_options(cls, opt: IdentifyOptions, earlier: Mapping[str, Estimate]) -> Stage3Method:
         return cls(
             prefilter_hz=opt.prefilter_hz, constraints=opt.constraints, refine_synchronous=opt.refine_synchronous
         )
@@ -200,7 +205,7 @@ class GlobalSearch(_StateConsistency):
     maxiter: int = 300
 
     @classmethod
-    def from_options(cls, opt: IdentifyOptions, earlier: Mapping[str, Estimate]) -> Stage:
+    def from_options(cls, opt: IdentifyOptions, earlier: Mapping[str, Estimate]) -> Stage3Method:
         prior = None
         if opt.use_prior and all(n in earlier for n in TRANSIENT):
             prior = tuple(earlier[n].value for n in TRANSIENT)

@@ -16,7 +16,7 @@ from phid_ros.ident.stages import (
     STAGES,
     GlobalSearch,
     Ieee115CurveFits,
-    Stage,
+    Stage3Method,
     StageOutput,
     SteadyStateReactances,
     SwingRegression,
@@ -46,14 +46,14 @@ def test_a_method_registered_from_outside_runs_in_the_identification(clean_scena
     seen: dict[str, float] = {}
 
     @dataclass(frozen=True)
-    class Datasheet(Stage):
+    class Datasheet(Stage3Method):
         name = "datasheet_transients"
         method = "datasheet"
         produces = stages.TRANSIENT
         needs = ("X_d", "X_q")
 
         @classmethod
-        def from_options(cls, opt: IdentifyOptions, earlier: Mapping[str, Estimate]) -> Stage:
+        def from_options(cls, opt: IdentifyOptions, earlier: Mapping[str, Estimate]) -> Stage3Method:
             return cls()
 
         def run(self, scenarios: Sequence[ScenarioData], known: Mapping[str, float]) -> StageOutput:
