@@ -50,6 +50,7 @@ class ProgressLine:
         if self.live:
             self._start_live()
         else:
+            self._maybe_print()  # without a quiet time the first step shows at once, not at the first poll
             self._thread = threading.Thread(target=self._plain_loop, name="phid-progress", daemon=True)
             self._thread.start()
         return self
