@@ -14,6 +14,7 @@ one plant effect and, if needed, one candidate here; nothing else changes.
 from __future__ import annotations
 
 import itertools
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar
@@ -22,8 +23,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from phid_ros.model.bounds import Bounded
+from phid_ros.model.equations import reconstruct_fluxes
 from phid_ros.sim.effects import REGISTRY as EFFECTS
-from phid_ros.sim.effects import EffectParameter, PlantEffect, leakage_default
+from phid_ros.sim.effects import EffectParameter, PlantEffect, RotorContext, leakage_default
 
 Array = NDArray[np.float64]
 
@@ -232,12 +234,13 @@ class SaturationCandidate(Candidate):
         )
         setting = setting or {p.name: p.default for p in cls.effect.parameters if p.choices}
         effect = cls.effect.from_arrays(s10=s10, s12=s12, **setting)
-        e_q = pre["v_q"] + xdp * pre["i_d"]
-        e_d = pre["v_d"] - base["X_q_prime"] * pre["i_q"]
+        e_q, e_d = reconstruct_fluxes(pre["v_d"], pre["v_q"], pre["i_d"], pre["i_q"], xdp, base["X_q_prime"])
         x_l = leakage_default(np.minimum(xdp, base["X_q_prime"]))
+        # at rest, as the losses see it (the angle and the speed's rate do not enter them)
+        p_m, nan = pre["p_m"], math.nan
+        ctx = RotorContext(nan, 1.0, e_q, e_d, pre["i_d"], pre["i_q"], e_q, e_d, p_m, p_m, 0.0, x_l, nan)
         xd, xq = np.full_like(xdp, base["X_d"]), np.full_like(xdp, base["X_q"])
         for _ in range(3):  # the q-axis share (X_q - X_l)/(X_d - X_l) depends on both: a few passes
-            ctx = {"e_q": e_q, "e_d": e_d, "psi_d": e_q, "psi_q": e_d, "x_l": x_l}
             loss_d, loss_q = effect.transient_losses(np.empty(0), ctx, _Reactances(xd, xq))
             xd = xdp + (pre["v_f"] - e_q - loss_d) / pre["i_d"]
             xq = np.broadcast_to(base["X_q_prime"] + (e_d + loss_q) / pre["i_q"], xdp.shape)

@@ -193,7 +193,6 @@ def _initial_state(
     m: int,
 ) -> Array:
     """The pre-event steady state each model sees in the (re-timed) measurements."""
-    p = plant.params
     cols = len(scenarios) * m
     mean = np.empty((4, cols))
     vt0, th0 = np.empty(cols), np.empty(cols)
@@ -207,9 +206,6 @@ def _initial_state(
         th0[c] = np.mean(np.array(_scenario_columns(theta[:rows], j, m, cols)), axis=0)
     delta, omega, i_d, i_q = mean
     v_d, v_q = terminal_to_dq(vt0, delta, th0)
-    e_q = v_q + plant.r_a * i_q + p.X_d_prime * i_d
-    e_d = v_d + plant.r_a * i_d - p.X_q_prime * i_q
-    p_airgap = e_d * i_d + e_q * i_q + (p.X_q_prime - p.X_d_prime) * i_d * i_q
-    ctx = {"delta": delta, "e_q": e_q, "e_d": e_d, "i_d": i_d, "i_q": i_q, "p_m": p_airgap}
-    extra = [np.broadcast_to(v, (cols,)) for e in plant.effects for v in e.initial_states(ctx, plant)]
-    return np.vstack([delta, omega, e_q, e_d, *extra]) if extra else np.vstack([delta, omega, e_q, e_d])
+    ctx = plant.rest_context(delta, omega, i_d, i_q, v_d, v_q)
+    extra = [np.broadcast_to(v, (cols,)) for v in plant.rest_states(ctx)]
+    return np.vstack([delta, omega, ctx.e_q, ctx.e_d, *extra])

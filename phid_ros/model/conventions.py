@@ -21,6 +21,7 @@
 from __future__ import annotations
 
 from datetime import datetime, timedelta, timezone
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -56,13 +57,25 @@ def omega_s(f_nominal_hz: float = DEFAULT_F_NOMINAL_HZ) -> float:
     return 2.0 * np.pi * float(f_nominal_hz)
 
 
+def dq_of(v: Any, internal: Any) -> tuple[Any, Any]:
+    """(9)-(10) corrected: ``(V sin a, V cos a)`` for the internal angle ``a = delta - theta``.
+
+    Plain arithmetic on floats or arrays: the compiled play-in compiles this very function."""
+    return v * np.sin(internal), v * np.cos(internal)
+
+
+def powers(v_d: Any, v_q: Any, i_d: Any, i_q: Any) -> tuple[Any, Any]:
+    """(13) and its reactive twin: ``(V_d I_d + V_q I_q, V_q I_d - V_d I_q)``, floats or arrays
+    (compiled by the play-in too)."""
+    return v_d * i_d + v_q * i_q, v_q * i_d - v_d * i_q
+
+
 def terminal_to_dq(
     v_t: ArrayLike, delta: ArrayLike, theta_t: ArrayLike
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """(V_d, V_q) from the terminal magnitude and the two angles, eqs. (9)-(10) corrected."""
-    v = np.asarray(v_t, dtype=float)
     internal = np.asarray(delta, dtype=float) - np.asarray(theta_t, dtype=float)
-    return v * np.sin(internal), v * np.cos(internal)
+    return dq_of(np.asarray(v_t, dtype=float), internal)
 
 
 def dq_to_terminal(v_d: ArrayLike, v_q: ArrayLike, delta: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -86,6 +99,4 @@ def electrical_power(
     v_d: ArrayLike, v_q: ArrayLike, i_d: ArrayLike, i_q: ArrayLike
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """(P_e, Q_e) at the terminals: eq. (13) and ``Q = V_q I_d - V_d I_q``."""
-    vd, vq = np.asarray(v_d, float), np.asarray(v_q, float)
-    id_, iq = np.asarray(i_d, float), np.asarray(i_q, float)
-    return vd * id_ + vq * iq, vq * id_ - vd * iq
+    return powers(*(np.asarray(a, float) for a in (v_d, v_q, i_d, i_q)))

@@ -6,6 +6,12 @@ declared apart from what it does, registered by name, so a new effect is added
 without touching the others. An effect acts through a few hooks, each a no-op
 by default:
 
+Every hook that acts on the equations reads one typed :class:`RotorContext` (the base states,
+the currents, the air-gap flux), and the terms themselves are module functions of plain
+arithmetic (:func:`saturation_factor`, :func:`damper_emf`, :func:`damper_drives`,
+:func:`shaft_torque`) that the compiled play-in (:mod:`phid_ros.sim.kernel`) compiles as they are:
+an effect's equations are written once, here, as the base model's are in ``model/equations``.
+
 - ``configure(plant)``: change plant constants (stator resistance);
 - ``transient_losses(states, ctx, params)``: terms subtracted in T'_d0 dE'_q/dt and
   T'_q0 dE'_d/dt (saturation; the damper currents of GENROU's rotor);
@@ -34,8 +40,35 @@ from numpy.typing import NDArray
 from phid_ros.errors import SimulationError
 from phid_ros.model.bounds import Bounded
 from phid_ros.model.conventions import omega_s
+from phid_ros.model.equations import rotor_angle, swing
 
 Array = NDArray[np.float64]
+Value = Any  # a float or an array with one entry per simulated column
+
+
+@dataclass(frozen=True, slots=True)
+class RotorContext:
+    """What the effects' hooks read at one instant: values of the base model, one per column.
+
+    ``psi_d``, ``psi_q`` are the EMF behind the stator reactances (GENROU's air-gap flux psi'',
+    E'_q and E'_d in the fourth-order model). In the steady-state search ``omega`` is 1 and the
+    air-gap power is P_m; before the effects' own states exist (their ``initial_states``), the
+    flux is the fourth-order one.
+    """
+
+    delta: Value
+    omega: Value
+    e_q: Value
+    e_d: Value
+    i_d: Value
+    i_q: Value
+    psi_d: Value
+    psi_q: Value
+    p_m: Value
+    p_airgap: Value
+    damping: Value  # D of the generator rotor, per column (0 where a run had none)
+    x_l: Value  # the plant's: the stator leakage reactance GENROU's rotor equations assume
+    ws: float  # the plant's synchronous speed
 
 
 @dataclass(frozen=True)
@@ -100,12 +133,10 @@ class PlantEffect:
     def configure(self, plant: Any) -> None:
         return None
 
-    def transient_losses(self, states: Array, ctx: dict[str, Any], params: Any) -> tuple[Any, Any]:
+    def transient_losses(self, states: Array, ctx: RotorContext, params: Any) -> tuple[Any, Any]:
         """(d, q): subtracted from the right-hand sides of T'_d0 dE'_q/dt and T'_q0 dE'_d/dt.
 
-        ``ctx`` carries the base states and currents, and ``psi_d``, ``psi_q`` (the EMF behind the
-        stator reactances: the air-gap flux of GENROU, E'_q and E'_d in the fourth-order model) and
-        ``x_l``. Free of side effects: the steady state calls it while it searches the equilibrium.
+        Free of side effects: the steady state calls it while it searches the equilibrium.
         """
         return 0.0, 0.0
 
@@ -124,7 +155,7 @@ class PlantEffect:
         """
         return None
 
-    def initial_states(self, ctx: dict[str, Any], plant: Any) -> list[float]:
+    def initial_states(self, ctx: RotorContext, plant: Any) -> list[float]:
         """Values of this effect's states at the operating point (dx/dt = 0)."""
         return []
 
@@ -136,11 +167,11 @@ class PlantEffect:
         """X_l, when this effect's equations define it (the EMF owner's is the plant's)."""
         return None
 
-    def swing(self, states: Array, ctx: dict[str, Any], params: Any) -> Array | None:
+    def swing(self, states: Array, ctx: RotorContext, params: Any) -> Array | None:
         """A replacement for d(omega)/dt of the generator rotor, or None."""
         return None
 
-    def derivatives(self, states: Array, ctx: dict[str, Any], params: Any) -> list[Array]:
+    def derivatives(self, states: Array, ctx: RotorContext, params: Any) -> list[Array]:
         """d/dt of this effect's states."""
         return []
 
@@ -186,12 +217,35 @@ def saturation_curve(curve: str, s10: Any, s12: Any) -> tuple[Any, Any]:
     return a, s10 / (1.0 - a) ** 2
 
 
-def saturation_factor(curve: str, c1: Any, c2: Any, psi: Any) -> Any:
-    """S(psi) for the constants of :func:`saturation_curve`."""
-    if curve == "exponential":
-        return c1 * np.power(psi, c2)
+def saturation_factor(exponential: bool, c1: Value, c2: Value, psi: Value) -> Value:
+    """S(psi) for the constants of :func:`saturation_curve` (``exponential``: that curve, else
+    the quadratic one)."""
+    if exponential:
+        return c1 * psi**c2
     over = np.maximum(psi - c1, 0.0)
     return c2 * over * over / psi
+
+
+def flux_magnitude(psi_d: Value, psi_q: Value) -> Value:
+    """|psi''|, on which GENROU saturates."""
+    return np.sqrt(psi_d * psi_d + psi_q * psi_q)
+
+
+def damper_emf(g: Value, e: Value, psi_k: Value) -> Value:
+    """One axis of GENROU's air-gap flux: ``psi'' = g E' + (1 - g) psi_k``."""
+    return g * e + (1.0 - g) * psi_k
+
+
+def damper_drives(
+    e_q: Value, e_d: Value, psi_kd: Value, psi_kq: Value, i_d: Value, i_q: Value, xdp_l: Value, xqp_l: Value
+) -> tuple[Value, Value]:
+    """What drives the dampers: ``E'_q - psi_kd - (X'_d - X_l) I_d`` and ``E'_d - psi_kq + (X'_q - X_l) I_q``."""
+    return e_q - psi_kd - xdp_l * i_d, e_d - psi_kq + xqp_l * i_q
+
+
+def shaft_torque(k: Value, d_shaft: Value, delta_t: Value, delta: Value, omega_t: Value, omega: Value) -> Value:
+    """The elastic shaft's torque from the turbine to the generator."""
+    return k * (delta_t - delta) + d_shaft * (omega_t - omega)
 
 
 @register
@@ -229,15 +283,13 @@ class MagneticSaturation(PlantEffect):
         return saturation_curve(self["curve"], self["s10"], self["s12"])
 
     def factor(self, psi: Any) -> Any:
-        return saturation_factor(self["curve"], *self._constants, psi)
+        return saturation_factor(self["curve"] == "exponential", *self._constants, psi)
 
-    def transient_losses(self, states: Array, ctx: dict[str, Any], params: Any) -> tuple[Any, Any]:
+    def transient_losses(self, states: Array, ctx: RotorContext, params: Any) -> tuple[Any, Any]:
         if self["form"] == "gensal":
-            e_q = ctx["e_q"]
-            return self.factor(e_q) * e_q, 0.0
-        psi_d, psi_q, x_l = ctx["psi_d"], ctx["psi_q"], ctx["x_l"]
-        s = self.factor(np.sqrt(psi_d * psi_d + psi_q * psi_q))
-        return s * psi_d, s * psi_q * (params.X_q - x_l) / (params.X_d - x_l)
+            return self.factor(ctx.e_q) * ctx.e_q, 0.0
+        s = self.factor(flux_magnitude(ctx.psi_d, ctx.psi_q))
+        return s * ctx.psi_d, s * ctx.psi_q * q_share(params, ctx.x_l)
 
     def kernel_terms(self, plant: Any) -> dict[str, Any]:
         from phid_ros.sim.kernel import SATURATION_FORMS
@@ -249,8 +301,13 @@ class MagneticSaturation(PlantEffect):
             "sat_curve": 1.0 if self["curve"] == "exponential" else 0.0,
             "sat_c1": c1,
             "sat_c2": c2,
-            "sat_q": (p.X_q - x_l) / (p.X_d - x_l),
+            "sat_q": q_share(p, x_l),
         }
+
+
+def q_share(params: Any, x_l: Value) -> Value:
+    """GENROU's share of the saturation on the q axis, ``(X_q - X_l)/(X_d - X_l)``."""
+    return (params.X_q - x_l) / (params.X_d - x_l)
 
 
 @register
@@ -342,39 +399,44 @@ class SubtransientDynamics(PlantEffect):
         load_q = (p.X_q - p.X_q_prime) * (p.X_q_prime - self["x_qpp"]) / (xqp_l * xqp_l)
         return x_l, g_d, g_q, load_d, load_q
 
-    def initial_states(self, ctx: dict[str, Any], plant: Any) -> list[float]:
+    def initial_states(self, ctx: RotorContext, plant: Any) -> list[float]:
+        # at rest a damper's drive is zero: its flux is the drive that psi_k = 0 would leave
         p, x_l = plant.params, self.leakage(plant.params)
-        return [ctx["e_q"] - (p.X_d_prime - x_l) * ctx["i_d"], ctx["e_d"] + (p.X_q_prime - x_l) * ctx["i_q"]]
+        return list(damper_drives(ctx.e_q, ctx.e_d, 0.0, 0.0, ctx.i_d, ctx.i_q, p.X_d_prime - x_l, p.X_q_prime - x_l))
 
     def emf(self, x: Array, states: Array, params: Any) -> tuple[Array, Array, Any, Any]:
         _, g_d, g_q, _, _ = self._constants
-        return (
-            g_d * x[2] + (1.0 - g_d) * states[0],
-            g_q * x[3] + (1.0 - g_q) * states[1],
-            self["x_dpp"],
-            self["x_qpp"],
-        )
+        return damper_emf(g_d, x[2], states[0]), damper_emf(g_q, x[3], states[1]), self["x_dpp"], self["x_qpp"]
 
-    def _drives(self, states: Array, ctx: dict[str, Any], params: Any) -> tuple[Array, Array]:
+    def _drives(self, states: Array, ctx: RotorContext, params: Any) -> tuple[Array, Array]:
         x_l = self._constants[0]
-        return (
-            ctx["e_q"] - states[0] - (params.X_d_prime - x_l) * ctx["i_d"],
-            ctx["e_d"] - states[1] + (params.X_q_prime - x_l) * ctx["i_q"],
+        return damper_drives(
+            ctx.e_q, ctx.e_d, states[0], states[1], ctx.i_d, ctx.i_q, params.X_d_prime - x_l, params.X_q_prime - x_l
         )
 
-    def transient_losses(self, states: Array, ctx: dict[str, Any], params: Any) -> tuple[Any, Any]:
+    def transient_losses(self, states: Array, ctx: RotorContext, params: Any) -> tuple[Any, Any]:
         d, q = self._drives(states, ctx, params)
         _, _, _, load_d, load_q = self._constants
         return load_d * d, load_q * q
 
-    def derivatives(self, states: Array, ctx: dict[str, Any], params: Any) -> list[Array]:
+    def derivatives(self, states: Array, ctx: RotorContext, params: Any) -> list[Array]:
         d, q = self._drives(states, ctx, params)
         return [d / self["t_d0pp"], q / self["t_q0pp"]]
 
     def kernel_terms(self, plant: Any) -> dict[str, Any]:
         x_l, g_d, g_q, load_d, load_q = self._constants
+        p = plant.params
         terms = {k: self[k] for k in ("x_dpp", "x_qpp", "t_d0pp", "t_q0pp")}
-        return {"subtransient": True, **terms, "x_l": x_l, "g_d": g_d, "g_q": g_q, "load_d": load_d, "load_q": load_q}
+        return {
+            "subtransient": True,
+            **terms,
+            "xdp_l": p.X_d_prime - x_l,
+            "xqp_l": p.X_q_prime - x_l,
+            "g_d": g_d,
+            "g_q": g_q,
+            "load_d": load_d,
+            "load_q": load_q,
+        }
 
 
 @register
@@ -400,29 +462,32 @@ class ShaftTorsion(PlantEffect):
         k = (2 * np.pi * self["f_torsion_hz"]) ** 2 / (ws * (1 / (2 * h_t) + 1 / (2 * h_g)))
         return h_t, h_g, k
 
-    def initial_states(self, ctx: dict[str, Any], plant: Any) -> list[float]:
+    def initial_states(self, ctx: RotorContext, plant: Any) -> list[float]:
         _, _, k = self._stiffness(plant.params, omega_s(plant.f_nominal_hz))
-        return [ctx["delta"] + ctx["p_m"] / k, 1.0]
+        return [ctx.delta + ctx.p_m / k, 1.0]
 
     def configure(self, plant: Any) -> None:
         self._constants = self._stiffness(plant.params, omega_s(plant.f_nominal_hz))
 
-    def _shaft(self, states: Array, ctx: dict[str, Any], params: Any) -> tuple[Array, float, float]:
-        h_t, h_g, k = self._constants  # the plant's: its parameters do not change while it runs
-        torque = k * (states[0] - ctx["delta"]) + self["d_shaft"] * (states[1] - ctx["omega"])
-        return torque, h_t, h_g
+    def _torque(self, states: Array, ctx: RotorContext) -> Array:
+        k = self._constants[2]  # the plant's: its parameters do not change while it runs
+        return shaft_torque(k, self["d_shaft"], states[0], ctx.delta, states[1], ctx.omega)
 
-    def swing(self, states: Array, ctx: dict[str, Any], params: Any) -> Array:
-        torque, _, h_g = self._shaft(states, ctx, params)
-        return (torque - ctx["p_airgap"] - ctx["damping"] * (ctx["omega"] - 1.0)) / (2 * h_g)
+    def swing(self, states: Array, ctx: RotorContext, params: Any) -> Array:
+        # (6) for the generator's mass alone, driven by the shaft instead of P_m
+        h_g = self._constants[1]
+        return swing(self._torque(states, ctx), ctx.p_airgap, ctx.omega, ctx.damping, 1.0 / (2 * h_g))
 
     def kernel_terms(self, plant: Any) -> dict[str, Any]:
         h_t, h_g, k = self._constants
-        return {"torsion": True, "h_t": h_t, "h_g": h_g, "k_shaft": k, "d_shaft": self["d_shaft"]}
+        terms = {"inv_2h_t": 1.0 / (2 * h_t), "inv_2h_g": 1.0 / (2 * h_g), "k_shaft": k, "d_shaft": self["d_shaft"]}
+        return {"torsion": True, **terms}
 
-    def derivatives(self, states: Array, ctx: dict[str, Any], params: Any) -> list[Array]:
-        torque, h_t, _ = self._shaft(states, ctx, params)
-        return [ctx["ws"] * (states[1] - 1.0), (ctx["p_m"] - torque) / (2 * h_t)]
+    def derivatives(self, states: Array, ctx: RotorContext, params: Any) -> list[Array]:
+        # (5) and (6) for the turbine's mass: P_m in, the shaft's torque out, no damping of its own
+        h_t = self._constants[0]
+        omega_t = states[1]
+        return [rotor_angle(omega_t, ctx.ws), swing(ctx.p_m, self._torque(states, ctx), omega_t, 0.0, 1.0 / (2 * h_t))]
 
 
 def parse_effect(spec: str) -> PlantEffect:

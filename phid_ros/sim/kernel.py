@@ -8,6 +8,9 @@ the same steps take a few percent of that time.
 What: the generator model (5)-(13) of :class:`~phid_ros.sim.plant.Plant` with the stator
 resistance and the registered effects that declare their terms (``PlantEffect.kernel_terms``),
 driven by the measured terminal phasor (no network: the play-in's zero-impedance source).
+The equations are not written here: the kernel compiles ``model/equations``' and
+``model/conventions``' functions and the effects' term functions as they are, and only says
+in which order a column calls them.
 The numpy plant (``Plant._rhs`` with the effects' hooks) stays the reference: a test runs
 both on every effect combination and holds them equal to rounding, and :func:`integrate`
 returns None, so the caller falls back to numpy, when numba is not installed, when
@@ -22,6 +25,9 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+
+from phid_ros.model import conventions, equations
+from phid_ros.sim import effects
 
 Array = NDArray[np.float64]
 
@@ -40,17 +46,18 @@ ROWS = (
     "sat_c1",  # the q-axis share (X_q - X_l)/(X_d - X_l) of GENROU's form
     "sat_c2",
     "sat_q",
-    "x_dpp",  # subtransient dynamics (GENROU's dampers): reactances, time constants, X_l,
-    "x_qpp",  # the flux shares g_d, g_q and the dampers' load on the transient windings
-    "t_d0pp",
+    "x_dpp",  # subtransient dynamics (GENROU's dampers): reactances, time constants,
+    "x_qpp",  # X'_d - X_l and X'_q - X_l, the flux shares g_d, g_q and the dampers' load on
+    "t_d0pp",  # the transient windings
     "t_q0pp",
-    "x_l",
+    "xdp_l",
+    "xqp_l",
     "g_d",
     "g_q",
     "load_d",
     "load_q",
-    "h_t",  # shaft torsion: turbine and generator inertia, stiffness, shaft damping
-    "h_g",
+    "inv_2h_t",  # shaft torsion: 1/2H of turbine and generator, stiffness, shaft damping
+    "inv_2h_g",
     "k_shaft",
     "d_shaft",
 )
@@ -58,8 +65,8 @@ ROW = {name: i for i, name in enumerate(ROWS)}
 # the same indices as constants, which the compiled code reads as literals
 INV_2H, XD_DIFF, XQ_DIFF, INV_TD0, INV_TQ0, XDP, XQP, R_A, DAMPING = range(9)
 SAT_CURVE, SAT_C1, SAT_C2, SAT_Q = range(9, 13)
-X_DPP, X_QPP, T_D0PP, T_Q0PP, X_L, G_D, G_Q, LOAD_D, LOAD_Q = range(13, 22)
-H_T, H_G, K_SHAFT, D_SHAFT = range(22, 26)
+X_DPP, X_QPP, T_D0PP, T_Q0PP, XDP_L, XQP_L, G_D, G_Q, LOAD_D, LOAD_Q = range(13, 23)
+INV_2H_T, INV_2H_G, K_SHAFT, D_SHAFT = range(23, 27)
 SATURATION_FORMS = {"gensal": 1, "genrou": 2}  # the kernel's `sat` flag; 0: none
 
 try:
@@ -136,19 +143,13 @@ def integrate(
 
 def _terms(plant: Any, cols: int, damping: Array) -> tuple[Array, tuple[int, int, int]] | None:
     """The coefficient matrix (len(ROWS), cols) and the flags, or None for an unsupported plant."""
-    p = plant.params
     coef = np.zeros((len(ROWS), cols))
 
     def put(name: str, value: Any) -> None:
         coef[ROW[name]] = np.broadcast_to(np.asarray(value, dtype=np.float64), (cols,))
 
-    put("inv_2h", plant.inv_2h)
-    put("xd_diff", plant.xd_diff)
-    put("xq_diff", plant.xq_diff)
-    put("inv_td0", plant.inv_td0)
-    put("inv_tq0", plant.inv_tq0)
-    put("x_d_prime", p.X_d_prime)
-    put("x_q_prime", p.X_q_prime)
+    for name in ("inv_2h", "xd_diff", "xq_diff", "inv_td0", "inv_tq0", "x_d_prime", "x_q_prime"):
+        put(name, getattr(plant.coef, name))
     put("r_a", plant.r_a)
     put("damping", damping)
     flags = {"saturation": 0, "subtransient": -1, "torsion": -1}
@@ -168,6 +169,22 @@ def _maybe_jit(f: Any) -> Any:
     return _jit(f) if _jit is not None else f
 
 
+# the equations, compiled as they are written (one place each)
+_dq_of = _maybe_jit(conventions.dq_of)
+_powers = _maybe_jit(conventions.powers)
+_rotor_angle = _maybe_jit(equations.rotor_angle)
+_swing = _maybe_jit(equations.swing)
+_field_d = _maybe_jit(equations.field_d)
+_field_q = _maybe_jit(equations.field_q)
+_stator = _maybe_jit(equations.stator)
+_airgap_power = _maybe_jit(equations.airgap_power)
+_saturation_factor = _maybe_jit(effects.saturation_factor)
+_flux_magnitude = _maybe_jit(effects.flux_magnitude)
+_damper_emf = _maybe_jit(effects.damper_emf)
+_damper_drives = _maybe_jit(effects.damper_drives)
+_shaft_torque = _maybe_jit(effects.shaft_torque)
+
+
 @_maybe_jit
 def _rhs_column(
     x: Array,
@@ -183,66 +200,48 @@ def _rhs_column(
     tor_at: int,
     ws: float,
 ) -> tuple[float, float, float, float]:
-    """dx/dt of one column: the same operations, in the same order, as ``Plant._rhs``.
+    """dx/dt of one column: ``Plant._rhs`` with the effects' hooks, in the same order.
 
     Returns the stator solution it used, (I_d, I_q, V_d, V_q), for the outputs."""
     delta, omega, e_q, e_d = x[0], x[1], x[2], x[3]
     if sub_at >= 0:  # GENROU's dampers: the EMF behind X''_d, X''_q is the air-gap flux psi''
-        g_d, g_q = coef[G_D, c], coef[G_Q, c]
-        eq_i = g_d * e_q + (1.0 - g_d) * x[sub_at]
-        ed_i = g_q * e_d + (1.0 - g_q) * x[sub_at + 1]
+        eq_i = _damper_emf(coef[G_D, c], e_q, x[sub_at])
+        ed_i = _damper_emf(coef[G_Q, c], e_d, x[sub_at + 1])
         xd_i, xq_i = coef[X_DPP, c], coef[X_QPP, c]
     else:
         eq_i, ed_i, xd_i, xq_i = e_q, e_d, coef[XDP, c], coef[XQP, c]
-    ang = delta - th
-    vth_d = vt * np.sin(ang)
-    vth_q = vt * np.cos(ang)
-    r = 0.0 + coef[R_A, c]
-    a12 = xq_i + 0.0
-    a21 = xd_i + 0.0
-    det = -(r * r + a12 * a21)
-    b1 = vth_d - ed_i
-    b2 = eq_i - vth_q
-    i_d = (b1 * r - a12 * b2) / det
-    i_q = (-r * b2 - a21 * b1) / det
-    p_airgap = ed_i * i_d + eq_i * i_q + (xq_i - xd_i) * i_d * i_q
-    slip = omega - 1.0
+    v_d, v_q = _dq_of(vt, delta - th)
+    i_d, i_q = _stator(eq_i, ed_i, v_d, v_q, coef[R_A, c], xd_i, xq_i)
+    p_airgap = _airgap_power(eq_i, ed_i, i_d, i_q, xd_i, xq_i)
     damping = coef[DAMPING, c]
-    d_omega = (pm - p_airgap - damping * slip) * coef[INV_2H, c]
+    d_omega = _swing(pm, p_airgap, omega, damping, coef[INV_2H, c])
     loss_d = 0.0
     loss_q = 0.0
     if sat > 0:
-        psi = e_q if sat == 1 else np.sqrt(eq_i * eq_i + ed_i * ed_i)
-        c1, c2 = coef[SAT_C1, c], coef[SAT_C2, c]
-        if coef[SAT_CURVE, c] > 0.5:
-            s = c1 * psi**c2
-        else:
-            over = max(psi - c1, 0.0)
-            s = c2 * over * over / psi
+        s = _saturation_factor(
+            coef[SAT_CURVE, c] > 0.5, coef[SAT_C1, c], coef[SAT_C2, c], e_q if sat == 1 else _flux_magnitude(eq_i, ed_i)
+        )
         if sat == 1:
             loss_d = loss_d + s * e_q
         else:
             loss_d = loss_d + s * eq_i
             loss_q = loss_q + s * ed_i * coef[SAT_Q, c]
     if sub_at >= 0:
-        x_l = coef[X_L, c]
-        drive_d = e_q - x[sub_at] - (coef[XDP, c] - x_l) * i_d
-        drive_q = e_d - x[sub_at + 1] + (coef[XQP, c] - x_l) * i_q
+        drive_d, drive_q = _damper_drives(e_q, e_d, x[sub_at], x[sub_at + 1], i_d, i_q, coef[XDP_L, c], coef[XQP_L, c])
         loss_d = loss_d + coef[LOAD_D, c] * drive_d
         loss_q = loss_q + coef[LOAD_Q, c] * drive_q
         out[sub_at] = drive_d / coef[T_D0PP, c]
         out[sub_at + 1] = drive_q / coef[T_Q0PP, c]
-    out[0] = ws * slip
-    out[2] = (vf - e_q - coef[XD_DIFF, c] * i_d - loss_d) * coef[INV_TD0, c]
-    out[3] = (coef[XQ_DIFF, c] * i_q - e_d - loss_q) * coef[INV_TQ0, c]
+    out[0] = _rotor_angle(omega, ws)
+    out[2] = _field_d(vf, e_q, i_d, coef[XD_DIFF, c], loss_d, coef[INV_TD0, c])
+    out[3] = _field_q(e_d, i_q, coef[XQ_DIFF, c], loss_q, coef[INV_TQ0, c])
     if tor_at >= 0:
-        h_t, h_g, k = coef[H_T, c], coef[H_G, c], coef[K_SHAFT, c]
-        torque = k * (x[tor_at] - delta) + coef[D_SHAFT, c] * (x[tor_at + 1] - omega)
-        d_omega = (torque - p_airgap - damping * (omega - 1.0)) / (2 * h_g)
-        out[tor_at] = ws * (x[tor_at + 1] - 1.0)
-        out[tor_at + 1] = (pm - torque) / (2 * h_t)
+        torque = _shaft_torque(coef[K_SHAFT, c], coef[D_SHAFT, c], x[tor_at], delta, x[tor_at + 1], omega)
+        d_omega = _swing(torque, p_airgap, omega, damping, coef[INV_2H_G, c])
+        out[tor_at] = _rotor_angle(x[tor_at + 1], ws)
+        out[tor_at + 1] = _swing(pm, torque, x[tor_at + 1], 0.0, coef[INV_2H_T, c])
     out[1] = d_omega
-    return i_d, i_q, vth_d, vth_q
+    return i_d, i_q, v_d, v_q
 
 
 @_maybe_jit
@@ -284,8 +283,7 @@ def _rk4_outputs(
             out[1, k, c] = x[1]
             out[2, k, c] = i_d
             out[3, k, c] = i_q
-            out[4, k, c] = v_d * i_d + v_q * i_q  # electrical_power: P_e (13) and Q_e
-            out[5, k, c] = v_q * i_d - v_d * i_q
+            out[4, k, c], out[5, k, c] = _powers(v_d, v_q, i_d, i_q)  # P_e (13) and Q_e
             if k == n_steps:
                 continue
             for i in range(n_states):

@@ -11,6 +11,7 @@ so the same algebraic solve covers healthy and faulted periods.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -48,3 +49,9 @@ class Network:
         v_th = np.where(healthy, v, v * zf_safe / (zf_safe + ze))
         z_th = np.where(healthy, ze, ze * zf_safe / (ze + zf_safe))
         return v_th, z_th
+
+
+def terminal_dq(vth_d: Any, vth_q: Any, i_d: Any, i_q: Any, r_th: Any, x_th: Any) -> tuple[Any, Any]:
+    """(V_d, V_q) at the terminal bus: the source's voltage plus the drop the stator current
+    drives back through the network's ``R_th + j X_th`` (floats or arrays)."""
+    return vth_d + r_th * i_d - x_th * i_q, vth_q + r_th * i_q + x_th * i_d

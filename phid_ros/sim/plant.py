@@ -5,25 +5,36 @@ array carries one column per scenario, so a whole catalogue costs one Python
 loop over time. Inputs (P_m, V_f, the network's Thevenin pair) are held
 constant over each step, so a disturbance at a sample instant is exact.
 
-Extending the plant (saturation, damper windings, shaft torsion, ...) means
-adding states after the four base states and terms in :meth:`Plant._rhs`; the
-stator resistance ``r_a`` is already carried through the algebraic solve.
+The equations are :mod:`phid_ros.model.equations`' (5)-(13), called here with the
+network's impedance added to the stator's; the effects (saturation, damper windings,
+shaft torsion, ...) add states after the four base states and terms through their hooks,
+which read one typed :class:`~phid_ros.sim.effects.RotorContext`.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from phid_ros.errors import SimulationError
-from phid_ros.model.conventions import DEFAULT_F_NOMINAL_HZ, electrical_power, omega_s
+from phid_ros.model.conventions import DEFAULT_F_NOMINAL_HZ, dq_of, electrical_power
+from phid_ros.model.equations import (
+    Coefficients,
+    airgap_power,
+    emf_behind,
+    field_d,
+    field_q,
+    rotor_angle,
+    stator,
+    swing,
+)
 from phid_ros.model.parameters import GeneratorParameters
 from phid_ros.numerics import rk4
-from phid_ros.sim.effects import PlantEffect, leakage_default
-from phid_ros.sim.network import Network
+from phid_ros.sim.effects import PlantEffect, RotorContext, leakage_default
+from phid_ros.sim.network import Network, terminal_dq
 
 Array = NDArray[np.float64]
 MAX_DT = 1e-3
@@ -123,12 +134,8 @@ class Plant:
         # the equations' constants, once per plant (the compiled kernel reads them too): _rhs runs
         # millions of times in a diagnosis, and recomputing them there was a sixth of its time
         p = params
-        self.ws = omega_s(self.f_nominal_hz)
-        self.inv_2h = 1.0 / (2.0 * p.H)
-        self.xd_diff = p.X_d - p.X_d_prime
-        self.xq_diff = p.X_q - p.X_q_prime
-        self.inv_td0 = 1.0 / p.T_d0_prime
-        self.inv_tq0 = 1.0 / p.T_q0_prime
+        self.coef = Coefficients.of(params, self.f_nominal_hz)  # its D is unused: D comes per run
+        self.ws = self.coef.w_s
         self.slots: list[slice] = []
         start = 4
         for effect in self.effects:
@@ -164,24 +171,23 @@ class Plant:
         v_inf = v - self.network.z_e * i
         ref = float(np.angle(v_inf))
 
-        def at(delta_t: float) -> tuple[dict, tuple[float, ...], float, float]:
-            """The rotor at angle ``delta_t`` from the terminal phasor: its context, effect states
-            and the residual losses (d, q) the transient windings carry."""
+        def at(delta_t: float) -> tuple[RotorContext, complex, tuple[float, ...], float, float]:
+            """The rotor at angle ``delta_t`` from the terminal phasor: its context, the terminal
+            voltage in d/q, effect states and the residual losses (d, q) the transient windings carry."""
             i_dq = 1j * i * np.exp(-1j * delta_t)
             v_dq = 1j * v * np.exp(-1j * delta_t)
             i_d, i_q, v_d, v_q = i_dq.real, i_dq.imag, v_dq.real, v_dq.imag
-            e_d = v_d + self.r_a * i_d - p.X_q_prime * i_q
-            e_q = v_q + self.r_a * i_q + p.X_d_prime * i_d
-            ctx = {"delta": delta_t - ref, "e_q": e_q, "e_d": e_d, "i_d": i_d, "i_q": i_q, "v_d": v_d, "v_q": v_q}
-            ctx["p_m"] = e_d * i_d + e_q * i_q + (p.X_q_prime - p.X_d_prime) * i_d * i_q
-            extra = tuple(float(x) for effect in self.effects for x in effect.initial_states(ctx, self))
-            x = np.array([delta_t - ref, 1.0, e_q, e_d, *extra])
-            loss_d, loss_q = self._transient_losses(x, self._context(x, i_d, i_q))
-            return ctx, extra, float(loss_d), float(loss_q)
+            ctx = self.rest_context(delta_t - ref, 1.0, i_d, i_q, v_d, v_q)
+            extra = tuple(float(v) for v in self.rest_states(ctx))
+            x = np.array([delta_t - ref, 1.0, ctx.e_q, ctx.e_d, *extra])
+            psi_d, psi_q, _, _ = self._emf(x)
+            ctx = replace(ctx, psi_d=psi_d, psi_q=psi_q)
+            loss_d, loss_q = self._transient_losses(x, ctx)
+            return ctx, complex(v_d, v_q), extra, float(loss_d), float(loss_q)
 
         def q_balance(delta_t: float) -> float:
-            ctx, _, _, loss_q = at(delta_t)
-            return self.xq_diff * ctx["i_q"] - ctx["e_d"] - loss_q
+            ctx, _, _, _, loss_q = at(delta_t)
+            return float(field_q(ctx.e_d, ctx.i_q, self.coef.xq_diff, loss_q, 1.0))
 
         delta_t = float(np.angle(v + complex(self.r_a, p.X_q) * i))  # rotor angle relative to the terminal
         if self._loss_effects:
@@ -193,21 +199,34 @@ class Plant:
                     break
                 a, fa, b = b, fb, b - fb * (b - a) / (fb - fa)
             delta_t = b
-        ctx, extra, loss_d, _ = at(delta_t)
+        ctx, v_dq, extra, loss_d, _ = at(delta_t)
         return SteadyState(
             delta=delta_t - ref,
-            e_q=float(ctx["e_q"]),
-            e_d=float(ctx["e_d"]),
-            v_f=float(ctx["e_q"] + (p.X_d - p.X_d_prime) * ctx["i_d"] + loss_d),
-            p_m=float(ctx["p_m"]),
-            i_d=float(ctx["i_d"]),
-            i_q=float(ctx["i_q"]),
-            v_d=float(ctx["v_d"]),
-            v_q=float(ctx["v_q"]),
+            e_q=float(ctx.e_q),
+            e_d=float(ctx.e_d),
+            v_f=float(ctx.e_q + self.coef.xd_diff * ctx.i_d + loss_d),  # (7) at rest
+            p_m=float(ctx.p_m),
+            i_d=float(ctx.i_d),
+            i_q=float(ctx.i_q),
+            v_d=v_dq.real,
+            v_q=v_dq.imag,
             theta_t=-ref,
             v_inf=float(abs(v_inf)),
             extra=extra,
         )
+
+    def rest_context(self, delta: Any, omega: Any, i_d: Any, i_q: Any, v_d: Any, v_q: Any) -> RotorContext:
+        """The effects' view of the machine at rest with these terminal values: the fluxes from
+        (11)-(12) turned round, P_m equal to the air-gap power, and (before the effects' states
+        exist) the fourth-order flux behind the stator. Floats, or arrays of one per column."""
+        c = self.coef
+        e_q, e_d = emf_behind(v_d, v_q, i_d, i_q, self.r_a, c.x_d_prime, c.x_q_prime)
+        p_m = airgap_power(e_q, e_d, i_d, i_q, c.x_d_prime, c.x_q_prime)
+        return RotorContext(delta, omega, e_q, e_d, i_d, i_q, e_q, e_d, p_m, p_m, 0.0, self.x_l, self.ws)
+
+    def rest_states(self, ctx: RotorContext) -> list[Any]:
+        """The switched-on effects' states at rest (after the four base states)."""
+        return [v for effect in self.effects for v in effect.initial_states(ctx, self)]
 
     # -- equations --------------------------------------------------------
     def _emf(self, x: Array) -> tuple[Array, Array, float, float]:
@@ -227,80 +246,51 @@ class Plant:
         v_ang: Array,
         r_th: Array,
         x_th: Array,
-        x_d_int: float | None = None,
-        x_q_int: float | None = None,
+        x_d_int: Any = None,
+        x_q_int: Any = None,
     ) -> tuple[Array, Array, Array, Array]:
-        """Solve the stator (11)-(12) and network equations together for I_d, I_q."""
+        """(I_d, I_q) from the stator (11)-(12) and the network together, and the network's source
+        voltage in d/q: the stator's equations with the network's impedance added to its own."""
         p = self.params
         xdi = p.X_d_prime if x_d_int is None else x_d_int
         xqi = p.X_q_prime if x_q_int is None else x_q_int
-        ang = delta - v_ang
-        vth_d = v_abs * np.sin(ang)
-        vth_q = v_abs * np.cos(ang)
-        r = r_th + self.r_a
-        a12 = xqi + x_th
-        a21 = xdi + x_th
-        det = -(r * r + a12 * a21)
-        b1 = vth_d - e_d
-        b2 = e_q - vth_q
-        i_d = (b1 * r - a12 * b2) / det
-        i_q = (-r * b2 - a21 * b1) / det
+        vth_d, vth_q = dq_of(v_abs, delta - v_ang)
+        i_d, i_q = stator(e_q, e_d, vth_d, vth_q, r_th + self.r_a, xdi + x_th, xqi + x_th)
         return i_d, i_q, vth_d, vth_q
 
     def _rhs(
         self, x: Array, p_m: Array, v_f: Array, v_abs: Array, v_ang: Array, r_th: Array, x_th: Array, damping: Array
     ) -> Array:
+        c = self.coef
         delta, omega, e_q, e_d = x[0], x[1], x[2], x[3]
-        eq_i, ed_i, xd_i, xq_i = (
-            self._emf(x) if self.effects else (e_q, e_d, self.params.X_d_prime, self.params.X_q_prime)
-        )
+        eq_i, ed_i, xd_i, xq_i = self._emf(x) if self.effects else (e_q, e_d, c.x_d_prime, c.x_q_prime)
         i_d, i_q, _, _ = self._currents(delta, eq_i, ed_i, v_abs, v_ang, r_th, x_th, xd_i, xq_i)
-        # air-gap power; equals terminal P_e (13) when R_a = 0
-        p_airgap = ed_i * i_d + eq_i * i_q + (xq_i - xd_i) * i_d * i_q
-        slip = omega - 1.0
-        d_omega = (p_m - p_airgap - damping * slip) * self.inv_2h
+        p_airgap = airgap_power(eq_i, ed_i, i_d, i_q, xd_i, xq_i)  # P_e (13) when R_a = 0
         if not self.effects:
-            return np.array(
+            return np.array(  # 3x faster than np.stack for a handful of rows, same values
                 [
-                    self.ws * slip,
-                    d_omega,
-                    (v_f - e_q - self.xd_diff * i_d) * self.inv_td0,
-                    (self.xq_diff * i_q - e_d) * self.inv_tq0,
+                    rotor_angle(omega, c.w_s),
+                    swing(p_m, p_airgap, omega, damping, c.inv_2h),
+                    field_d(v_f, e_q, i_d, c.xd_diff, None, c.inv_td0),
+                    field_q(e_d, i_q, c.xq_diff, None, c.inv_tq0),
                 ]
-            )  # 3x faster than np.stack for a handful of rows, same values
-        ctx = self._context(x, i_d, i_q, eq_i, ed_i)
-        ctx.update(omega=omega, p_m=p_m, p_airgap=p_airgap, damping=damping, ws=self.ws)
+            )
+        ctx = RotorContext(delta, omega, e_q, e_d, i_d, i_q, eq_i, ed_i, p_m, p_airgap, damping, self.x_l, self.ws)
         loss_d, loss_q = self._transient_losses(x, ctx)
         derivs = [
-            self.ws * slip,
-            d_omega,
-            (v_f - e_q - self.xd_diff * i_d - loss_d) * self.inv_td0,
-            (self.xq_diff * i_q - e_d - loss_q) * self.inv_tq0,
+            rotor_angle(omega, c.w_s),
+            swing(p_m, p_airgap, omega, damping, c.inv_2h),
+            field_d(v_f, e_q, i_d, c.xd_diff, loss_d, c.inv_td0),
+            field_q(e_d, i_q, c.xq_diff, loss_q, c.inv_tq0),
         ]
         for effect, sl in zip(self.effects, self.slots):
-            swing = effect.swing(x[sl], ctx, self.params)
-            if swing is not None:
-                derivs[1] = swing
+            replaced = effect.swing(x[sl], ctx, self.params)
+            if replaced is not None:
+                derivs[1] = replaced
             derivs.extend(effect.derivatives(x[sl], ctx, self.params))
         return np.array(derivs)
 
-    def _context(self, x: Array, i_d: Any, i_q: Any, psi_d: Any = None, psi_q: Any = None) -> dict[str, Any]:
-        """What the effects' hooks read: the base states, the currents and the air-gap flux."""
-        if psi_d is None:
-            psi_d, psi_q, _, _ = self._emf(x)
-        return {
-            "x": x,
-            "delta": x[0],
-            "e_q": x[2],
-            "e_d": x[3],
-            "i_d": i_d,
-            "i_q": i_q,
-            "psi_d": psi_d,
-            "psi_q": psi_q,
-            "x_l": self.x_l,
-        }
-
-    def _transient_losses(self, x: Array, ctx: dict[str, Any]) -> tuple[Any, Any]:
+    def _transient_losses(self, x: Array, ctx: RotorContext) -> tuple[Any, Any]:
         """Terms the switched-on effects subtract in the two transient windings' equations."""
         loss_d: Any = 0.0
         loss_q: Any = 0.0
@@ -351,8 +341,7 @@ class Plant:
         delta, omega, e_q, e_d = (states[:, i] for i in range(4))
         eq_i, ed_i, xd_i, xq_i = self._emf(np.moveaxis(states, 1, 0))
         i_d, i_q, vth_d, vth_q = self._currents(delta, eq_i, ed_i, v_abs, v_ang, r_th, x_th, xd_i, xq_i)
-        v_d = vth_d + r_th * i_d - x_th * i_q
-        v_q = vth_q + r_th * i_q + x_th * i_d
+        v_d, v_q = terminal_dq(vth_d, vth_q, i_d, i_q, r_th, x_th)
         p_e, q_e = electrical_power(v_d, v_q, i_d, i_q)
         return Trajectory(
             t=np.arange(n) * dt,

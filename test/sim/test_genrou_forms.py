@@ -70,10 +70,10 @@ def test_our_genrou_forms_reproduce_andes_genrou(machine, scenario, tol):
 @pytest.mark.parametrize("curve", ["quadratic", "exponential"])
 def test_saturation_curves_pass_through_their_two_points(curve):
     c1, c2 = saturation_curve(curve, 0.07, 0.45)
-    s = saturation_factor(curve, c1, c2, np.array([1.0, 1.2]))
+    s = saturation_factor(curve == "exponential", c1, c2, np.array([1.0, 1.2]))
     np.testing.assert_allclose(s, [0.07, 0.45], rtol=1e-12)
     if curve == "quadratic":  # zero below A, as PSS/E's quadratic
-        assert float(saturation_factor(curve, c1, c2, np.array(0.8 * c1))) == 0.0
+        assert float(saturation_factor(curve == "exponential", c1, c2, np.array(0.8 * c1))) == 0.0
 
 
 def test_gensal_form_saturates_the_field_balance_on_e_q_only():

@@ -90,7 +90,7 @@ def test_an_effect_without_compiled_terms_runs_in_numpy(windows, monkeypatch):
         name = "uncompiled"
 
         def transient_losses(self, states, ctx, params):
-            return 0.01 * ctx["e_q"], 0.0
+            return 0.01 * ctx.e_q, 0.0
 
     base = TABLE1.as_dict()
     plain = play_in(windows, base)
