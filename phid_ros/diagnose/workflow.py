@@ -159,19 +159,7 @@ def window(s: ScenarioData, pre_s: float, post_s: float) -> ScenarioData:
     """The scenario cut to [event - pre_s, event + post_s]."""
     a = max(0, s.k_event - int(round(pre_s / s.dt)))
     b = min(s.n, s.k_event + int(round(post_s / s.dt)))
-    return ScenarioData(
-        s.name,
-        s.kind,
-        s.role,
-        s.generator_damping,
-        s.dt,
-        {k: v[a:b] for k, v in s.signals.items()},
-        s.k_event - a,
-        None if s.k_clear is None else s.k_clear - a,
-        s.start_ns + int(round(a * s.dt * 1e9)),
-        list(s.notes),
-        [k - a for k in s.extra_switching if a < k < b],
-    )
+    return s.rows(a, b)
 
 
 def split(scenarios: Sequence[ScenarioData], per_kind: int) -> tuple[list[ScenarioData], list[ScenarioData]]:

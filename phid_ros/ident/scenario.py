@@ -1,8 +1,9 @@
 """Event-to-scenario preparation: windows of aligned signals around one disturbance.
 
-A :class:`ScenarioData` holds the ten channels on a uniform grid, the sample
-indices of the disturbance (and of fault clearing), and V_d, V_q from V_t and the
-internal angle delta - theta_t. :func:`classify` names the kind of disturbance
+A :class:`ScenarioData` holds its window's :class:`~phid_ros.model.channels.Frame` (the
+ten channels on a uniform grid, their stamps and period), the sample indices of the
+disturbance (and of fault clearing), and V_d, V_q from V_t and the internal angle
+delta - theta_t. :func:`classify` names the kind of disturbance
 from the signals when the input does not say (fault: V_t below 0.3 of pre-fault,
 the paper's detector; torque step: a step in P_m; voltage step: a sustained V_t
 change without a fault).
@@ -19,8 +20,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from phid_ros.errors import PhidError
-from phid_ros.model.channels import CHANNELS  # the one channel table, shared by every layer
-from phid_ros.model.conventions import terminal_to_dq
+from phid_ros.model.channels import CHANNELS, Frame  # the one channel table, shared by every layer
+from phid_ros.model.conventions import NS, seconds_to_ns, terminal_to_dq
 
 Array = NDArray[np.float64]
 KINDS = ("torque_step", "voltage_step", "fault", "field_step")
@@ -58,11 +59,9 @@ class ScenarioData:
     kind: str
     role: str
     generator_damping: bool
-    dt: float
-    signals: dict[str, Array]
+    frame: Frame  # the window's samples, viewed, not copied
     k_event: int
     k_clear: int | None = None
-    start_ns: int = 0
     notes: list[str] = field(default_factory=list)
     extra_switching: list[int] = field(default_factory=list)  # further steps inside a long window
     # the window the samples were measured over (a one-cycle DFT's phasors, a PMU's filter): a
@@ -70,14 +69,25 @@ class ScenarioData:
     measurement_window_s: float = 0.0
 
     def __post_init__(self) -> None:
-        n = len(self.signals["v_t"])
-        self.v_d, self.v_q = terminal_to_dq(self.signals["v_t"], self.signals["delta"], self.signals["theta_t"])
-        if not 0 < self.k_event < n:
-            raise ScenarioError(f"scenario {self.name}: event sample {self.k_event} outside the window of {n} samples")
+        self.v_d, self.v_q = terminal_to_dq(self["v_t"], self["delta"], self["theta_t"])
+        if not 0 < self.k_event < self.n:
+            raise ScenarioError(
+                f"scenario {self.name}: event sample {self.k_event} outside the window of {self.n} samples"
+            )
 
     @property
     def n(self) -> int:
-        return len(self.signals["v_t"])
+        return len(self.frame)
+
+    @property
+    def dt(self) -> float:
+        """The sample period in s."""
+        return self.frame.period_ns / NS
+
+    @property
+    def start_ns(self) -> int:
+        """The stamp of the window's first sample."""
+        return int(self.frame.t_ns[0])
 
     @property
     def t(self) -> Array:
@@ -100,7 +110,22 @@ class ScenarioData:
             return self.v_d
         if name == "v_q":
             return self.v_q
-        return self.signals[name]
+        return self.frame.channel(name)
+
+    def rows(self, a: int, b: int) -> ScenarioData:
+        """The scenario cut to samples a to b (exclusive; the event must lie inside), as views."""
+        return ScenarioData(
+            self.name,
+            self.kind,
+            self.role,
+            self.generator_damping,
+            self.frame.rows(a, b),
+            self.k_event - a,
+            None if self.k_clear is None else self.k_clear - a,
+            list(self.notes),
+            [k - a for k in self.extra_switching if a < k < b],
+            self.measurement_window_s,
+        )
 
 
 def _step_size(x: Array, k: int, span: int) -> float:
@@ -194,15 +219,13 @@ def _refine(x: Array, k: int, span: int) -> int:
 
 def make_scenario(
     name: str,
-    signals: Mapping[str, Array],
-    dt: float,
+    frame: Frame,
     *,
     kind: str = "unknown",
     role: str = "identify",
     generator_damping: bool = True,
     k_event: int | None = None,
     k_clear: int | None = None,
-    start_ns: int = 0,
     thresholds: StepThresholds = DEFAULT_THRESHOLDS,
     measurement_window_s: float = 0.0,
 ) -> ScenarioData:
@@ -211,20 +234,18 @@ def make_scenario(
     A step the input labels (manifest ``kind``) is located however small it is; only an
     unlabelled window must show a step above ``thresholds`` to count as a disturbance.
     """
-    missing = [c for c in CHANNELS if c not in signals]
-    if missing:
-        raise ScenarioError(f"scenario {name}: missing channel(s) {missing}")
-    sig = {c: np.asarray(signals[c], dtype=float) for c in CHANNELS}
-    n = len(sig["v_t"])
+    n, dt = len(frame), frame.period_ns / NS
     if n < int(2.0 / dt):
         raise ScenarioError(f"scenario {name}: window of {n * dt:.2f} s is too short (needs >= 2 s)")
-    for c, x in sig.items():
-        bad = ~np.isfinite(x)
-        if bad.any():
-            raise ScenarioError(
-                f"scenario {name}: channel {c} has {int(bad.sum())} NaN/Inf sample(s), "
-                f"first at t = {np.flatnonzero(bad)[0] * dt:.3f} s"
-            )
+    bad = ~np.isfinite(frame.values)
+    if bad.any():
+        i = int(np.flatnonzero(bad.any(axis=0))[0])
+        rows = np.flatnonzero(bad[:, i])
+        raise ScenarioError(
+            f"scenario {name}: channel {CHANNELS[i]} has {rows.size} NaN/Inf sample(s), "
+            f"first at t = {rows[0] * dt:.3f} s"
+        )
+    sig = frame.columns()
     notes: list[str] = []
     if kind in STEP_SIGNAL and (k_event is None or k_event <= 0):
         try:
@@ -261,11 +282,9 @@ def make_scenario(
         kind=kind,
         role=role,
         generator_damping=generator_damping,
-        dt=dt,
-        signals=sig,
+        frame=frame,
         k_event=int(k_event),
         k_clear=None if k_clear is None else int(k_clear),
-        start_ns=start_ns,
         notes=notes,
         measurement_window_s=measurement_window_s,
     )
@@ -280,8 +299,7 @@ def scenario_from_simulation(run: Any, signals: Mapping[str, Array]) -> Scenario
     dt = float(run.t[1] - run.t[0])
     return make_scenario(
         sc.name,
-        {k: v[:n] for k, v in signals.items()},
-        dt,
+        Frame.of_columns({k: v[:n] for k, v in signals.items()}, seconds_to_ns(dt)),
         kind=sc.kind,
         role=sc.role,
         generator_damping=sc.generator_damping,

@@ -8,7 +8,7 @@ serialises one, and a scenario views one's columns by name.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -43,11 +43,28 @@ class Frame:
     def columns(self) -> dict[str, NDArray[np.float64]]:
         return channel_columns(self.values)
 
+    @classmethod
+    def of_columns(cls, columns: Mapping[str, Any], period_ns: int, start_ns: int = 0) -> Frame:
+        """A frame from one array per channel (a simulation's or a test's), stamped every
+        ``period_ns`` from ``start_ns``. Column-major, so each channel stays contiguous."""
+        missing = [c for c in CHANNELS if c not in columns]
+        if missing:
+            raise KeyError(f"missing channel(s) {missing}")
+        n = len(columns[CHANNELS[0]])
+        values = np.empty((n, len(CHANNELS)), order="F")
+        for i, c in enumerate(CHANNELS):
+            values[:, i] = columns[c]
+        return cls(start_ns + np.arange(n, dtype=np.int64) * int(period_ns), values, int(period_ns))
+
+    def rows(self, a: int, b: int) -> Frame:
+        """Samples a to b (exclusive), as views."""
+        return Frame(self.t_ns[a:b], self.values[a:b], self.period_ns)
+
     def between(self, t0_ns: int, t1_ns: int) -> Frame:
         """The samples with t0 <= t <= t1, as views."""
         a = int(np.searchsorted(self.t_ns, t0_ns, side="left"))
         b = int(np.searchsorted(self.t_ns, t1_ns, side="right"))
-        return Frame(self.t_ns[a:b], self.values[a:b], self.period_ns)
+        return self.rows(a, b)
 
 
 # Plausible ranges in per unit / rad on the machine base: anything outside is a wrong feed (a kV, MW

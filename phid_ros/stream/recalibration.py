@@ -66,14 +66,12 @@ def scenario_from_window(
     k_cl = int((e.clearing_ns - int(w.t_ns[0])) // w.period_ns) if e.clearing_ns else None
     return make_scenario(
         e.name or e.event_id,
-        w.columns(),
-        w.period_ns / NS,
+        w,
         kind=e.kind,
         role=e.role,
         generator_damping=e.generator_damping,
         k_event=k_ev,
         k_clear=k_cl,
-        start_ns=int(w.t_ns[0]),
         thresholds=thresholds,
         measurement_window_s=measurement_window_s,
     )

@@ -15,7 +15,6 @@ import numpy as np
 
 from phid_ros.errors import PhidError
 from phid_ros.ident.scenario import (
-    CHANNELS,
     DEFAULT_THRESHOLDS,
     ScenarioData,
     ScenarioError,
@@ -23,27 +22,26 @@ from phid_ros.ident.scenario import (
     make_scenario,
 )
 from phid_ros.io.recording import MEASUREMENT_WINDOW_KEY, Recording
+from phid_ros.model.channels import Frame
 from phid_ros.model.conventions import NS
 from phid_ros.stream.align import StreamHealth
 from phid_ros.stream.recalibration import scenario_from_window
 
 
-def aligned_channels(
-    rec: Recording, source: str, windows: list[tuple[int, int]] | None = None
-) -> tuple[np.ndarray, float, dict[str, np.ndarray], list[str]]:
+def aligned_frame(rec: Recording, source: str, windows: list[tuple[int, int]] | None = None) -> tuple[Frame, list[str]]:
     """All ten channels on one uniform grid, by the very aligner the online pipeline uses.
 
     So ``identify`` sees a recording exactly as ``replay`` does: a hole in the streams is a
     hole (NaN, and a window over it is skipped by name), not a splice of the samples either
     side; duplicate stamps keep their first value and are counted; a channel recorded in
-    other units than per unit is refused with the unit it looks like. Returns the grid, the
-    period in s, the channels and notes on what was dropped. With ``windows`` (the scenarios'
+    other units than per unit is refused with the unit it looks like. Returns the frame and
+    notes on what was dropped. With ``windows`` (the scenarios'
     [start, end] stamps), a stream's gaps are noted only where they touch a window: the spaces
     between the scenarios of a CSV set are gaps by design and skip nothing.
     """
     from phid_ros.io.recording import block_bounds
     from phid_ros.io.topics import STREAMS_BY_NAME
-    from phid_ros.model.channels import CHANNEL_INDEX, channel_columns
+    from phid_ros.model.channels import CHANNEL_INDEX
     from phid_ros.stream.align import Aligner
 
     check_streams(rec, source)
@@ -67,7 +65,7 @@ def aligned_channels(
     for name, h in al.health.items():
         if h.gaps and _gap_in_windows(t, values[:, CHANNEL_INDEX[STREAMS_BY_NAME[name].channels[0]]], windows):
             notes.append(f"{source}: stream {name}: {h.gaps} gap(s); windows over a gap are skipped")
-    return t, period / NS, channel_columns(values), notes
+    return Frame(t, values, period), notes
 
 
 def check_streams(rec: Recording, source: str) -> None:
@@ -118,27 +116,26 @@ def scenarios_from_recording(
     if not rec.scenarios:
         return _detected_scenarios(rec, source, thresholds)
     marked = [(m.start_ns, m.end_ns) for m in rec.scenarios]
-    t, dt, ch, problems = aligned_channels(rec, source, marked)
+    frame, problems = aligned_frame(rec, source, marked)
+    t = frame.t_ns
     window_s = float(rec.metadata.get(MEASUREMENT_WINDOW_KEY, 0.0))
     out: list[ScenarioData] = []
     seen: dict[bytes, str] = {}
     for m in rec.scenarios:
         a = int(np.searchsorted(t, m.start_ns))
         b = int(np.searchsorted(t, m.end_ns, side="right"))
-        if _seen_before(m.name, [ch[c][a:b] for c in CHANNELS], seen, source, problems):
+        if _seen_before(m.name, frame.values[a:b], seen, source, problems):
             continue
         try:
             out.append(
                 make_scenario(
                     m.name,
-                    {c: x[a:b] for c, x in ch.items()},
-                    dt,
+                    frame.rows(a, b),
                     kind=m.kind,
                     role=m.role,
                     generator_damping=m.generator_damping,
                     k_event=int(np.searchsorted(t, m.event_ns)) - a if m.event_ns else None,
                     k_clear=int(np.searchsorted(t, m.clearing_ns)) - a if m.clearing_ns else None,
-                    start_ns=int(t[a]),
                     thresholds=thresholds,
                     measurement_window_s=window_s,
                 )
@@ -172,7 +169,7 @@ def _detected_scenarios(
             continue
         if w.reason:
             problems.append(f"{source}: {name}: {w.reason}; used as it is")
-        if _seen_before(name, [w.values], seen, source, problems):
+        if _seen_before(name, w.values, seen, source, problems):
             continue
         try:
             out.append(scenario_from_window(w, thresholds=thresholds, measurement_window_s=window_s))
@@ -181,9 +178,9 @@ def _detected_scenarios(
     return out, problems
 
 
-def _seen_before(name: str, arrays: list[np.ndarray], seen: dict[bytes, str], source: str, problems: list[str]) -> bool:
+def _seen_before(name: str, values: np.ndarray, seen: dict[bytes, str], source: str, problems: list[str]) -> bool:
     """The same measurement listed twice would count twice and shrink every std by about sqrt(2)."""
-    digest = hashlib.sha256(np.ascontiguousarray(arrays).tobytes()).digest()
+    digest = hashlib.sha256(np.ascontiguousarray(values).tobytes()).digest()
     if digest in seen:
         problems.append(f"{source}: skipped scenario {name}: the same data as scenario {seen[digest]}")
         return True

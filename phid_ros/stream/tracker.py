@@ -25,7 +25,7 @@ from phid_ros.ident import stage3
 from phid_ros.ident.results import Estimate
 from phid_ros.ident.scenario import ScenarioData, find_events
 from phid_ros.ident.stages import SwingRegression, VariableProjection
-from phid_ros.model.channels import CHANNELS, channel_columns
+from phid_ros.model.channels import CHANNELS, Frame
 from phid_ros.model.conventions import NS
 from phid_ros.model.parameters import SYMBOLS, GeneratorParameters
 from phid_ros.stream.ring import RingBuffer
@@ -107,8 +107,8 @@ class SlidingTracker:
             point.problems.append("stale window: gaps in the data; no estimate this hop")
             self.history.append(point)
             return point
-        signals = channel_columns(x)
-        found = find_events(signals, dt)
+        frame = Frame(t, x, self.period_ns)
+        found = find_events(frame.columns(), dt)
         steps = [k for _, k, _ in found] + [k_cl for _, _, k_cl in found if k_cl]
         point.steps = [(kind, int(t[k])) for kind, k, _ in found]
         k0 = max(1, int(1.0 / dt))  # a short "pre" stretch for the stages' baselines
@@ -117,10 +117,8 @@ class SlidingTracker:
             "torque_step",
             "identify",
             True,
-            dt,
-            signals,
+            frame,
             k_event=k0,
-            start_ns=int(t[0]),
             extra_switching=[k for k in steps if k > k0],
         )
         try:

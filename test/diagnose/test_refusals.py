@@ -20,8 +20,8 @@ def test_phasors_measured_over_a_window_are_refused(noisy_scenarios) -> None:
 def test_a_channel_without_sample_noise_is_refused(noisy_scenarios) -> None:
     flat = []
     for s in noisy_scenarios:
-        signals = dict(s.signals)
-        signals["omega"] = np.round(signals["omega"], 2)  # quantised far below its noise
-        flat.append(replace(s, signals=signals))
+        frame = replace(s.frame, values=s.frame.values.copy())
+        frame.channel("omega")[:] = np.round(frame.channel("omega"), 2)  # quantised far below its noise
+        flat.append(replace(s, frame=frame))
     with pytest.raises(DiagnoseError, match=r"channel\(s\) omega show no sample-to-sample noise"):
         diagnose(flat, TABLE1.as_dict())

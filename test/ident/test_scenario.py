@@ -1,14 +1,17 @@
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from phid_ros.ident.scenario import ScenarioError, classify, find_events, make_scenario
+from phid_ros.model.channels import Frame
 
 
 def test_classify_each_kind_from_the_signals(clean_scenarios):
     for sc in clean_scenarios:
         if sc.role != "identify":
             continue
-        kind, k_ev, k_cl, reason = classify(sc.signals, sc.dt)
+        kind, k_ev, k_cl, reason = classify(sc.frame.columns(), sc.dt)
         assert kind == sc.kind, (sc.name, reason)
         assert abs(k_ev - sc.k_event) <= 5  # within 5 ms
         if kind == "fault":
@@ -16,10 +19,11 @@ def test_classify_each_kind_from_the_signals(clean_scenarios):
 
 
 def test_find_events_in_a_continuous_recording(short_recording):
-    from phid_ros.stream.scenarios import aligned_channels
+    from phid_ros.stream.scenarios import aligned_frame
 
-    t, dt, ch, _ = aligned_channels(short_recording, "test")
-    events = find_events(ch, dt)
+    frame, _ = aligned_frame(short_recording, "test")
+    t = frame.t_ns
+    events = find_events(frame.columns(), frame.period_ns / 1e9)
     for marker in short_recording.scenarios:
         hit = [e for e in events if abs(int(t[e[1]]) - marker.event_ns) <= 5_000_000]
         assert len(hit) == 1 and hit[0][0] == marker.kind, marker.name
@@ -33,18 +37,18 @@ def test_find_events_in_a_continuous_recording(short_recording):
 
 def test_windows_with_nan_or_too_short_are_refused(clean_scenarios):
     sc = clean_scenarios[3]
-    sig = {k: v.copy() for k, v in sc.signals.items()}
-    sig["i_q"][2500] = np.nan
+    frame = replace(sc.frame, values=sc.frame.values.copy())
+    frame.channel("i_q")[2500] = np.nan
     with pytest.raises(ScenarioError, match=r"channel i_q has 1 NaN/Inf sample\(s\), first at t = 2.500 s"):
-        make_scenario("x", sig, sc.dt, kind=sc.kind, k_event=sc.k_event)
+        make_scenario("x", frame, kind=sc.kind, k_event=sc.k_event)
     with pytest.raises(ScenarioError, match="too short"):
-        make_scenario("x", {k: v[:500] for k, v in sc.signals.items()}, sc.dt, kind=sc.kind, k_event=100)
+        make_scenario("x", sc.frame.rows(0, 500), kind=sc.kind, k_event=100)
 
 
 def test_no_disturbance_is_said(clean_scenarios):
-    quiet = {k: np.full(3000, v[0]) for k, v in clean_scenarios[0].signals.items()}
+    quiet = {k: np.full(3000, v[0]) for k, v in clean_scenarios[0].frame.columns().items()}
     with pytest.raises(ScenarioError, match="no disturbance found"):
-        make_scenario("quiet", quiet, 1e-3)
+        make_scenario("quiet", Frame.of_columns(quiet, 1_000_000))
 
 
 def test_voltage_components_use_the_internal_angle(clean_scenarios):

@@ -26,15 +26,17 @@ def test_no_steady_states(clean_scenarios):
 
 
 def test_unsettled_final_windows_are_left_out_and_named(clean_scenarios):
+    from dataclasses import replace
+
     import numpy as np
 
     from phid_ros.ident.scenario import make_scenario
 
     sc = next(s for s in clean_scenarios if s.name.startswith("S09"))
-    ramp = {k: v.copy() for k, v in sc.signals.items()}
+    ramp = replace(sc.frame, values=sc.frame.values.copy())
     n = sc.n
-    ramp["i_d"][int(0.8 * n) :] += np.linspace(0, 0.02, n - int(0.8 * n))  # still moving at the end
-    moving = make_scenario("S09_moving", ramp, sc.dt, kind=sc.kind, k_event=sc.k_event)
+    ramp.channel("i_d")[int(0.8 * n) :] += np.linspace(0, 0.02, n - int(0.8 * n))  # still moving at the end
+    moving = make_scenario("S09_moving", ramp, kind=sc.kind, k_event=sc.k_event)
     r = identify_reactances([moving] + [s for s in clean_scenarios if s.name.startswith("S10")])
     assert [p.scenario for p in r.points] == ["S10_voltage_0.90"]
     assert any(p.startswith("S09_moving: i_d still moves") for p in r.problems)

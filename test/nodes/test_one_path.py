@@ -84,7 +84,7 @@ def test_nodes_replay_and_identify_cut_the_same_windows_and_publish_the_same_par
         assert sc.start_ns == int(w_node.t_ns[0]) and sc.kind == w_node.event.kind
         columns = channel_columns(w_node.values)
         for c in ("v_t", "i_d", "i_q", "omega", "p_e", "p_m"):
-            assert np.array_equal(sc.signals[c], columns[c]), c
+            assert np.array_equal(sc[c], columns[c]), c
 
     # the parameters: the same to the last digit, and right
     assert node == replay_params == batch
