@@ -10,7 +10,8 @@ and the nodes use the bag's clock (use_sim_time is forced on), so the whole pipe
 recorded time. (On Jazzy `--clock` takes an optional frequency, so the bag must come first.)
 Every node option a user sets at start-up is a launch argument here, passed to the nodes
 typed (a 'true' string is not a bool): reliable_qos, queue_depth, store_path, unit_id,
-sample_rate_hz, hamiltonian_rate_hz, min_interval_s.
+sample_rate_hz, encoder_rate_hz, pmu_rate_hz, excitation_rate_hz, hamiltonian_rate_hz,
+min_interval_s.
 
 reliable_qos defaults to `auto`: reliable when this launch plays the bag, best effort (the
 sensor-data convention, config/phid.yaml) otherwise. `ros2 bag play` offers reliable, so a
@@ -35,6 +36,9 @@ PASSED = {
     "reliable_qos": (bool, ("ingest_node", "recalibration_node")),
     "queue_depth": (int, ("ingest_node", "recalibration_node")),
     "sample_rate_hz": (float, ("ingest_node",)),
+    "encoder_rate_hz": (float, ("ingest_node", "recalibration_node")),
+    "pmu_rate_hz": (float, ("ingest_node", "recalibration_node")),
+    "excitation_rate_hz": (float, ("ingest_node", "recalibration_node")),
     "store_path": (str, ("recalibration_node",)),
     "unit_id": (str, ("recalibration_node",)),
     "hamiltonian_rate_hz": (float, ("recalibration_node",)),

@@ -11,17 +11,7 @@ from typing import Any
 
 from rclpy.node import Node
 
-from phid_ros.nodes.common import (
-    declare,
-    float_seq,
-    msg_types,
-    on_set,
-    output_publisher,
-    reliable_qos,
-    spin_until_shutdown,
-    steady_timer,
-    subscribe_sensors,
-)
+from phid_ros.nodes import common
 from phid_ros.stream import messages as m
 from phid_ros.stream.params import INGEST, apply, pipeline_settings
 from phid_ros.stream.pipeline import MonitorPipeline
@@ -30,17 +20,17 @@ from phid_ros.stream.pipeline import MonitorPipeline
 class IngestNode(Node):
     def __init__(self) -> None:
         super().__init__("ingest_node")
-        self.values = declare(self, INGEST)
+        self.values = common.declare(self, INGEST)
         settings = pipeline_settings(self.values, detect=True)
         settings.auto_recalibrate = False  # recalibration is the other node's job, and so is keeping the windows
         settings.keep_windows = False
         self.pipeline = MonitorPipeline(settings)
-        self.types = msg_types()
-        self.events_pub = output_publisher(self, "events", reliable_qos())
-        self.windows_pub = output_publisher(self, "windows", reliable_qos())
-        self.add_on_set_parameters_callback(on_set(INGEST, self._apply))
-        steady_timer(self, self.values["process_period_s"], self.process)
-        subscribe_sensors(self)
+        self.types = common.msg_types()
+        self.events_pub = common.output_publisher(self, "events", common.reliable_qos())
+        self.windows_pub = common.output_publisher(self, "windows", common.reliable_qos())
+        self.add_on_set_parameters_callback(common.on_set(INGEST, self._apply))
+        common.steady_timer(self, self.values["process_period_s"], self.process)
+        common.subscribe_sensors(self)
 
     def _apply(self, name: str, value: Any) -> None:
         self.pipeline.configure(apply(self.pipeline.settings, name, value))
@@ -51,13 +41,13 @@ class IngestNode(Node):
             self.events_pub.publish(m.event_message(self.types, e))
         for w in out.windows:
             if w.usable:
-                self.windows_pub.publish(m.window_message(self.types, w, float_seq))
+                self.windows_pub.publish(m.window_message(self.types, w, common.float_seq))
             else:
                 self.get_logger().warning(f"event {w.event.event_id} ({w.event.kind}) not usable: {w.reason}")
 
 
 def main(args: list[str] | None = None) -> None:
-    spin_until_shutdown(IngestNode, args)
+    common.spin_until_shutdown(IngestNode, args)
 
 
 if __name__ == "__main__":

@@ -16,19 +16,7 @@ from std_srvs.srv import Trigger
 
 from phid_ros.io.recording import scenario_from_message
 from phid_ros.io.topics import OUTPUT_TOPICS, SCENARIO_TOPIC
-from phid_ros.nodes.common import (
-    byte_level,
-    declare,
-    float_seq,
-    latched_qos,
-    msg_types,
-    on_set,
-    output_publisher,
-    reliable_qos,
-    spin_until_shutdown,
-    steady_timer,
-    subscribe_sensors,
-)
+from phid_ros.nodes import common
 from phid_ros.stream import messages as m
 from phid_ros.stream.params import RECALIBRATION, apply, pipeline_settings
 from phid_ros.stream.pipeline import MonitorPipeline, Outputs
@@ -42,7 +30,7 @@ HAMILTONIAN_DEPTH = 5000
 class RecalibrationNode(Node):
     def __init__(self) -> None:
         super().__init__("recalibration_node")
-        self.values = declare(self, RECALIBRATION)
+        self.values = common.declare(self, RECALIBRATION)
         settings = pipeline_settings(
             self.values,
             detect=False,
@@ -50,25 +38,25 @@ class RecalibrationNode(Node):
             unit=self.values["unit_id"] or self.get_namespace(),
         )
         self.pipeline = MonitorPipeline(settings)
-        self.types = msg_types()
+        self.types = common.msg_types()
         self.last_status: str | None = None
         windows, window_type = OUTPUT_TOPICS["windows"]  # the ingest node's output is our input
-        self.create_subscription(self.types[window_type], windows, self._on_window, reliable_qos())
+        self.create_subscription(self.types[window_type], windows, self._on_window, common.reliable_qos())
         self.create_subscription(
-            self.types["phid_msgs/msg/ScenarioMarker"], SCENARIO_TOPIC, self._on_marker, reliable_qos()
+            self.types["phid_msgs/msg/ScenarioMarker"], SCENARIO_TOPIC, self._on_marker, common.reliable_qos()
         )
-        self.params_pub = output_publisher(self, "parameters", latched_qos())
-        self.tracked_pub = output_publisher(self, "tracked_parameters", latched_qos())
-        self.energy_pub = output_publisher(self, "hamiltonian", reliable_qos(HAMILTONIAN_DEPTH))
-        self.diag_pub = output_publisher(self, "diagnostics", reliable_qos(10))
+        self.params_pub = common.output_publisher(self, "parameters", common.latched_qos())
+        self.tracked_pub = common.output_publisher(self, "tracked_parameters", common.latched_qos())
+        self.energy_pub = common.output_publisher(self, "hamiltonian", common.reliable_qos(HAMILTONIAN_DEPTH))
+        self.diag_pub = common.output_publisher(self, "diagnostics", common.reliable_qos(10))
         self.create_service(Trigger, "~/recalibrate", self._recalibrate)
         self.create_service(Trigger, "~/reset", self._reset)
-        self.add_on_set_parameters_callback(on_set(RECALIBRATION, self._apply))
+        self.add_on_set_parameters_callback(common.on_set(RECALIBRATION, self._apply))
         self._last_data = time.monotonic()
         self._ended = True  # nothing owed before the first data
-        steady_timer(self, 1.0 / self.values["hamiltonian_rate_hz"], self.process)
-        steady_timer(self, self.values["diagnostics_period_s"], self.publish_diagnostics)
-        subscribe_sensors(self, self._on_data)
+        common.steady_timer(self, 1.0 / self.values["hamiltonian_rate_hz"], self.process)
+        common.steady_timer(self, self.values["diagnostics_period_s"], self.publish_diagnostics)
+        common.subscribe_sensors(self, self._on_data)
 
     # -- callbacks ------------------------------------------------------------------------
     def _on_data(self) -> None:
@@ -106,7 +94,7 @@ class RecalibrationNode(Node):
     def _publish(self, out: Outputs) -> None:
         for r in out.recalibrations:
             self.last_status = r.status
-            msg = m.parameters_message(self.types, r, float_seq, list)
+            msg = m.parameters_message(self.types, r, common.float_seq, list)
             if msg is not None:
                 self.params_pub.publish(msg)
             if not r.accepted:
@@ -115,7 +103,7 @@ class RecalibrationNode(Node):
             for msg in m.hamiltonian_messages(self.types, e):
                 self.energy_pub.publish(msg)
         for point in out.tracked:
-            self.tracked_pub.publish(m.tracked_message(self.types, point, float_seq, list))
+            self.tracked_pub.publish(m.tracked_message(self.types, point, common.float_seq, list))
             for alarm in point.alarms:
                 self.get_logger().warning(alarm)
 
@@ -129,13 +117,13 @@ class RecalibrationNode(Node):
                 self.last_status,
                 stream_now_ns=self.pipeline.aligner.stream_now_ns,
                 stale_ns=self.pipeline.aligner.stale_ns,
-                level=byte_level,
+                level=common.byte_level,
             )
         )
 
 
 def main(args: list[str] | None = None) -> None:
-    spin_until_shutdown(RecalibrationNode, args)
+    common.spin_until_shutdown(RecalibrationNode, args)
 
 
 if __name__ == "__main__":

@@ -170,19 +170,14 @@ def _maybe_jit(f: Any) -> Any:
 
 
 # the equations, compiled as they are written (one place each)
-_dq_of = _maybe_jit(conventions.dq_of)
-_powers = _maybe_jit(conventions.powers)
-_rotor_angle = _maybe_jit(equations.rotor_angle)
-_swing = _maybe_jit(equations.swing)
-_field_d = _maybe_jit(equations.field_d)
-_field_q = _maybe_jit(equations.field_q)
-_stator = _maybe_jit(equations.stator)
-_airgap_power = _maybe_jit(equations.airgap_power)
-_saturation_factor = _maybe_jit(effects.saturation_factor)
-_flux_magnitude = _maybe_jit(effects.flux_magnitude)
-_damper_emf = _maybe_jit(effects.damper_emf)
-_damper_drives = _maybe_jit(effects.damper_drives)
-_shaft_torque = _maybe_jit(effects.shaft_torque)
+_dq_of, _powers = (_maybe_jit(getattr(conventions, n)) for n in ("dq_of", "powers"))
+_rotor_angle, _swing, _field_d, _field_q, _stator, _airgap_power = (
+    _maybe_jit(getattr(equations, n)) for n in ("rotor_angle", "swing", "field_d", "field_q", "stator", "airgap_power")
+)
+_saturation_factor, _flux_magnitude, _damper_emf, _damper_drives, _shaft_torque = (
+    _maybe_jit(getattr(effects, n))
+    for n in ("saturation_factor", "flux_magnitude", "damper_emf", "damper_drives", "shaft_torque")
+)
 
 
 @_maybe_jit

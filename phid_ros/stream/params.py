@@ -16,6 +16,10 @@ from phid_ros.model.bounds import Bounded
 from phid_ros.stream.detector import POST_EVENT_S, PRE_EVENT_S
 from phid_ros.stream.pipeline import PipelineSettings
 
+# the streams that may report slower than the grid (a 50 Hz PMU beside 1 kHz PT/CT); the
+# PT/CT stream is the grid's own rate
+RATED_STREAMS = ("encoder", "pmu", "excitation")
+
 
 @dataclass(frozen=True)
 class Tunable(Bounded):
@@ -40,6 +44,18 @@ SENSORS: tuple[Tunable, ...] = (  # how both nodes subscribe to the sensor topic
         10,
         100000,
         runtime=False,
+    ),
+    *(
+        Tunable(
+            f"{stream}_rate_hz",
+            float,
+            0.0,
+            f"the {stream} stream's own sample rate, which /diagnostics expects (0: the grid's, sample_rate_hz)",
+            0.0,
+            100000.0,
+            runtime=False,
+        )
+        for stream in RATED_STREAMS
     ),
 )
 
@@ -138,6 +154,7 @@ def pipeline_settings(
         detect=detect,
         tracking_enabled=bool(v["tracking_enabled"]),
         tracking=TrackerSettings(window_s=float(v["tracking_window_s"]), hop_s=float(v["tracking_hop_s"])),
+        expected_rates_hz={s: float(v[f"{s}_rate_hz"]) for s in RATED_STREAMS if v[f"{s}_rate_hz"] > 0},
     )
 
 

@@ -47,6 +47,8 @@ class PipelineSettings:
     tracking_enabled: bool = False
     tracking: TrackerSettings = field(default_factory=TrackerSettings)
     tracking_base: GeneratorParameters | None = None
+    # stream -> the rate /diagnostics expects of it, where it is not the grid's (a 50 Hz PMU)
+    expected_rates_hz: dict[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         d = self.detector
@@ -245,7 +247,8 @@ class MonitorPipeline:
         out.tracked += self.tracker.update(t_ns, values)
 
     def _new_aligner(self) -> Aligner:
-        return Aligner(self.settings.period_ns, stale_ns=int(self.settings.stale_timeout_s * NS))
+        s = self.settings
+        return Aligner(s.period_ns, stale_ns=int(s.stale_timeout_s * NS), expected_rates_hz=s.expected_rates_hz)
 
     # -- helpers ----------------------------------------------------------------------------
     def _label(self, e: Event) -> None:

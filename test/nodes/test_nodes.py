@@ -158,6 +158,25 @@ def test_wrong_rate_and_zero_stamps_are_reported(ros):
     assert level in ("WARN", "ERROR") and "rate 500 Hz" in message
 
 
+def test_a_stream_slower_than_the_grid_is_judged_at_its_own_rate(ros):
+    # a 500 Hz excitation stream beside 1 kHz PT/CT, declared as such: no rate warning, while the
+    # same stream undeclared warns (test above)
+    rec = read_recording(BAGS / "validation.mcap")
+    ingest, recal = make_nodes(ros, excitation_rate_hz=500.0)
+
+    def slow_excitation(topic, msg):
+        if topic.endswith("/excitation"):
+            msg.sample_period = 2e-3
+        return msg
+
+    play(ros, rec, ingest, recal, until_s=20, mutate=slow_excitation)
+    h = recal.pipeline.health["excitation"]
+    assert h.expected_rate_hz == 500.0 and abs(h.rate_hz() - 500.0) < 5.0
+    level, message = h.status()
+    assert "rate" not in message, message
+    assert recal.pipeline.health["pmu"].expected_rate_hz == 1000.0  # undeclared: the grid's
+
+
 def test_out_of_range_parameter_is_refused_and_the_old_value_kept(ros):
     from rclpy.node import Parameter
 
