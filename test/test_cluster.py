@@ -111,3 +111,13 @@ def test_a_failing_job_on_threads_raises_and_the_jobs_not_yet_started_are_droppe
     # job 0, the job beside it and the few that start before the main thread wakes (3 on a quiet
     # machine); the pool without cancel_futures ran all 20 (0.2 s each) before raising
     assert len(ran) < 10
+
+
+def test_the_cli_process_allocates_from_one_malloc_arena_on_glibc():
+    # the diagnosis's threads shared glibc's arenas badly: 440-460 MB peak with one per thread
+    import platform
+    import sys
+
+    from phid_ros.cluster import one_malloc_arena
+
+    assert one_malloc_arena() is (sys.platform.startswith("linux") and platform.libc_ver()[0] == "glibc")

@@ -19,11 +19,12 @@ from phid_ros import __version__
 from phid_ros.cli.common import warn, write_output
 from phid_ros.cli.progress import ProgressLine
 from phid_ros.cli.tables import make_console
+from phid_ros.cluster import one_malloc_arena
 from phid_ros.errors import PhidError
 from phid_ros.fleet.history import DRIFT_SIGMAS
 from phid_ros.io.outputs import atomic_output, refuse_inputs
 from phid_ros.io.recording import DEFAULT_BLOCK_SIZE, Recording
-from phid_ros.model.conventions import utc_of_stamp
+from phid_ros.model.conventions import NS, utc_of_stamp
 
 EXIT_USER_ERROR = 2
 
@@ -98,7 +99,7 @@ def cmd_simulate(args: argparse.Namespace, console: Console) -> int:
         write_output(out, rec, args.block_size)
     truth = write_json(truth_path_for(out), truth_document(cfg, scenarios))
     start, end = rec.span_ns()
-    console.print(f"wrote {out} ({len(scenarios)} scenarios, {(end - start) / 1e9:.1f} s of data) and {truth}")
+    console.print(f"wrote {out} ({len(scenarios)} scenarios, {(end - start) / NS:.1f} s of data) and {truth}")
     return 0
 
 
@@ -263,7 +264,7 @@ def cmd_info(args: argparse.Namespace, console: Console) -> int:
             str(s.samples),
             f"{s.rate_hz:g}",
             _iso(s.start_ns),
-            f"{(s.end_ns - s.start_ns) / 1e9:.3f}",
+            f"{(s.end_ns - s.start_ns) / NS:.3f}",
             str(s.gaps),
             f"{s.gap_seconds:.3f}",
             str(s.backwards),
@@ -275,14 +276,14 @@ def cmd_info(args: argparse.Namespace, console: Console) -> int:
             sc_table.add_column(col)
         t0 = rec.span_ns()[0]
         for sc in rec.scenarios:
-            ev = f"{(sc.event_ns - t0) / 1e9:.3f}" if sc.event_ns else "?"
+            ev = f"{(sc.event_ns - t0) / NS:.3f}" if sc.event_ns else "?"
             sc_table.add_row(
                 escape(sc.name),
                 escape(sc.kind),
                 escape(sc.role),
                 "yes" if sc.generator_damping else "no",
                 ev,
-                f"{(sc.end_ns - sc.start_ns) / 1e9:.1f}",
+                f"{(sc.end_ns - sc.start_ns) / NS:.1f}",
             )
         console.print(sc_table)
     if rec.metadata:
@@ -653,6 +654,7 @@ def _effect_names() -> list[str]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    one_malloc_arena()  # before any thread allocates (see its docstring: the diagnosis's memory)
     parser = build_parser()
     args = parser.parse_args(argv)
     console = make_console(wide=args.wide)

@@ -94,7 +94,7 @@ def run(args: Any, console: Any) -> int:
         console.print(hop_line(start, p), highlight=False)
         for a in p.alarms:
             console.print(f"{'':>8}alarm: {a}", style="bold red", highlight=False, markup=False)
-        progress.update(f"tracking: {(p.t_ns - start) / 1e9:.0f} of {(end - start) / 1e9:.0f} s")
+        progress.update(f"tracking: {(p.t_ns - start) / NS:.0f} of {(end - start) / NS:.0f} s")
 
     t0 = time.perf_counter()
     with ProgressLine("tracking: the first window") as progress:

@@ -64,6 +64,11 @@ class FitResult:
     # standard deviation of each free effect parameter (linear units), per effect of the model
     effect_std: list[dict[str, float]] = field(default_factory=list)
     base_std: dict[str, float] = field(default_factory=dict)  # the same for the base parameters
+    # the solution in the solver's coordinates, the parameter of each (effect index or -1, and
+    # its transform), and the compressed Jacobian there: what a neighbouring fit starts from
+    x: Array | None = None
+    free: tuple[tuple[int, FreeParameter], ...] = ()
+    jac: Array | None = None
 
     @property
     def bic(self) -> float:
@@ -182,8 +187,11 @@ class Problem:
 
     def x0(self) -> Array:
         x = [p.to_x(self._value(i, p.name)) for i, p in self.free]
+        return self.inside(np.array(x, float))
+
+    def inside(self, x: Array) -> Array:
         lo, hi = self.bounds()
-        return np.clip(np.array(x, float), lo + 1e-9, hi - 1e-9)
+        return np.clip(x, lo + 1e-9, hi - 1e-9)
 
     def bounds(self) -> tuple[Array, Array]:
         b = np.array([p.x_bounds for _, p in self.free])
@@ -223,8 +231,8 @@ class Problem:
         )
 
 
-def fit(problem: Problem, max_nfev: int = 12) -> FitResult:
-    """Local least squares from the problem's start values.
+def fit(problem: Problem, max_nfev: int = 12, x0: Array | None = None) -> FitResult:
+    """Local least squares from the problem's start values (or from ``x0``, kept inside the bounds).
 
     Compiled (phid_ros.sim.kernel), a play-in costs per column, so a point is simulated
     alone and its finite-difference columns only when the solver asks for the Jacobian
@@ -271,7 +279,7 @@ def fit(problem: Problem, max_nfev: int = 12) -> FitResult:
         out[0] = math.sqrt(float(r @ r))
         return out
 
-    x0 = problem.x0()
+    x0 = problem.x0() if x0 is None else problem.inside(x0)
     sol = least_squares(
         residual,
         x0,
@@ -285,7 +293,10 @@ def fit(problem: Problem, max_nfev: int = 12) -> FitResult:
     k = len(x0) + sum(len(c.searched()) for c, _ in problem.spec.effects)
     spec = problem.spec_at(sol.x)
     base_std, effect_std = _std(problem, sol.x, np.asarray(sol.jac), r, k, spec)
-    return FitResult(spec, float(r @ r), len(r), k, sol.nfev, sol.message, effect_std, base_std)
+    jac = np.asarray(sol.jac)
+    return FitResult(
+        spec, float(r @ r), len(r), k, sol.nfev, sol.message, effect_std, base_std, sol.x, tuple(problem.free), jac
+    )
 
 
 def compress(A: Array) -> Array:

@@ -484,7 +484,7 @@ def determined(
     base = held_score(res.model, held_w, sigma, f_hz).overall ** 2
     names = [n for n in PARAMETER_NAMES if n not in opt.held]
     points = [(n, k) for n in names for k in (1.0 - PROFILE_STEP, 1.0 + PROFILE_STEP)]
-    scores = jobs.map(_profile_point, [(res.model, n, k, fit_w, held_w, sigma, opt) for n, k in points])
+    scores = jobs.map(_profile_point, [(res, n, k, fit_w, held_w, sigma, opt) for n, k in points])
     rise: dict[str, float] = {}
     for (n, _), sc in zip(points, scores):
         rise[n] = min(rise.get(n, math.inf), sc - base)
@@ -508,7 +508,7 @@ def determined(
 
 
 def _profile_point(
-    spec: ModelSpec,
+    final: FitResult,
     name: str,
     factor: float,
     fit_w: Sequence[ScenarioData],
@@ -517,10 +517,31 @@ def _profile_point(
     opt: DiagnoseOptions,
 ) -> float:
     """Held-out unexplained mean square with ``name`` held at ``factor`` times its value (one job)."""
+    spec = final.model
     moved = ModelSpec({**spec.base, name: spec.base[name] * factor}, list(spec.effects))
     p = Problem(fit_w, sigma, moved, opt.f_nominal_hz, wide=opt.wide, held=(*opt.held, name))
-    res = fit(p, opt.max_nfev)
+    res = fit(p, opt.max_nfev, profile_start(final, p, name, factor))
     return held_score(res.model, held_w, sigma, opt.f_nominal_hz).overall ** 2
+
+
+def profile_start(final: FitResult, p: Problem, name: str, factor: float) -> Array | None:
+    """Where the other parameters go when ``name`` moves by ``factor``, to first order: the
+    least-squares step of the final fit's Jacobian that answers that move.
+
+    Why: from the final values alone, a profile point's refit walked the length of a valley
+    (X'_d against T'_d0) in 15-24 evaluations; the linear prediction starts it near the floor.
+    The refit still converges by the solver's own criteria, only in fewer steps.
+    """
+    keys = [(i, q.name) for i, q in final.free]
+    if final.jac is None or final.x is None or (-1, name) not in keys:
+        return None
+    j = keys.index((-1, name))
+    moved = final.free[j][1].to_x(final.model.base[name] * factor) - final.x[j]
+    others = [keys.index((i, q.name)) for i, q in p.free if (i, q.name) in keys]
+    if len(others) != len(p.free):
+        return None
+    step = np.linalg.lstsq(final.jac[:, others], -final.jac[:, j] * moved, rcond=None)[0]
+    return final.x[others] + step
 
 
 def _passes(trial: Trial, current: Score, after_first: bool, opt: DiagnoseOptions) -> bool:

@@ -21,6 +21,7 @@ from phid_ros.io.channel_map import WAVEFORMS, ChannelMap, check_recording
 from phid_ros.io.csv_import import is_number
 from phid_ros.io.field_channels import field_recording, identification_channels, scenario_table
 from phid_ros.io.recording import Recording
+from phid_ros.model.conventions import NS
 
 MAX_JITTER = 0.01  # of the reporting period
 
@@ -36,7 +37,7 @@ def _seconds(values: list[str], path: Path, column: str) -> np.ndarray:
         stamps = np.array([np.datetime64(v.strip().replace("Z", "")) for v in values], dtype="datetime64[ns]")
     except ValueError as exc:
         raise PmuImportError(f"{path}: column {column!r} holds neither seconds nor ISO 8601 times ({exc})") from None
-    return (stamps - stamps[0]).astype(np.int64) * 1e-9
+    return (stamps - stamps[0]).astype(np.int64) / NS
 
 
 def read_pmu_csv(path: str | Path, cmap: ChannelMap) -> tuple[np.ndarray, dict[str, np.ndarray], float]:

@@ -25,10 +25,8 @@ from rclpy.qos import (
     qos_profile_sensor_data,
 )
 
-from phid_ros.io.topics import OUTPUT_TOPICS, STREAMS_BY_NAME
+from phid_ros.io.topics import OUTPUT_TOPICS, STREAMS
 from phid_ros.stream.params import Tunable, validate
-
-SENSOR_TOPICS = ("pt_ct", "encoder", "pmu", "excitation")
 
 
 def sensor_qos(reliable: bool, depth: int) -> QoSProfile:
@@ -156,10 +154,9 @@ def subscribe_sensors(node: Any, on_data: Any = None) -> None:
 
     values = node.values
     qos = sensor_qos(values["reliable_qos"], values["queue_depth"])
-    for name in SENSOR_TOPICS:
-        spec = STREAMS_BY_NAME[name]
+    for spec in STREAMS:  # a stream's name is its topic, relative to the node's namespace
 
-        def callback(msg: Any, stream: str = name, channels: tuple[str, ...] = spec.channels) -> None:
+        def callback(msg: Any, stream: str = spec.name, channels: tuple[str, ...] = spec.channels) -> None:
             if on_data is not None:
                 on_data()
             node.pipeline.ingest_message(  # a zero stamp is counted and dropped by the pipeline
@@ -170,9 +167,9 @@ def subscribe_sensors(node: Any, on_data: Any = None) -> None:
                 receive_ns=now_ns(node),
             )
 
-        node.create_subscription(node.types[spec.msgtype], name, callback, qos)
+        node.create_subscription(node.types[spec.msgtype], spec.name, callback, qos)
     node.get_logger().info(
-        f"ready: {', '.join(SENSOR_TOPICS)} ({'reliable' if values['reliable_qos'] else 'best effort'}, "
+        f"ready: {', '.join(s.name for s in STREAMS)} ({'reliable' if values['reliable_qos'] else 'best effort'}, "
         f"depth {values['queue_depth']})"
     )
 

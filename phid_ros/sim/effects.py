@@ -38,6 +38,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from phid_ros.errors import SimulationError
+from phid_ros.io.topics import STREAMS, STREAMS_BY_NAME
 from phid_ros.model.bounds import Bounded
 from phid_ros.model.conventions import omega_s
 from phid_ros.model.equations import rotor_angle, swing
@@ -316,13 +317,11 @@ class SensorDelay(PlantEffect):
 
     name = "sensor_delay"
     parameters = (
-        EffectParameter("stream", "pmu", "", "the delayed stream", choices=("pt_ct", "encoder", "pmu", "excitation")),
+        EffectParameter("stream", "pmu", "", "the delayed stream", choices=tuple(s.name for s in STREAMS)),
         EffectParameter("delay_ms", 10.0, "ms", "latency", 1.0, 100.0),
     )
 
     def on_measurements(self, measured: dict[str, Array], dt: float) -> dict[str, Array]:
-        from phid_ros.io.topics import STREAMS_BY_NAME
-
         k = int(round(self["delay_ms"] * 1e-3 / dt))  # the simulated latency is whole samples
         out = dict(measured)
         for c in STREAMS_BY_NAME[self["stream"]].channels:
@@ -331,8 +330,6 @@ class SensorDelay(PlantEffect):
         return out
 
     def delays(self) -> dict[str, Any]:
-        from phid_ros.io.topics import STREAMS_BY_NAME
-
         return {c: self["delay_ms"] * 1e-3 for c in STREAMS_BY_NAME[self["stream"]].channels}
 
     def kernel_terms(self, plant: Any) -> dict[str, Any]:

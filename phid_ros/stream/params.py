@@ -13,6 +13,7 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 from phid_ros.model.bounds import Bounded
+from phid_ros.model.conventions import seconds_to_ns
 from phid_ros.stream.detector import POST_EVENT_S, PRE_EVENT_S
 from phid_ros.stream.pipeline import PipelineSettings
 
@@ -138,7 +139,7 @@ def pipeline_settings(
     v = {t.name: t.default for t in INGEST + RECALIBRATION}
     v.update(values)
     return PipelineSettings(
-        period_ns=int(round(1e9 / v["sample_rate_hz"])),
+        period_ns=seconds_to_ns(1.0 / v["sample_rate_hz"]),
         ring_seconds=float(v["ring_seconds"]),
         detector=DetectorSettings(pre_s=float(v["pre_event_s"]), post_s=float(v["post_event_s"])),
         hamiltonian_rate_hz=float(v["hamiltonian_rate_hz"]),

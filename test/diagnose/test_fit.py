@@ -60,3 +60,24 @@ def test_the_solver_takes_the_same_steps_on_the_compressed_problem() -> None:
     assert small.nfev == full.nfev
     np.testing.assert_allclose(small.x, full.x, rtol=1e-8)
     np.testing.assert_allclose(2 * small.cost, r_of(full.x) @ r_of(full.x), rtol=1e-10)
+
+
+def test_a_profile_point_starts_where_the_final_fit_s_jacobian_predicts():
+    # X'_d and T'_d0 trade off along a valley: residual ~ 1 * dx(X'_d) + 2 * dx(T'_d0). Holding X'_d
+    # 10 % higher, the best T'_d0 moves by half that step the other way (log coordinates).
+    import math
+    from types import SimpleNamespace
+
+    from phid_ros.diagnose.candidates import FreeParameter
+    from phid_ros.diagnose.fit import FitResult, ModelSpec
+    from phid_ros.diagnose.workflow import profile_start
+
+    xd, td = FreeParameter("X_d_prime", 0.1, 1.0, log=True), FreeParameter("T_d0_prime", 0.5, 5.0, log=True)
+    x = np.log([0.5, 1.4])
+    jac = np.array([[0.0, 0.0], [1.0, 2.0], [0.0, 0.0]])
+    spec = ModelSpec({"X_d_prime": 0.5, "T_d0_prime": 1.4})
+    final = FitResult(spec, 1.0, 10, 2, x=x, free=((-1, xd), (-1, td)), jac=jac)
+    start = profile_start(final, SimpleNamespace(free=[(-1, td)]), "X_d_prime", 1.1)
+    assert start is not None and np.allclose(start, [math.log(1.4) - math.log(1.1) / 2], rtol=0, atol=1e-12)
+    # without the final fit's Jacobian (an older result) the refit starts from the final values
+    assert profile_start(FitResult(final.model, 1.0, 10, 2), SimpleNamespace(free=[(-1, td)]), "X_d_prime", 1.1) is None

@@ -130,3 +130,10 @@ def test_columns_split_over_threads_give_the_same_bits(windows, monkeypatch):
     for a, b in zip(one, split):
         for c in OUTPUTS:
             np.testing.assert_array_equal(a.sim[c], b.sim[c])
+
+
+def test_the_compiled_step_is_cached_under_the_text_of_the_equations_it_compiles():
+    # numba's cache looks only at the file of the function it caches; the step compiles the
+    # equations of model/ and sim/effects.py, so their text is part of its cache key
+    cells = [c.cell_contents for c in kernel._rk4_outputs.py_func.__closure__]
+    assert kernel._sources_digest() in cells
