@@ -101,13 +101,15 @@ def base_free(
     return out
 
 
-def residuals(runs: Sequence[PlayIn], sigma: Mapping[str, float]) -> Array:
-    """Noise-normalised residuals, shape (samples, models).
+def residuals(runs: Sequence[PlayIn], sigma: Mapping[str, float], out: Array | None = None) -> Array:
+    """Noise-normalised residuals, shape (samples, models), into ``out`` if given.
 
     Written into one array block by block (no per-block temporaries, no concatenation): a fit
-    assembles it at every evaluation, and the copies cost as much as the arithmetic."""
+    assembles it at every evaluation, and the copies cost as much as the arithmetic. ``out``:
+    the fit's Jacobian columns take them where they are needed, not through a copy."""
     rows = sum(r.sim[c].shape[0] for r in runs for c in OUTPUTS)
-    out = np.empty((rows, runs[0].sim[OUTPUTS[0]].shape[1]))
+    if out is None:
+        out = np.empty((rows, runs[0].sim[OUTPUTS[0]].shape[1]))
     at = 0
     for r in runs:
         for c in OUTPUTS:
@@ -120,9 +122,10 @@ def residuals(runs: Sequence[PlayIn], sigma: Mapping[str, float]) -> Array:
 
 def finite(r: Array) -> Array:
     """``r`` with every non-finite value at 1e6, in place: a diverged model is simply a very bad one."""
+    if np.isfinite(np.sum(r)):  # one pass and no temporary: a finite sum has only finite terms
+        return r
     bad = ~np.isfinite(r)
-    if bad.any():
-        r[bad] = 1e6
+    r[bad] = 1e6
     return r
 
 
@@ -217,8 +220,8 @@ class Problem:
         self.nfev += X.shape[1]
         return play_in(self.windows, base, effects, m=X.shape[1], f_nominal_hz=self.f)
 
-    def residual_matrix(self, X: Array) -> Array:
-        return finite(residuals(self.simulate(X), self.sigma))
+    def residual_matrix(self, X: Array, out: Array | None = None) -> Array:
+        return finite(residuals(self.simulate(X), self.sigma, out))
 
     def spec_at(self, x: Array) -> ModelSpec:
         base, effects = self.columns(x[:, None])
@@ -264,7 +267,7 @@ def fit(problem: Problem, max_nfev: int = 12, x0: Array | None = None) -> FitRes
             else:
                 A = np.empty((len(r), len(x) + 1))
                 A[:, 0] = r
-                A[:, 1:] = problem.residual_matrix(x[:, None] + np.diag(steps))
+                problem.residual_matrix(x[:, None] + np.diag(steps), out=A[:, 1:])
             r = A[:, 0].copy()
             A[:, 1:] -= A[:, :1]
             A[:, 1:] /= steps[None, :]  # A = [r, J] in place: no second tall array
