@@ -113,11 +113,11 @@ def test_a_failing_job_on_threads_raises_and_the_jobs_not_yet_started_are_droppe
     assert len(ran) < 10
 
 
-def test_the_cli_process_allocates_from_one_malloc_arena_on_glibc():
+def test_the_cli_process_tunes_glibc_malloc():
     # the diagnosis's threads shared glibc's arenas badly: 440-460 MB peak with one per thread
     import platform
     import sys
 
-    from phid_ros.cluster import one_malloc_arena
+    from phid_ros.cluster import tune_malloc
 
-    assert one_malloc_arena() is (sys.platform.startswith("linux") and platform.libc_ver()[0] == "glibc")
+    assert tune_malloc() is (sys.platform.startswith("linux") and platform.libc_ver()[0] == "glibc")

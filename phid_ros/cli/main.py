@@ -19,7 +19,7 @@ from phid_ros import __version__
 from phid_ros.cli.common import warn, write_output
 from phid_ros.cli.progress import ProgressLine
 from phid_ros.cli.tables import make_console
-from phid_ros.cluster import one_malloc_arena
+from phid_ros.cluster import tune_malloc
 from phid_ros.errors import PhidError
 from phid_ros.fleet.history import DRIFT_SIGMAS
 from phid_ros.io.outputs import atomic_output, refuse_inputs
@@ -654,7 +654,7 @@ def _effect_names() -> list[str]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    one_malloc_arena()  # before any thread allocates (see its docstring: the diagnosis's memory)
+    tune_malloc()  # before any thread allocates (see its docstring: the diagnosis's memory, page faults)
     parser = build_parser()
     args = parser.parse_args(argv)
     console = make_console(wide=args.wide)

@@ -25,6 +25,7 @@ from phid_ros.model.conventions import DEFAULT_F_NOMINAL_HZ, electrical_power, t
 from phid_ros.model.equations import Coefficients, currents, derivatives
 from phid_ros.model.parameters import GeneratorParameters
 from phid_ros.numerics import rk4
+from phid_ros.sim import kernel
 
 Array = NDArray[np.float64]
 STEP_SECONDS = 0.004  # RK4 step of the play-in (an even number of samples at 1 kHz)
@@ -123,15 +124,18 @@ def play_in(
         x0[1, c] = np.mean(s["omega"][pre])
         x0[2, c] = np.mean(s.v_q[pre]) + xdp[c] * np.mean(s["i_d"][pre])
         x0[3, c] = np.mean(s.v_d[pre]) - xqp[c] * np.mean(s["i_q"][pre])
-    # inputs at t_k, t_k + h/2, t_k + h come straight from the 1 kHz samples
-    states = rk4(
-        rhs,
-        x0,
-        steps - 1,
-        h,
-        lambda k: (),
-        staged=lambda k, j: (v_t[2 * k + j], theta[2 * k + j], p_m[2 * k + j], v_f[2 * k + j]),
-    )
+    # inputs at t_k, t_k + h/2, t_k + h come straight from the 1 kHz samples; compiled where numba
+    # is (the same steps on the same functions), else numpy
+    states = kernel.paper_rk4(x0, (v_t, theta, p_m, v_f), coef, steps - 1, h)
+    if states is None:
+        states = rk4(
+            rhs,
+            x0,
+            steps - 1,
+            h,
+            lambda k: (),
+            staged=lambda k, j: (v_t[2 * k + j], theta[2 * k + j], p_m[2 * k + j], v_f[2 * k + j]),
+        )
     delta, omega, e_q, e_d = (states[:, i] for i in range(4))
     v_t, theta = v_t[::2], theta[::2]
     v_d, v_q = terminal_to_dq(v_t, delta, theta)

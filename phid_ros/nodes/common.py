@@ -25,6 +25,7 @@ from rclpy.qos import (
     qos_profile_sensor_data,
 )
 
+from phid_ros.cluster import tune_malloc
 from phid_ros.io.topics import OUTPUT_TOPICS, STREAMS
 from phid_ros.stream.params import Tunable, validate
 
@@ -176,6 +177,7 @@ def subscribe_sensors(node: Any, on_data: Any = None) -> None:
 
 def spin_until_shutdown(make_node: Any, args: list[str] | None) -> None:
     """The node skeleton of ros2/demos: init, spin, and a clean exit on Ctrl-C or external shutdown."""
+    tune_malloc()  # as the CLI: the recalibration's arrays would fault their pages in at every run
     rclpy.init(args=args)
     node = make_node()
     try:

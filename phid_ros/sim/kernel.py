@@ -324,3 +324,81 @@ def _compiled_step(sources: str) -> Any:
 
 
 _rk4_outputs = _compiled_step(_sources_digest())
+
+
+# rows of the paper model's coefficient matrix (the validation play-in: no effects, no resistance)
+PAPER_ROWS = ("inv_2h", "d", "xd_diff", "xq_diff", "inv_td0", "inv_tq0", "x_d_prime", "x_q_prime")
+P_INV_2H, P_D, P_XD_DIFF, P_XQ_DIFF, P_INV_TD0, P_INV_TQ0, P_XDP, P_XQP = range(8)
+
+
+def paper_rk4(x0: Array, staged: tuple[Array, Array, Array, Array], coef: Any, n_steps: int, h: float) -> Array | None:
+    """The validation play-in's RK4 of (5)-(13) as written in the paper, compiled: states
+    (n_steps + 1, 4, cols), or None when numba is not there (or ``PHID_NO_JIT``).
+
+    The same steps as :func:`phid_ros.numerics.rk4` on ``validation.play_in``'s right-hand side:
+    ``staged`` = (V_t, theta_t, P_m, V_f) at every half step, ``coef`` a
+    :class:`~phid_ros.model.equations.Coefficients` with one entry per column. Why compiled:
+    numpy spent 17 us of call overhead per right-hand side on a handful of columns, four times
+    a step, and a recalibration validates every run (60 % of a replay's identification time).
+    """
+    if not available():
+        return None
+    cols = x0.shape[1]
+    rows = np.array([np.broadcast_to(np.asarray(getattr(coef, n), np.float64), (cols,)) for n in PAPER_ROWS])
+    v_t, theta, p_m, v_f = (np.ascontiguousarray(a, dtype=np.float64) for a in staged)
+    x = np.ascontiguousarray(x0, dtype=np.float64)
+    return _paper_rk4(x, v_t, theta, p_m, v_f, rows, float(coef.w_s), int(n_steps), float(h))
+
+
+@_maybe_jit_inlined
+def _paper_rhs_column(
+    x: Array, out: Array, c: int, vt: float, th: float, pm: float, vf: float, coef: Array, ws: float
+) -> None:
+    """dx/dt of one column: ``validation.play_in``'s right-hand side, the same operations in the same order."""
+    v_d, v_q = _dq_of(vt, x[0] - th)
+    i_d, i_q = _stator(x[2], x[3], v_d, v_q, None, coef[P_XDP, c], coef[P_XQP, c])
+    p_e = _powers(v_d, v_q, i_d, i_q)[0]  # (13)
+    out[0] = _rotor_angle(x[1], ws)
+    out[1] = _swing(pm, p_e, x[1], coef[P_D, c], coef[P_INV_2H, c])
+    out[2] = _field_d(vf, x[2], i_d, coef[P_XD_DIFF, c], None, coef[P_INV_TD0, c])
+    out[3] = _field_q(x[3], i_q, coef[P_XQ_DIFF, c], None, coef[P_INV_TQ0, c])
+
+
+def _compiled_paper_step(sources: str) -> Any:
+    """The compiled paper-model play-in, keyed to the equations' text as :func:`_compiled_step` is."""
+
+    @_maybe_jit
+    def paper_steps(
+        x0: Array, v_t: Array, theta: Array, p_m: Array, v_f: Array, coef: Array, ws: float, n_steps: int, h: float
+    ) -> Array:
+        _ = sources  # the key of the compiled code in numba's cache
+        cols = x0.shape[1]
+        states = np.empty((n_steps + 1, 4, cols))
+        states[0] = x0
+        h2, h6 = 0.5 * h, h / 6.0
+        x = np.empty(4)
+        xs = np.empty(4)
+        k1, k2, k3, k4 = np.empty(4), np.empty(4), np.empty(4), np.empty(4)
+        for k in range(n_steps):
+            a, b, e = 2 * k, 2 * k + 1, 2 * k + 2
+            for c in range(cols):
+                for i in range(4):
+                    x[i] = states[k, i, c]
+                _paper_rhs_column(x, k1, c, v_t[a, c], theta[a, c], p_m[a, c], v_f[a, c], coef, ws)
+                for i in range(4):
+                    xs[i] = x[i] + h2 * k1[i]
+                _paper_rhs_column(xs, k2, c, v_t[b, c], theta[b, c], p_m[b, c], v_f[b, c], coef, ws)
+                for i in range(4):
+                    xs[i] = x[i] + h2 * k2[i]
+                _paper_rhs_column(xs, k3, c, v_t[b, c], theta[b, c], p_m[b, c], v_f[b, c], coef, ws)
+                for i in range(4):
+                    xs[i] = x[i] + h * k3[i]
+                _paper_rhs_column(xs, k4, c, v_t[e, c], theta[e, c], p_m[e, c], v_f[e, c], coef, ws)
+                for i in range(4):
+                    states[k + 1, i, c] = x[i] + h6 * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i])
+        return states
+
+    return paper_steps
+
+
+_paper_rk4 = _compiled_paper_step(_sources_digest())

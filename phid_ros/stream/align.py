@@ -53,6 +53,7 @@ class StreamHealth:
     implausible: int = 0
     zero_stamps: int = 0  # samples of messages stamped 0: an unset clock, not a time
     wild_stamps: int = 0  # samples of a block whose stamp jumped and came straight back
+    malformed: int = 0  # samples of messages whose channel arrays differ in length (the longest counted)
     gaps: int = 0
     missing: int = 0  # samples absent in those gaps (by the stamps): what was lost on the way
     clock_jumps: int = 0
@@ -71,6 +72,7 @@ class StreamHealth:
             + self.implausible
             + self.zero_stamps
             + self.wild_stamps
+            + self.malformed
         )
 
     def rate_hz(self) -> float:
@@ -114,7 +116,7 @@ class StreamHealth:
             problems.append(
                 f"{self.dropped} samples dropped (dup {self.duplicates}, order {self.out_of_order}, "
                 f"non-finite {self.nonfinite}, implausible {self.implausible}, zero stamp {self.zero_stamps}, "
-                f"wild stamp {self.wild_stamps})"
+                f"wild stamp {self.wild_stamps}, malformed {self.malformed})"
             )
             level = "WARN" if level == "OK" else level
         if self.missing:
@@ -265,10 +267,16 @@ class Aligner:
     ) -> None:
         spec = STREAMS_BY_NAME[stream]
         h = self.health[stream]
-        x = np.column_stack([np.asarray(arrays[c], dtype=np.float64) for c in spec.channels])
-        n = len(x)
+        lengths = [len(arrays[c]) for c in spec.channels]
+        n = max(lengths)
         h.messages += 1
         h.samples += n
+        if min(lengths) != n:
+            h.malformed += n  # no sample of it can be placed: which array lost which value is unknown
+            return
+        x = np.empty((n, len(spec.channels)))  # one message's columns side by side (column_stack costs 3x)
+        for j, c in enumerate(spec.channels):
+            x[:, j] = arrays[c]
         if n == 0:
             return
         if int(t0_ns) == 0 and self._max_stamp > self.jump_back_ns:
@@ -310,11 +318,18 @@ class Aligner:
     ) -> None:
         last = h.last_stamp_ns
         lo, hi = self._limits[stream]
+        # the common case, a clean block in order, is judged on each column's extremes (a NaN
+        # makes its column's minimum NaN, which fails the comparison): per sample only when not
+        if (
+            period_ns > 0
+            and (last is None or t[0] > last)
+            and (x.min(axis=0) >= lo).all()
+            and (x.max(axis=0) <= hi).all()
+        ):
+            self._accept(stream, h, t, x, period_ns, regular=True)
+            return
         with np.errstate(invalid="ignore"):
             plausible = ((x >= lo) & (x <= hi)).all(axis=1)  # False for NaN too
-        if period_ns > 0 and plausible.all() and (last is None or t[0] > last):
-            self._accept(stream, h, t, x, period_ns)  # the common case: a clean block in order
-            return
         n = len(t)
         ok = np.ones(n, dtype=bool)
         finite = np.isfinite(x).all(axis=1)
@@ -338,10 +353,22 @@ class Aligner:
         self._accept(stream, h, t_ok, x_ok, period_ns)
 
     def _accept(
-        self, stream: str, h: StreamHealth, t: NDArray[np.int64], x: NDArray[np.float64], period_ns: int
+        self,
+        stream: str,
+        h: StreamHealth,
+        t: NDArray[np.int64],
+        x: NDArray[np.float64],
+        period_ns: int,
+        regular: bool = False,
     ) -> None:
-        steps = np.diff(t) if h.last_stamp_ns is None else np.diff(np.concatenate(([h.last_stamp_ns], t)))
-        holes = steps[steps > 1.5 * period_ns]
+        """``regular``: ``t`` is a whole message's stamps, evenly ``period_ns`` apart, so a hole can
+        only open before its first sample."""
+        if regular:
+            first = int(t[0]) - h.last_stamp_ns if h.last_stamp_ns is not None else 0
+            holes = np.array([first]) if first > 1.5 * period_ns else np.zeros(0, np.int64)
+        else:
+            steps = np.diff(t) if h.last_stamp_ns is None else np.diff(np.concatenate(([h.last_stamp_ns], t)))
+            holes = steps[steps > 1.5 * period_ns]
         if holes.size:
             h.gaps += int(holes.size)
             h.missing += int(np.sum(np.rint(holes / period_ns).astype(np.int64) - 1))

@@ -177,6 +177,7 @@ def diagnostics_message(
                 ("missing", h.missing),
                 ("zero_stamps", h.zero_stamps),
                 ("wild_stamps", h.wild_stamps),
+                ("malformed", h.malformed),
                 ("gaps", h.gaps),
                 ("clock_jumps", h.clock_jumps),
             )

@@ -94,6 +94,7 @@ def dropped_notes(health: dict[str, StreamHealth], source: str) -> list[str]:
             "values outside the per-unit range": h.implausible,
             "zero stamps": h.zero_stamps,
             "wild stamps": h.wild_stamps,
+            "messages whose channel arrays differ in length": h.malformed,
         }
         for what, count in dropped.items():
             if count:

@@ -137,3 +137,28 @@ def test_the_compiled_step_is_cached_under_the_text_of_the_equations_it_compiles
     # equations of model/ and sim/effects.py, so their text is part of its cache key
     cells = [c.cell_contents for c in kernel._rk4_outputs.py_func.__closure__]
     assert kernel._sources_digest() in cells
+
+
+def test_the_compiled_validation_play_in_equals_numpy(windows, monkeypatch):
+    """The paper model's play-in (validation) compiled takes the numpy steps on the same functions:
+    equal to rounding on three parameter sets side by side (bit for bit on this machine's libm)."""
+    from phid_ros.ident import validation
+
+    sets = [replace(TABLE1, **{k: v * f for k, v in TABLE1.as_dict().items()}) for f in (0.9, 1.0, 1.15)]
+    calls: list[object] = []
+    real = kernel.paper_rk4
+
+    def counted(*args):
+        calls.append(out := real(*args))
+        return out
+
+    monkeypatch.setattr(kernel, "paper_rk4", counted)
+    compiled = validation.play_in(windows, sets)
+    monkeypatch.setenv("PHID_NO_JIT", "1")
+    reference = validation.play_in(windows, sets)
+    assert calls[0] is not None and calls[1] is None  # the second run took the numpy path
+    for a, b in zip(compiled, reference):
+        for name in ("delta", "omega", "e_q", "e_d", "p_e", "q_e", "i_d", "i_q"):
+            x, y = getattr(a, name), getattr(b, name)
+            assert x.shape == y.shape and x.shape[1] == 3
+            assert np.max(np.abs(x - y)) <= 1e-12 * max(1.0, float(np.max(np.abs(y)))), name

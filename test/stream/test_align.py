@@ -187,3 +187,26 @@ def test_a_slower_stream_is_interpolated_between_its_own_samples_and_its_holes_s
     assert np.allclose(delta[inside], 0.9 + 0.01 * COL["delta"] + 1e-3 * t[inside] / 1e9, rtol=0, atol=1e-12)
     assert np.isnan(delta[(t > t0 + 980 * MS) & (t < t0 + 1200 * MS)]).all()
     assert al.health["pmu"].gaps == 1
+
+
+def test_a_message_whose_arrays_differ_in_length_is_dropped_whole_and_counted():
+    """A block with one short array (a truncated ROS message): no value of it is placed, a
+    one-sample array is not broadcast over the block, and what came before is kept."""
+    al = Aligner()
+    feed(al, 0, 100)
+    for short in (99, 1):
+        feed(
+            al,
+            100 * MS,
+            100,
+            mutate=lambda name, a, k=short: a.__setitem__("i_q", a["i_q"][:k]) if name == "pt_ct" else None,
+        )
+    feed(al, 200 * MS, 100)
+    t, x = collect(al.pull(final=True))
+    h = al.health["pt_ct"]
+    assert h.malformed == 200 and h.dropped == 200 and h.accepted == 200 and h.messages == 4
+    hole = (t > 100 * MS) & (t < 199 * MS)
+    assert hole.sum() == 98 and np.isnan(x[hole, COL["i_q"]]).all() and np.isnan(x[hole, COL["v_t"]]).all()
+    clean = 0.9 + 0.01 * np.arange(len(CHANNELS))[None, :] + 1e-3 * t[:, None] / 1e9
+    assert np.allclose(x[t < 100 * MS], clean[t < 100 * MS], atol=1e-12)
+    assert "malformed 200" in al.status("pt_ct")[1]
