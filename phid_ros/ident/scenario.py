@@ -310,14 +310,13 @@ def scenario_from_simulation(run: Any, signals: Mapping[str, Array]) -> Scenario
 
 def _moving_step(x: Array, span: int) -> Array:
     """Mean of the next ``span`` samples minus mean of the previous ``span``, at every sample."""
-    c = np.concatenate(([0.0], np.cumsum(x)))
     n = len(x)
-    k = np.arange(n)
-    lo, hi = np.clip(k - span, 0, n), np.clip(k + span, 0, n)
-    before = (c[k] - c[lo]) / np.maximum(k - lo, 1)
-    after = (c[hi] - c[k]) / np.maximum(hi - k, 1)
-    out = after - before
-    out[(k - lo < span) | (hi - k < span)] = 0.0
+    out = np.zeros(n)  # zero where either side has fewer than ``span`` samples
+    if n >= 2 * span:
+        c = np.concatenate(([0.0], np.cumsum(x)))
+        # slices, not gathers through index arrays (the detector runs this twice per half second)
+        mid = c[span : n - span + 1]
+        out[span : n - span + 1] = (c[2 * span :] - mid) / span - (mid - c[: n - 2 * span + 1]) / span
     return out
 
 
@@ -338,9 +337,10 @@ def find_events(
     n = len(v)
     span_pf = max(1, int(round(1.0 / dt)))
     c = np.concatenate(([0.0], np.cumsum(v)))
-    k = np.arange(n)
-    lo = np.clip(k - span_pf, 0, n)
-    v_pf = (c[k] - c[lo]) / np.maximum(k - lo, 1)
+    v_pf = np.empty(n)  # the mean over the preceding second (fewer samples at the start)
+    head = min(span_pf, n)
+    v_pf[:head] = c[:head] / np.maximum(np.arange(head), 1)
+    v_pf[head:] = (c[head:n] - c[: n - head]) / span_pf
     v_pf[0] = v[0]
     events: list[tuple[str, int, int | None]] = []
     below = v < FAULT_VOLTAGE_RATIO * v_pf

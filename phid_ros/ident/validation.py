@@ -77,6 +77,17 @@ def staged_samples(
     return out
 
 
+def prepare() -> None:
+    """Compile (or load from numba's cache) the compiled play-in now, not in the first run.
+
+    A first compile on a machine takes seconds, mostly in LLVM and holding the GIL: in the
+    recalibration node's worker it would stall the sensor callbacks of its first run. The node
+    calls this before it subscribes; elsewhere the first play-in does it.
+    """
+    one = np.ones((3, 1))
+    kernel.paper_rk4(np.zeros((4, 1)), (one, one, one, one), Coefficients.of([GeneratorParameters()]), 1, 1e-3)
+
+
 @dataclass
 class Trajectories:
     t: Array

@@ -350,7 +350,7 @@ def paper_rk4(x0: Array, staged: tuple[Array, Array, Array, Array], coef: Any, n
     return _paper_rk4(x, v_t, theta, p_m, v_f, rows, float(coef.w_s), int(n_steps), float(h))
 
 
-@_maybe_jit_inlined
+@_maybe_jit
 def _paper_rhs_column(
     x: Array, out: Array, c: int, vt: float, th: float, pm: float, vf: float, coef: Array, ws: float
 ) -> None:
