@@ -51,6 +51,9 @@ print(json.dumps({"warm": statistics.median(times[1:])}))
 def _env(tree: Path) -> dict[str, str]:
     env = dict(os.environ)
     env["PYTHONPATH"] = str(tree)
+    # as a pip-installed package runs (pip compiles the bytecode): a sandbox that sets this made
+    # every fresh process compile all of phid_ros from source, in both trees
+    env.pop("PYTHONDONTWRITEBYTECODE", None)
     return env
 
 
