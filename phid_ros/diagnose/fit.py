@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 from scipy.optimize import least_squares
 
 from phid_ros.diagnose.candidates import Candidate, FreeParameter
-from phid_ros.diagnose.playin import OUTPUTS, PlayIn, play_in
+from phid_ros.diagnose.playin import OUTPUTS, PlayIn, play_in, residual_matrix
 from phid_ros.ident.scenario import ScenarioData
 from phid_ros.model.conventions import DEFAULT_F_NOMINAL_HZ
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME
@@ -148,14 +148,15 @@ def chi_square(
     for a in range(0, m, SCREEN_CHUNK):
         sl = slice(a, min(a + SCREEN_CHUNK, m))
         k = sl.stop - sl.start
-        runs = play_in(
+        r = residual_matrix(
             windows,
             {n: _columns(v, sl, m) for n, v in base.items()},
             [(cls, {n: _columns(v, sl, m) for n, v in values.items()}) for cls, values in effects],
-            m=k,
+            k,
+            sigma,
             f_nominal_hz=f_nominal_hz,
         )
-        out[sl] = np.sum(finite(residuals(runs, sigma)) ** 2, axis=0)
+        out[sl] = np.sum(finite(r) ** 2, axis=0)
     return out
 
 
@@ -215,13 +216,12 @@ class Problem:
                 effects[i][1][p.name] = v
         return base, effects
 
-    def simulate(self, X: Array) -> list[PlayIn]:
+    def residual_matrix(self, X: Array, out: Array | None = None) -> Array:
+        """``finite(residuals(play_in(...), sigma, out))`` of the models ``X`` (one per column),
+        without keeping their trajectories."""
         base, effects = self.columns(X)
         self.nfev += X.shape[1]
-        return play_in(self.windows, base, effects, m=X.shape[1], f_nominal_hz=self.f)
-
-    def residual_matrix(self, X: Array, out: Array | None = None) -> Array:
-        return finite(residuals(self.simulate(X), self.sigma, out))
+        return finite(residual_matrix(self.windows, base, effects, X.shape[1], self.sigma, out, self.f))
 
     def spec_at(self, x: Array) -> ModelSpec:
         base, effects = self.columns(x[:, None])

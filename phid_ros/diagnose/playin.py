@@ -62,15 +62,30 @@ class PlayIn:
     meas: dict[str, Array]
 
 
-def play_in(
+@dataclass
+class _Setup:
+    """What both play-ins (trajectories, residuals) build from the windows and the parameters."""
+
+    plant: Plant
+    x0: Array
+    inputs: tuple[Array, Array, Array, Array]  # (P_m, V_f, V_t, theta_t), as kernel.integrate reads them
+    source: NDArray[np.int64]
+    damping: Array
+    staged: Any  # channel name -> its staged array (shared per scenario, or per model where re-timed)
+    idx: list[Array]
+    steps: int
+    h: float
+    cols: int
+
+
+def _setup(
     scenarios: Sequence[ScenarioData],
     base: Mapping[str, Any],
-    effects: Sequence[tuple[type[PlantEffect], Mapping[str, Any]]] = (),
-    m: int = 1,
-    f_nominal_hz: float = DEFAULT_F_NOMINAL_HZ,
-    step: float = STEP_SECONDS,
-) -> list[PlayIn]:
-    """Simulate ``m`` models (base values and effect values scalars or length-``m`` arrays)."""
+    effects: Sequence[tuple[type[PlantEffect], Mapping[str, Any]]],
+    m: int,
+    f_nominal_hz: float,
+    step: float,
+) -> _Setup:
     n_s = len(scenarios)
     cols = n_s * m
 
@@ -82,7 +97,6 @@ def play_in(
     instances = [cls.from_arrays(**{k: per_column(v) for k, v in values.items()}) for cls, values in effects]
     plant = Plant(params, f_nominal_hz=f_nominal_hz, effects=tuple(instances))  # type: ignore[arg-type]
 
-    dt = scenarios[0].dt
     stride, h, idx, steps, half = play_in_grid(scenarios, step)
     advance: dict[str, Array] = {}
     for e in instances:
@@ -102,30 +116,99 @@ def play_in(
                 cache[name] = staged_samples(scenarios, name, m, steps, half, lag)
         return cache[name]
 
-    def shared(a: Array) -> bool:
-        return a.shape[1] != cols
-
-    def per_column(a: Array) -> Array:
-        return np.repeat(a, m, axis=1) if shared(a) else a
-
     v_t, theta, p_m, v_f = (staged(n) for n in INPUTS)
     on = np.repeat([1.0 if s.generator_damping else 0.0 for s in scenarios], m)
     damping = params.D * on
     x0 = _initial_state(plant, [staged(c) for c in ("delta", "omega", "i_d", "i_q")], v_t, theta, scenarios, stride, m)
     inputs = (p_m, v_f, v_t, theta)
-    source = np.array([np.arange(cols) // (m if shared(a) else 1) for a in inputs])  # column -> input column
-    outputs = kernel.integrate(plant, x0, steps - 1, h, inputs, source, damping, threads=spare_threads())
+    source = np.array([_source_columns(a, cols, m) for a in inputs])  # column -> input column
+    return _Setup(plant, x0, inputs, source, damping, staged, idx, steps, h, cols)
+
+
+def _source_columns(a: Array, cols: int, m: int) -> NDArray[np.int64]:
+    """For each model column, the column of the staged array ``a`` it reads (its scenario's if shared)."""
+    return np.arange(cols) // (m if a.shape[1] != cols else 1)
+
+
+def play_in(
+    scenarios: Sequence[ScenarioData],
+    base: Mapping[str, Any],
+    effects: Sequence[tuple[type[PlantEffect], Mapping[str, Any]]] = (),
+    m: int = 1,
+    f_nominal_hz: float = DEFAULT_F_NOMINAL_HZ,
+    step: float = STEP_SECONDS,
+) -> list[PlayIn]:
+    """Simulate ``m`` models (base values and effect values scalars or length-``m`` arrays)."""
+    return _trajectories(_setup(scenarios, base, effects, m, f_nominal_hz, step), scenarios, m)
+
+
+def _trajectories(st: _Setup, scenarios: Sequence[ScenarioData], m: int) -> list[PlayIn]:
+    cols = st.cols
+
+    def per_column(a: Array) -> Array:
+        return np.repeat(a, m, axis=1) if a.shape[1] != cols else a
+
+    outputs = kernel.integrate(
+        st.plant, st.x0, st.steps - 1, st.h, st.inputs, st.source, st.damping, threads=spare_threads()
+    )
     if outputs is not None:
         sim_all = dict(zip(kernel.OUTPUTS, outputs))
     else:  # numba absent or switched off, or an effect without compiled terms
-        sim_all = _numpy_outputs(plant, x0, steps, h, [per_column(a) for a in inputs], damping)
-    meas_all = {c: staged(c)[::2] for c in OUTPUTS}
+        sim_all = _numpy_outputs(st.plant, st.x0, st.steps, st.h, [per_column(a) for a in st.inputs], st.damping)
+    meas_all = {c: st.staged(c)[::2] for c in OUTPUTS}
     out = []
-    for j, (s, ii) in enumerate(zip(scenarios, idx)):
+    dt = scenarios[0].dt
+    for j, (s, ii) in enumerate(zip(scenarios, st.idx)):
         c, n = slice(j * m, (j + 1) * m), len(ii)
         meas = {k: _scenario_columns(v, j, m, cols)[:n] for k, v in meas_all.items()}
         out.append(PlayIn(s, ii * dt, {k: v[:n, c] for k, v in sim_all.items()}, meas))
     return out
+
+
+def residual_rows(scenarios: Sequence[ScenarioData], step: float = STEP_SECONDS) -> int:
+    """Rows of :func:`residual_matrix`: every output channel at every play-in step of every window."""
+    return len(OUTPUTS) * sum(len(i) for i in play_in_grid(scenarios, step)[2])
+
+
+def residual_matrix(
+    scenarios: Sequence[ScenarioData],
+    base: Mapping[str, Any],
+    effects: Sequence[tuple[type[PlantEffect], Mapping[str, Any]]],
+    m: int,
+    sigma: Mapping[str, float],
+    out: Array | None = None,
+    f_nominal_hz: float = DEFAULT_F_NOMINAL_HZ,
+    step: float = STEP_SECONDS,
+) -> Array:
+    """``fit.residuals(play_in(...), sigma, out)``: the noise-normalised residuals (rows, m).
+
+    Compiled, the play-in writes each residual into ``out`` as it computes the output
+    (``kernel.integrate_residuals``): no trajectories are kept, bit for bit the same numbers.
+    Else the trajectories are played in and subtracted.
+    """
+    from phid_ros.diagnose.fit import residuals  # the layout's one definition, and the reference
+
+    st = _setup(scenarios, base, effects, m, f_nominal_hz, step)
+    n_keep = np.array([len(i) for i in st.idx], dtype=np.int64)
+    if out is None:
+        out = np.empty((len(OUTPUTS) * int(n_keep.sum()), m))
+    meas = [st.staged(c)[::2] for c in OUTPUTS]
+    offsets = np.cumsum([0] + [a.shape[1] for a in meas])
+    layout = kernel.ResidualLayout(
+        meas=np.ascontiguousarray(np.hstack(meas)),
+        msource=np.array([o + _source_columns(a, st.cols, m) for o, a in zip(offsets, meas)], dtype=np.int64),
+        order=np.array([kernel.OUTPUTS.index(c) for c in OUTPUTS], dtype=np.int64),
+        sigma=np.array([float(sigma[c]) for c in OUTPUTS]),
+        rows_at=np.concatenate(([0], np.cumsum(len(OUTPUTS) * n_keep)[:-1])).astype(np.int64),
+        n_keep=n_keep,
+        m=m,
+    )
+    done = kernel.integrate_residuals(
+        st.plant, st.x0, st.steps - 1, st.h, st.inputs, st.source, st.damping, layout, out, threads=spare_threads()
+    )
+    if done:
+        return out
+    return residuals(_trajectories(st, scenarios, m), sigma, out)
 
 
 _STAGED: OrderedDict[tuple[Any, ...], tuple[tuple[ScenarioData, ...], Array]] = OrderedDict()

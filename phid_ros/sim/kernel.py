@@ -22,6 +22,7 @@ from __future__ import annotations
 import hashlib
 import os
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -109,14 +110,10 @@ def integrate(
     path cannot run. ``threads``: the columns split over this many threads (the compiled loop
     holds no GIL, and each column's arithmetic is the same wherever it runs).
     """
-    if not available():
+    prepared = _prepared(plant, x0, staged, damping)
+    if prepared is None:
         return None
-    terms = _terms(plant, x0.shape[1], damping)
-    if terms is None:
-        return None
-    coef, flags = terms
-    p_m, v_f, v_t, theta = (np.ascontiguousarray(a, dtype=np.float64) for a in staged)
-    cols = x0.shape[1]
+    coef, flags, (p_m, v_f, v_t, theta) = prepared
 
     def run(a: int, b: int) -> Array:
         return _rk4_outputs(
@@ -135,12 +132,111 @@ def integrate(
             float(h),
         )
 
-    parts = min(threads, cols // 2)
-    if parts <= 1:
-        return run(0, cols)
-    edges = np.linspace(0, cols, parts + 1).astype(int)
-    with ThreadPoolExecutor(parts, "phid-kernel") as pool:
+    edges = _column_split(x0.shape[1], threads)
+    if len(edges) == 2:
+        return run(0, x0.shape[1])
+    with ThreadPoolExecutor(len(edges) - 1, "phid-kernel") as pool:
         return np.concatenate(list(pool.map(run, edges[:-1], edges[1:])), axis=2)
+
+
+def integrate_residuals(
+    plant: Any,
+    x0: Array,
+    n_steps: int,
+    h: float,
+    staged: tuple[Array, Array, Array, Array],
+    source: NDArray[np.int64],
+    damping: Array,
+    residual: ResidualLayout,
+    out: Array,
+    threads: int = 1,
+) -> bool:
+    """:func:`integrate`, writing noise-normalised residuals into ``out`` instead of returning outputs.
+
+    Why: a fit reads only ``(output - measurement) / sigma`` of each channel, stacked per
+    scenario and channel (``diagnose.fit.residuals``' rows, one column per model). Written
+    there as the step computes each output, no (6, steps, columns) trajectory is stored and
+    read again, and a column stops at its scenario's end. The same operations in the same
+    order: the residuals are those of the outputs, bit for bit. False when the compiled path
+    cannot run (``out`` untouched).
+    """
+    prepared = _prepared(plant, x0, staged, damping)
+    if prepared is None:
+        return False
+    coef, flags, (p_m, v_f, v_t, theta) = prepared
+    lay = residual
+
+    def run(a: int, b: int) -> None:
+        _rk4_residuals(
+            np.ascontiguousarray(x0[:, a:b], dtype=np.float64),
+            p_m,
+            v_f,
+            v_t,
+            theta,
+            np.ascontiguousarray(source[:, a:b], dtype=np.int64),
+            np.ascontiguousarray(coef[:, a:b]),
+            flags[0],
+            flags[1],
+            flags[2],
+            float(plant.ws),
+            int(n_steps),
+            float(h),
+            lay.meas,
+            np.ascontiguousarray(lay.msource[:, a:b]),
+            lay.order,
+            lay.sigma,
+            lay.rows_at,
+            lay.n_keep,
+            int(lay.m),
+            int(a),
+            out,
+        )
+
+    edges = _column_split(x0.shape[1], threads)
+    if len(edges) == 2:
+        run(0, x0.shape[1])
+        return True
+    with ThreadPoolExecutor(len(edges) - 1, "phid-kernel") as pool:
+        list(pool.map(run, edges[:-1], edges[1:]))  # each writes its own columns of out
+    return True
+
+
+@dataclass(frozen=True)
+class ResidualLayout:
+    """Where :func:`integrate_residuals` reads each measurement and writes each residual.
+
+    ``meas`` (steps, k): measured channels at every step, side by side; ``msource[q, c]``: the
+    column of ``meas`` that residual channel q of model column c is compared with; ``order[q]``:
+    the OUTPUTS row of residual channel q; ``sigma[q]`` its noise; per scenario j its first
+    row ``rows_at[j]`` and its steps ``n_keep[j]``; ``m`` models per scenario.
+    """
+
+    meas: Array
+    msource: NDArray[np.int64]
+    order: NDArray[np.int64]
+    sigma: Array
+    rows_at: NDArray[np.int64]
+    n_keep: NDArray[np.int64]
+    m: int
+
+
+def _prepared(
+    plant: Any, x0: Array, staged: tuple[Array, Array, Array, Array], damping: Array
+) -> tuple[Array, tuple[int, int, int], tuple[Array, ...]] | None:
+    """The coefficient matrix, the flags and contiguous inputs, or None where the compiled path cannot run."""
+    if not available():
+        return None
+    terms = _terms(plant, x0.shape[1], damping)
+    if terms is None:
+        return None
+    coef, flags = terms
+    return coef, flags, tuple(np.ascontiguousarray(a, dtype=np.float64) for a in staged)
+
+
+def _column_split(cols: int, threads: int) -> NDArray[np.int64]:
+    """Edges of the column ranges the threads take (two edges: one range, no thread)."""
+    parts = max(1, min(threads, cols // 2))
+    return np.linspace(0, cols, parts + 1).astype(int)
 
 
 def _terms(plant: Any, cols: int, damping: Array) -> tuple[Array, tuple[int, int, int]] | None:
@@ -255,6 +351,58 @@ def _sources_digest() -> str:
     return digest.hexdigest()
 
 
+@_maybe_jit_inlined
+def _column_step(
+    xall: Array,
+    c: int,
+    k: int,
+    last: bool,
+    p_m: Array,
+    v_f: Array,
+    v_t: Array,
+    theta: Array,
+    source: NDArray[np.int64],
+    coef: Array,
+    sat: int,
+    sub_at: int,
+    tor_at: int,
+    ws: float,
+    h: float,
+    work: Array,
+    res: Array,
+) -> None:
+    """One RK4 step of column ``c`` from step ``k``: its OUTPUTS at x_k into ``res``, x_{k+1} into
+    ``xall`` (not after the ``last`` step). ``work`` holds six state vectors (x, a stage, k1-k4)."""
+    n_states = xall.shape[0]
+    x, xs, k1, k2, k3, k4 = work[0], work[1], work[2], work[3], work[4], work[5]
+    a, b, e = 2 * k, 2 * k + 1, 2 * k + 2
+    pm, vf, vt, th = source[0, c], source[1, c], source[2, c], source[3, c]
+    for i in range(n_states):
+        x[i] = xall[i, c]
+    i_d, i_q, v_d, v_q = _rhs_column(
+        x, k1, c, p_m[a, pm], v_f[a, vf], v_t[a, vt], theta[a, th], coef, sat, sub_at, tor_at, ws
+    )
+    res[0] = x[0]
+    res[1] = x[1]
+    res[2] = i_d
+    res[3] = i_q
+    res[4], res[5] = _powers(v_d, v_q, i_d, i_q)  # P_e (13) and Q_e
+    if last:
+        return
+    h2, h6 = 0.5 * h, h / 6.0
+    for i in range(n_states):
+        xs[i] = x[i] + h2 * k1[i]
+    _rhs_column(xs, k2, c, p_m[b, pm], v_f[b, vf], v_t[b, vt], theta[b, th], coef, sat, sub_at, tor_at, ws)
+    for i in range(n_states):
+        xs[i] = x[i] + h2 * k2[i]
+    _rhs_column(xs, k3, c, p_m[b, pm], v_f[b, vf], v_t[b, vt], theta[b, th], coef, sat, sub_at, tor_at, ws)
+    for i in range(n_states):
+        xs[i] = x[i] + h * k3[i]
+    _rhs_column(xs, k4, c, p_m[e, pm], v_f[e, vf], v_t[e, vt], theta[e, th], coef, sat, sub_at, tor_at, ws)
+    for i in range(n_states):
+        xall[i, c] = x[i] + h6 * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i])
+
+
 def _compiled_step(sources: str) -> Any:
     """The compiled RK4 play-in, keyed in numba's cache to ``sources`` as well as to this file.
 
@@ -287,43 +435,71 @@ def _compiled_step(sources: str) -> Any:
         n_states, cols = x0.shape
         out = np.empty((6, n_steps + 1, cols))
         xall = x0.copy()
-        h2, h6 = 0.5 * h, h / 6.0
-        x = np.empty(n_states)
-        xs = np.empty(n_states)
-        k1, k2, k3, k4 = np.empty(n_states), np.empty(n_states), np.empty(n_states), np.empty(n_states)
+        work = np.empty((6, n_states))
+        res = np.empty(6)
         for k in range(n_steps + 1):
-            a, b, e = 2 * k, 2 * k + 1, 2 * k + 2
             for c in range(cols):
-                pm, vf, vt, th = source[0, c], source[1, c], source[2, c], source[3, c]
-                for i in range(n_states):
-                    x[i] = xall[i, c]
-                i_d, i_q, v_d, v_q = _rhs_column(
-                    x, k1, c, p_m[a, pm], v_f[a, vf], v_t[a, vt], theta[a, th], coef, sat, sub_at, tor_at, ws
+                _column_step(
+                    xall, c, k, k == n_steps, p_m, v_f, v_t, theta, source, coef, sat, sub_at, tor_at, ws, h, work, res
                 )
-                out[0, k, c] = x[0]
-                out[1, k, c] = x[1]
-                out[2, k, c] = i_d
-                out[3, k, c] = i_q
-                out[4, k, c], out[5, k, c] = _powers(v_d, v_q, i_d, i_q)  # P_e (13) and Q_e
-                if k == n_steps:
-                    continue
-                for i in range(n_states):
-                    xs[i] = x[i] + h2 * k1[i]
-                _rhs_column(xs, k2, c, p_m[b, pm], v_f[b, vf], v_t[b, vt], theta[b, th], coef, sat, sub_at, tor_at, ws)
-                for i in range(n_states):
-                    xs[i] = x[i] + h2 * k2[i]
-                _rhs_column(xs, k3, c, p_m[b, pm], v_f[b, vf], v_t[b, vt], theta[b, th], coef, sat, sub_at, tor_at, ws)
-                for i in range(n_states):
-                    xs[i] = x[i] + h * k3[i]
-                _rhs_column(xs, k4, c, p_m[e, pm], v_f[e, vf], v_t[e, vt], theta[e, th], coef, sat, sub_at, tor_at, ws)
-                for i in range(n_states):
-                    xall[i, c] = x[i] + h6 * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i])
+                for q in range(6):
+                    out[q, k, c] = res[q]
         return out
 
-    return rk4_outputs
+    @_maybe_jit
+    def rk4_residuals(
+        x0: Array,
+        p_m: Array,
+        v_f: Array,
+        v_t: Array,
+        theta: Array,
+        source: NDArray[np.int64],
+        coef: Array,
+        sat: int,
+        sub_at: int,
+        tor_at: int,
+        ws: float,
+        n_steps: int,
+        h: float,
+        meas: Array,
+        msource: NDArray[np.int64],
+        order: NDArray[np.int64],
+        sigma: Array,
+        rows_at: NDArray[np.int64],
+        n_keep: NDArray[np.int64],
+        m: int,
+        c0: int,
+        out: Array,
+    ) -> None:
+        """rk4_outputs, with each output's noise-normalised residual written where the fit reads it.
+
+        Column ``c`` (``c0 + c`` overall) is model ``(c0 + c) % m`` of scenario ``j = (c0 + c) // m``;
+        its residual of channel ``order[q]`` at step k goes to row ``rows_at[j] + q n_keep[j] + k``
+        of ``out`` (``fit.residuals``' layout), for k below ``n_keep[j]``, where the column stops.
+        """
+        _ = sources
+        n_states, cols = x0.shape
+        xall = x0.copy()
+        work = np.empty((6, n_states))
+        res = np.empty(6)
+        for k in range(n_steps + 1):
+            for c in range(cols):
+                j = (c0 + c) // m
+                n = n_keep[j]
+                if k >= n:
+                    continue  # past this scenario's end: no output of it is read, so no step taken
+                _column_step(
+                    xall, c, k, k == n - 1, p_m, v_f, v_t, theta, source, coef, sat, sub_at, tor_at, ws, h, work, res
+                )
+                i = (c0 + c) % m
+                row = rows_at[j] + k
+                for q in range(6):
+                    out[row + q * n, i] = (res[order[q]] - meas[k, msource[q, c]]) / sigma[q]
+
+    return rk4_outputs, rk4_residuals
 
 
-_rk4_outputs = _compiled_step(_sources_digest())
+_rk4_outputs, _rk4_residuals = _compiled_step(_sources_digest())
 
 
 # rows of the paper model's coefficient matrix (the validation play-in: no effects, no resistance)

@@ -162,3 +162,28 @@ def test_the_compiled_validation_play_in_equals_numpy(windows, monkeypatch):
             x, y = getattr(a, name), getattr(b, name)
             assert x.shape == y.shape and x.shape[1] == 3
             assert np.max(np.abs(x - y)) <= 1e-12 * max(1.0, float(np.max(np.abs(y)))), name
+
+
+@pytest.mark.parametrize("names", COMBINATIONS, ids=lambda n: "+".join(n) or "base")
+def test_residuals_written_by_the_kernel_equal_the_trajectories_subtracted(windows, names, monkeypatch):
+    """A fit's residual matrix, written by the compiled step as it computes each output, is the
+    trajectories' (output - measurement) / sigma bit for bit, in fit.residuals' layout, also
+    with the columns split over threads and written into a column slice of a wider array."""
+    from phid_ros.diagnose import playin
+    from phid_ros.diagnose.fit import residuals
+    from phid_ros.diagnose.playin import residual_matrix
+
+    # windows of unequal length: a column stops at its own window's end
+    wins = [windows[0].rows(0, windows[0].n - 700), *windows[1:]]
+    base = {k: spread(v, 0.1) for k, v in TABLE1.as_dict().items()}
+    effects = [(REGISTRY[ALIASES.get(n, n)], VALUES[n]()) for n in names]
+    sigma = {c: 0.01 * (i + 1) for i, c in enumerate(OUTPUTS)}
+    want = residuals(play_in(wins, base, effects, m=M), sigma)
+    for threads in (1, 3):
+        monkeypatch.setattr(playin, "spare_threads", lambda t=threads: t)
+        wide = np.full((want.shape[0], M + 1), -7.0)
+        got = residual_matrix(wins, base, effects, M, sigma, out=wide[:, 1:])
+        np.testing.assert_array_equal(got, want)
+        np.testing.assert_array_equal(wide[:, 1:], want)
+        assert (wide[:, 0] == -7.0).all()
+    assert playin.residual_rows(wins) == want.shape[0]
