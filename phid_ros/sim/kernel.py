@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -110,33 +111,11 @@ def integrate(
     path cannot run. ``threads``: the columns split over this many threads (the compiled loop
     holds no GIL, and each column's arithmetic is the same wherever it runs).
     """
-    prepared = _prepared(plant, x0, staged, damping)
-    if prepared is None:
+    args = _column_args(plant, x0, n_steps, h, staged, source, damping)
+    if args is None:
         return None
-    coef, flags, (p_m, v_f, v_t, theta) = prepared
-
-    def run(a: int, b: int) -> Array:
-        return _rk4_outputs(
-            np.ascontiguousarray(x0[:, a:b], dtype=np.float64),
-            p_m,
-            v_f,
-            v_t,
-            theta,
-            np.ascontiguousarray(source[:, a:b], dtype=np.int64),
-            np.ascontiguousarray(coef[:, a:b]),
-            flags[0],
-            flags[1],
-            flags[2],
-            float(plant.ws),
-            int(n_steps),
-            float(h),
-        )
-
-    edges = _column_split(x0.shape[1], threads)
-    if len(edges) == 2:
-        return run(0, x0.shape[1])
-    with ThreadPoolExecutor(len(edges) - 1, "phid-kernel") as pool:
-        return np.concatenate(list(pool.map(run, edges[:-1], edges[1:])), axis=2)
+    parts = _over_columns(lambda a, b: _rk4_outputs(*args(a, b)), x0.shape[1], threads)
+    return parts[0] if len(parts) == 1 else np.concatenate(parts, axis=2)
 
 
 def integrate_residuals(
@@ -160,27 +139,14 @@ def integrate_residuals(
     order: the residuals are those of the outputs, bit for bit. False when the compiled path
     cannot run (``out`` untouched).
     """
-    prepared = _prepared(plant, x0, staged, damping)
-    if prepared is None:
+    args = _column_args(plant, x0, n_steps, h, staged, source, damping)
+    if args is None:
         return False
-    coef, flags, (p_m, v_f, v_t, theta) = prepared
     lay = residual
 
-    def run(a: int, b: int) -> None:
+    def run(a: int, b: int) -> None:  # each range writes its own columns of out
         _rk4_residuals(
-            np.ascontiguousarray(x0[:, a:b], dtype=np.float64),
-            p_m,
-            v_f,
-            v_t,
-            theta,
-            np.ascontiguousarray(source[:, a:b], dtype=np.int64),
-            np.ascontiguousarray(coef[:, a:b]),
-            flags[0],
-            flags[1],
-            flags[2],
-            float(plant.ws),
-            int(n_steps),
-            float(h),
+            *args(a, b),
             lay.meas,
             np.ascontiguousarray(lay.msource[:, a:b]),
             lay.order,
@@ -192,12 +158,7 @@ def integrate_residuals(
             out,
         )
 
-    edges = _column_split(x0.shape[1], threads)
-    if len(edges) == 2:
-        run(0, x0.shape[1])
-        return True
-    with ThreadPoolExecutor(len(edges) - 1, "phid-kernel") as pool:
-        list(pool.map(run, edges[:-1], edges[1:]))  # each writes its own columns of out
+    _over_columns(run, x0.shape[1], threads)
     return True
 
 
@@ -220,23 +181,54 @@ class ResidualLayout:
     m: int
 
 
-def _prepared(
-    plant: Any, x0: Array, staged: tuple[Array, Array, Array, Array], damping: Array
-) -> tuple[Array, tuple[int, int, int], tuple[Array, ...]] | None:
-    """The coefficient matrix, the flags and contiguous inputs, or None where the compiled path cannot run."""
+def _column_args(
+    plant: Any,
+    x0: Array,
+    n_steps: int,
+    h: float,
+    staged: tuple[Array, Array, Array, Array],
+    source: NDArray[np.int64],
+    damping: Array,
+) -> Callable[[int, int], tuple[Any, ...]] | None:
+    """The compiled loops' common arguments for the model columns a:b, or None where the
+    compiled path cannot run (numba absent or switched off, an effect without compiled terms)."""
     if not available():
         return None
     terms = _terms(plant, x0.shape[1], damping)
     if terms is None:
         return None
     coef, flags = terms
-    return coef, flags, tuple(np.ascontiguousarray(a, dtype=np.float64) for a in staged)
+    p_m, v_f, v_t, theta = (np.ascontiguousarray(a, dtype=np.float64) for a in staged)
+
+    def args(a: int, b: int) -> tuple[Any, ...]:
+        return (
+            np.ascontiguousarray(x0[:, a:b], dtype=np.float64),
+            p_m,
+            v_f,
+            v_t,
+            theta,
+            np.ascontiguousarray(source[:, a:b], dtype=np.int64),
+            np.ascontiguousarray(coef[:, a:b]),
+            flags[0],
+            flags[1],
+            flags[2],
+            float(plant.ws),
+            int(n_steps),
+            float(h),
+        )
+
+    return args
 
 
-def _column_split(cols: int, threads: int) -> NDArray[np.int64]:
-    """Edges of the column ranges the threads take (two edges: one range, no thread)."""
+def _over_columns(run: Callable[[int, int], Any], cols: int, threads: int) -> list[Any]:
+    """``run`` over column ranges, on up to ``threads`` threads (the compiled loops hold no GIL, and a
+    column's arithmetic is the same wherever it runs); its results in column order."""
     parts = max(1, min(threads, cols // 2))
-    return np.linspace(0, cols, parts + 1).astype(int)
+    if parts == 1:
+        return [run(0, cols)]
+    edges = np.linspace(0, cols, parts + 1).astype(int)
+    with ThreadPoolExecutor(parts, "phid-kernel") as pool:
+        return list(pool.map(run, edges[:-1], edges[1:]))
 
 
 def _terms(plant: Any, cols: int, damping: Array) -> tuple[Array, tuple[int, int, int]] | None:
