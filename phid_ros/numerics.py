@@ -34,7 +34,7 @@ def first_order_response(u: Array, tau: float, dt: float, axis: int = -1) -> Arr
     b1 = 1.0 - a - b0
     u = np.moveaxis(np.asarray(u, dtype=float), axis, 0)
     v = b1 * u
-    v[1:] += (b0 * u)[:-1]  # not b0 * u[:-1]: a product of the view is laid out apart from u, 20x slower
+    v[1:] += b0 * u[:-1]
     v[:1] = 0.0  # x(0) = 0: the recursion starts from rest (no free decay of a first value to remove)
     return np.moveaxis(recursive_first_order(v, a, axis=0), 0, axis)
 
@@ -91,9 +91,9 @@ def _lowpass2_from_rest(x: Array, fc: float, dt: float, derivative: bool, axis: 
     b, a = lowpass2_coefficients(fc, dt, derivative)
     x = np.moveaxis(np.asarray(x, dtype=float), axis, 0)
     v = b[0] * x
-    v[1:] += (b[1] * x)[:-1]  # products of x, not of its shifted views (see first_order_response)
+    v[1:] += b[1] * x[:-1]
     if b[2]:
-        v[2:] += (b[2] * x)[:-2]
+        v[2:] += b[2] * x[:-2]
     return np.moveaxis(all_pole(v, (float(a[1]), float(a[2])), axis=0), 0, axis)
 
 
