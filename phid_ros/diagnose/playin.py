@@ -15,6 +15,7 @@ finite-difference Jacobian or a screening grid costs one vectorised run.
 from __future__ import annotations
 
 import threading
+import weakref
 from collections import OrderedDict
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -284,11 +285,41 @@ def _initial_state(
         c = slice(j * m, (j + 1) * m)
         # means over materialised (rows, m) blocks: numpy sums a broadcast column in another order
         for i, a in enumerate(pre):
-            mean[i, c] = np.mean(np.array(_scenario_columns(a[:rows], j, m, cols)), axis=0)
-        vt0[c] = np.mean(np.array(_scenario_columns(v_t[:rows], j, m, cols)), axis=0)
-        th0[c] = np.mean(np.array(_scenario_columns(theta[:rows], j, m, cols)), axis=0)
+            mean[i, c] = _pre_event_mean(a, j, m, cols, rows)
+        vt0[c] = _pre_event_mean(v_t, j, m, cols, rows)
+        th0[c] = _pre_event_mean(theta, j, m, cols, rows)
     delta, omega, i_d, i_q = mean
     v_d, v_q = terminal_to_dq(vt0, delta, th0)
     ctx = plant.rest_context(delta, omega, i_d, i_q, v_d, v_q)
     extra = [np.broadcast_to(v, (cols,)) for v in plant.rest_states(ctx)]
     return np.vstack([delta, omega, ctx.e_q, ctx.e_d, *extra])
+
+
+_MEANS: OrderedDict[tuple[int, int, int, int], tuple[weakref.ref[Array], Array]] = OrderedDict()
+_MEANS_ENTRIES = 2048  # (channel, window, models, rows): a fit's few hundred evaluations reuse a few dozen
+
+
+def _pre_event_mean(a: Array, j: int, m: int, cols: int, rows: int) -> Array:
+    """Scenario j's models' means of a staged channel over its first ``rows`` rows.
+
+    Means over materialised (rows, m) blocks: numpy sums a broadcast column in another order.
+    A channel no effect re-times is one cached read-only array, the same at every evaluation of a
+    fit, and so are these means: they are kept (beside a weak reference to the array, so an id
+    reused by another array is never mistaken for it) instead of being worked out again at every
+    evaluation (a second of a diagnosis's CPU time).
+    """
+    if a.shape[1] == cols:  # re-timed per model: this evaluation's own values
+        return np.mean(np.array(_scenario_columns(a[:rows], j, m, cols)), axis=0)
+    key = (id(a), j, m, rows)
+    with _STAGED_LOCK:
+        hit = _MEANS.get(key)
+        if hit is not None and hit[0]() is a:
+            _MEANS.move_to_end(key)
+            return hit[1]
+    value = np.mean(np.array(_scenario_columns(a[:rows], j, m, cols)), axis=0)
+    value.setflags(write=False)
+    with _STAGED_LOCK:
+        _MEANS[key] = (weakref.ref(a), value)
+        while len(_MEANS) > _MEANS_ENTRIES:
+            _MEANS.popitem(last=False)
+    return value
