@@ -166,11 +166,6 @@ def _trajectories(st: _Setup, scenarios: Sequence[ScenarioData], m: int) -> list
     return out
 
 
-def residual_rows(scenarios: Sequence[ScenarioData], step: float = STEP_SECONDS) -> int:
-    """Rows of :func:`residual_matrix`: every output channel at every play-in step of every window."""
-    return len(OUTPUTS) * sum(len(i) for i in play_in_grid(scenarios, step)[2])
-
-
 def residual_matrix(
     scenarios: Sequence[ScenarioData],
     base: Mapping[str, Any],

@@ -186,4 +186,3 @@ def test_residuals_written_by_the_kernel_equal_the_trajectories_subtracted(windo
         np.testing.assert_array_equal(got, want)
         np.testing.assert_array_equal(wide[:, 1:], want)
         assert (wide[:, 0] == -7.0).all()
-    assert playin.residual_rows(wins) == want.shape[0]
