@@ -47,19 +47,24 @@ def recursive_first_order(x: Array, a: float, axis: int = -1) -> Array:
 def all_pole(x: Array, a: tuple[float, ...], axis: int = -1) -> Array:
     """``y[n] = x[n] - a_1 y[n-1] - ... - a_k y[n-k]`` from rest: lfilter([1], [1, *a], x).
 
-    Solved as the unit lower-triangular banded system it is, by LAPACK's banded triangular
-    solve (forward substitution, all columns at once, no factorisation): the same steps as the
-    recursion, at lfilter's speed.
+    The recursion compiled (:func:`phid_ros.sim.kernel.all_pole`) where numba is; else solved as
+    the unit lower-triangular banded system it is, by LAPACK's banded triangular solve (forward
+    substitution, all columns at once, no factorisation): the same steps, at lfilter's speed.
     """
     x = np.moveaxis(np.asarray(x, dtype=float), axis, 0)
     n = x.shape[0]
     if n == 0:
         return np.moveaxis(x.copy(), 0, axis)
+    rhs = x if x.ndim == 2 else x.reshape(n, -1)  # 2-D: a column-major view, no copy for axis=1 input
+    from phid_ros.sim import kernel  # here: the kernel's modules import this one
+
+    y = kernel.all_pole(rhs, a)
+    if y is not None:
+        return np.moveaxis(y.reshape(x.shape), 0, axis)
     band = np.empty((len(a) + 1, n), order="F")  # LAPACK's layout: no copy on the way in
     band[0] = 1.0  # the unit diagonal (diag="U": not read)
     for i, ai in enumerate(a, start=1):
         band[i] = ai
-    rhs = x if x.ndim == 2 else x.reshape(n, -1)  # 2-D: a column-major view, no copy for axis=1 input
     y, info = dtbtrs(band, rhs, uplo="L", diag="U")
     if info != 0:
         raise ValueError(f"banded triangular solve failed (LAPACK info {info})")

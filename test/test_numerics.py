@@ -29,8 +29,11 @@ def close(got, want):
     np.testing.assert_allclose(got, want, rtol=1e-8, atol=1e-9 * scale)
 
 
+@pytest.mark.parametrize("compiled", [True, False])
 @pytest.mark.parametrize("shape, axis", [((5000,), -1), ((3, 4000), 1), ((4000, 3), 0)])
-def test_filters_equal_scipy_lfilter(shape, axis):
+def test_filters_equal_scipy_lfilter(shape, axis, compiled, monkeypatch):
+    if not compiled:
+        monkeypatch.setenv("PHID_NO_JIT", "1")  # LAPACK's banded triangular solve
     from scipy.signal import lfilter, lfilter_zi
 
     from phid_ros.numerics import first_order_response, lowpass2, lowpass2_derivative, recursive_first_order
@@ -76,3 +79,20 @@ def test_find_peaks_equals_scipy(seed):
     for distance in (1, 2, 7, 100):
         want, _ = scipy_find_peaks(x, distance=distance)
         np.testing.assert_array_equal(find_peaks(x, distance=distance), want)
+
+
+@pytest.mark.parametrize("a", [(-0.999,), (-1.9, 0.905), (-0.5, 0.1, -0.01)])
+@pytest.mark.parametrize("shape, axis", [((3000,), -1), ((3000, 5), 0), ((4, 3000), 1), ((2, 3000, 3), 1)])
+def test_compiled_recursion_equals_the_banded_solve(a, shape, axis, monkeypatch):
+    from phid_ros.numerics import all_pole
+    from phid_ros.sim import kernel
+
+    if not kernel.available():
+        pytest.skip("numba is not installed")
+    x = RNG.standard_normal(shape)
+    got = all_pole(x, a, axis=axis)
+    monkeypatch.setenv("PHID_NO_JIT", "1")
+    want = all_pole(x, a, axis=axis)
+    assert got.shape == want.shape == x.shape
+    # the same sums in the same order; OpenBLAS may fuse a multiply-add where the loop does not
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-12 * float(np.max(np.abs(want))))
