@@ -12,6 +12,7 @@ fall back to the ``mcap``/``rosbags`` readers, which stay the reference.
 from __future__ import annotations
 
 import struct
+from collections import deque
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -128,6 +129,36 @@ def _chunk_messages(
     return out
 
 
+LOOKAHEAD = 4  # chunks decompressed ahead of the walk (about 1 MB each in our bags)
+
+
+def _top_records(buf: bytes, pos: int, end: int) -> Iterator[tuple[int, int, int]]:
+    """(opcode, body start, next record) of the file's top-level records, in order."""
+    while pos < end:
+        if pos + 9 > end:
+            raise _CutTail("truncated record header")
+        op, length = _REC.unpack_from(buf, pos)
+        body = pos + 9
+        nxt = body + length
+        if nxt > end:
+            raise _CutTail("record runs past the end (truncated file)")
+        yield op, body, nxt
+        if op == OP_DATA_END:
+            return
+        pos = nxt
+
+
+def _chunk_body(buf: bytes, body: int, nxt: int) -> tuple[str, bytes, int]:
+    """A Chunk record's compression, compressed bytes and uncompressed size."""
+    _, _, usize, _ = struct.unpack_from("<QQQI", buf, body)
+    kind, p = _string(buf, body + 28)
+    (clen,) = _U64.unpack_from(buf, p)
+    p += 8
+    if p + clen > nxt:
+        raise McapFormatError("chunk runs past its record")
+    return kind, buf[p : p + clen], usize
+
+
 def iter_messages(path: str | Path, status: WalkStatus | None = None) -> Iterator[tuple[str, str, str, memoryview]]:
     data = Path(path).read_bytes()
     st = status if status is not None else WalkStatus()
@@ -138,36 +169,67 @@ def iter_messages(path: str | Path, status: WalkStatus | None = None) -> Iterato
     channels: dict[int, tuple[str, int, str]] = {}
 
     def walk(buf: bytes, pos: int, end: int) -> Iterator[tuple[str, str, str, memoryview]]:
-        """The file's top-level records; a chunk's messages come from :func:`_chunk_messages`."""
-        while pos < end:
-            if pos + 9 > end:
-                raise _CutTail("truncated record header")
-            op, length = _REC.unpack_from(buf, pos)
-            body = pos + 9
-            nxt = body + length
-            if nxt > end:
-                raise _CutTail("record runs past the end (truncated file)")
-            if op == OP_CHUNK:
-                _, _, usize, _ = struct.unpack_from("<QQQI", buf, body)
-                kind, p = _string(buf, body + 28)
-                (clen,) = _U64.unpack_from(buf, p)
-                p += 8
-                if p + clen > nxt:
-                    raise McapFormatError("chunk runs past its record")
-                raw = _decompress(kind, bytes(buf[p : p + clen]), usize)
-                if len(raw) != usize:
-                    raise McapFormatError("chunk decompressed to the wrong size")
-                yield from _chunk_messages(raw, schemas, channels)
-            elif op == OP_MESSAGE:
-                yield from _chunk_messages(buf[pos:nxt], schemas, channels)  # a message outside any chunk
-            elif op in (OP_SCHEMA, OP_CHANNEL):
-                _register(op, buf, body, schemas, channels)
-            elif op == OP_DATA_END:
-                st.complete = True
+        """The file's top-level records in order; a chunk's messages come from :func:`_chunk_messages`.
+
+        The next chunks are decompressed on two threads while this one's messages are walked
+        (zstd releases the GIL): decompression was 61 of the 81 ms of walking the catalogue bag,
+        and the walk now takes 47-58 ms (reading the bag whole: 133 -> 118-130 ms). A record's error
+        met while looking ahead is raised only when the walk reaches it, after every message
+        before it, as a walk without lookahead would.
+        """
+        from concurrent.futures import Future, ThreadPoolExecutor
+
+        records = _top_records(buf, pos, end)
+        ahead: deque[tuple[int, int, int, Future[bytes] | None] | BaseException] = deque()
+        pool = ThreadPoolExecutor(2, thread_name_prefix="mcap-chunks")
+        in_flight = 0  # chunks in ``ahead``: between two lie their message indexes, a record a channel
+
+        def fill() -> None:
+            nonlocal in_flight
+            while in_flight < LOOKAHEAD and not (ahead and isinstance(ahead[-1], BaseException)):
+                try:
+                    op, body, nxt = next(records)
+                    job = None
+                    if op == OP_CHUNK:
+                        kind, packed, usize = _chunk_body(buf, body, nxt)
+                        job = pool.submit(_decompress, kind, packed, usize)
+                        in_flight += 1
+                except StopIteration:
+                    return
+                except Exception as exc:  # noqa: BLE001 (raised in order, below)
+                    ahead.append(exc)
+                    return
+                ahead.append((op, body, nxt, job))
+
+        try:
+            fill()
+            while ahead:
+                entry = ahead.popleft()
+                if isinstance(entry, BaseException):
+                    raise entry
+                op, body, nxt, job = entry
+                if job is not None:
+                    in_flight -= 1
+                    raw = job.result()
+                    fill()  # the next chunk decompresses while this one is walked
+                    if len(raw) != _U64.unpack_from(buf, body + 16)[0]:
+                        raise McapFormatError("chunk decompressed to the wrong size")
+                    yield from _chunk_messages(raw, schemas, channels)
+                elif op == OP_MESSAGE:
+                    yield from _chunk_messages(buf[body - 9 : nxt], schemas, channels)  # a message outside any chunk
+                elif op in (OP_SCHEMA, OP_CHANNEL):
+                    _register(op, buf, body, schemas, channels)
+                elif op == OP_DATA_END:
+                    st.complete = True
+                    st.read_to = nxt
+                    return
                 st.read_to = nxt
-                return
-            pos = nxt
-            st.read_to = pos
+                fill()
+        finally:
+            for entry in ahead:
+                if not isinstance(entry, BaseException) and entry[3] is not None:
+                    entry[3].cancel()
+            pool.shutdown(wait=True)
 
     try:
         if len(data) > len(MAGIC):
