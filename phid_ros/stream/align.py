@@ -28,7 +28,7 @@ stays bounded.
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -199,6 +199,17 @@ class _Held:
     period_ns: int
 
 
+@dataclass(frozen=True)
+class Run:
+    """Consecutive messages of one stream, each starting one period after the one before."""
+
+    stream: str
+    t0_ns: int
+    period_ns: int
+    x: NDArray[np.float64]  # (samples, the stream's channels), column-major as :meth:`Aligner.ingest` builds it
+    lengths: tuple[int, ...]  # samples of each message, in order
+
+
 RECENT_STAMPS = 20_000  # accepted stamps remembered per stream to tell a duplicate from a late sample
 
 
@@ -322,6 +333,49 @@ class Aligner:
             self._confirm_jump(stream, _Held(t, x, int(period_ns)))
             return
         self._check_and_accept(stream, h, t, x, int(period_ns))
+
+    def take_runs(self, runs: Sequence[Run]) -> bool:
+        """Several streams' runs of messages at once, exactly as :meth:`ingest` would take them
+        one message at a time in any interleaving; False, with nothing taken, when that cannot
+        be promised (the caller then feeds the messages one by one).
+
+        Promised when every run would take :meth:`ingest`'s common path message by message:
+        a stream with an accepted stamp, no held block, the run starting one period after that
+        stamp, every sample within its plausible range. Then no message of the runs can hold,
+        jump, start a segment or leave a hole, so the order of streams does not matter, and the
+        counters, the rate blocks, the recent stamps and the pending samples come out the same.
+        Why: a replay fed 26 400 messages one by one, about 20 us each in the aligner.
+        """
+        for r in runs:
+            h = self.health[r.stream]
+            if (
+                not 0 < r.period_ns <= self.hold_ahead_ns
+                or self._held[r.stream] is not None
+                or h.last_stamp_ns is None
+                or r.t0_ns != h.last_stamp_ns + r.period_ns
+                or len(r.x) != sum(r.lengths)
+            ):
+                return False
+            lo, hi = self._limits[r.stream]
+            if not ((r.x >= lo).all() and (r.x <= hi).all()):  # NaN compares False: refused too
+                return False
+        for r in runs:
+            h = self.health[r.stream]
+            n = len(r.x)
+            h.messages += len(r.lengths)
+            h.samples += n
+            t = r.t0_ns + np.arange(n, dtype=np.int64) * r.period_ns
+            self._max_stamp = max(self._max_stamp, int(t[-1]))
+            h.accepted += n
+            h.last_stamp_ns = int(t[-1])
+            end = r.t0_ns - r.period_ns
+            for k in r.lengths:  # the rate is judged over the last messages, not the last runs
+                end += k * r.period_ns
+                h.note_block(end, k)
+            self._recent_t[r.stream].add(t)
+            self._pending[r.stream].add(t, r.x)
+            self._pending[r.stream].period_ns = r.period_ns
+        return True
 
     def _confirm_jump(self, stream: str, held: _Held) -> None:
         h = self.health[stream]

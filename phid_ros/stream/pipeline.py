@@ -7,6 +7,7 @@ ROS nodes and ``phid replay`` call exactly these methods; neither owns logic.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -16,7 +17,7 @@ from phid_ros.io.recording import ScenarioInfo
 from phid_ros.model.channels import CHANNELS
 from phid_ros.model.conventions import NS
 from phid_ros.model.parameters import GeneratorParameters
-from phid_ros.stream.align import Aligner, StreamHealth
+from phid_ros.stream.align import Aligner, Run, StreamHealth
 from phid_ros.stream.detector import Detector, DetectorSettings, Event, EventWindow
 from phid_ros.stream.energy import EnergySamples, energy
 from phid_ros.stream.recalibration import RecalibrationOutcome, RecalibrationPolicy, Recalibrator
@@ -136,6 +137,14 @@ class MonitorPipeline:
             h.zero_stamps += n
             return
         self.ingest(stream, t0_ns, period_ns, arrays, receive_ns)
+
+    def ingest_runs(self, runs: Sequence[Run]) -> bool:
+        """Runs of messages as :meth:`ingest_message` would take them one by one, or False and
+        nothing taken (see :meth:`Aligner.take_runs`)."""
+        if not self.aligner.take_runs(runs):
+            return False
+        self.samples_in += sum(r.x.size for r in runs)
+        return True
 
     def add_marker(self, marker: ScenarioInfo) -> None:
         self.markers.append(marker)

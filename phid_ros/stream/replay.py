@@ -12,12 +12,14 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 
+import numpy as np
+
 from phid_ros.ident.scenario import DEFAULT_THRESHOLDS, StepThresholds
 from phid_ros.io.recording import DEFAULT_BLOCK_SIZE, Recording, block_bounds
 from phid_ros.io.topics import STREAMS_BY_NAME
 from phid_ros.model.conventions import NS
 from phid_ros.model.parameters import GeneratorParameters
-from phid_ros.stream.align import StreamHealth
+from phid_ros.stream.align import Run, StreamHealth
 from phid_ros.stream.detector import DetectorSettings, EventWindow
 from phid_ros.stream.pipeline import MonitorPipeline, Outputs, PipelineSettings
 from phid_ros.stream.tracker import TrackerSettings, TrackPoint
@@ -72,39 +74,84 @@ def replay(
     blocks = sensor_blocks(rec, block_size)
     if not blocks:
         return total
+    played_at = _played(blocks)
     wall0 = time.perf_counter()
-    played = 0  # stream time played so far: stamps advance it, a clock that jumps does not
-    prev_end = blocks[0][0]
     next_process = PROCESS_EVERY_NS
-    for end_ns, name, a, b in blocks:
-        s = rec.streams[name]
-        spec = STREAMS_BY_NAME[name]
-        if 0 < end_ns - prev_end <= MAX_PACE_STEP_NS:
-            played += end_ns - prev_end
-        if end_ns > prev_end or end_ns < prev_end - MAX_PACE_STEP_NS:
-            prev_end = end_ns
-        if rate:
-            ahead = played / NS / rate - (time.perf_counter() - wall0)
-            if ahead > 0:
-                time.sleep(ahead)
-        pipeline.ingest_message(name, int(s.t_ns[a]), s.period_ns, {c: s.channels[c][a:b] for c in spec.channels})
-        if played >= next_process:
+    i = 0
+    while i < len(blocks):
+        j = i  # the step: blocks i..j, then the pipeline runs
+        while j + 1 < len(blocks) and played_at[j] < next_process:
+            j += 1
+        step = range(i, j + 1)
+        # unpaced, a step's messages go in as one run a stream where that is the same as one by one
+        runs = None if rate else _runs(rec, [blocks[k] for k in step])
+        if runs is None or not pipeline.ingest_runs(runs):
+            for k in step:
+                _, name, a, b = blocks[k]
+                if rate:
+                    ahead = played_at[k] / NS / rate - (time.perf_counter() - wall0)
+                    if ahead > 0:
+                        time.sleep(ahead)
+                s = rec.streams[name]
+                chans = STREAMS_BY_NAME[name].channels
+                pipeline.ingest_message(name, int(s.t_ns[a]), s.period_ns, {c: s.channels[c][a:b] for c in chans})
+        i = j + 1
+        if played_at[j] >= next_process:
             out = pipeline.process()
             # a run started in this step is waited for, so the next step polls its outcome: when an
             # outcome is taken, and so the order of the outputs, then never depends on how fast the
             # worker happened to be (two replays of one bag wrote the same messages in other orders)
             pipeline.recalibrator.join()
-            next_process = played + PROCESS_EVERY_NS
+            next_process = played_at[j] + PROCESS_EVERY_NS
             total.extend(out if keep_arrays else out.light())
             if on_outputs:
                 on_outputs(out)
             if progress:
-                progress(played / NS)
+                progress(played_at[j] / NS)
     out = pipeline.process(final=True)
     total.extend(out if keep_arrays else out.light())
     if on_outputs:
         on_outputs(out)
     return total
+
+
+def _played(blocks: list[tuple[int, str, int, int]]) -> list[int]:
+    """Stream time played after each block: stamps advance it, a clock that jumps does not."""
+    played, prev_end, out = 0, blocks[0][0], []
+    for end_ns, _, _, _ in blocks:
+        if 0 < end_ns - prev_end <= MAX_PACE_STEP_NS:
+            played += end_ns - prev_end
+        if end_ns > prev_end or end_ns < prev_end - MAX_PACE_STEP_NS:
+            prev_end = end_ns
+        out.append(played)
+    return out
+
+
+def _runs(rec: Recording, step: list[tuple[int, str, int, int]]) -> list[Run] | None:
+    """A step's blocks as one run a stream, or None where a stream's blocks do not follow on
+    (a jump, a gap or a duplicate: those go in one by one, where the aligner judges them)."""
+    spans: dict[str, list[int]] = {}  # stream -> [start, stop, next t0, lengths...]
+    for _, name, a, b in step:
+        s = rec.streams[name]
+        span = spans.get(name)
+        if span is None:
+            spans[name] = [a, b, int(s.t_ns[a]) + (b - a) * s.period_ns, b - a]
+            continue
+        # the aligner stamps a message t0 + k period: the next must start where those stamps go on
+        if a != span[1] or int(s.t_ns[a]) != span[2]:
+            return None
+        span[1] = b
+        span[2] += (b - a) * s.period_ns
+        span.append(b - a)
+    runs = []
+    for name, (a, b, _, *lengths) in spans.items():
+        s = rec.streams[name]
+        chans = STREAMS_BY_NAME[name].channels
+        x = np.empty((b - a, len(chans)), order="F")
+        for col, c in enumerate(chans):
+            x[:, col] = s.channels[c][a:b]
+        runs.append(Run(name, int(s.t_ns[a]), s.period_ns, x, tuple(lengths)))
+    return runs
 
 
 def event_windows(

@@ -156,3 +156,47 @@ def test_a_stream_that_stops_is_stale_on_stream_time(tmp_path, short_recording):
     level, message = p.aligner.status("excitation")
     assert level == "STALE" and "stream time" in message
     assert p.aligner.status("pt_ct")[0] == "OK"
+
+
+def test_runs_a_stream_and_one_message_at_a_time_give_the_same_outputs(tmp_path, short_recording):
+    """Unpaced, replay feeds a step's messages as one run a stream where the aligner can promise
+    the same result; paced, one by one. On a bag with every fault at once both must agree."""
+    start, _ = short_recording.span_ns()
+    seen: dict[str, int] = {}
+
+    def edit(i, log, topic, typ, msg):
+        if not hasattr(msg, "sample_period"):
+            return log, topic, typ, msg
+        t = stamp_ns(msg.header.stamp)
+        k = seen[topic] = seen.get(topic, 0) + 1
+        if topic.endswith("/pt_ct") and k == 31:
+            return log, topic, typ, _restamp(msg, 86_400 * NS)  # a wild stamp
+        if topic.endswith("/pt_ct") and k in (40, 41):
+            return log, topic, typ, None  # two messages lost: a gap
+        if topic.endswith("/encoder") and k == 52:
+            return log, topic, typ, dataclasses.replace(msg, omega=np.full(len(msg.omega), np.nan))  # non-finite
+        if topic.endswith("/pmu") and k == 60:
+            return log, topic, typ, dataclasses.replace(msg, delta=np.full(len(msg.delta), 2e6))  # implausible
+        if topic.endswith("/excitation") and k in (70, 71):
+            return log, topic, typ, _restamp(msg, -t)  # unset clock
+        if topic.endswith("/excitation") and k == 80:
+            return log, topic, typ, _restamp(msg, -100_000_000)  # a duplicate of the one before
+        if t >= start + 10 * NS:
+            return log, topic, typ, _restamp(msg, -35 * NS)  # every clock jumps back at 10 s
+        return log, topic, typ, msg
+
+    rec = _bag(tmp_path, short_recording, edit)
+    results = []
+    for rate in (None, 1e12):  # 1e12 x real time: paced, so one message at a time, and never waits
+        p = MonitorPipeline(_settings())
+        out = replay(rec, p, rate=rate)
+        p.close()
+        health = {n: dataclasses.asdict(h) for n, h in p.health.items()}
+        windows = [(w.event.event_id, w.usable, w.reason, w.t_ns.tobytes(), w.values.tobytes()) for w in out.windows]
+        results.append((health, [(e.kind, e.inception_ns, e.segment) for e in out.events], windows, p.samples_in))
+    runs, one_by_one = results
+    h = runs[0]
+    assert h["pt_ct"]["wild_stamps"] == 100 and h["pt_ct"]["gaps"] >= 1 and h["encoder"]["nonfinite"] == 100
+    assert h["pmu"]["implausible"] == 100 and h["excitation"]["zero_stamps"] == 200
+    assert h["excitation"]["duplicates"] == 100 and sum(x["clock_jumps"] for x in h.values()) == 1
+    assert runs == one_by_one
