@@ -582,14 +582,23 @@ def all_pole(x: Array, a: tuple[float, ...]) -> Array | None:
     are taken in the solve's order (the oldest output first), so the two differ only where
     OpenBLAS fuses a multiply-add (1e-14 relative; a test holds them together).
     """
+    global _all_pole_compiled
     if not available():
         return None
+    if _all_pole_compiled is None:
+        # one signature, any layout ("A"), loaded from numba's cache on first use: left to numba,
+        # each layout met (C, F, strided) compiles and loads its own copy, 25 ms each per process
+        _all_pole_compiled = njit("void(float64[:, :], float64[:], float64[:, :])", cache=True, nogil=True)(
+            _all_pole_columns
+        )
     y = np.empty_like(x, order="F")
-    _all_pole_columns(x, np.asarray(a, dtype=np.float64), y)
+    _all_pole_compiled(x, np.asarray(a, dtype=np.float64), y)
     return y
 
 
-@_maybe_jit
+_all_pole_compiled: Any = None
+
+
 def _all_pole_columns(x: Array, a: Array, y: Array) -> None:
     n, m = x.shape
     k = a.shape[0]
