@@ -62,7 +62,7 @@ setup(
     tests_require=["pytest"],
     entry_points={
         "console_scripts": [
-            "phid = phid_ros.cli.main:main",
+            "phid = phid_ros.cli.main:entry",
             "ingest_node = phid_ros.nodes.ingest_node:main",
             "recalibration_node = phid_ros.nodes.recalibration_node:main",
         ],

@@ -2,6 +2,6 @@
 
 import sys
 
-from phid_ros.cli.main import main
+from phid_ros.cli.main import entry
 
-sys.exit(main())
+sys.exit(entry())

@@ -1,1 +1,1 @@
-"""The ``phid`` command; entry point ``phid_ros.cli.main:main``."""
+"""The ``phid`` command; entry point ``phid_ros.cli.main:entry``."""
