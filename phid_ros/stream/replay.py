@@ -37,19 +37,32 @@ def sensor_blocks(rec: Recording, block_size: int = DEFAULT_BLOCK_SIZE) -> list[
     order (CSV imports, simulations) have monotonic stamps; their blocks go by stamp.
     """
     recorded = all(s.msg_seq is not None and s.msg_offsets is not None for s in rec.streams.values())
-    keyed: list[tuple[int, int, str, int, int]] = []
-    for name, s in rec.streams.items():
+    keys, ends, names, starts, stops = [], [], [], [], []
+    for i, (name, s) in enumerate(rec.streams.items()):
         if recorded:
-            starts = s.msg_offsets.tolist()  # type: ignore[union-attr]
-            stops = starts[1:] + [len(s)]
-            for seq, a, b in zip(s.msg_seq.tolist(), starts, stops):  # type: ignore[union-attr]
-                if b > a:
-                    keyed.append((seq, int(s.t_ns[b - 1]), name, a, b))
+            a = np.asarray(s.msg_offsets, dtype=np.int64)
+            b = np.append(a[1:], len(s))
+            keep = b > a
+            a, b = a[keep], b[keep]
+            key = np.asarray(s.msg_seq, dtype=np.int64)[keep]
         else:
-            for a, b in block_bounds(s.t_ns, s.period_ns, block_size):
-                keyed.append((int(s.t_ns[b - 1]), int(s.t_ns[b - 1]), name, a, b))
-    keyed.sort(key=lambda x: x[0])
-    return [(end, name, a, b) for _, end, name, a, b in keyed]
+            bounds = np.array(block_bounds(s.t_ns, s.period_ns, block_size), dtype=np.int64).reshape(-1, 2)
+            a, b = bounds[:, 0], bounds[:, 1]
+        end = s.t_ns[b - 1] if len(b) else np.zeros(0, np.int64)
+        keys.append(key if recorded else end)
+        ends.append(end)
+        names.append(np.full(len(a), i))
+        starts.append(a)
+        stops.append(b)
+    if not keys:
+        return []
+    # stable: messages of equal key keep the streams' order, then their own (as a sort by key would)
+    order = np.argsort(np.concatenate(keys), kind="stable")
+    stream_names = list(rec.streams)
+    return [
+        (end, stream_names[i], a, b)
+        for end, i, a, b in zip(*(np.concatenate(x)[order].tolist() for x in (ends, names, starts, stops)), strict=True)
+    ]
 
 
 def replay(
