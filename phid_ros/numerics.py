@@ -29,14 +29,28 @@ Array = NDArray[np.float64]
 
 def first_order_response(u: Array, tau: float, dt: float, axis: int = -1) -> Array:
     """Response ``L[u]`` of ``tau dx/dt = u - x`` from ``x(0) = 0``, with ``u`` linear between samples."""
-    a = float(np.exp(-dt / tau))
-    b0 = (tau - (tau + dt) * a) / dt
-    b1 = 1.0 - a - b0
+    a, b0, b1 = first_order_coefficients(tau, dt)
     u = np.moveaxis(np.asarray(u, dtype=float), axis, 0)
     v = b1 * u
     v[1:] += b0 * u[:-1]
     v[:1] = 0.0  # x(0) = 0: the recursion starts from rest (no free decay of a first value to remove)
     return np.moveaxis(recursive_first_order(v, a, axis=0), 0, axis)
+
+
+def first_order_coefficients(tau: float, dt: float) -> tuple[float, float, float]:
+    """(a, b0, b1) of :func:`first_order_response`: ``x[k] = a x[k-1] + b1 u[k] + b0 u[k-1]``."""
+    a = float(np.exp(-dt / tau))
+    b0 = (tau - (tau + dt) * a) / dt
+    return a, b0, 1.0 - a - b0
+
+
+def first_order_response_kept(u: Array, tau: float, dt: float, step: int) -> Array:
+    """:func:`first_order_response` along the rows of a 2-D ``u``, only every ``step``-th sample."""
+    from phid_ros.sim import kernel  # here: the kernel's modules import this one
+
+    a, b0, b1 = first_order_coefficients(tau, dt)
+    y = kernel.first_order_rows(u, a, b0, b1, step)
+    return y if y is not None else first_order_response(u, tau, dt, axis=1)[:, ::step]
 
 
 def recursive_first_order(x: Array, a: float, axis: int = -1) -> Array:

@@ -96,3 +96,18 @@ def test_compiled_recursion_equals_the_banded_solve(a, shape, axis, monkeypatch)
     assert got.shape == want.shape == x.shape
     # the same sums in the same order; OpenBLAS may fuse a multiply-add where the loop does not
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-12 * float(np.max(np.abs(want))))
+
+
+@pytest.mark.parametrize("rows", [1, 4, 7])
+@pytest.mark.parametrize("step", [1, 5, 7])
+def test_first_order_response_kept_is_the_full_response_decimated_bit_for_bit(rows, step, monkeypatch):
+    """Stage 3's fused pass (input stage, recursion, decimation; four rows at a time) against the
+    numpy input stage and the recursion over every sample, then one sample in ``step``."""
+    from phid_ros.numerics import first_order_response, first_order_response_kept
+
+    u = np.cumsum(RNG.standard_normal((rows, 4003)), axis=1)
+    want = first_order_response(u, 0.37, 1e-3, axis=1)[:, ::step]
+    got = first_order_response_kept(u, 0.37, 1e-3, step)
+    np.testing.assert_array_equal(got, want)
+    monkeypatch.setenv("PHID_NO_JIT", "1")
+    np.testing.assert_allclose(first_order_response_kept(u, 0.37, 1e-3, step), want, rtol=1e-12, atol=1e-12)

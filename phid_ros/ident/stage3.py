@@ -45,7 +45,7 @@ from phid_ros.ident.constraints import NONE, Constraints
 from phid_ros.ident.results import STD_CALIBRATION, Estimate, flag
 from phid_ros.ident.scenario import ScenarioData
 from phid_ros.ident.uncertainty import block_ids, cluster_robust_cov, information_share
-from phid_ros.numerics import first_order_response, lowpass2, recursive_first_order
+from phid_ros.numerics import first_order_response_kept, lowpass2, recursive_first_order
 
 Array = NDArray[np.float64]
 
@@ -80,6 +80,20 @@ class AxisData:
     keep: slice  # decimation
     names: list[str]
     noise_var: Array | None = None  # per scenario: sensor-noise variance of the prefiltered current
+    kept: NDArray[np.int64] = field(init=False, repr=False)  # the samples the least squares reads
+    # (row, slot, kept index, impulse sample) of every switching column's nonzero entries
+    switch_scatter: tuple[NDArray[np.int64], ...] = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        # where each switching column's shifted impulse lands among the kept samples, and which
+        # of its samples land there: the same for every trial time constant, so found once
+        self.kept = np.arange(0, self.current.shape[1], self.keep.step or 1)
+        parts: tuple[list[NDArray[np.int64]], ...] = ([], [], [], [])
+        for row, slot, k in zip(self.switch_row, self.switch_slot, self.switch_at):
+            at = np.flatnonzero(self.kept >= k)
+            for part, values in zip(parts, (np.full(len(at), row), np.full(len(at), slot), at, self.kept[at] - k)):
+                part.append(values)
+        self.switch_scatter = tuple(np.concatenate([*p, np.zeros(0, np.int64)]).astype(np.int64) for p in parts)
 
 
 @dataclass
@@ -180,26 +194,29 @@ class AxisFit:
 def _axis_system(
     ax: AxisData, tau: float, x_sync: float | None, dt: float, d_axis: bool
 ) -> tuple[Array, list[Array], Array]:
-    """(known part y, shared columns, per-scenario nuisance (m, p, n)) with y ~ columns + nuisance."""
+    """(known part y, shared columns, per-scenario nuisance (m, p, n)) with y ~ columns + nuisance,
+    at the kept (decimated) samples only: the filters run over every sample, the least squares
+    reads one in ``ax.keep.step``, and nothing else is built at full length."""
     a = math.exp(-dt / tau)
-    l_i = first_order_response(ax.current, tau, dt, axis=1)
+    step = ax.keep.step or 1
+    l_i = first_order_response_kept(ax.current, tau, dt, step)
+    current = ax.current[:, ax.keep]
     p = 1 + (int(ax.switch_slot.max()) if ax.switch_slot.size else 0)
-    n = ax.current.shape[1]
-    nuisance = np.zeros((ax.current.shape[0], p, n))
+    nuisance = np.zeros((ax.current.shape[0], p, len(ax.kept)))
     g = recursive_first_order(ax.impulse, a)  # a free flux decaying from one sample on, filtered
-    nuisance[:, 0] = g
-    for row, slot, k in zip(ax.switch_row, ax.switch_slot, ax.switch_at):
-        nuisance[row, slot, k:] = g[: n - k]
+    nuisance[:, 0] = g[ax.kept]
+    rows, slots, at, src = ax.switch_scatter
+    nuisance[rows, slots, at] = g[src]  # each switch's column: g shifted to start at its sample
     if d_axis:
         # r_d = E0 decay + L[V_f] - X_d L[I_d] + X'_d (L[I_d] - I_d) - V_q
-        y = ax.voltage - first_order_response(ax.drive, tau, dt, axis=1)  # type: ignore[arg-type]
+        y = ax.voltage[:, ax.keep] - first_order_response_kept(ax.drive, tau, dt, step)  # type: ignore[arg-type]
         sync_col = -l_i
-        prime_col = l_i - ax.current
+        prime_col = l_i - current
     else:
         # r_q = E0 decay + X_q L[I_q] + X'_q (I_q - L[I_q]) - V_d
-        y = ax.voltage.copy()
+        y = ax.voltage[:, ax.keep].copy()
         sync_col = l_i
-        prime_col = ax.current - l_i
+        prime_col = current - l_i
     if x_sync is not None:
         y = y - x_sync * sync_col
         cols = [prime_col]
@@ -222,11 +239,10 @@ def solve_axis(
     if x_prime is not None:
         y = y - x_prime * cols[0]
         cols = cols[1:]
-    sel = (slice(None), ax.keep)
-    mask = ax.mask[sel]
-    yk = np.where(mask, y[sel], 0.0)
-    ck = [np.where(mask, c[sel], 0.0) for c in cols]
-    nk = np.where(mask[:, None, :], nuisance[:, :, ax.keep], 0.0)
+    mask = ax.mask[:, ax.keep]
+    yk = np.where(mask, y, 0.0)
+    ck = [np.where(mask, c, 0.0) for c in cols]
+    nk = np.where(mask[:, None, :], nuisance, 0.0)
     # Frisch-Waugh: project each scenario's own nuisance columns (initial flux, switching
     # jumps) out of y and the shared columns, one small normal-equation solve per scenario
     gram = np.einsum("mpn,mqn->mpq", nk, nk)

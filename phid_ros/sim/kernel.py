@@ -624,3 +624,71 @@ def _all_pole_columns(x: Array, a: Array, y: Array) -> None:
                 for q in range(min(k, i), 0, -1):
                     v -= a[q - 1] * y[i - q, j]
                 y[i, j] = v
+
+
+def first_order_rows(u: Array, a: float, b0: float, b1: float, step: int) -> Array | None:
+    """:func:`phid_ros.numerics.first_order_response` along each row of ``u`` (m, n), kept at
+    every ``step``-th sample (m, ceil(n / step)), compiled; None without numba (or ``PHID_NO_JIT``).
+
+    Why: stage 3 filters every scenario's current at every trial time constant and reads one
+    sample in five; the first-order-hold input, the recursion and the decimation in one pass
+    skip three full-length temporaries. The same operations in the same order as the numpy
+    input stage and :func:`all_pole`, so the kept samples are theirs bit for bit (a test).
+    """
+    global _first_order_rows_compiled
+    if not available():
+        return None
+    if _first_order_rows_compiled is None:
+        _first_order_rows_compiled = njit(
+            "void(float64[:, :], float64, float64, float64, int64, float64[:, :])", cache=True, nogil=True
+        )(_first_order_rows)
+    m, n = u.shape
+    out = np.empty((m, -(-n // step)))
+    _first_order_rows_compiled(u, a, b0, b1, step, out)
+    return out
+
+
+_first_order_rows_compiled: Any = None
+
+
+def _first_order_rows(u: Array, a: float, b0: float, b1: float, step: int, out: Array) -> None:
+    # Four rows at a time: a row's recursion is a chain of dependent multiply-adds, and four
+    # chains in flight run 2.2x faster than one (0.36 -> 0.16 ms on 15 rows of 13 000), with
+    # every operation as in the one-row loop that finishes the last rows.
+    m, n = u.shape
+    a1 = -a
+    r = 0
+    while r + 4 <= m:
+        p0 = p1 = p2 = p3 = 0.0  # from rest
+        for q in range(4):
+            out[r + q, 0] = 0.0
+        for i in range(1, n):
+            v0 = b1 * u[r, i]
+            v0 += b0 * u[r, i - 1]
+            p0 = v0 - a1 * p0
+            v1 = b1 * u[r + 1, i]
+            v1 += b0 * u[r + 1, i - 1]
+            p1 = v1 - a1 * p1
+            v2 = b1 * u[r + 2, i]
+            v2 += b0 * u[r + 2, i - 1]
+            p2 = v2 - a1 * p2
+            v3 = b1 * u[r + 3, i]
+            v3 += b0 * u[r + 3, i - 1]
+            p3 = v3 - a1 * p3
+            if i % step == 0:
+                k = i // step
+                out[r, k] = p0
+                out[r + 1, k] = p1
+                out[r + 2, k] = p2
+                out[r + 3, k] = p3
+        r += 4
+    while r < m:
+        prev = 0.0
+        out[r, 0] = 0.0
+        for i in range(1, n):
+            v = b1 * u[r, i]
+            v += b0 * u[r, i - 1]
+            prev = v - a1 * prev
+            if i % step == 0:
+                out[r, i // step] = prev
+        r += 1
