@@ -81,19 +81,22 @@ class AxisData:
     names: list[str]
     noise_var: Array | None = None  # per scenario: sensor-noise variance of the prefiltered current
     kept: NDArray[np.int64] = field(init=False, repr=False)  # the samples the least squares reads
-    # (row, slot, kept index, impulse sample) of every switching column's nonzero entries
-    switch_scatter: tuple[NDArray[np.int64], ...] = field(init=False, repr=False)
+    slots: int = field(init=False, repr=False)  # nuisance columns a scenario: its initial flux, then its switches
+    # every switching column's nonzero entries: where in the flat (rows, slots, kept) nuisance
+    # array, and which sample of the filtered impulse goes there
+    switch_scatter: tuple[NDArray[np.int64], NDArray[np.int64]] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         # where each switching column's shifted impulse lands among the kept samples, and which
         # of its samples land there: the same for every trial time constant, so found once
         self.kept = np.arange(0, self.current.shape[1], self.keep.step or 1)
-        parts: tuple[list[NDArray[np.int64]], ...] = ([], [], [], [])
+        self.slots = 1 + (int(self.switch_slot.max()) if self.switch_slot.size else 0)
+        flat, src = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
         for row, slot, k in zip(self.switch_row, self.switch_slot, self.switch_at):
             at = np.flatnonzero(self.kept >= k)
-            for part, values in zip(parts, (np.full(len(at), row), np.full(len(at), slot), at, self.kept[at] - k)):
-                part.append(values)
-        self.switch_scatter = tuple(np.concatenate([*p, np.zeros(0, np.int64)]).astype(np.int64) for p in parts)
+            flat.append((int(row) * self.slots + int(slot)) * len(self.kept) + at)
+            src.append(self.kept[at] - k)
+        self.switch_scatter = (np.concatenate(flat), np.concatenate(src))
 
 
 @dataclass
@@ -201,12 +204,11 @@ def _axis_system(
     step = ax.keep.step or 1
     l_i = first_order_response_kept(ax.current, tau, dt, step)
     current = ax.current[:, ax.keep]
-    p = 1 + (int(ax.switch_slot.max()) if ax.switch_slot.size else 0)
-    nuisance = np.zeros((ax.current.shape[0], p, len(ax.kept)))
+    nuisance = np.zeros((ax.current.shape[0], ax.slots, len(ax.kept)))
     g = recursive_first_order(ax.impulse, a)  # a free flux decaying from one sample on, filtered
     nuisance[:, 0] = g[ax.kept]
-    rows, slots, at, src = ax.switch_scatter
-    nuisance[rows, slots, at] = g[src]  # each switch's column: g shifted to start at its sample
+    flat, src = ax.switch_scatter
+    nuisance.reshape(-1)[flat] = g[src]  # each switch's column: g shifted to start at its sample
     if d_axis:
         # r_d = E0 decay + L[V_f] - X_d L[I_d] + X'_d (L[I_d] - I_d) - V_q
         y = ax.voltage[:, ax.keep] - first_order_response_kept(ax.drive, tau, dt, step)  # type: ignore[arg-type]
