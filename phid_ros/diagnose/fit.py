@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.linalg.lapack import dgeqrf
 from scipy.optimize import least_squares
 
 from phid_ros.diagnose.candidates import Candidate, FreeParameter
@@ -216,12 +217,12 @@ class Problem:
                 effects[i][1][p.name] = v
         return base, effects
 
-    def residual_matrix(self, X: Array, out: Array | None = None) -> Array:
+    def residual_matrix(self, X: Array, out: Array | None = None, order: str = "C") -> Array:
         """``finite(residuals(play_in(...), sigma, out))`` of the models ``X`` (one per column),
-        without keeping their trajectories."""
+        without keeping their trajectories; a new ``out`` is laid out in ``order``."""
         base, effects = self.columns(X)
         self.nfev += X.shape[1]
-        return finite(residual_matrix(self.windows, base, effects, X.shape[1], self.sigma, out, self.f))
+        return finite(residual_matrix(self.windows, base, effects, X.shape[1], self.sigma, out, self.f, order=order))
 
     def spec_at(self, x: Array) -> ModelSpec:
         base, effects = self.columns(x[:, None])
@@ -262,10 +263,12 @@ def fit(problem: Problem, max_nfev: int = 12, x0: Array | None = None) -> FitRes
         if r is None and not (want_jac or together):
             r = problem.residual_matrix(x[:, None])[:, 0]
         else:
+            # column-major: each column contiguous for the differences and LAPACK's QR, no copy
             if r is None:  # r and the shifted columns in one run: [r, r(x + h_1 e_1), ...]
-                A = problem.residual_matrix(np.hstack([x[:, None], x[:, None] + np.diag(steps)]))
+                X = np.hstack([x[:, None], x[:, None] + np.diag(steps)])
+                A = problem.residual_matrix(X, order="F")
             else:
-                A = np.empty((len(r), len(x) + 1))
+                A = np.empty((len(r), len(x) + 1), order="F")
                 A[:, 0] = r
                 problem.residual_matrix(x[:, None] + np.diag(steps), out=A[:, 1:])
             r = A[:, 0].copy()
@@ -305,6 +308,8 @@ def fit(problem: Problem, max_nfev: int = 12, x0: Array | None = None) -> FitRes
 def compress(A: Array) -> Array:
     """The Jacobian J~ ((k + 1) x k) that, with the residual ||r|| e_1, is the tall [r, J] ``A`` to the solver.
 
+    ``A`` is overwritten (column-major, it is factorised where it lies).
+
     R of the QR factorisation [r, J] = Q R (its first row's sign chosen so R[0, 0] = ||r||) gives
     J~ = R[:, 1:], and Q'[r, J] = R: the pair (||r|| e_1, J~) has the sum of squares, J'r and J'J of
     (r, J), and so the same Gauss-Newton model, gradient, column scales and covariance. scipy's
@@ -314,7 +319,12 @@ def compress(A: Array) -> Array:
     """
     m, n = A.shape
     R = np.zeros((n, n))
-    top = np.linalg.qr(A, mode="r")
+    # LAPACK's Householder QR in place on the column-major A (numpy's qr copied it and took 2.7x
+    # as long: 20 against 7.3 ms on 126 000 x 15); R is the upper triangle of what it returns
+    qr, _, _, info = dgeqrf(A, overwrite_a=True)
+    if info != 0:
+        raise ValueError(f"QR of the Jacobian failed (LAPACK info {info})")
+    top = np.triu(qr[: min(m, n)])
     R[: top.shape[0]] = top
     if R[0, 0] < 0:
         R[0] = -R[0]

@@ -175,8 +175,10 @@ def residual_matrix(
     out: Array | None = None,
     f_nominal_hz: float = DEFAULT_F_NOMINAL_HZ,
     step: float = STEP_SECONDS,
+    order: str = "C",
 ) -> Array:
-    """``fit.residuals(play_in(...), sigma, out)``: the noise-normalised residuals (rows, m).
+    """``fit.residuals(play_in(...), sigma, out)``: the noise-normalised residuals (rows, m),
+    into a new array laid out in ``order`` when ``out`` is None.
 
     Compiled, the play-in writes each residual into ``out`` as it computes the output
     (``kernel.integrate_residuals``): no trajectories are kept, bit for bit the same numbers.
@@ -187,7 +189,7 @@ def residual_matrix(
     st = _setup(scenarios, base, effects, m, f_nominal_hz, step)
     n_keep = np.array([len(i) for i in st.idx], dtype=np.int64)
     if out is None:
-        out = np.empty((len(OUTPUTS) * int(n_keep.sum()), m))
+        out = np.empty((len(OUTPUTS) * int(n_keep.sum()), m), order=order)
     meas = [st.staged(c)[::2] for c in OUTPUTS]
     offsets = np.cumsum([0] + [a.shape[1] for a in meas])
     layout = kernel.ResidualLayout(
