@@ -111,3 +111,18 @@ def test_first_order_response_kept_is_the_full_response_decimated_bit_for_bit(ro
     np.testing.assert_array_equal(got, want)
     monkeypatch.setenv("PHID_NO_JIT", "1")
     np.testing.assert_allclose(first_order_response_kept(u, 0.37, 1e-3, step), want, rtol=1e-12, atol=1e-12)
+
+
+def test_the_compiled_filters_take_read_only_and_integer_input_as_numpy_does(monkeypatch):
+    """Their explicit signatures must not refuse what the numpy path takes (a frozen window's view)."""
+    from phid_ros.numerics import all_pole, first_order_response_kept
+
+    x = np.arange(24.0).reshape(12, 2)
+    x.setflags(write=False)
+    ints = np.arange(24).reshape(2, 12)
+    got = all_pole(x, (-0.5,), axis=0), first_order_response_kept(x.T, 0.1, 1e-3, 5)
+    got_int = first_order_response_kept(ints, 0.1, 1e-3, 5)
+    monkeypatch.setenv("PHID_NO_JIT", "1")
+    np.testing.assert_allclose(got[0], all_pole(x, (-0.5,), axis=0), rtol=1e-12)
+    np.testing.assert_allclose(got[1], first_order_response_kept(x.T, 0.1, 1e-3, 5), rtol=1e-12)
+    np.testing.assert_allclose(got_int, first_order_response_kept(ints, 0.1, 1e-3, 5), rtol=1e-12)

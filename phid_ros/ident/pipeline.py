@@ -182,6 +182,24 @@ def _timed(timing: dict[str, float], key: str, t0: float) -> None:
 Say = Callable[[str], None]
 
 
+def prepare() -> None:
+    """Compile (or load from numba's cache) every compiled part of an identification now: the
+    filters' recursions, stage 3's kept-sample filter and the validation play-in.
+
+    A first compile on a machine takes seconds, mostly in LLVM and holding the GIL: in the
+    recalibration node's worker it would stall the sensor callbacks of its first run. The node
+    calls this before it subscribes; elsewhere the first identification does it.
+    """
+    import numpy as np
+
+    from phid_ros.numerics import all_pole, first_order_response_kept
+
+    x = np.zeros((8, 2))
+    all_pole(x, (-0.5,), axis=0)
+    first_order_response_kept(x.T, 0.1, 1e-3, 5)
+    validation.prepare()
+
+
 def identify(
     scenarios: Sequence[ScenarioData],
     options: IdentifyOptions | None = None,

@@ -78,12 +78,8 @@ def staged_samples(
 
 
 def prepare() -> None:
-    """Compile (or load from numba's cache) the compiled play-in now, not in the first run.
-
-    A first compile on a machine takes seconds, mostly in LLVM and holding the GIL: in the
-    recalibration node's worker it would stall the sensor callbacks of its first run. The node
-    calls this before it subscribes; elsewhere the first play-in does it.
-    """
+    """Compile (or load from numba's cache) the compiled play-in now, not in the first run
+    (:func:`phid_ros.ident.pipeline.prepare`, which the recalibration node calls, says why)."""
     one = np.ones((3, 1))
     kernel.paper_rk4(np.zeros((4, 1)), (one, one, one, one), Coefficients.of([GeneratorParameters()]), 1, 1e-3)
 

@@ -14,7 +14,7 @@ from typing import Any
 from rclpy.node import Node
 from std_srvs.srv import Trigger
 
-from phid_ros.ident import validation
+from phid_ros.ident.pipeline import prepare as prepare_identification
 from phid_ros.io.recording import scenario_from_message
 from phid_ros.io.topics import OUTPUT_TOPICS, SCENARIO_TOPIC
 from phid_ros.nodes import common
@@ -31,7 +31,7 @@ HAMILTONIAN_DEPTH = 5000
 class RecalibrationNode(Node):
     def __init__(self) -> None:
         super().__init__("recalibration_node")
-        validation.prepare()  # before any callback can wait on a first compile (seconds, once per machine)
+        prepare_identification()  # before any callback can wait on a first compile (seconds, once per machine)
         self.values = common.declare(self, RECALIBRATION)
         settings = pipeline_settings(
             self.values,

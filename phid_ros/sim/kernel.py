@@ -588,12 +588,21 @@ def all_pole(x: Array, a: tuple[float, ...]) -> Array | None:
     if _all_pole_compiled is None:
         # one signature, any layout ("A"), loaded from numba's cache on first use: left to numba,
         # each layout met (C, F, strided) compiles and loads its own copy, 25 ms each per process
-        _all_pole_compiled = njit("void(float64[:, :], float64[:], float64[:, :])", cache=True, nogil=True)(
-            _all_pole_columns
-        )
-    y = np.empty_like(x, order="F")
-    _all_pole_compiled(x, np.asarray(a, dtype=np.float64), y)
+        from numba import types
+
+        sig = types.void(_f64(2, True), _f64(1, True), _f64(2))
+        _all_pole_compiled = njit(sig, cache=True, nogil=True)(_all_pole_columns)
+    y = np.empty(x.shape, order="F")
+    _all_pole_compiled(np.asarray(x, dtype=np.float64), np.asarray(a, dtype=np.float64), y)
     return y
+
+
+def _f64(dims: int, readonly: bool = False) -> Any:
+    """A float64 array of any layout, for an explicit signature. The loops' inputs are typed
+    read-only: that type accepts writable arrays too (not the other way round)."""
+    from numba import types
+
+    return types.Array(types.float64, dims, "A", readonly=readonly)
 
 
 _all_pole_compiled: Any = None
@@ -639,12 +648,13 @@ def first_order_rows(u: Array, a: float, b0: float, b1: float, step: int) -> Arr
     if not available():
         return None
     if _first_order_rows_compiled is None:
-        _first_order_rows_compiled = njit(
-            "void(float64[:, :], float64, float64, float64, int64, float64[:, :])", cache=True, nogil=True
-        )(_first_order_rows)
+        from numba import types
+
+        sig = types.void(_f64(2, True), types.float64, types.float64, types.float64, types.int64, _f64(2))
+        _first_order_rows_compiled = njit(sig, cache=True, nogil=True)(_first_order_rows)
     m, n = u.shape
     out = np.empty((m, -(-n // step)))
-    _first_order_rows_compiled(u, a, b0, b1, step, out)
+    _first_order_rows_compiled(np.asarray(u, dtype=np.float64), float(a), float(b0), float(b1), int(step), out)
     return out
 
 

@@ -186,3 +186,14 @@ def test_residuals_written_by_the_kernel_equal_the_trajectories_subtracted(windo
         np.testing.assert_array_equal(got, want)
         np.testing.assert_array_equal(wide[:, 1:], want)
         assert (wide[:, 0] == -7.0).all()
+
+
+def test_preparing_an_identification_loads_every_compiled_part_it_runs():
+    """The recalibration node prepares before it subscribes: no first compile may wait for a run."""
+    from phid_ros.ident.pipeline import prepare
+
+    if not kernel.available():
+        pytest.skip("numba is not installed")
+    prepare()
+    assert kernel._all_pole_compiled is not None and kernel._first_order_rows_compiled is not None
+    assert kernel._paper_rk4.signatures  # the validation play-in, loaded for the layout it is called with
