@@ -113,7 +113,7 @@ def test_first_order_response_kept_is_the_full_response_decimated_bit_for_bit(ro
     np.testing.assert_allclose(first_order_response_kept(u, 0.37, 1e-3, step), want, rtol=1e-12, atol=1e-12)
 
 
-def test_the_compiled_filters_take_read_only_and_integer_input_as_numpy_does(monkeypatch):
+def test_the_compiled_filters_take_read_only_integer_and_empty_input_as_numpy_does(monkeypatch):
     """Their explicit signatures must not refuse what the numpy path takes (a frozen window's view)."""
     from phid_ros.numerics import all_pole, first_order_response_kept
 
@@ -122,6 +122,7 @@ def test_the_compiled_filters_take_read_only_and_integer_input_as_numpy_does(mon
     ints = np.arange(24).reshape(2, 12)
     got = all_pole(x, (-0.5,), axis=0), first_order_response_kept(x.T, 0.1, 1e-3, 5)
     got_int = first_order_response_kept(ints, 0.1, 1e-3, 5)
+    assert first_order_response_kept(np.zeros((3, 0)), 0.1, 1e-3, 5).shape == (3, 0)  # no sample: nothing written
     monkeypatch.setenv("PHID_NO_JIT", "1")
     np.testing.assert_allclose(got[0], all_pole(x, (-0.5,), axis=0), rtol=1e-12)
     np.testing.assert_allclose(got[1], first_order_response_kept(x.T, 0.1, 1e-3, 5), rtol=1e-12)

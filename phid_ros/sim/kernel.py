@@ -654,6 +654,8 @@ def first_order_rows(u: Array, a: float, b0: float, b1: float, step: int) -> Arr
         _first_order_rows_compiled = njit(sig, cache=True, nogil=True)(_first_order_rows)
     m, n = u.shape
     out = np.empty((m, -(-n // step)))
+    if n == 0:  # nothing to filter (the loop writes the first sample of every row)
+        return out
     _first_order_rows_compiled(np.asarray(u, dtype=np.float64), float(a), float(b0), float(b1), int(step), out)
     return out
 
