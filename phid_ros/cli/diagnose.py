@@ -10,7 +10,7 @@ from rich.console import Console
 from phid_ros.cli.common import finish
 from phid_ros.cli.identify import load_input, load_truth, step_thresholds
 from phid_ros.cli.progress import ProgressLine
-from phid_ros.cli.tables import CHANNEL_LABELS, Col, fmt, pct, print_table, signed_int
+from phid_ros.cli.tables import CHANNEL_LABELS, Col, effect_values_text, fmt, pct, print_table, signed_int
 from phid_ros.diagnose.localise import localise
 from phid_ros.diagnose.playin import OUTPUTS
 from phid_ros.diagnose.results import is_determined, to_json
@@ -76,7 +76,7 @@ def print_rounds(console: Console, doc: dict[str, Any]) -> None:
                     "-" if tr["delta_bic"] is None else signed_int(tr["delta_bic"]),
                     "-" if gain is None else pct(-100 * gain, 0),
                     "yes" if tr["accepted"] else "",
-                    _fmt_values(tr["parameters"] or {}),
+                    effect_values_text(tr["parameters"] or {}),
                 ]
             )
     print_table(console, "candidates (each fitted with the base parameters refitted)", cols, rows)
@@ -123,7 +123,7 @@ def run(args: Any, console: Console) -> int:
     print_before_after(console, doc)
     print_parameters(console, doc)
     if doc["effects"]:
-        named = ", ".join(f"{e['name']} ({_fmt_values(e['parameters'])})" for e in doc["effects"])
+        named = ", ".join(f"{e['name']} ({effect_values_text(e['parameters'], e)})" for e in doc["effects"])
         console.print(f"missing physics: {named}", highlight=False)
     else:
         console.print("nothing is missing: no candidate effect improves the model on both fit and held-out data")
@@ -142,7 +142,3 @@ def run(args: Any, console: Console) -> int:
 
     summary = f"diagnosed in {doc['seconds']:.1f} s (wall time)"
     return finish(console, d.problems, summary, args.json, args.report, report)
-
-
-def _fmt_values(values: dict[str, Any]) -> str:
-    return ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in values.items())

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from phid_ros.cli.report import STYLE, html_table, png_data_uri
-from phid_ros.cli.tables import CHANNEL_LABELS, axis_label, fmt, pct, signed_int
+from phid_ros.cli.tables import CHANNEL_LABELS, axis_label, effect_values_text, fmt, pct, signed_int
 from phid_ros.diagnose.fit import evaluate
 from phid_ros.diagnose.playin import OUTPUTS, PlayIn
 from phid_ros.diagnose.results import is_determined
@@ -91,7 +91,7 @@ def _effects_table(doc: dict[str, Any]) -> str:
         [
             [
                 e["name"],
-                _values(e["parameters"]),
+                effect_values_text(e["parameters"], e, nd=" (not determined by these data)"),
                 fmt(e["rmse_before"], 3),
                 fmt(e["rmse_after"], 3),
                 signed_int(e["delta_bic"]),
@@ -130,7 +130,7 @@ def _trials_table(doc: dict[str, Any]) -> str:
                 "-" if t["delta_bic"] is None else signed_int(t["delta_bic"]),
                 "-" if t["heldout_gain"] is None else pct(-100 * t["heldout_gain"], 0),
                 "yes" if t["accepted"] else "",
-                _values(t["parameters"] or {}),
+                effect_values_text(t["parameters"] or {}),
             ]
             for i, r in enumerate(doc["rounds"], start=1)
             for t in r["trials"]
@@ -206,7 +206,3 @@ def write_report(path: str | Path, d: Diagnosis, doc: dict[str, Any], source: st
     out.parent.mkdir(parents=True, exist_ok=True)
     write_text(out, page)
     return out
-
-
-def _values(values: dict[str, Any]) -> str:
-    return ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in values.items())

@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 from rich import box
 from rich.cells import cell_len
@@ -183,3 +184,14 @@ def estimate_text(value: float, std: float, identifiable: bool) -> str:
     if not math.isfinite(value):
         return "—"
     return concise(value, std) if identifiable else NOT_IDENTIFIED
+
+
+def effect_values_text(values: dict[str, Any], effect: dict[str, Any] | None = None, nd: str = " n.d.") -> str:
+    """``k=v`` pairs; with the named ``effect``'s JSON, ``nd`` after a value the data do not determine."""
+    from phid_ros.diagnose.results import effect_determined as _effect_determined  # the command's, not every table's
+
+    def one(k: str, v: Any) -> str:
+        text = f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}"
+        return text + (nd if effect is not None and not _effect_determined(effect, k) else "")
+
+    return ", ".join(one(k, v) for k, v in values.items())

@@ -41,6 +41,8 @@ def to_json(
                 "name": name,
                 "parameters": dict(values),
                 "parameters_std": dict(std),
+                # false where the data do not determine it (diagnose.workflow.determined)
+                "identifiable": dict(d.effects_identifiable.get(name, {})),
                 "presence_sigma": trial.presence,
                 "rmse_before": prev.overall,
                 "rmse_after": sc.overall,
@@ -111,6 +113,11 @@ def to_json(
 def is_determined(doc: Mapping[str, Any], name: str) -> bool:
     """Whether the diagnosis (its JSON) determined base parameter ``name``; older JSON: yes."""
     return bool(doc.get("identifiable", {}).get(name, True))
+
+
+def effect_determined(effect: Mapping[str, Any], name: str) -> bool:
+    """Whether the diagnosis determined parameter ``name`` of one of its effects (JSON); older JSON: yes."""
+    return bool(effect.get("identifiable", {}).get(name, True))
 
 
 def _mean_abs(errors: dict[str, float]) -> float:

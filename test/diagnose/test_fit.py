@@ -81,3 +81,28 @@ def test_a_profile_point_starts_where_the_final_fit_s_jacobian_predicts():
     assert start is not None and np.allclose(start, [math.log(1.4) - math.log(1.1) / 2], rtol=0, atol=1e-12)
     # without the final fit's Jacobian (an older result) the refit starts from the final values
     assert profile_start(FitResult(final.model, 1.0, 10, 2), SimpleNamespace(free=[(-1, td)]), "X_d_prime", 1.1) is None
+
+
+def test_an_effect_parameter_that_rides_a_flat_valley_is_not_determined() -> None:
+    """The numbers of ANDES's GENROU with close q-axis time constants (genrou-sub-fast): in the
+    refits the held-out data could not tell from the best, X''_q moved 2 % (its std 0.15 %) and
+    T''_q0 18 %; X''_d and T''_d0 stayed within 0.4 %."""
+    from phid_ros.diagnose.candidates import SaturationCandidate, SubtransientCandidate
+    from phid_ros.diagnose.fit import FitResult, ModelSpec
+    from phid_ros.diagnose.workflow import effects_determined
+
+    final = {"x_dpp": 0.2621, "x_qpp": 0.2787, "t_d0pp": 0.0319, "t_q0pp": 0.0355}
+    std = {"x_dpp": 0.00028, "x_qpp": 0.00042, "t_d0pp": 0.00008, "t_q0pp": 0.00039}
+    sat = {"s10": 0.07, "s12": 0.45, "form": "genrou", "curve": "quadratic"}
+    spec = ModelSpec({}, [(SubtransientCandidate, final), (SaturationCandidate, sat)])
+    res = FitResult(spec, 1.0, 10, 4, 1, "", [std, {"s10": 0.001, "s12": 0.002}], {})
+    sub = ({"x_dpp": 0.2626, "x_qpp": 0.2762, "t_d0pp": 0.0320, "t_q0pp": 0.0291},
+           {"x_dpp": 0.2617, "x_qpp": 0.2815, "t_d0pp": 0.0319, "t_q0pp": 0.0421})  # fmt: skip
+    sats = ({"s10": 0.0701, "s12": 0.4502}, {"s10": 0.0699, "s12": 0.4499})
+    alike = [{"subtransient_dynamics": a, "magnetic_saturation": b} for a, b in zip(sub, sats)]
+    flags, notes = effects_determined(res, alike)
+    assert flags["subtransient_dynamics"] == {"x_dpp": True, "x_qpp": False, "t_d0pp": True, "t_q0pp": False}
+    assert flags["magnetic_saturation"] == {"s10": True, "s12": True}  # form and curve are chosen, not estimated
+    assert len(notes) == 2 and "x_qpp = 0.2787 not determined" in notes[0] and "0.2762-0.2815" in notes[0]
+    # no refit alike the best (every base parameter determined): every effect parameter stands
+    assert all(all(f.values()) for f in effects_determined(res, [])[0].values())

@@ -3,8 +3,9 @@
 Each study simulates the paper's catalogue (12 s scenarios) with ANDES, adds the simulator's
 sensor noise, identifies and diagnoses. The right effect must be named and nothing else, the
 held-out unexplained error must fall by at least 90 %, the base parameters the diagnosis
-determined must come back within 2 % (D, held at stage 1's value, within twice its std), and
-every parameter further off must be marked not determined. On Table 1's machine (T'_q0 0.135 s)
+determined must come back within 2 % (D, held at stage 1's value, within twice its std), the
+effects' parameters it determined within 10 % (30 % for the damper time constants), and every
+parameter further off must be marked not determined. On Table 1's machine (T'_q0 0.135 s)
 with dampers, T''_q0 is close enough to T'_q0 that the q axis's two circuits cannot be told
 apart, and X'_q and T'_q0 are expected to be so marked; with typical round-rotor q-axis data
 (genrou-sub-typical: T'_q0 0.6 s, T''_q0 0.05 s) every base parameter is determined.
@@ -68,11 +69,15 @@ def test_the_right_effect_is_named_on_andes_genrou(machine, named, undetermined,
             assert abs(e) < 2.0, (n, errors)
     assert abs(errors["D"]) / 100 * 0.4 < 2 * ident["uncertainty"]["D"], errors
     m = MACHINES[machine]
+    truth = {"s10": ("S10", 0.1), "s12": ("S12", 0.1), "x_dpp": ("xd2", 0.1), "x_qpp": ("xq2", 0.1)}
+    truth |= {"t_d0pp": ("Td20", 0.3), "t_q0pp": ("Tq20", 0.3)}
     for e in doc["effects"]:
         p = e["parameters"]
         if e["name"] == "magnetic_saturation":
             assert p["form"] == "genrou" and p["curve"] == "quadratic"
-            assert p["s10"] == pytest.approx(m["S10"], rel=0.1) and p["s12"] == pytest.approx(m["S12"], rel=0.1)
-        if e["name"] == "subtransient_dynamics":
-            assert p["x_dpp"] == pytest.approx(m["xd2"], rel=0.1) and p["x_qpp"] == pytest.approx(m["xq2"], rel=0.1)
-            assert p["t_d0pp"] == pytest.approx(m["Td20"], rel=0.3) and p["t_q0pp"] == pytest.approx(m["Tq20"], rel=0.3)
+        # as for the base parameters: within its bound where the diagnosis determined it, and
+        # every effect parameter further off marked not determined (never published as identified)
+        for name, (key, rel) in truth.items():
+            if name in p:
+                ok = p[name] == pytest.approx(m[key], rel=rel)
+                assert ok or not e["identifiable"][name], (e["name"], name, p[name], m[key])

@@ -120,3 +120,20 @@ def test_what_the_diagnosis_did_not_determine_comes_from_the_identification_or_i
     diag["identifiable"]["T_q0_prime"] = True
     rec = build_record(result(T_q0_prime=False), source="r.json", mva=1000.0, diagnosis=diag, diagnosis_source="d.json")
     assert "T_q0_prime" not in rec.flagged and rec.sources["Tq10"] == "diagnosis refit (T_q0_prime)"
+
+
+def test_a_field_from_an_effect_parameter_the_diagnosis_did_not_determine_is_flagged() -> None:
+    # ANDES's GENROU with close q-axis time constants: T''_q0 moved 20 % between fits alike on held-out data
+    sub = {"x_dpp": 0.262, "x_qpp": 0.279, "t_d0pp": 0.032, "t_q0pp": 0.035}
+    diag = diagnosis(("subtransient_dynamics", sub))
+    diag["effects"][0]["identifiable"] = {"x_dpp": True, "x_qpp": False, "t_d0pp": True, "t_q0pp": False}
+    with pytest.raises(ExportError, match=r"r\.json and d\.json: Tq20 \(subtransient_dynamics t_q0pp\) not identified"):
+        build_record(result(), source="r.json", mva=1000.0, diagnosis=diag, diagnosis_source="d.json")
+    rec = build_record(
+        result(), source="r.json", mva=1000.0, diagnosis=diag, diagnosis_source="d.json", allow_flagged=True
+    )
+    # x_qpp is not written (GENROU holds one X'', X''_d's), so only T''_q0 is flagged
+    assert rec.flagged == ["Tq20 (subtransient_dynamics t_q0pp)"]
+    assert rec.sources["Tq20"] == "diagnosis: subtransient_dynamics t_q0pp NOT IDENTIFIED"
+    assert rec.sources["Xd2"] == "diagnosis: subtransient_dynamics x_dpp" and rec.values["Tq20"] == 0.035
+    assert "NOT IDENTIFIED: Tq20 (subtransient_dynamics t_q0pp)" in rec.comment()
