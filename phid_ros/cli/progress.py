@@ -60,6 +60,10 @@ class ProgressLine:
             self._step = step
         if self._rich is not None and self._task is not None:
             self._rich.update(self._task, description=step)
+        elif self._thread is not None:
+            # a step is shown when it begins, not at the next poll: a step shorter than a poll
+            # would otherwise be missing from the log, depending on the machine's speed
+            self._maybe_print()
 
     def __exit__(
         self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
@@ -76,18 +80,19 @@ class ProgressLine:
             self._maybe_print()
 
     def _maybe_print(self) -> None:
-        now = time.monotonic()
-        elapsed = now - self._t0
+        # the lock covers the decision and the write: the poll thread and update() both print
         with self._lock:
+            now = time.monotonic()
+            elapsed = now - self._t0
             step = self._step
-        if not step or elapsed < self.quiet_s:
-            return
-        changed = step != self._printed and now - self._last_line >= MIN_GAP_S
-        if changed or now - self._last_line >= HEARTBEAT_S:
-            still = "" if changed else " (still)"
-            self.stream.write(f"phid [{elapsed:6.1f} s] {step}{still}\n")
-            self.stream.flush()
-            self._printed, self._last_line = step, now
+            if not step or elapsed < self.quiet_s:
+                return
+            changed = step != self._printed and now - self._last_line >= MIN_GAP_S
+            if changed or now - self._last_line >= HEARTBEAT_S:
+                still = "" if changed else " (still)"
+                self.stream.write(f"phid [{elapsed:6.1f} s] {step}{still}\n")
+                self.stream.flush()
+                self._printed, self._last_line = step, now
 
     # -- a live line on a terminal -----------------------------------------------------------
     def _start_live(self) -> None:

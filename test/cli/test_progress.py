@@ -42,7 +42,7 @@ def test_identify_reports_each_stage_on_stderr_in_a_log(tmp_path, capsys, monkey
     cap = capsys.readouterr()
     steps = [m.group(1) for m in map(LINE.match, cap.err.splitlines()) if m]
     assert steps[0].startswith("reading ")
-    # each stage that takes longer than a poll (0.2 s) shows; the three stages run in order
-    shown = [s for s in steps if s.startswith("stage")]
-    assert shown == sorted(shown) and len(shown) >= 1
+    # a step shows when it begins, however short (no quiet time, no gap here): the three stages in order
+    shown = [s.split(":")[0] for s in steps if s.startswith("stage")]
+    assert shown == ["stage 1", "stage 2", "stage 3"]
     assert "phid [" not in cap.out
