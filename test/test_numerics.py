@@ -98,7 +98,7 @@ def test_compiled_recursion_equals_the_banded_solve(a, shape, axis, monkeypatch)
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-12 * float(np.max(np.abs(want))))
 
 
-@pytest.mark.parametrize("rows", [1, 4, 7])
+@pytest.mark.parametrize("rows", [1, 2, 4, 7, 15])
 @pytest.mark.parametrize("step", [1, 5, 7])
 def test_first_order_response_kept_is_the_full_response_decimated_bit_for_bit(rows, step, monkeypatch):
     """Stage 3's fused pass (input stage, recursion, decimation; four rows at a time) against the

@@ -85,15 +85,25 @@ class AxisData:
     # every switching column's nonzero entries: where in the flat (rows, slots, kept) nuisance
     # array, and which sample of the filtered impulse goes there
     switch_scatter: tuple[NDArray[np.int64], NDArray[np.int64]] = field(init=False, repr=False)
+    # the same for every trial time constant, so taken once: the kept samples of the current and
+    # the voltage, and where the kept samples lie outside a scenario's data
+    current_kept: Array = field(init=False, repr=False)
+    voltage_kept: Array = field(init=False, repr=False)
+    mask_kept: NDArray[np.bool_] = field(init=False, repr=False)
+    off_kept: NDArray[np.bool_] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        # where each switching column's shifted impulse lands among the kept samples, and which
-        # of its samples land there: the same for every trial time constant, so found once
         self.kept = np.arange(0, self.current.shape[1], self.keep.step or 1)
         self.slots = 1 + (int(self.switch_slot.max()) if self.switch_slot.size else 0)
+        self.current_kept = np.ascontiguousarray(self.current[:, self.keep])
+        self.voltage_kept = np.ascontiguousarray(self.voltage[:, self.keep])
+        self.mask_kept = np.ascontiguousarray(self.mask[:, self.keep])
+        self.off_kept = ~self.mask_kept
+        # where each switching column's shifted impulse lands among the kept samples with data,
+        # and which of its samples land there (outside the data the nuisance column is zero)
         flat, src = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
         for row, slot, k in zip(self.switch_row, self.switch_slot, self.switch_at):
-            at = np.flatnonzero(self.kept >= k)
+            at = np.flatnonzero((self.kept >= k) & self.mask_kept[int(row)])
             flat.append((int(row) * self.slots + int(slot)) * len(self.kept) + at)
             src.append(self.kept[at] - k)
         self.switch_scatter = (np.concatenate(flat), np.concatenate(src))
@@ -198,32 +208,36 @@ def _axis_system(
     ax: AxisData, tau: float, x_sync: float | None, dt: float, d_axis: bool
 ) -> tuple[Array, list[Array], Array]:
     """(known part y, shared columns, per-scenario nuisance (m, p, n)) with y ~ columns + nuisance,
-    at the kept (decimated) samples only: the filters run over every sample, the least squares
-    reads one in ``ax.keep.step``, and nothing else is built at full length."""
+    at the kept (decimated) samples only, each zero outside its scenario's data: the filters run
+    over every sample, the least squares reads one in ``ax.keep.step``, and nothing else is built
+    at full length. Every array returned is the caller's to change."""
     a = math.exp(-dt / tau)
     step = ax.keep.step or 1
     l_i = first_order_response_kept(ax.current, tau, dt, step)
-    current = ax.current[:, ax.keep]
-    nuisance = np.zeros((ax.current.shape[0], ax.slots, len(ax.kept)))
+    current = ax.current_kept
     g = recursive_first_order(ax.impulse, a)  # a free flux decaying from one sample on, filtered
+    nuisance = np.zeros((ax.current.shape[0], ax.slots, len(ax.kept)))
     nuisance[:, 0] = g[ax.kept]
+    np.copyto(nuisance[:, 0], 0.0, where=ax.off_kept)
     flat, src = ax.switch_scatter
     nuisance.reshape(-1)[flat] = g[src]  # each switch's column: g shifted to start at its sample
     if d_axis:
         # r_d = E0 decay + L[V_f] - X_d L[I_d] + X'_d (L[I_d] - I_d) - V_q
-        y = ax.voltage[:, ax.keep] - first_order_response_kept(ax.drive, tau, dt, step)  # type: ignore[arg-type]
+        y = ax.voltage_kept - first_order_response_kept(ax.drive, tau, dt, step)  # type: ignore[arg-type]
         sync_col = -l_i
         prime_col = l_i - current
     else:
         # r_q = E0 decay + X_q L[I_q] + X'_q (I_q - L[I_q]) - V_d
-        y = ax.voltage[:, ax.keep].copy()
-        sync_col = l_i
+        y = ax.voltage_kept.copy()
         prime_col = current - l_i
+        sync_col = l_i
     if x_sync is not None:
         y = y - x_sync * sync_col
         cols = [prime_col]
     else:
         cols = [prime_col, sync_col]
+    for v in (y, *cols):
+        np.copyto(v, 0.0, where=ax.off_kept)
     return y, cols, nuisance  # type: ignore[return-value]
 
 
@@ -237,14 +251,11 @@ def solve_axis(
     keep_residual: bool = False,
 ) -> AxisFit:
     """Inner least squares for one time constant: initial fluxes (and x', x_sync if free)."""
-    y, cols, nuisance = _axis_system(ax, tau, x_sync, dt, d_axis)
+    yk, ck, nk = _axis_system(ax, tau, x_sync, dt, d_axis)
     if x_prime is not None:
-        y = y - x_prime * cols[0]
-        cols = cols[1:]
-    mask = ax.mask[:, ax.keep]
-    yk = np.where(mask, y, 0.0)
-    ck = [np.where(mask, c, 0.0) for c in cols]
-    nk = np.where(mask[:, None, :], nuisance, 0.0)
+        yk = yk - x_prime * ck[0]
+        ck = ck[1:]
+    mask = ax.mask_kept
     # Frisch-Waugh: project each scenario's own nuisance columns (initial flux, switching
     # jumps) out of y and the shared columns, one small normal-equation solve per scenario
     gram = np.einsum("mpn,mqn->mpq", nk, nk)
@@ -263,9 +274,13 @@ def solve_axis(
         a_mat = np.array([[np.sum(ci * cj) for cj in ct] for ci in ct])
         b_vec = np.array([np.sum(ci * yt) for ci in ct])
         coef = np.linalg.solve(a_mat, b_vec)
+        fitted = coef[0] * ct[0]
+        for c, k in zip(ct[1:], coef[1:]):
+            fitted += c * k
+        r = yt - fitted
     else:
         coef = np.zeros(0)
-    r = yt - sum((c * k for c, k in zip(coef, ct)), np.zeros_like(yt))
+        r = yt
     sse = float(np.sum(r * r))
     xp = float(coef[0]) if x_prime is None else float(x_prime)
     if x_sync is None:
