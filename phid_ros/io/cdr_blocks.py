@@ -95,19 +95,30 @@ class DecodedGroup:
 
 
 def decode_group(
-    raws: Sequence[bytes], order: Sequence[int], layout: BlockLayout, n_channels: int
+    raws: Sequence[bytes] | NDArray[np.uint8],
+    order: Sequence[int] | NDArray[np.int64],
+    layout: BlockLayout | None,
+    n_channels: int,
 ) -> DecodedGroup | None:
-    """Decode equally shaped messages at once; None if any message breaks the layout."""
-    buf = np.frombuffer(b"".join(raws), dtype=np.uint8).reshape(len(raws), layout.total)
-
-    joined = buf.base if buf.base is not None else buf
+    """Decode equally long messages at once (a list of payloads, or their rows (messages, length));
+    None if any message breaks the layout (None: the layout of the first)."""
+    if isinstance(raws, np.ndarray):
+        buf = np.ascontiguousarray(raws)
+    else:
+        buf = np.frombuffer(b"".join(raws), dtype=np.uint8).reshape(len(raws), -1)
+    if layout is None:
+        layout = _guess_layout(bytes(buf[0]), n_channels) if len(buf) else None
+        if layout is None:
+            return None
+    if buf.shape[1] != layout.total:
+        return None
     total = layout.total
 
     def field(offset: int, dtype: str, count: int = 1) -> NDArray:
-        # a strided view into the joined bytes, no copy (the assembly copies once, into the
+        # a strided view into the stacked bytes, no copy (the assembly copies once, into the
         # stream); CDR aligns from the body, so float64 fields sit 4 bytes off: numpy allows it
         return np.ndarray(
-            (len(raws), count), dtype=dtype, buffer=joined, offset=offset, strides=(total, np.dtype(dtype).itemsize)
+            (len(buf), count), dtype=dtype, buffer=buf, offset=offset, strides=(total, np.dtype(dtype).itemsize)
         )
 
     if not np.all(buf[:, :4] == np.frombuffer(CDR_LE_HEADER, dtype=np.uint8)):
@@ -127,20 +138,62 @@ def decode_group(
     )
 
 
-def group_by_layout(raws: Sequence[bytes], n_channels: int) -> tuple[dict[BlockLayout, list[int]], list[int]]:
-    """Message indices per layout, and the indices that need the generic deserialiser.
+def stack_by_length(
+    payloads: Sequence[object], positions: Sequence[object]
+) -> tuple[list[tuple[NDArray[np.uint8], NDArray[np.int64]]], NDArray[np.int64]]:
+    """A stream's messages as (rows, index): one contiguous (messages, length) uint8 array per
+    message length, and each row's index among the stream's messages in file order; and the
+    position in the file of each index.
 
-    Grouping is by message length (numpy); :func:`decode_group` then checks that
-    every message of a group really has the layout of its first one.
+    ``payloads`` are single messages (bytes-like, ``positions`` an int each) and runs ((k, length)
+    uint8 arrays, ``positions`` (k,) each), in any order: the index comes from the position.
     """
-    lengths = np.fromiter((len(r) for r in raws), dtype=np.int64, count=len(raws))
-    groups: dict[BlockLayout, list[int]] = {}
-    rest: list[int] = []
-    for length in np.unique(lengths):
-        idx = np.flatnonzero(lengths == length)
-        layout = _guess_layout(bytes(raws[int(idx[0])]), n_channels)
-        if layout is None:
-            rest.extend(idx.tolist())
+    single = [i for i, p in enumerate(payloads) if not isinstance(p, np.ndarray)]
+    runs = [i for i, p in enumerate(payloads) if isinstance(p, np.ndarray)]
+    flat_pos = np.concatenate(
+        [np.array([positions[i] for i in single], dtype=np.int64)]
+        + [np.asarray(positions[i], dtype=np.int64) for i in runs]
+    )
+    order = np.argsort(flat_pos, kind="stable")
+    index = np.empty(len(flat_pos), dtype=np.int64)
+    index[order] = np.arange(len(flat_pos))
+    single_len = np.fromiter((len(payloads[i]) for i in single), dtype=np.int64, count=len(single))  # type: ignore[arg-type]
+    run_len = [payloads[i].shape[1] for i in runs]  # type: ignore[attr-defined]
+    run_at = np.cumsum([len(single)] + [len(payloads[i]) for i in runs])  # type: ignore[arg-type]
+    groups = []
+    for length in sorted(set(single_len.tolist()) | set(run_len)):
+        parts: list[NDArray[np.uint8]] = []
+        where: list[NDArray[np.int64]] = []
+        members = np.flatnonzero(single_len == length)
+        if members.size:
+            joined = b"".join(payloads[single[int(m)]] for m in members)  # type: ignore[misc]
+            parts.append(np.frombuffer(joined, dtype=np.uint8).reshape(members.size, length))
+            where.append(index[members])
+        for r, i in enumerate(runs):
+            if run_len[r] == length:
+                parts.append(payloads[i])  # type: ignore[arg-type]
+                where.append(index[run_at[r] : run_at[r + 1]])
+        groups.append(_in_file_order(parts, where, length))
+    return groups, flat_pos[order]
+
+
+def _in_file_order(
+    parts: list[NDArray[np.uint8]], where: list[NDArray[np.int64]], length: int
+) -> tuple[NDArray[np.uint8], NDArray[np.int64]]:
+    """The parts' rows in one array, ordered by their index: the stream is then assembled by a few
+    long copies, not one a message (a run's rows have consecutive indexes; single messages lie
+    between runs, at the chunks' edges)."""
+    idx = np.concatenate(where)
+    rank = np.argsort(idx, kind="stable")
+    at = np.empty(len(idx), dtype=np.int64)
+    at[rank] = np.arange(len(idx))
+    rows = np.empty((len(idx), length), dtype=np.uint8)
+    start = 0
+    for part, w in zip(parts, where):
+        slots = at[start : start + len(w)]
+        start += len(w)
+        if len(slots) and slots[-1] - slots[0] == len(slots) - 1:
+            rows[slots[0] : slots[-1] + 1] = part
         else:
-            groups.setdefault(layout, []).extend(idx.tolist())
-    return groups, rest
+            rows[slots] = part
+    return rows, idx[rank]

@@ -87,7 +87,7 @@ def write_mcap_messages(
 
 def read_mcap(path: str | Path) -> Recording:
     """Fast record walker first; the ``mcap`` library reader where the walker does not apply."""
-    from phid_ros.io.mcap_raw import McapFormatError, WalkStatus, iter_messages
+    from phid_ros.io.mcap_raw import McapFormatError, WalkStatus, iter_message_runs
 
     path = Path(path)
     source = str(path)
@@ -95,7 +95,7 @@ def read_mcap(path: str | Path) -> Recording:
         raise BagError(f"{source}: no such MCAP file")
     status = WalkStatus()
     try:
-        rec = recording_from_raw(checked_payloads(iter_messages(path, status), source), source=source)
+        rec = recording_from_raw(checked_payloads(iter_message_runs(path, status), source), source=source)
     except McapFormatError as exc:
         raise BagError(f"{source}: truncated or corrupt MCAP file: {exc}") from exc
     except BagError as exc:

@@ -7,6 +7,12 @@ It understands exactly what the MCAP spec guarantees (magic, opcode + u64
 length framing, Schema/Channel/Chunk/Message records, zstd/lz4/uncompressed
 chunks) and raises :class:`McapFormatError` on anything else, so callers can
 fall back to the ``mcap``/``rosbags`` readers, which stay the reference.
+
+:func:`iter_message_runs` gives each message its position in the file and, where a chunk's
+message records repeat one cycle (the same channels, each message the same length, in the same
+order: a recorder logging fixed-size blocks), the cycle's records as runs: one strided numpy
+view over the decompressed chunk a channel, checked record by record in numpy, instead of one
+Python step a message.
 """
 
 from __future__ import annotations
@@ -15,6 +21,10 @@ import struct
 from collections import deque
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Union
+
+import numpy as np
+from numpy.typing import NDArray
 
 MAGIC = b"\x89MCAP0\r\n"
 OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK, OP_DATA_END, OP_FOOTER = 0x03, 0x04, 0x05, 0x06, 0x0F, 0x02
@@ -67,6 +77,7 @@ class WalkStatus:
         self.complete = False
         self.size = 0
         self.read_to = 0  # bytes of whole records read
+        self.messages = 0  # messages walked (counted by a walk with positions)
 
     def truncation(self) -> str | None:
         if self.complete:
@@ -129,6 +140,111 @@ def _chunk_messages(
     return out
 
 
+# A message of a walk with positions: (topic, schema name, encoding, payload, position), where the
+# payload is one message's bytes and the position an int, or a run: k messages of one channel,
+# each the same length, as a read-only (k, length) uint8 view, and their positions (k,).
+Positioned = tuple[str, str, str, Union[memoryview, NDArray[np.uint8]], Union[int, NDArray[np.int64]]]
+
+MIN_CYCLES = 4  # fewer repeats than this: the numpy set-up costs more than the records it saves
+MAX_CYCLE = 16  # channels in one repeating cycle of records
+CYCLE_PROBES = (8, 32)  # after this many message records in a row, look for a cycle
+
+
+def _chunk_runs(
+    raw: bytes, schemas: dict[int, str], channels: dict[int, tuple[str, int, str]], first: int
+) -> tuple[list[Positioned], int]:
+    """:func:`_chunk_messages` with positions (the first message is at ``first``), and the records
+    that repeat a cycle as runs; also the number of messages. The records are judged as that loop
+    judges them: a run covers only records that are, each one, a message of the cycle's channel with
+    the cycle's length there, so the first record that breaks the cycle (damaged, another channel,
+    a schema) is met by the loop, with the loop's error, after every message before it."""
+    out: list[Positioned] = []
+    view = memoryview(raw)
+    names: dict[int, tuple[str, str, str]] = {}
+    rec, u16 = _REC.unpack_from, _U16.unpack_from
+    pos, end = 0, len(raw)
+    n = first
+    recent: list[tuple[int, int]] = []  # (length, channel) of the message records just walked
+    while pos < end:
+        if pos + 9 > end:
+            raise McapFormatError("truncated record header")
+        op, length = rec(raw, pos)
+        body = pos + 9
+        nxt = body + length
+        if nxt > end:
+            raise McapFormatError("record runs past the end (truncated file)")
+        if op == OP_MESSAGE:
+            if length < _MSG.size:
+                raise McapFormatError(f"damaged record: a message record of {length} bytes")
+            (cid,) = u16(raw, body)
+            named = names.get(cid)
+            if named is None:
+                ch = channels.get(cid)
+                if ch is None:
+                    raise McapFormatError(f"message on unknown channel {cid}")
+                named = names[cid] = (ch[0], schemas.get(ch[1], ""), ch[2])
+            out.append((named[0], named[1], named[2], view[body + _MSG.size : nxt], n))
+            n += 1
+            recent.append((length, cid))
+            if len(recent) in CYCLE_PROBES:
+                cycle = _cycle(recent)
+                if cycle:
+                    k, taken = _runs(raw, nxt, end, cycle, names, n, out)
+                    n += taken
+                    nxt += k
+                    recent.clear()
+        else:
+            recent.clear()
+            if op in (OP_SCHEMA, OP_CHANNEL):
+                _register(op, raw, body, schemas, channels)
+                names.clear()
+        pos = nxt
+    return out, n - first
+
+
+def _cycle(recent: list[tuple[int, int]]) -> list[tuple[int, int]] | None:
+    """The shortest cycle the last message records repeat twice over, or None."""
+    for c in range(1, min(MAX_CYCLE, len(recent) // 2) + 1):
+        if recent[-c:] == recent[-2 * c : -c]:
+            return recent[-c:]
+    return None
+
+
+def _runs(
+    raw: bytes,
+    start: int,
+    end: int,
+    cycle: list[tuple[int, int]],
+    names: dict[int, tuple[str, str, str]],
+    first: int,
+    out: list[Positioned],
+) -> tuple[int, int]:
+    """The whole repeats of ``cycle`` from ``start`` as one run a channel into ``out``;
+    (bytes, messages) they cover (0, 0 when fewer than MIN_CYCLES repeat)."""
+    sizes = [9 + length for length, _ in cycle]
+    period = sum(sizes)
+    repeats = (end - start) // period
+    if repeats < MIN_CYCLES:
+        return 0, 0
+    offsets = np.cumsum([0, *sizes[:-1]]) + start
+    for (length, cid), off in zip(cycle, offsets.tolist()):
+        # every record of this slot: a message (opcode), of the cycle's length, on its channel
+        ops = np.ndarray((repeats,), np.uint8, raw, off, (period,))
+        lengths = np.ndarray((repeats,), "<u8", raw, off + 1, (period,))
+        cids = np.ndarray((repeats,), "<u2", raw, off + 9, (period,))
+        bad = np.flatnonzero((ops != OP_MESSAGE) | (lengths != length) | (cids != cid))
+        if bad.size:
+            repeats = int(bad[0])  # the cycle holds up to here in every slot
+    if repeats < MIN_CYCLES:
+        return 0, 0
+    c = len(cycle)
+    for j, ((length, cid), off) in enumerate(zip(cycle, offsets.tolist())):
+        topic, schema, encoding = names[cid]
+        data = np.ndarray((repeats, length - _MSG.size), np.uint8, raw, off + 9 + _MSG.size, (period, 1))
+        out.append((topic, schema, encoding, data, first + j + c * np.arange(repeats, dtype=np.int64)))
+    return repeats * period, repeats * c
+
+
 LOOKAHEAD = 4  # chunks decompressed ahead of the walk (about 1 MB each in our bags)
 
 
@@ -160,6 +276,18 @@ def _chunk_body(buf: bytes, body: int, nxt: int) -> tuple[str, bytes, int]:
 
 
 def iter_messages(path: str | Path, status: WalkStatus | None = None) -> Iterator[tuple[str, str, str, memoryview]]:
+    """(topic, schema name, encoding, payload) of every message in file order."""
+    return _walk_file(path, status, None)  # type: ignore[return-value]
+
+
+def iter_message_runs(path: str | Path, status: WalkStatus | None = None, first: int = 0) -> Iterator[Positioned]:
+    """Every message with its position (the file's first at ``first``: a split bag's files count
+    on), where they repeat a cycle as runs (:data:`Positioned`); ``status.messages`` counts them."""
+    return _walk_file(path, status, [first])  # type: ignore[return-value]
+
+
+def _walk_file(path: str | Path, status: WalkStatus | None, counted: list[int] | None) -> Iterator[object]:
+    """The walk; ``counted`` (the messages so far) asks for positions and runs."""
     data = Path(path).read_bytes()
     st = status if status is not None else WalkStatus()
     st.size = len(data)
@@ -168,7 +296,15 @@ def iter_messages(path: str | Path, status: WalkStatus | None = None) -> Iterato
     schemas: dict[int, str] = {}
     channels: dict[int, tuple[str, int, str]] = {}
 
-    def walk(buf: bytes, pos: int, end: int) -> Iterator[tuple[str, str, str, memoryview]]:
+    def split(raw: bytes) -> list:
+        if counted is None:
+            return _chunk_messages(raw, schemas, channels)
+        items, n = _chunk_runs(raw, schemas, channels, counted[0])
+        counted[0] += n
+        st.messages += n
+        return items
+
+    def walk(buf: bytes, pos: int, end: int) -> Iterator[object]:
         """The file's top-level records in order; a chunk's messages come from :func:`_chunk_messages`.
 
         The next chunks are decompressed on two threads while this one's messages are walked
@@ -214,9 +350,9 @@ def iter_messages(path: str | Path, status: WalkStatus | None = None) -> Iterato
                     fill()  # the next chunk decompresses while this one is walked
                     if len(raw) != _U64.unpack_from(buf, body + 16)[0]:
                         raise McapFormatError("chunk decompressed to the wrong size")
-                    yield from _chunk_messages(raw, schemas, channels)
+                    yield from split(raw)
                 elif op == OP_MESSAGE:
-                    yield from _chunk_messages(buf[body - 9 : nxt], schemas, channels)  # a message outside any chunk
+                    yield from split(buf[body - 9 : nxt])  # a message outside any chunk
                 elif op in (OP_SCHEMA, OP_CHANNEL):
                     _register(op, buf, body, schemas, channels)
                 elif op == OP_DATA_END:

@@ -282,9 +282,11 @@ class _Assembler:
             r0, r1 = int(r_sorted[a]), int(r_sorted[b - 1]) + 1
             o0, o1 = int(offsets[a]), int(offsets[b])
             n = g.values[0].shape[1]
-            t_ns[o0:o1] = (g.t0_ns[r0:r1, None] + np.arange(n, dtype=np.int64) * first).reshape(-1)
+            # written in place through (messages, n) views: the group's arrays are strided views
+            # into the messages' bytes, and a reshape of them would copy everything once more
+            np.add(g.t0_ns[r0:r1, None], np.arange(n, dtype=np.int64) * first, out=t_ns[o0:o1].reshape(r1 - r0, n))
             for c, v in zip(spec.channels, g.values):
-                channels[c][o0:o1] = v[r0:r1].reshape(-1)
+                channels[c][o0:o1].reshape(r1 - r0, n)[...] = v[r0:r1]
         return StreamSamples(t_ns, first, channels, msg_offsets=offsets[:-1].astype(np.int64), msg_seq=seq[rank])
 
     def finish(self, required: Iterable[str], metadata: dict[str, str] | None) -> Recording:
@@ -342,19 +344,25 @@ def recording_from_messages(
 
 
 def recording_from_raw(
-    items: Iterable[tuple[str, str, bytes]],
+    items: Iterable[tuple],
     *,
     source: str,
     metadata: dict[str, str] | None = None,
     required: Iterable[str] = tuple(s.name for s in STREAMS),
 ) -> Recording:
-    """Assemble a recording from raw CDR (topic, msgtype, bytes), decoding sensor blocks vectorised."""
-    from phid_ros.io.cdr_blocks import decode_group, group_by_layout
+    """Assemble a recording from raw CDR (topic, msgtype, bytes), decoding sensor blocks vectorised.
+
+    An item may carry its position in the file as a fourth field, and its payload may then be a
+    run of equally long messages (:func:`phid_ros.io.mcap_raw.iter_message_runs`); without it the
+    items are in file order.
+    """
+    from phid_ros.io.cdr_blocks import decode_group, stack_by_length
 
     store = typestore()
-    raws: dict[str, list[bytes]] = {}
-    seqs: dict[str, list[int]] = {}
+    raws: dict[str, list] = {}
+    seqs: dict[str, list] = {}
     topics: dict[str, str] = {}
+    markers: list[tuple[int, bytes, str, str]] = []
 
     def deserialize(raw: bytes, msgtype: str, topic: str) -> object:
         try:
@@ -364,8 +372,10 @@ def recording_from_raw(
 
     asm = _Assembler(source)
     # (topic, type) -> its payload list and its positions list, or None for topics not ours
-    routes: dict[tuple[str, str], tuple[list[bytes], list[int]] | None] = {}
-    for position, (topic, msgtype, raw) in enumerate(items):
+    routes: dict[tuple[str, str], tuple[list, list] | None] = {}
+    for position, item in enumerate(items):
+        topic, msgtype, raw = item[0], item[1], item[2]
+        where = item[3] if len(item) > 3 else position
         key = (topic, msgtype)
         if key not in routes:
             dest = _route(source, topic, msgtype, raws, topics)
@@ -373,24 +383,29 @@ def recording_from_raw(
         route = routes[key]
         if route is not None:
             route[0].append(raw)
-            route[1].append(position)
+            route[1].append(where)
         elif topic == SCENARIO_TOPIC:
-            asm.scenarios.append(scenario_from_message(deserialize(raw, msgtype, topic)))
+            if isinstance(raw, np.ndarray):  # a run of markers: each one on its own
+                markers += [(int(w), bytes(r), msgtype, topic) for r, w in zip(raw, where)]
+            else:
+                markers.append((where, bytes(raw), msgtype, topic))
+    # markers in file order, whichever way they came
+    asm.scenarios += [scenario_from_message(deserialize(*m[1:])) for m in sorted(markers, key=lambda m: m[0])]
     if not raws and not asm.scenarios:
         present = ", ".join(sorted({t for t, _ in routes})) or "none"
         raise BagError(f"{source}: none of the phid sensor topics found (topics present: {present})")
     for name, msgs in raws.items():
         spec = STREAMS_BY_NAME[name]
-        seq_of = np.asarray(seqs[name], dtype=np.int64)
-        groups, rest = group_by_layout(msgs, len(spec.channels))
-        for layout, idx in groups.items():
-            dec = decode_group([msgs[i] for i in idx], idx, layout, len(spec.channels))
+        groups, seq_of = stack_by_length(msgs, seqs[name])
+        rest: list[tuple[int, bytes]] = []
+        for rows, idx in groups:
+            dec = decode_group(rows, idx, None, len(spec.channels))
             if dec is None:
-                rest.extend(idx)
+                rest += [(int(i), bytes(r)) for i, r in zip(idx, rows)]
                 continue
             asm.add_group(name, topics[name], dec.order, dec.t0_ns, dec.period_s, dec.values, seq_of[dec.order])
-        for i in rest:
-            msg = deserialize(msgs[i], spec.msgtype, topics[name])
+        for i, raw in rest:
+            msg = deserialize(raw, spec.msgtype, topics[name])
             arrays = [np.asarray(getattr(msg, c), dtype=np.float64) for c in spec.channels]
             asm.add_message(
                 name,
@@ -404,17 +419,19 @@ def recording_from_raw(
     return asm.finish(required, metadata)
 
 
-def checked_payloads(messages: Iterable[tuple[str, str, str, bytes]], source: str) -> Iterator[tuple[str, str, bytes]]:
-    """(topic, type, raw) from (topic, schema name, encoding, raw): our topics must be cdr and known.
+def checked_payloads(messages: Iterable[tuple], source: str) -> Iterator[tuple]:
+    """(topic, type, payload[, position]) from (topic, schema name, encoding, payload[, position]):
+    our topics must be cdr and known. The payload may be a run (:data:`phid_ros.io.mcap_raw.Positioned`).
 
     Foreign topics pass through unchecked (they are counted, then ignored).
     """
     store = typestore()
     checked: set[tuple[str, str, str]] = set()  # a (topic, type, encoding) is judged once, not per message
-    for topic, schema, encoding, raw in messages:
+    for item in messages:
+        topic, schema, encoding = item[0], item[1], item[2]
         if (topic, schema, encoding) not in checked:
             if not is_phid_topic(topic):
-                yield topic, schema, raw
+                yield (topic, schema, *item[3:])
                 continue
             if encoding != "cdr" or not schema:
                 raise BagError(f"{source}: topic {topic} is not cdr-encoded ROS 2 data")
@@ -422,12 +439,10 @@ def checked_payloads(messages: Iterable[tuple[str, str, str, bytes]], source: st
             if schema not in store.types:
                 raise BagError(f"{source}: topic {topic} has unknown message type {schema}")
             checked.add((topic, schema, encoding))
-        yield topic, schema, raw
+        yield (topic, schema, *item[3:])
 
 
-def _route(
-    source: str, topic: str, msgtype: str, raws: dict[str, list[bytes]], topics: dict[str, str]
-) -> list[bytes] | None:
+def _route(source: str, topic: str, msgtype: str, raws: dict[str, list], topics: dict[str, str]) -> list | None:
     """The payload list of a sensor topic (after checking its type); None for others."""
     if topic == SCENARIO_TOPIC:
         _check_type(source, topic, msgtype, SCENARIO_MSGTYPE)

@@ -122,7 +122,7 @@ def _fast_read(path: Path, source: str) -> Recording | None:
     from rosbags.rosbag2.metadata import ReaderMetadata  # noqa: F401  (import check only)
     from ruamel.yaml import YAML
 
-    from phid_ros.io.mcap_raw import McapFormatError, WalkStatus, iter_messages
+    from phid_ros.io.mcap_raw import McapFormatError, WalkStatus, iter_message_runs
 
     try:
         meta = YAML(typ="safe").load((path / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
@@ -138,9 +138,11 @@ def _fast_read(path: Path, source: str) -> Recording | None:
 
     statuses = {f: WalkStatus() for f in files}
 
-    def items() -> Iterator[tuple[str, str, bytes]]:
+    def items() -> Iterator[tuple]:
+        first = 0  # positions count on across a split bag's files
         for f in files:
-            yield from checked_payloads(iter_messages(f, statuses[f]), source)
+            yield from checked_payloads(iter_message_runs(f, statuses[f], first), source)
+            first += statuses[f].messages
 
     try:
         rec = recording_from_raw(items(), source=source, metadata=metadata)

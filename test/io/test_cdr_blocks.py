@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from phid_ros.io.cdr_blocks import block_layout, decode_group, group_by_layout
+from phid_ros.io.cdr_blocks import block_layout, decode_group, stack_by_length
 from phid_ros.io.msg_schemas import typestore
 from phid_ros.io.recording import recording_from_messages, recording_from_raw, recording_messages
 
@@ -29,11 +29,13 @@ def test_layout_matches_serialised_size_for_many_shapes():
 
 def test_group_decode_equals_reference():
     raws, arrays = zip(*(_pt_ct(7, sec=s) for s in range(4)))
-    groups, rest = group_by_layout(list(raws), 5)
-    assert rest == [] and len(groups) == 1
-    layout, idx = next(iter(groups.items()))
-    dec = decode_group([raws[i] for i in idx], idx, layout, 5)
+    groups, positions = stack_by_length(list(raws), [10, 11, 12, 13])
+    assert len(groups) == 1 and list(positions) == [10, 11, 12, 13]
+    rows, idx = groups[0]
+    assert list(idx) == [0, 1, 2, 3]
+    dec = decode_group(rows, idx, None, 5)
     assert dec is not None
+    assert dec.t0_ns.tolist() == decode_group(list(raws), idx, None, 5).t0_ns.tolist()  # type: ignore[union-attr]
     assert list(dec.t0_ns) == [s * 1_000_000_000 + 9 for s in range(4)]
     for j, c in enumerate(("v_t", "i_d", "i_q", "p_e", "q_e")):
         assert np.array_equal(dec.values[j], np.stack([a[c] for a in arrays]))
@@ -45,8 +47,8 @@ def test_unequal_arrays_fall_back_to_the_reference_and_are_refused():
     msg = store.deserialize_cdr(raw, "phid_msgs/msg/PtCtBlock")
     msg.q_e = np.zeros(3)
     bad = bytes(store.serialize_cdr(msg, "phid_msgs/msg/PtCtBlock"))
-    groups, rest = group_by_layout([bad], 5)
-    assert rest == [0]
+    groups, _ = stack_by_length([bad], [0])
+    assert decode_group(groups[0][0], groups[0][1], None, 5) is None  # not the block layout: the reference decodes it
     import pytest
 
     from phid_ros.errors import BagError

@@ -69,3 +69,91 @@ def test_a_walk_abandoned_midway_leaves_no_thread_behind():
 def _write(path: Path, data: bytes) -> Path:
     path.write_bytes(data)
     return path
+
+
+# -- runs: the messages of a repeating cycle of records as strided views --------------------------
+
+
+def _expanded(path: Path, status: WalkStatus | None = None) -> tuple[list[tuple[int, str, str, str, bytes]], int]:
+    """Every message of a walk with positions, runs expanded, in position order; and the runs seen."""
+    import numpy as np
+
+    from phid_ros.io.mcap_raw import iter_message_runs
+
+    out, runs = [], 0
+    for t, s, e, payload, pos in iter_message_runs(path, status):
+        if isinstance(payload, np.ndarray):
+            runs += 1
+            assert payload.ndim == 2 and len(payload) == len(pos) and not payload.flags.writeable
+            out += [(int(p), t, s, e, bytes(row)) for p, row in zip(pos, payload)]
+        else:
+            out.append((pos, t, s, e, bytes(payload)))
+    return sorted(out), runs
+
+
+def test_runs_are_the_messages_in_file_order_position_for_position():
+    st = WalkStatus()
+    got, runs = _expanded(CATALOGUE, st)
+    want = [(i, t, s, e, bytes(raw)) for i, (t, s, e, raw) in enumerate(iter_messages(CATALOGUE))]
+    assert got == want
+    assert runs > 100 and st.messages == 26_418  # the catalogue's chunks are cycles of four channels
+
+
+def _irregular(path: Path, damage: bool = False) -> Path:
+    """An uncompressed MCAP whose chunks repeat a cycle of three channels, broken by: a longer
+    message, a channel registered mid-chunk, a lone message of another channel; and, with
+    ``damage``, a record whose length runs past its chunk, deep inside a cycle."""
+    from mcap.writer import CompressionType, Writer
+
+    with path.open("wb") as f:
+        w = Writer(f, compression=CompressionType.NONE, chunk_size=40_000)
+        w.start(profile="ros2", library="test")
+        sid = w.register_schema("pkg/msg/X", "ros2msg", b"float64 x")
+        ch = [w.register_channel(f"/t{i}", "cdr", sid) for i in range(3)]
+        late = None
+        t = 0
+        for k in range(400):
+            for i, c in enumerate(ch):
+                size = 40 + 8 * i + (16 if (k, i) == (150, 1) else 0)
+                w.add_message(c, log_time=t, data=bytes([k % 251, i]) * (size // 2), publish_time=t)
+                t += 1
+            if k == 220:
+                late = w.register_channel("/late", "cdr", sid)
+            if late is not None and k % 97 == 0:
+                w.add_message(late, log_time=t, data=b"late", publish_time=t)
+                t += 1
+        w.finish()
+    if damage:
+        data = bytearray(path.read_bytes())
+        start, _ = _chunks(bytes(data))[1]
+        # the chunk's records begin after its header (4 u64/u32 fields, a compression string, a length)
+        body = start + 9 + 8 + 8 + 8 + 4 + 4 + 8
+        pos = body
+        for _ in range(60):  # deep into the chunk's cycles
+            pos += 9 + struct.unpack_from("<Q", data, pos + 1)[0]
+        struct.pack_into("<Q", data, pos + 1, 10**9)
+        path.write_bytes(bytes(data))
+    return path
+
+
+def test_a_cycle_broken_by_a_longer_message_a_new_channel_or_a_lone_one_walks_as_the_plain_walk(tmp_path):
+    path = _irregular(tmp_path / "irregular.mcap")
+    got, runs = _expanded(path)
+    want = [(i, t, s, e, bytes(raw)) for i, (t, s, e, raw) in enumerate(iter_messages(path))]
+    assert len(want) == 400 * 3 + 2 and got == want  # /late at k = 291 and 388
+    assert runs >= 3 * len(_chunks(path.read_bytes())) // 2  # most chunks walked as runs
+
+
+def test_a_damaged_record_inside_a_cycle_raises_the_plain_walks_error_after_the_same_messages(tmp_path):
+    path = _irregular(tmp_path / "damaged.mcap", damage=True)
+    from phid_ros.io.mcap_raw import iter_message_runs
+
+    def walk(it: object) -> tuple[int, str]:
+        seen = 0
+        with pytest.raises(McapFormatError) as err:
+            for item in it:  # type: ignore[attr-defined]
+                seen += len(item[4]) if len(item) > 4 and not isinstance(item[4], int) else 1
+        return seen, str(err.value)
+
+    plain, runs = walk(iter_messages(path)), walk(iter_message_runs(path))
+    assert plain == runs and plain[0] > 0 and "past the end" in plain[1]
