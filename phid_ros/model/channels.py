@@ -108,13 +108,17 @@ def unit_problem(channel: str, values: object, *, share: float = 0.5) -> str | N
     import numpy as np
 
     x = np.asarray(values, dtype=float)
-    x = x[np.isfinite(x)]
     lo, hi = PLAUSIBLE[channel]
-    if x.size == 0:
+    # counted without gathering the finite samples (a copy of the channel): NaN compares false,
+    # and an infinite sample, outside any range, is taken out of both counts
+    infinite = int(np.count_nonzero(np.isinf(x)))
+    finite = x.size - infinite - int(np.count_nonzero(np.isnan(x)))
+    if finite == 0:
         return None
-    outside = float(np.mean((x < lo) | (x > hi)))
+    outside = (int(np.count_nonzero((x < lo) | (x > hi))) - infinite) / finite
     if outside < share:
         return None
+    x = x[np.isfinite(x)]
     typical = float(np.median(np.abs(x)))
     guess = next((text for a, b, text in _UNIT_GUESSES.get(channel, ()) if a <= typical < b), None)
     what = f"looks like {guess}" if guess else "not per unit on the machine base"
