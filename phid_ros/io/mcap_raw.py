@@ -101,45 +101,6 @@ def _register(
         channels[cid] = (topic, sid, _string(buf, p)[0])
 
 
-def _chunk_messages(
-    raw: bytes, schemas: dict[int, str], channels: dict[int, tuple[str, int, str]]
-) -> list[tuple[str, str, str, memoryview]]:
-    """(topic, schema name, encoding, payload) of every message record in ``raw`` (a chunk's records).
-
-    One tight loop per chunk, the records' fields read in place and each channel's names looked up
-    once: the per-message walk through nested generators was half of reading a bag in Python.
-    """
-    out: list[tuple[str, str, str, memoryview]] = []
-    view = memoryview(raw)
-    names: dict[int, tuple[str, str, str]] = {}
-    rec, u16 = _REC.unpack_from, _U16.unpack_from
-    pos, end = 0, len(raw)
-    while pos < end:
-        if pos + 9 > end:
-            raise McapFormatError("truncated record header")
-        op, length = rec(raw, pos)
-        body = pos + 9
-        nxt = body + length
-        if nxt > end:
-            raise McapFormatError("record runs past the end (truncated file)")
-        if op == OP_MESSAGE:
-            if length < _MSG.size:
-                raise McapFormatError(f"damaged record: a message record of {length} bytes")
-            (cid,) = u16(raw, body)
-            named = names.get(cid)
-            if named is None:
-                ch = channels.get(cid)
-                if ch is None:
-                    raise McapFormatError(f"message on unknown channel {cid}")
-                named = names[cid] = (ch[0], schemas.get(ch[1], ""), ch[2])
-            out.append((named[0], named[1], named[2], view[body + _MSG.size : nxt]))
-        elif op in (OP_SCHEMA, OP_CHANNEL):
-            _register(op, raw, body, schemas, channels)
-            names.clear()
-        pos = nxt
-    return out
-
-
 # A message of a walk with positions: (topic, schema name, encoding, payload, position), where the
 # payload is one message's bytes and the position an int, or a run: k messages of one channel,
 # each the same length, as a read-only (k, length) uint8 view, and their positions (k,).
@@ -150,14 +111,18 @@ MAX_CYCLE = 16  # channels in one repeating cycle of records
 CYCLE_PROBES = (8, 32)  # after this many message records in a row, look for a cycle
 
 
-def _chunk_runs(
-    raw: bytes, schemas: dict[int, str], channels: dict[int, tuple[str, int, str]], first: int
+def _chunk_records(
+    raw: bytes, schemas: dict[int, str], channels: dict[int, tuple[str, int, str]], first: int, runs: bool
 ) -> tuple[list[Positioned], int]:
-    """:func:`_chunk_messages` with positions (the first message is at ``first``), and the records
-    that repeat a cycle as runs; also the number of messages. The records are judged as that loop
-    judges them: a run covers only records that are, each one, a message of the cycle's channel with
-    the cycle's length there, so the first record that breaks the cycle (damaged, another channel,
-    a schema) is met by the loop, with the loop's error, after every message before it."""
+    """(topic, schema name, encoding, payload, position) of every message record in ``raw`` (a
+    chunk's records; the first message at ``first``), and the number of messages. With ``runs``,
+    the records that repeat a cycle come as runs.
+
+    One tight loop per chunk, the records' fields read in place and each channel's names looked up
+    once: the per-message walk through nested generators was half of reading a bag in Python. A
+    run covers only records that are, each one, a message of the cycle's channel with the cycle's
+    length there, so the first record that breaks the cycle (damaged, another channel, a schema)
+    is met by the loop, with the loop's error, after every message before it."""
     out: list[Positioned] = []
     view = memoryview(raw)
     names: dict[int, tuple[str, str, str]] = {}
@@ -186,7 +151,7 @@ def _chunk_runs(
             out.append((named[0], named[1], named[2], view[body + _MSG.size : nxt], n))
             n += 1
             recent.append((length, cid))
-            if len(recent) in CYCLE_PROBES:
+            if runs and len(recent) in CYCLE_PROBES:
                 cycle = _cycle(recent)
                 if cycle:
                     k, taken = _runs(raw, nxt, end, cycle, names, n, out)
@@ -298,14 +263,14 @@ def _walk_file(path: str | Path, status: WalkStatus | None, counted: list[int] |
 
     def split(raw: bytes) -> list:
         if counted is None:
-            return _chunk_messages(raw, schemas, channels)
-        items, n = _chunk_runs(raw, schemas, channels, counted[0])
+            return [item[:4] for item in _chunk_records(raw, schemas, channels, 0, False)[0]]
+        items, n = _chunk_records(raw, schemas, channels, counted[0], True)
         counted[0] += n
         st.messages += n
         return items
 
     def walk(buf: bytes, pos: int, end: int) -> Iterator[object]:
-        """The file's top-level records in order; a chunk's messages come from :func:`_chunk_messages`.
+        """The file's top-level records in order; a chunk's messages come from :func:`_chunk_records`.
 
         The next chunks are decompressed on two threads while this one's messages are walked
         (zstd releases the GIL): decompression was 61 of the 81 ms of walking the catalogue bag,
