@@ -192,8 +192,8 @@ def _in_file_order(
     for part, w in zip(parts, where):
         slots = at[start : start + len(w)]
         start += len(w)
-        if len(slots) and slots[-1] - slots[0] == len(slots) - 1:
-            rows[slots[0] : slots[-1] + 1] = part
+        if len(slots) and np.array_equal(slots, np.arange(slots[0], slots[0] + len(slots))):
+            rows[slots[0] : slots[-1] + 1] = part  # consecutive and rising: one copy
         else:
             rows[slots] = part
     return rows, idx[rank]

@@ -68,3 +68,29 @@ def test_object_path_and_raw_path_build_the_same_recording(short_recording):
         for c in a.streams[name].channels:
             assert np.array_equal(a.streams[name].channels[c], b.streams[name].channels[c])
             assert np.array_equal(a.streams[name].channels[c], short_recording.streams[name].channels[c])
+
+
+def test_stacking_orders_rows_by_position_whatever_order_single_messages_and_runs_come_in():
+    """Rows are placed by their position in the file: runs (as the walk gives them, a chunk's cycle
+    at a time) and single messages arrive out of file order, some backwards, some shuffled."""
+    rng = np.random.default_rng(3)
+    n = 40
+    payload = [rng.bytes(16) for _ in range(n)]
+    as_rows = np.frombuffer(b"".join(payload), dtype=np.uint8).reshape(n, 16)
+    items = (
+        [
+            (as_rows[10:20], np.arange(110, 120)),  # a run
+            (payload[3], 103),
+            (as_rows[25:40], np.arange(125, 140)),  # another run
+            (payload[2], 102),  # singles backwards
+            (payload[1], 101),
+            (as_rows[[20, 22, 21, 23, 24]], np.array([120, 122, 121, 123, 124])),  # consecutive, not rising
+            (payload[0], 100),
+        ]
+        + [(payload[k], 100 + k) for k in range(4, 10)]
+    )
+    groups, positions = stack_by_length([p for p, _ in items], [w for _, w in items])
+    assert len(groups) == 1
+    rows, idx = groups[0]
+    assert idx.tolist() == list(range(n)) and positions.tolist() == list(range(100, 100 + n))
+    assert rows.tobytes() == b"".join(payload)
