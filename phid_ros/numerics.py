@@ -22,7 +22,6 @@ from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.linalg.lapack import dtbtrs
 
 Array = NDArray[np.float64]
 
@@ -75,6 +74,8 @@ def all_pole(x: Array, a: tuple[float, ...], axis: int = -1) -> Array:
     y = kernel.all_pole(rhs, a)
     if y is not None:
         return np.moveaxis(y.reshape(x.shape), 0, axis)
+    from scipy.linalg.lapack import dtbtrs  # here: with numba, identification does without scipy.linalg
+
     band = np.empty((len(a) + 1, n), order="F")  # LAPACK's layout: no copy on the way in
     band[0] = 1.0  # the unit diagonal (diag="U": not read)
     for i, ai in enumerate(a, start=1):

@@ -28,7 +28,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import curve_fit
 
 from phid_ros.errors import StageError
 from phid_ros.ident.constraints import NONE, Constraints, at_user_bound, held
@@ -36,6 +35,7 @@ from phid_ros.ident.results import STD_CALIBRATION, Estimate, flag
 from phid_ros.ident.scenario import ScenarioData
 from phid_ros.ident.uncertainty import block_ids, cluster_robust_cov, information_share
 from phid_ros.numerics import find_peaks, lowpass2, lowpass2_derivative
+from phid_ros.optimize import decay_fit
 
 DEFAULT_CUTOFF_HZ = 2.0
 BLOCK_SECONDS = 1.0
@@ -209,10 +209,10 @@ def _envelope(s: ScenarioData, window_s: float = 15.0) -> tuple[float, float]:
     t = peaks * s.dt
     amp = np.abs(dev[peaks])
 
-    def env(tt: np.ndarray, a0: float, alpha: float) -> np.ndarray:
-        return a0 * np.exp(-alpha * tt)
-
-    (a0, alpha), _ = curve_fit(env, t - t[0], amp, p0=(amp[0], 0.5), method="lm", maxfev=2000)
+    try:
+        _, alpha = decay_fit(t - t[0], amp, float(amp[0]), 0.5)
+    except ValueError as exc:
+        raise Stage1Error(f"{s.name}: the speed envelope's exponential fit failed: {exc}") from exc
     # |dev| peaks come every half period
     omega_d = math.pi / float(np.mean(np.diff(t)))
     return float(alpha), omega_d
