@@ -16,6 +16,7 @@ is the reference; tests check that both paths agree.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -45,6 +46,7 @@ class BlockLayout:
     n: int
 
 
+@functools.cache  # a stream's parts share a few shapes; decoding a part must not rebuild them
 def block_layout(frame_id_len: int, n_channels: int, n: int) -> BlockLayout:
     pos = 12 + frame_id_len + 1  # sec, nanosec, string length, chars, NUL
     pos = _align(pos, 8)
@@ -86,6 +88,15 @@ def _guess_layout(raw: bytes, n_channels: int) -> BlockLayout | None:
     return layout if layout.total == len(raw) else None
 
 
+@functools.cache
+def _shared_bytes(layout: BlockLayout) -> tuple[NDArray[np.intp], NDArray[np.uint8]]:
+    """Byte places every message of a layout agrees on and their values: the CDR header and each
+    array's element count; then the places of the frame_id's length (its value: the group's own)."""
+    places = [*range(4)] + [c + i for c in layout.counts for i in range(4)] + [*range(12, 16)]
+    values = CDR_LE_HEADER + b"".join(layout.n.to_bytes(4, "little") for _ in layout.counts)
+    return np.array(places, dtype=np.intp), np.frombuffer(values, dtype=np.uint8)
+
+
 @dataclass
 class DecodedGroup:
     order: NDArray[np.int64]  # index of each message in the stream's message order
@@ -103,7 +114,8 @@ def decode_group(
     """Decode equally long messages at once (a list of payloads, or their rows (messages, length));
     None if any message breaks the layout (None: the layout of the first)."""
     if isinstance(raws, np.ndarray):
-        buf = np.ascontiguousarray(raws)
+        # rows may be a strided view into a chunk (a run): fields are views into it, no copy
+        buf = raws if raws.ndim == 2 and raws.strides[1] == 1 else np.ascontiguousarray(raws)
     else:
         buf = np.frombuffer(b"".join(raws), dtype=np.uint8).reshape(len(raws), -1)
     if layout is None:
@@ -112,22 +124,17 @@ def decode_group(
             return None
     if buf.shape[1] != layout.total:
         return None
-    total = layout.total
 
     def field(offset: int, dtype: str, count: int = 1) -> NDArray:
-        # a strided view into the stacked bytes, no copy (the assembly copies once, into the
+        # a strided view into the messages' bytes, no copy (the assembly copies once, into the
         # stream); CDR aligns from the body, so float64 fields sit 4 bytes off: numpy allows it
-        return np.ndarray(
-            (len(buf), count), dtype=dtype, buffer=buf, offset=offset, strides=(total, np.dtype(dtype).itemsize)
-        )
+        return buf[:, offset : offset + np.dtype(dtype).itemsize * count].view(dtype)
 
-    if not np.all(buf[:, :4] == np.frombuffer(CDR_LE_HEADER, dtype=np.uint8)):
+    # the CDR header, every array's count and (from the first row) the frame_id's length: one
+    # gather and one comparison for the whole group (a check per field cost more than the decoding)
+    where, shared = _shared_bytes(layout)
+    if not (buf[:, where] == np.concatenate((shared, buf[0, 12:16]))).all():
         return None
-    if not np.all(buf[:, 12:16] == buf[0, 12:16]):  # every frame_id of the same length
-        return None
-    for c in layout.counts:
-        if not np.all(field(c, "<u4")[:, 0] == layout.n):
-            return None
     sec = field(layout.sec, "<i4")[:, 0].astype(np.int64)
     nsec = field(layout.nanosec, "<u4")[:, 0].astype(np.int64)
     return DecodedGroup(
@@ -141,12 +148,15 @@ def decode_group(
 def stack_by_length(
     payloads: Sequence[object], positions: Sequence[object]
 ) -> tuple[list[tuple[NDArray[np.uint8], NDArray[np.int64]]], NDArray[np.int64]]:
-    """A stream's messages as (rows, index): one contiguous (messages, length) uint8 array per
-    message length, and each row's index among the stream's messages in file order; and the
-    position in the file of each index.
+    """A stream's messages as parts (rows, index), each a (messages, length) uint8 array and each
+    row's index among the stream's messages in file order; and the position in the file of each
+    index.
 
     ``payloads`` are single messages (bytes-like, ``positions`` an int each) and runs ((k, length)
-    uint8 arrays, ``positions`` (k,) each), in any order: the index comes from the position.
+    uint8 arrays, ``positions`` (k,) each), in any order: the index comes from the position. A run
+    stays the array it came as (a strided view into its chunk: its rows are not copied here, the
+    stream's assembly copies them once, into the channels); single messages of one length are
+    stacked into one part.
     """
     single = [i for i, p in enumerate(payloads) if not isinstance(p, np.ndarray)]
     runs = [i for i, p in enumerate(payloads) if isinstance(p, np.ndarray)]
@@ -158,42 +168,14 @@ def stack_by_length(
     index = np.empty(len(flat_pos), dtype=np.int64)
     index[order] = np.arange(len(flat_pos))
     single_len = np.fromiter((len(payloads[i]) for i in single), dtype=np.int64, count=len(single))  # type: ignore[arg-type]
-    run_len = [payloads[i].shape[1] for i in runs]  # type: ignore[attr-defined]
-    run_at = np.cumsum([len(single)] + [len(payloads[i]) for i in runs])  # type: ignore[arg-type]
-    groups = []
-    for length in sorted(set(single_len.tolist()) | set(run_len)):
-        parts: list[NDArray[np.uint8]] = []
-        where: list[NDArray[np.int64]] = []
+    parts: list[tuple[NDArray[np.uint8], NDArray[np.int64]]] = []
+    for length in sorted(set(single_len.tolist())):
         members = np.flatnonzero(single_len == length)
-        if members.size:
-            joined = b"".join(payloads[single[int(m)]] for m in members)  # type: ignore[misc]
-            parts.append(np.frombuffer(joined, dtype=np.uint8).reshape(members.size, length))
-            where.append(index[members])
-        for r, i in enumerate(runs):
-            if run_len[r] == length:
-                parts.append(payloads[i])  # type: ignore[arg-type]
-                where.append(index[run_at[r] : run_at[r + 1]])
-        groups.append(_in_file_order(parts, where, length))
-    return groups, flat_pos[order]
-
-
-def _in_file_order(
-    parts: list[NDArray[np.uint8]], where: list[NDArray[np.int64]], length: int
-) -> tuple[NDArray[np.uint8], NDArray[np.int64]]:
-    """The parts' rows in one array, ordered by their index: the stream is then assembled by a few
-    long copies, not one a message (a run's rows have consecutive indexes; single messages lie
-    between runs, at the chunks' edges)."""
-    idx = np.concatenate(where)
-    rank = np.argsort(idx, kind="stable")
-    at = np.empty(len(idx), dtype=np.int64)
-    at[rank] = np.arange(len(idx))
-    rows = np.empty((len(idx), length), dtype=np.uint8)
-    start = 0
-    for part, w in zip(parts, where):
-        slots = at[start : start + len(w)]
-        start += len(w)
-        if len(slots) and np.array_equal(slots, np.arange(slots[0], slots[0] + len(slots))):
-            rows[slots[0] : slots[-1] + 1] = part  # consecutive and rising: one copy
-        else:
-            rows[slots] = part
-    return rows, idx[rank]
+        joined = b"".join(payloads[single[int(m)]] for m in members)  # type: ignore[misc]
+        parts.append((np.frombuffer(joined, dtype=np.uint8).reshape(members.size, length), index[members]))
+    at = len(single)
+    for i in runs:
+        k = len(payloads[i])  # type: ignore[arg-type]
+        parts.append((payloads[i], index[at : at + k]))  # type: ignore[arg-type]
+        at += k
+    return parts, flat_pos[order]

@@ -266,27 +266,33 @@ class _Assembler:
                 f"{self.source}: {self.topics[name]} changes sample period from {first} ns "
                 f"to {int(periods[k])} ns at message {int(order[k])}"
             )
-        group_of = np.concatenate([np.full(len(g.order), i) for i, g in enumerate(groups)])
-        row_of = np.concatenate([np.arange(len(g.order)) for g in groups])
-        g_sorted, r_sorted, n_sorted = group_of[rank], row_of[rank], lengths[rank]
-        # runs of consecutive rows of one group are contiguous in memory: copy them by slices
-        breaks = np.flatnonzero((np.diff(g_sorted) != 0) | (np.diff(r_sorted) != 1)) + 1
-        run_starts = np.concatenate(([0], breaks))
-        run_ends = np.concatenate((breaks, [len(rank)]))
-        offsets = np.concatenate(([0], np.cumsum(n_sorted)))
+        slot = np.empty(len(order), dtype=np.int64)  # each message's place in the stream
+        slot[rank] = np.arange(len(order))
+        offsets = np.concatenate(([0], np.cumsum(lengths[rank])))
         total = int(offsets[-1])
         t_ns = np.empty(total, dtype=np.int64)
         channels = {c: np.empty(total, dtype=np.float64) for c in spec.channels}
-        for a, b in zip(run_starts.tolist(), run_ends.tolist()):
-            g = groups[int(g_sorted[a])]
-            r0, r1 = int(r_sorted[a]), int(r_sorted[b - 1]) + 1
-            o0, o1 = int(offsets[a]), int(offsets[b])
-            n = g.values[0].shape[1]
-            # written in place through (messages, n) views: the group's arrays are strided views
-            # into the messages' bytes, and a reshape of them would copy everything once more
-            np.add(g.t0_ns[r0:r1, None], np.arange(n, dtype=np.int64) * first, out=t_ns[o0:o1].reshape(r1 - r0, n))
-            for c, v in zip(spec.channels, g.values):
-                channels[c][o0:o1].reshape(r1 - r0, n)[...] = v[r0:r1]
+        start = 0
+        for g in groups:
+            k, n = len(g.order), g.values[0].shape[1]
+            places = slot[start : start + k]
+            start += k
+            if not k:
+                continue
+            step = np.arange(n, dtype=np.int64) * first
+            if places[-1] - places[0] == k - 1 and np.all(np.diff(places) == 1):
+                # a run: its messages are neighbours in the stream, one copy per channel, through
+                # (messages, n) views (the group's arrays are strided views into the messages'
+                # bytes; a reshape of them would copy everything once more)
+                o0 = int(offsets[places[0]])
+                np.add(g.t0_ns[:, None], step, out=t_ns[o0 : o0 + k * n].reshape(k, n))
+                for c, v in zip(spec.channels, g.values):
+                    channels[c][o0 : o0 + k * n].reshape(k, n)[...] = v
+            else:  # single messages between runs: scattered by their samples' places
+                at = offsets[places][:, None] + np.arange(n, dtype=np.int64)
+                t_ns[at] = g.t0_ns[:, None] + step
+                for c, v in zip(spec.channels, g.values):
+                    channels[c][at] = v
         return StreamSamples(t_ns, first, channels, msg_offsets=offsets[:-1].astype(np.int64), msg_seq=seq[rank])
 
     def finish(self, required: Iterable[str], metadata: dict[str, str] | None) -> Recording:

@@ -14,7 +14,7 @@ def _pt_ct(n: int, frame_id: str = "generator", sec: int = 5):
     hdr = store.types["std_msgs/msg/Header"](
         stamp=store.types["builtin_interfaces/msg/Time"](sec=sec, nanosec=9), frame_id=frame_id
     )
-    rng = np.random.default_rng(n)
+    rng = np.random.default_rng([n, sec])  # messages of one test differ by their stamps and their samples
     arrays = {c: rng.normal(size=n) for c in ("v_t", "i_d", "i_q", "p_e", "q_e")}
     msg = store.types["phid_msgs/msg/PtCtBlock"](header=hdr, sample_period=1e-3, **arrays)
     return bytes(store.serialize_cdr(msg, "phid_msgs/msg/PtCtBlock")), arrays
@@ -90,7 +90,35 @@ def test_stacking_orders_rows_by_position_whatever_order_single_messages_and_run
         + [(payload[k], 100 + k) for k in range(4, 10)]
     )
     groups, positions = stack_by_length([p for p, _ in items], [w for _, w in items])
-    assert len(groups) == 1
-    rows, idx = groups[0]
-    assert idx.tolist() == list(range(n)) and positions.tolist() == list(range(100, 100 + n))
-    assert rows.tobytes() == b"".join(payload)
+    assert positions.tolist() == list(range(100, 100 + n))
+    # the ten single messages stacked into one part, each run kept as the array it came as
+    assert [len(rows) for rows, _ in groups] == [10, 10, 15, 5]
+    assert all(np.shares_memory(groups[i][0], as_rows) for i in (1, 2))
+    placed = np.zeros((n, 16), dtype=np.uint8)
+    for rows, idx in groups:
+        placed[idx] = rows
+    assert sorted(i for _, idx in groups for i in idx.tolist()) == list(range(n))
+    assert placed.tobytes() == b"".join(payload)
+
+
+def test_a_stream_assembled_from_runs_and_single_messages_in_any_order():
+    """Runs copied by slices, single messages and a run not in rising order scattered: the stream
+    is the messages' samples in file order."""
+    raws = [_pt_ct(7, sec=s)[0] for s in range(12)]
+    length = len(raws[0])
+    rows = np.frombuffer(b"".join(raws), dtype=np.uint8).reshape(12, length)
+    topic, msgtype = "/generator/pt_ct", "phid_msgs/msg/PtCtBlock"
+    items = [
+        (topic, msgtype, rows[4:8], np.arange(4, 8)),
+        (topic, msgtype, raws[1], 1),
+        (topic, msgtype, rows[[9, 8, 10]], np.array([9, 8, 10])),
+        (topic, msgtype, raws[0], 0),
+        (topic, msgtype, rows[2:4], np.arange(2, 4)),
+        (topic, msgtype, raws[11], 11),
+    ]
+    got = recording_from_raw(items, source="x", required=("pt_ct",)).streams["pt_ct"]
+    want = recording_from_raw(((topic, msgtype, r) for r in raws), source="x", required=("pt_ct",)).streams["pt_ct"]
+    assert np.array_equal(got.t_ns, want.t_ns) and got.t_ns.size == 12 * 7
+    for c in want.channels:
+        assert np.array_equal(got.channels[c], want.channels[c])
+    assert got.msg_offsets.tolist() == list(range(0, 84, 7))
