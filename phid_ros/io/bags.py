@@ -54,10 +54,10 @@ def recording_source(path: str | Path) -> str | None:
     p = Path(path)
     try:
         if p.is_dir():
-            from ruamel.yaml import YAML
+            from phid_ros.io.rosbag2 import bag_metadata
 
-            meta = YAML(typ="safe").load((p / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
-            return (meta.get("custom_data") or {}).get("phid.source")
+            custom = bag_metadata(p).get("custom_data")
+            return custom.get("phid.source") if isinstance(custom, dict) else None
         from phid_ros.io.mcap_file import file_metadata
 
         return file_metadata(p).get("source")
