@@ -81,6 +81,21 @@ def test_rosbag2_is_mcap_storage_with_zstd(tmp_path, short_recording):
     assert head.startswith(b"\x89MCAP0\r\n") and b"zstd" in head
 
 
+def test_custom_data_reads_as_the_text_written(tmp_path, short_recording):
+    """metadata.yaml's custom_data values as written, unquoted ones included: no YAML 1.1 guess
+    turns ``yes`` into True or ``1:30`` into 90; an empty custom_data is no metadata."""
+    path = write_recording(tmp_path / "bag", short_recording)
+    meta = path / "metadata.yaml"
+    text = meta.read_text()
+    head, tail = text.split("  custom_data:\n", 1)
+    meta.write_text(head + "  custom_data:\n    phid.flag: yes\n    phid.clock: 1:30\n    phid.rate: 0.50\n" + tail)
+    got = read_recording(path).metadata
+    assert (got["flag"], got["clock"], got["rate"]) == ("yes", "1:30", "0.50")
+    lines = [ln for ln in text.splitlines() if not ln.startswith("    phid.")]
+    meta.write_text("\n".join(ln if ln != "  custom_data:" else "  custom_data: null" for ln in lines) + "\n")
+    assert read_recording(path).metadata == {}
+
+
 @pytest.mark.parametrize("suffix", ["", ".mcap"])
 def test_fast_reader_equals_the_library_readers(tmp_path, short_recording, suffix):
     from phid_ros.io.mcap_file import read_mcap_reference
