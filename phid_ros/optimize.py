@@ -1,22 +1,25 @@
-"""The two searches the default identification runs, on numpy alone: scipy's steps, scipy's numbers.
+"""The searches the default identification runs, on numpy alone.
 
 Why not ``scipy.optimize``: importing it costs 0.45-0.55 s per process on the 2-core reference
 machine (it pulls in scipy.linalg, scipy.fft, scipy.special and the array-API shim, which walks
 numpy's namespace into numpy.f2py and numpy.testing). That is more than the whole warm
 identification of a recording, and a fresh ``phid identify``, every replay and every
-recalibration process paid it. The default identification uses two things from it:
+recalibration process paid it. The default identification used three things from it:
 
 - :func:`bounded_scalar_minimum`: ``minimize_scalar(method="bounded")`` (Brent's fminbound, the
   1-D searches of stage 3's variable projection);
 - :func:`differential_evolution`: ``differential_evolution`` as the IEEE 115 baseline calls it
   (latin hypercube start, best1bin, dithered mutation, deferred updating, a vectorised cost, no
-  polish), the paper's method (section 3.2).
+  polish), the paper's method (section 3.2);
+- :func:`decay_fit`: ``curve_fit(method="lm")`` of stage 1's speed envelope (the differential
+  damping method, on dampingless simulations).
 
-Both follow scipy 1.17's code statement by statement, the random draws in the same order from the
-same legacy ``RandomState`` an integer seed makes there, so the results are bit for bit scipy's;
-tests hold them to scipy itself. A side effect a plant engineer can use: the baseline's figures
-no longer move when scipy is upgraded. What the defaults do not run (the paper's global stage 3,
-stage 2's L-BFGS-B, the differential damping method's curve fit) still imports scipy, when used.
+The first two follow scipy 1.17's code statement by statement, the random draws in the same order
+from the same legacy ``RandomState`` an integer seed makes there, so their results are bit for bit
+scipy's; tests hold them to scipy itself. A side effect a plant engineer can use: the baseline's
+figures no longer move when scipy is upgraded. The third is not MINPACK replayed: it reaches the
+same least-squares optimum, tighter (see its docstring). What the defaults do not run (the
+paper's global stage 3, stage 2's L-BFGS-B) still imports scipy, when used.
 """
 
 from __future__ import annotations
