@@ -8,9 +8,11 @@ hurts both alike). Each figure is a median over ``--runs`` (diagnose: over 1 run
 ``--diagnose-runs`` says more, it takes minutes). Printed per goal: baseline, this tree,
 ratio, and the goal.
 
-- identify warm: the second to last of repeated read + identify + JSON in one process;
-- identify fresh: ``phid identify BAG --json`` in a new process (interpreter start included);
-- replay: ``phid replay bags/catalogue``, stream seconds per wall second;
+- identify warm: the median of repeated read + identify + JSON in one process (the first run
+  left out), in three processes a tree;
+- identify fresh: ``phid identify BAG --json`` in a new process (interpreter start included),
+  wall and CPU seconds (user + system: the same work, less moved by the machine's other tenants);
+- replay: ``phid replay bags/catalogue``, stream seconds per wall second, and CPU seconds;
 - diagnose: ``phid diagnose bags/saturation`` end to end, wall time and peak memory (the sum
   over the command and its Dask worker processes, sampled every 0.2 s from /proc);
 - diagnose CSV: ``phid diagnose`` of a 16-scenario x 30 s CSV set with saturation hidden,
@@ -22,6 +24,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -78,12 +81,15 @@ def _tree_rss_mb(root: int) -> float:
     return sum(rss.get(p, 0) for p in tree) / 2**20
 
 
-def _timed(cmd: list[str], tree: Path, sample_tree: bool = False) -> tuple[float, float, str]:
-    """Wall seconds, peak memory (MB) and stdout of a child.
+def _timed(cmd: list[str], tree: Path, sample_tree: bool = False) -> tuple[float, float, str, float]:
+    """Wall seconds, peak memory (MB), stdout and CPU seconds (user + system) of a child.
 
     Peak memory: the child's own (wait4), or with ``sample_tree`` the largest sum over the
-    child and its descendants (Dask workers), sampled every 0.1 s.
+    child and its descendants (Dask workers), sampled every 0.1 s. CPU: the child's and its
+    reaped descendants'; steadier than wall time on a shared machine whose other tenants come
+    and go (wall medians of one tree moved 1.4-2.4 s within minutes).
     """
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
         t0 = time.perf_counter()
         proc = subprocess.Popen(cmd, env=_env(tree), stdout=out, stderr=err, text=True, cwd=tree)
@@ -102,17 +108,20 @@ def _timed(cmd: list[str], tree: Path, sample_tree: bool = False) -> tuple[float
         err.seek(0)
         if proc.returncode != 0:
             raise SystemExit(f"{' '.join(cmd)} failed in {tree}:\n{err.read()[-2000:]}")
-        return wall, peak, out.read()
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+        return wall, peak, out.read(), cpu
 
 
 def identify_warm(tree: Path, runs: int, tmp: Path) -> float:
-    _, _, out = _timed(
+    _, _, out, _ = _timed(
         [sys.executable, "-c", WARM_IDENTIFY, str(BAGS / "catalogue"), str(tmp / "w.json"), str(runs)], tree
     )
     return float(json.loads(out.strip().splitlines()[-1])["warm"])
 
 
-def identify_fresh(tree: Path, tmp: Path) -> float:
+def identify_fresh(tree: Path, tmp: Path) -> tuple[float, float]:
+    """Wall and CPU seconds."""
     cmd = [
         sys.executable,
         "-m",
@@ -122,20 +131,22 @@ def identify_fresh(tree: Path, tmp: Path) -> float:
         "--json",
         str(tmp / "f.json"),
     ]
-    return _timed(cmd, tree)[0]
+    wall, _, _, cpu = _timed(cmd, tree)
+    return wall, cpu
 
 
-def replay_speed(tree: Path, tmp: Path) -> float:
+def replay_speed(tree: Path, tmp: Path) -> tuple[float, float]:
+    """Stream seconds per wall second, and CPU seconds."""
     out = tmp / "replay.mcap"
     cmd = [sys.executable, "-m", "phid_ros.cli.main", "replay", str(BAGS / "catalogue"), "--out", str(out), "--force"]
-    wall, _, _ = _timed(cmd, tree)
-    return 660.0 / wall  # the catalogue holds 660 s of data; start-up and writing included
+    wall, _, _, cpu = _timed(cmd, tree)
+    return 660.0 / wall, cpu  # the catalogue holds 660 s of data; start-up and writing included
 
 
 def diagnose(tree: Path, tmp: Path, data: Path) -> tuple[float, float]:
     """Wall time and peak memory of all its processes (the candidates run in Dask workers)."""
     cmd = [sys.executable, "-m", "phid_ros.cli.main", "diagnose", str(data), "--json", str(tmp / "d.json")]
-    wall, peak, _ = _timed(cmd, tree, sample_tree=True)
+    wall, peak, _, _ = _timed(cmd, tree, sample_tree=True)
     return wall, peak
 
 
@@ -177,12 +188,17 @@ def main() -> None:
                 figures[tree].setdefault(key, []).append(value)
 
             if not args.diagnose_only:
-                for name, tree in trees.items():
-                    add(name, "identify warm (s)", identify_warm(tree, args.runs, tmp))
+                for _ in range(3):  # three warm processes a tree, alternately: the machine drifts
+                    for name, tree in trees.items():
+                        add(name, "identify warm (s)", identify_warm(tree, args.runs, tmp))
                 for _ in range(args.runs):
                     for name, tree in trees.items():
-                        add(name, "identify fresh (s)", identify_fresh(tree, tmp))
-                        add(name, "replay (x real time)", replay_speed(tree, tmp))
+                        wall, cpu = identify_fresh(tree, tmp)
+                        add(name, "identify fresh (s)", wall)
+                        add(name, "identify fresh CPU (s)", cpu)
+                        speed, cpu = replay_speed(tree, tmp)
+                        add(name, "replay (x real time)", speed)
+                        add(name, "replay CPU (s)", cpu)
             if not args.skip_diagnose:
                 manifest = csv_set(tmp)
                 for _ in range(args.diagnose_runs):
@@ -196,7 +212,9 @@ def main() -> None:
     goals = {
         "identify warm (s)": "≤ 0.2",
         "identify fresh (s)": "≤ 0.5",
+        "identify fresh CPU (s)": "(the same work, steadier)",
         "replay (x real time)": "≥ 500",
+        "replay CPU (s)": "(the same work, steadier)",
         "diagnose saturation (s)": "≤ 15",
         "diagnose peak memory (MB)": "≤ 400",
         "diagnose CSV 16x30 s (s)": "≤ 60",
