@@ -18,11 +18,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.optimize import differential_evolution
 
 from phid_ros.errors import StageError
 from phid_ros.ident.results import Estimate
 from phid_ros.ident.scenario import ScenarioData
-from phid_ros.optimize import differential_evolution
 
 Array = NDArray[np.float64]
 FIT_SECONDS = 3.0  # "from fault initiation to several seconds post-clearing"
@@ -71,9 +71,20 @@ def _fit(t: Array, y: Array, w: Array, bounds: list[tuple[float, float]], seed: 
         model = e * (np.exp(-t[None, :] / tc) / xp + 1.0 / xs)
         return np.sum(w[None, :] * (y[None, :] - model) ** 2, axis=1)
 
-    # scipy's differential_evolution(init="latinhypercube", vectorized=True, updating="deferred",
-    # polish=False) step for step, without importing scipy.optimize (phid_ros.optimize)
-    return differential_evolution(cost, bounds, seed=seed, tol=1e-7, maxiter=400, popsize=10)
+    # the paper's global search (section 3.2.2, step 4); the cost is vectorised over the population
+    res = differential_evolution(
+        cost,
+        bounds,
+        seed=seed,
+        tol=1e-7,
+        maxiter=400,
+        popsize=10,
+        init="latinhypercube",
+        vectorized=True,
+        updating="deferred",
+        polish=False,
+    )
+    return np.asarray(res.x, dtype=float), float(res.fun)
 
 
 def _bound_hits(x: Array, bounds: list[tuple[float, float]], names: list[str]) -> list[str]:

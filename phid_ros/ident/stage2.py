@@ -21,6 +21,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.optimize import minimize
 
 from phid_ros.errors import StageError
 from phid_ros.ident.results import Estimate, flag
@@ -160,8 +161,6 @@ def _paper_d_axis(i_d: np.ndarray, v_q: np.ndarray, problems: list[str]) -> tupl
 
     def cost(th: np.ndarray) -> float:
         return float(np.sum((v_q - (-th[0] * i_d + th[1])) ** 2))
-
-    from scipy.optimize import minimize  # here: the default identification does without scipy.optimize
 
     res = minimize(
         cost,

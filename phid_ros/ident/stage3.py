@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.optimize import basinhopping, differential_evolution, dual_annealing, minimize, minimize_scalar
 
 from phid_ros.errors import StageError
 from phid_ros.ident.constraints import NONE, Constraints
@@ -45,7 +46,6 @@ from phid_ros.ident.results import STD_CALIBRATION, Estimate, flag
 from phid_ros.ident.scenario import ScenarioData
 from phid_ros.ident.uncertainty import block_ids, cluster_robust_cov, information_share
 from phid_ros.numerics import first_order_response_kept, lowpass2, recursive_first_order
-from phid_ros.optimize import bounded_scalar_minimum
 
 Array = NDArray[np.float64]
 
@@ -369,7 +369,8 @@ def _profile(
     a, b = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
     # 1e-7 in log(tau) costs one evaluation more than 1e-5 and lands on the global
     # optimisers' J to the last digits they print (a looser stop leaves J visibly above)
-    return fit_at(math.exp(bounded_scalar_minimum(f, a, b, xatol=1e-7)))
+    best = minimize_scalar(f, bounds=(a, b), method="bounded", options={"xatol": 1e-7})
+    return fit_at(math.exp(float(best.x)))
 
 
 def variable_projection(
@@ -422,8 +423,6 @@ def _global_search(
 ) -> Array:
     """The paper's global stage: differential evolution, or dual annealing / basin hopping to compare."""
     if optimizer == "de":
-        from scipy.optimize import differential_evolution  # here: the default path does without scipy.optimize
-
         res = differential_evolution(
             f,
             bounds,
@@ -436,12 +435,8 @@ def _global_search(
             x0=x0,
         )
     elif optimizer == "dual_annealing":
-        from scipy.optimize import dual_annealing
-
         res = dual_annealing(f, bounds, maxfun=popsize * len(bounds) * maxiter, seed=seed, no_local_search=True)
     elif optimizer == "basin_hopping":
-        from scipy.optimize import basinhopping
-
         if x0 is None:
             x0 = np.array([lo + rng.random() * (hi - lo) for lo, hi in bounds])
         res = basinhopping(
@@ -466,8 +461,6 @@ def _multistart(
     candidates = [x_best] + [
         np.clip(x_best * (1 + 0.05 * rng.standard_normal(len(x_best))), lo, hi) for _ in range(max(0, starts - 1))
     ]
-    from scipy.optimize import minimize  # here: the default path does without scipy.optimize
-
     for c in candidates:
         r = minimize(f, c, method="L-BFGS-B", bounds=bounds, options={"ftol": 1e-14, "gtol": 1e-12})
         if r.fun <= best[0] + 1e-15:
