@@ -17,9 +17,9 @@ from pathlib import Path
 from typing import Any
 
 from phid_ros.errors import PhidError
+from phid_ros.io.sqlite_schema import migrate, table_columns
 from phid_ros.model.parameters import PARAMETER_NAMES
 
-SCHEMA_VERSION = 1
 DRIFT_SIGMAS = 4.0  # a change between consecutive well-identified sets beyond this many σ is flagged
 STATUSES = ("ok", "failed")
 
@@ -78,6 +78,22 @@ def _create_sql() -> str:
     )
 
 
+# the history's schema, step by step (io/sqlite_schema.py)
+SCHEMA_STEPS = (
+    _create_sql()
+    + "; CREATE INDEX IF NOT EXISTS runs_unit ON runs (unit, start_ns)"
+    + "; CREATE TABLE IF NOT EXISTS hash_cache (path TEXT PRIMARY KEY, stat_key TEXT, sha256 TEXT)",
+)
+
+
+def _legacy_version(db: sqlite3.Connection) -> int:
+    """A history from before ``user_version`` kept its schema in a meta table (1 was the only one)."""
+    if not table_columns(db, "meta"):
+        return 0
+    found = db.execute("SELECT value FROM meta WHERE key='schema'").fetchone()
+    return int(found[0]) if found is not None else 0
+
+
 class History:
     """``FLEET_DIR/history.sqlite``."""
 
@@ -94,14 +110,7 @@ class History:
             raise HistoryError(f"{self.path}: not a usable fleet history ({exc})") from None
 
     def _migrate(self) -> None:
-        self.db.execute("CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT)")
-        found = self.db.execute("SELECT value FROM meta WHERE key='schema'").fetchone()
-        if found is not None and int(found[0]) > SCHEMA_VERSION:
-            raise HistoryError(f"{self.path}: written by a newer phid (schema {found[0]} > {SCHEMA_VERSION})")
-        self.db.execute(_create_sql())
-        self.db.execute("CREATE INDEX IF NOT EXISTS runs_unit ON runs (unit, start_ns)")
-        self.db.execute("CREATE TABLE IF NOT EXISTS hash_cache (path TEXT PRIMARY KEY, stat_key TEXT, sha256 TEXT)")
-        self.db.execute("INSERT OR REPLACE INTO meta VALUES ('schema', ?)", (str(SCHEMA_VERSION),))
+        migrate(self.db, SCHEMA_STEPS, what=f"{self.path}: fleet history", error=HistoryError, legacy=_legacy_version)
 
     def close(self) -> None:
         self.db.close()

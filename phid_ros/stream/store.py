@@ -27,20 +27,24 @@ from pathlib import Path
 import numpy as np
 
 from phid_ros.errors import PhidError
+from phid_ros.io.sqlite_schema import migrate, table_columns
 from phid_ros.model.channels import CHANNELS
 from phid_ros.stream.detector import Event, EventWindow
 
-SCHEMA_VERSION = "2"
-SCHEMA = """
-CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
-CREATE TABLE IF NOT EXISTS events (
-    event_id TEXT PRIMARY KEY, kind TEXT NOT NULL, name TEXT, role TEXT NOT NULL,
-    generator_damping INTEGER NOT NULL, inception_ns INTEGER NOT NULL, clearing_ns INTEGER NOT NULL,
-    severity REAL, v_prefault REAL, segment INTEGER, start_ns INTEGER NOT NULL, period_ns INTEGER NOT NULL,
-    n INTEGER NOT NULL, usable INTEGER NOT NULL, reason TEXT, channels TEXT NOT NULL, data BLOB NOT NULL,
-    digest TEXT NOT NULL);
-CREATE INDEX IF NOT EXISTS events_kind_time ON events (kind, inception_ns);
-"""
+# the store's schema, step by step (io/sqlite_schema.py): version n + 1 is steps[:n + 1] applied
+SCHEMA_STEPS = (
+    """
+    CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
+    CREATE TABLE IF NOT EXISTS events (
+        event_id TEXT PRIMARY KEY, kind TEXT NOT NULL, name TEXT, role TEXT NOT NULL,
+        generator_damping INTEGER NOT NULL, inception_ns INTEGER NOT NULL, clearing_ns INTEGER NOT NULL,
+        severity REAL, v_prefault REAL, segment INTEGER, start_ns INTEGER NOT NULL, period_ns INTEGER NOT NULL,
+        n INTEGER NOT NULL, usable INTEGER NOT NULL, reason TEXT, channels TEXT NOT NULL, data BLOB NOT NULL);
+    CREATE INDEX IF NOT EXISTS events_kind_time ON events (kind, inception_ns)
+    """,
+    # 2: a digest of the samples, so that a replayed event is told from a different one
+    "ALTER TABLE events ADD COLUMN digest TEXT NOT NULL DEFAULT ''",
+)
 COLUMNS = (
     "event_id, kind, name, role, generator_damping, inception_ns, clearing_ns, severity, v_prefault, segment, "
     "start_ns, period_ns, n, usable, reason, channels, data"
@@ -69,6 +73,15 @@ def _same_samples(a: EventWindow, b: EventWindow) -> bool:
     return bool(np.array_equal(a.values[ia], b.values[ib], equal_nan=True))
 
 
+def _legacy_version(db: sqlite3.Connection) -> int:
+    """A store from before ``user_version``: 2 with the digest column, else 0.
+
+    A store without digests may also lack the meta table; step 1 only creates what is missing,
+    so such a store is taken through it again rather than called version 1.
+    """
+    return 2 if "digest" in table_columns(db, "events") else 0
+
+
 class EventStore:
     def __init__(self, path: str | Path = ":memory:", *, unit: str | None = None) -> None:
         self.path = str(path)
@@ -86,14 +99,7 @@ class EventStore:
 
     # -- identity ----------------------------------------------------------------------
     def _migrate(self) -> None:
-        with self._write():
-            cols = [r[1] for r in self._db.execute("PRAGMA table_info(events)")]
-            if cols and "digest" not in cols:  # a store written before events had digests
-                self._db.execute("ALTER TABLE events ADD COLUMN digest TEXT NOT NULL DEFAULT ''")
-            for stmt in SCHEMA.strip().split(";"):
-                if stmt.strip():
-                    self._db.execute(stmt)
-            self._db.execute("INSERT OR IGNORE INTO meta VALUES ('schema_version', ?)", (SCHEMA_VERSION,))
+        migrate(self._db, SCHEMA_STEPS, what=f"{self.path}: event store", error=StoreError, legacy=_legacy_version)
 
     def _claim(self, unit: str | None) -> str | None:
         with self._write():

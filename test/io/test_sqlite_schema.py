@@ -1,0 +1,82 @@
+"""One schema-version scheme for the event store and the fleet history (io/sqlite_schema.py)."""
+
+from __future__ import annotations
+
+import sqlite3
+
+import pytest
+
+from phid_ros.errors import PhidError
+from phid_ros.fleet.history import SCHEMA_STEPS as HISTORY_STEPS
+from phid_ros.fleet.history import History, HistoryError
+from phid_ros.io.sqlite_schema import migrate, table_columns, user_version
+from phid_ros.stream.store import SCHEMA_STEPS as STORE_STEPS
+from phid_ros.stream.store import EventStore, StoreError
+
+
+class _Err(PhidError):
+    pass
+
+
+def _db(path) -> sqlite3.Connection:
+    return sqlite3.connect(path, isolation_level=None)
+
+
+def test_steps_run_in_order_once_each(tmp_path):
+    ran = []
+    steps = ["CREATE TABLE a (x)", lambda db: ran.append(1), "ALTER TABLE a ADD COLUMN y; CREATE TABLE b (z)"]
+    db = _db(tmp_path / "f.sqlite")
+    assert migrate(db, steps, what="f", error=_Err) == 0
+    assert user_version(db) == 3 and table_columns(db, "a") == ["x", "y"] and table_columns(db, "b") == ["z"]
+    assert migrate(db, steps, what="f", error=_Err) == 3 and ran == [1]  # nothing runs twice
+
+
+def test_a_failing_step_leaves_the_file_at_the_version_before(tmp_path):
+    db = _db(tmp_path / "f.sqlite")
+    with pytest.raises(sqlite3.OperationalError):
+        migrate(db, ["CREATE TABLE a (x)", "CREATE TABLE b (z); ALTER TABLE nowhere ADD COLUMN q"], what="f", error=_Err)
+    assert user_version(db) == 1 and table_columns(db, "b") == []  # step 2 rolled back whole
+
+
+def test_a_newer_file_is_refused_naming_it(tmp_path):
+    db = _db(tmp_path / "f.sqlite")
+    db.execute("PRAGMA user_version = 7")
+    with pytest.raises(_Err, match=r"f: written by a newer phid \(schema 7 > 1\)"):
+        migrate(db, ["CREATE TABLE a (x)"], what="f", error=_Err)
+    path = tmp_path / "store.sqlite"
+    _db(path).execute("PRAGMA user_version = 9")
+    with pytest.raises(StoreError, match="store.sqlite: event store: written by a newer phid"):
+        EventStore(path)
+    path = tmp_path / "history.sqlite"
+    _db(path).execute("PRAGMA user_version = 9")
+    with pytest.raises(HistoryError, match="history.sqlite: fleet history: written by a newer phid"):
+        History(path)
+
+
+def test_an_event_store_from_before_digests_gains_the_column(tmp_path):
+    """A version-1 store (meta 'schema_version', no digest column) as phid wrote it before."""
+    path = tmp_path / "old.sqlite"
+    db = _db(path)
+    for stmt in STORE_STEPS[0].split(";"):
+        db.execute(stmt)
+    db.execute("INSERT INTO meta VALUES ('schema_version', '1')")
+    db.execute("INSERT INTO meta VALUES ('unit', 'G1')")
+    db.close()
+    store = EventStore(path, unit="G1")
+    store.close()
+    db = _db(path)
+    assert user_version(db) == len(STORE_STEPS) == 2 and "digest" in table_columns(db, "events")
+
+
+def test_a_history_from_before_user_version_is_taken_as_version_1(tmp_path):
+    path = tmp_path / "history.sqlite"
+    db = _db(path)
+    db.execute("CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT)")
+    db.execute("INSERT INTO meta VALUES ('schema', '1')")
+    for stmt in HISTORY_STEPS[0].split(";"):
+        db.execute(stmt)
+    db.execute("INSERT INTO runs (unit, recording, content_hash, status, phid_version) VALUES ('G1', 'r', 'h', 'ok', 'x')")
+    db.close()
+    with History(path) as h:
+        assert h.units() == ["G1"]
+    assert user_version(_db(path)) == 1
