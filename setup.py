@@ -1,10 +1,28 @@
 """ament_python package phid_ros; also a plain pip-installable package (no ROS needed)."""
 
+import re
 from glob import glob
+from pathlib import Path
 
 from setuptools import find_packages, setup
 
 package_name = "phid_ros"
+# one version: phid_ros/__init__.py's (test/test_version.py holds both package.xml to it)
+version = re.search(r'^__version__ = "([^"]+)"', (Path(__file__).parent / "phid_ros" / "__init__.py").read_text(), re.M).group(1)
+
+# optional parts (phid_ros/extras.py says what each brings and what runs without it)
+extras = {
+    # the compiled play-in and filters: 6-9x a numpy play-in; without it the same numbers, slower
+    "jit": ["numba>=0.60"],
+    # phid fleet and --scheduler: one recording per task on a Dask cluster; bokeh serves its dashboard
+    "fleet": ["dask>=2024.1", "distributed>=2024.1", "bokeh>=3.1", "cloudpickle>=3.0"],
+    # COMTRADE (IEEE C37.111) reading for phid import-comtrade: a maintained parser, not ours
+    "field": ["comtrade>=0.1"],
+    "docs": ["sphinx>=7.2", "myst-parser>=2.0", "sphinx-argparse>=0.4"],
+}
+extras["all"] = sorted({r for k in ("jit", "fleet", "field") for r in extras[k]})
+# andes: the independent simulator the exported planning records are checked in
+extras["test"] = sorted({*extras["all"], *extras["docs"], "pytest>=7.4", "andes>=1.9", "ruff>=0.4", "mypy>=1.8"})
 
 
 def data(folder: str, pattern: str = "*") -> list[str]:
@@ -13,7 +31,7 @@ def data(folder: str, pattern: str = "*") -> list[str]:
 
 setup(
     name=package_name,
-    version="0.1.0",
+    version=version,
     packages=find_packages(include=["phid_ros", "phid_ros.*"]) + ["phid_ros.msg_schemas_data"],
     # The .msg files live once, in msg_schemas/ (the phid_msgs interface package).
     # They ship inside the wheel as phid_ros/msg_schemas_data/ so the rosbags
@@ -33,27 +51,15 @@ setup(
         "scipy>=1.11",
         "rosbags>=0.10",
         "mcap>=1.1",
-        "zstandard>=0.21",
+        "zstandard>=0.21",  # zstd-compressed MCAP chunks, read by our own walk (io/mcap_raw.py)
+        "lz4>=4.0",  # lz4-compressed MCAP chunks, likewise
         "rich>=13.0",
         "matplotlib>=3.6",
-        # one engine for parallel work (phid fleet, a diagnosis round's candidates): a local
-        # cluster on a laptop, an existing cluster by its scheduler address
-        "dask>=2024.1",
-        "distributed>=2024.1",
-        "bokeh>=3.1",  # the Dask dashboard phid fleet prints the address of
-        "pyyaml>=6.0",  # fleet inventories as YAML lists
-        # the diagnosis play-in compiled (phid_ros/sim/kernel.py): 6-9x a numpy play-in; without
-        # it (or with PHID_NO_JIT=1) the numpy plant runs, the same numbers, slower
-        "numba>=0.60",
+        "pyyaml>=6.0",  # fleet inventories, channel maps, rosbag2 metadata
         # one BLAS thread per job thread while a diagnosis's candidates run on threads (cluster.py)
         "threadpoolctl>=3.1",
-        # COMTRADE (IEEE C37.111) reading for phid import-comtrade: a maintained parser, not ours
-        "comtrade>=0.1",
     ],
-    extras_require={
-        # andes: the independent simulator the exported planning records are checked in
-        "test": ["pytest>=7.4", "andes>=1.9"],
-    },
+    extras_require=extras,
     zip_safe=True,
     maintainer="phid_ros maintainers",
     maintainer_email="phid@example.org",

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, TypeVar
 
 from phid_ros.errors import PhidError
+from phid_ros.extras import installed, require
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -102,8 +103,9 @@ def cluster(scheduler: str | None = None, workers: int = 0, *, dashboard: bool =
     port when ``dashboard`` is set and bokeh is installed. The client and a local
     cluster are closed on leaving.
     """
-    import dask
-    from distributed import Client, LocalCluster
+    dask = require("dask", "fleet", "a Dask cluster")
+    distributed = require("distributed", "fleet", "a Dask cluster")
+    Client, LocalCluster = distributed.Client, distributed.LocalCluster
 
     with ExitStack() as stack:
         if scheduler:
@@ -210,7 +212,9 @@ class Jobs(AbstractContextManager["Jobs"]):
     (calls that run without the GIL), to ``workers`` threads here (0: one per core); else
     to a local cluster of ``workers`` processes (0: one per core) started on first use and
     kept until the context is left. A call whose arguments cannot be sent to another
-    interpreter runs here; the answer is the same, only slower.
+    interpreter runs here; the answer is the same, only slower. Without the ``[fleet]`` extra
+    (no Dask) and no ``scheduler``, the calls that would have gone to a local cluster run here
+    too: Dask is an extra, and a diagnosis must not need it.
     """
 
     def __init__(self, workers: int, scheduler: str | None = None, *, threads: bool = False) -> None:
@@ -238,6 +242,8 @@ class Jobs(AbstractContextManager["Jobs"]):
             finally:
                 # on an error or Ctrl-C the jobs not yet started are dropped, not run to the end first
                 pool.shutdown(wait=True, cancel_futures=True)
+        if not self.scheduler and not installed("fleet"):
+            return [fn(*args) for args in calls]
         if not _portable(fn, calls):
             return [fn(*args) for args in calls]
         if in_worker():

@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING
 
 from phid_ros import __version__
 from phid_ros.errors import PhidError
+from phid_ros.extras import require
 from phid_ros.fleet.history import History, Row
 from phid_ros.fleet.inventory import Item, content_hash, discover, stat_key
 from phid_ros.fleet.task import one_line, process_recording
@@ -128,9 +129,9 @@ def _run_tasks(
     on_cluster: Callable[[Client], None] | None,
     on_row: Callable[[Row, int, int], None] | None,
 ) -> None:
-    from distributed import as_completed
-
     from phid_ros.cluster import cluster
+
+    as_completed = require("distributed", "fleet", "phid fleet").as_completed
 
     with cluster(options.scheduler, options.workers, dashboard=options.dashboard) as client:
         _check_workers(client)

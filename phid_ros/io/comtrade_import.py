@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from phid_ros.errors import PhidError
+from phid_ros.extras import require
 from phid_ros.io.channel_map import WAVEFORMS, ChannelMap, ChannelMapError, check_recording
 from phid_ros.io.csv_import import ScenarioTable
 from phid_ros.io.field_channels import field_recording, identification_channels, scenario_table
@@ -29,8 +30,7 @@ class ComtradeImportError(PhidError):
 
 
 def _load(path: Path, what: str = "recording"):  # -> comtrade.Comtrade, or comtrade.Cfg for "cfg"
-    import comtrade
-
+    comtrade = require("comtrade", "field", f"{path}: reading COMTRADE")
     rec = comtrade.Cfg(ignore_warnings=True) if what == "cfg" else comtrade.Comtrade(ignore_warnings=True)
     try:
         with warnings.catch_warnings(), contextlib.redirect_stdout(io.StringIO()):

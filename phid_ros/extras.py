@@ -1,0 +1,47 @@
+"""The optional parts of phid_ros, and the one error a missing one gives.
+
+``pip install phid_ros`` carries what ``phid simulate``, ``identify``, ``replay``, ``diagnose``
+and ``export`` need. The rest comes with an extra (setup.py's ``extras_require``):
+
+- ``[jit]``: numba, the compiled play-in and filters; without it the numpy path gives the
+  same numbers, slower (``sim/kernel.py``).
+- ``[fleet]``: dask, distributed, bokeh and cloudpickle, for ``phid fleet`` and ``--scheduler``.
+- ``[field]``: comtrade, for ``phid import-comtrade``.
+
+A command that needs an extra that is not installed stops with one line naming it.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+from types import ModuleType
+
+from phid_ros.errors import PhidError
+
+EXTRAS: dict[str, tuple[str, ...]] = {
+    "jit": ("numba",),
+    "fleet": ("dask", "distributed", "bokeh", "cloudpickle"),
+    "field": ("comtrade",),
+}
+
+
+class MissingExtraError(PhidError):
+    """A command needs an optional dependency that is not installed."""
+
+
+def require(module: str, extra: str, purpose: str) -> ModuleType:
+    """``import module``, or a :class:`MissingExtraError` telling which extra brings it."""
+    if module.split(".")[0] not in EXTRAS[extra]:
+        raise KeyError(f"{module} is not part of the [{extra}] extra")
+    try:
+        return importlib.import_module(module)
+    except ImportError as exc:
+        raise MissingExtraError(
+            f"{purpose} needs {module}, which is not installed ({exc}): pip install 'phid_ros[{extra}]'"
+        ) from None
+
+
+def installed(extra: str) -> bool:
+    """Whether every module of ``extra`` is installed (found, not imported: dask's import is slow)."""
+    return all(importlib.util.find_spec(module) is not None for module in EXTRAS[extra])
