@@ -8,7 +8,8 @@ from setuptools import find_packages, setup
 
 package_name = "phid_ros"
 # one version: phid_ros/__init__.py's (test/test_version.py holds both package.xml to it)
-version = re.search(r'^__version__ = "([^"]+)"', (Path(__file__).parent / "phid_ros" / "__init__.py").read_text(), re.M).group(1)
+init = (Path(__file__).parent / "phid_ros" / "__init__.py").read_text()
+version = re.search(r'^__version__ = "([^"]+)"', init, re.M).group(1)
 
 # optional parts (phid_ros/extras.py says what each brings and what runs without it)
 extras = {

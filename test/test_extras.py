@@ -14,7 +14,15 @@ from phid_ros.extras import EXTRAS, MissingExtraError, require
 
 ROOT = Path(__file__).resolve().parents[1]
 ROS_ONLY = {"rclpy", "launch", "launch_ros", "launch_testing", "launch_testing_ros", "ament_index_python"}
-ROS_ONLY |= {"std_msgs", "std_srvs", "diagnostic_msgs", "builtin_interfaces", "phid_msgs", "rosgraph_msgs", "rcl_interfaces"}
+ROS_ONLY |= {
+    "std_msgs",
+    "std_srvs",
+    "diagnostic_msgs",
+    "builtin_interfaces",
+    "phid_msgs",
+    "rosgraph_msgs",
+    "rcl_interfaces",
+}
 
 
 def _imported_modules() -> set[str]:

@@ -19,7 +19,9 @@ def test_both_package_xml_carry_the_package_version():
 
 
 def test_setup_py_reads_the_package_version():
-    out = subprocess.run([sys.executable, "setup.py", "--version"], cwd=ROOT, capture_output=True, text=True, check=True)
+    out = subprocess.run(
+        [sys.executable, "setup.py", "--version"], cwd=ROOT, capture_output=True, text=True, check=True
+    )
     assert out.stdout.strip().splitlines()[-1] == phid_ros.__version__
 
 

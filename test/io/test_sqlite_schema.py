@@ -34,7 +34,9 @@ def test_steps_run_in_order_once_each(tmp_path):
 def test_a_failing_step_leaves_the_file_at_the_version_before(tmp_path):
     db = _db(tmp_path / "f.sqlite")
     with pytest.raises(sqlite3.OperationalError):
-        migrate(db, ["CREATE TABLE a (x)", "CREATE TABLE b (z); ALTER TABLE nowhere ADD COLUMN q"], what="f", error=_Err)
+        migrate(
+            db, ["CREATE TABLE a (x)", "CREATE TABLE b (z); ALTER TABLE nowhere ADD COLUMN q"], what="f", error=_Err
+        )
     assert user_version(db) == 1 and table_columns(db, "b") == []  # step 2 rolled back whole
 
 
@@ -75,7 +77,9 @@ def test_a_history_from_before_user_version_is_taken_as_version_1(tmp_path):
     db.execute("INSERT INTO meta VALUES ('schema', '1')")
     for stmt in HISTORY_STEPS[0].split(";"):
         db.execute(stmt)
-    db.execute("INSERT INTO runs (unit, recording, content_hash, status, phid_version) VALUES ('G1', 'r', 'h', 'ok', 'x')")
+    db.execute(
+        "INSERT INTO runs (unit, recording, content_hash, status, phid_version) VALUES ('G1', 'r', 'h', 'ok', 'x')"
+    )
     db.close()
     with History(path) as h:
         assert h.units() == ["G1"]
