@@ -23,7 +23,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from phid_ros.cli.common import load_recording  # noqa: E402
+from phid_ros.api import load_recording  # noqa: E402
 from phid_ros.diagnose import candidates  # noqa: E402
 from phid_ros.diagnose.results import to_json  # noqa: E402
 from phid_ros.diagnose.workflow import DiagnoseOptions, diagnose  # noqa: E402
@@ -39,7 +39,7 @@ def gensal_only() -> None:
     def restricted(cls: type) -> list[dict[str, str]]:
         return [c for c in choices() if c["form"] == "gensal"]
 
-    cand.choices = classmethod(restricted)  # type: ignore[method-assign]
+    cand.choices = classmethod(restricted)  # type: ignore[method-assign, assignment]
 
 
 def run(folder: Path) -> dict:

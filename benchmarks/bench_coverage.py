@@ -45,7 +45,7 @@ def main() -> None:
     opts = IdentifyOptions(baseline=False, validate=False)
     # per set, per parameter: [identifiable and covered, identifiable, flagged] and the z-scores
     tally = {s: {n: [0, 0, 0] for n in PARAMETER_NAMES} for s in SETS}
-    zs = {s: {n: [] for n in PARAMETER_NAMES} for s in SETS}
+    zs: dict[str, dict[str, list[float]]] = {s: {n: [] for n in PARAMETER_NAMES} for s in SETS}
     for seed in range(args.seeds):
         sensors = SensorModel(seed=1000 + seed)
         noisy = [scenario_from_simulation(r, sensors.measure(r.truth, stream_seed=j)) for j, r in enumerate(runs)]

@@ -73,8 +73,8 @@ def main() -> None:
     steps = sum(w.n for w in windows)
     print(f"bags/saturation: {len(windows)} fit windows, {steps} samples, {m} models per Jacobian")
 
-    t_vec, _ = median_time(lambda: problem.simulate(X), args.runs)
-    t_loop, _ = median_time(lambda: [problem.simulate(X[:, [j]]) for j in range(m)], args.runs)
+    t_vec, _ = median_time(lambda: problem.residual_matrix(X), args.runs)
+    t_loop, _ = median_time(lambda: [problem.residual_matrix(X[:, [j]]) for j in range(m)], args.runs)
     print(
         f"  Jacobian, {m} columns in one run: median {t_vec:.3f} s; "
         f"{m} separate runs: {t_loop:.3f} s; ratio {t_loop / t_vec:.1f}x"
@@ -100,7 +100,8 @@ def main() -> None:
 
     whole: dict[int, float] = {}
     for workers in (1, 0):
-        totals, phases = [], defaultdict(list)
+        totals: list[float] = []
+        phases: defaultdict[str, list[float]] = defaultdict(list)
         for _ in range(args.whole):
             marks: list[tuple[float, str]] = []
             t0 = time.perf_counter()
@@ -122,8 +123,8 @@ def main() -> None:
             f"  diagnose end to end, {how} ({args.whole} run(s)): "
             f"median {statistics.median(totals):.1f} s, named {d.named}"
         )
-        for k, v in sorted(phases.items(), key=lambda kv: -statistics.median(kv[1])):
-            print(f"    {k:10s} median {statistics.median(v):6.1f} s")
+        for k, spans in sorted(phases.items(), key=lambda kv: -statistics.median(kv[1])):
+            print(f"    {k:10s} median {statistics.median(spans):6.1f} s")
         whole[workers] = statistics.median(totals)
     print(f"  worker processes against one: {whole[1] / whole[0]:.2f}x")
     peak = _peak_mb(lambda: diagnose(scs, start, opt))

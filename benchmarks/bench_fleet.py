@@ -125,6 +125,7 @@ def main() -> None:
             for it in items:
                 row = process_recording(it.unit, str(it.path), content_hash(it.path))
                 assert row.status == "ok", row.error
+                assert row.start_ns is not None and row.end_ns is not None
                 spans.append((row.end_ns - row.start_ns) / 1e9)
             base.append(time.perf_counter() - t0)
         size = statistics.mean(sum(f.stat().st_size for f in recording_files(it.path)) for it in items) / 2**20

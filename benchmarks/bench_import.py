@@ -83,10 +83,10 @@ def main() -> None:
         t_csv = median(lambda: import_csv_set(manifest), args.runs)
         t_bin = median(lambda: import_comtrade(sets["binary"], cmap), args.runs)
         t_asc = median(lambda: import_comtrade(sets["ascii"], cmap), args.runs)
-    x = [np.cos(2 * np.pi * 50 * np.arange(samples) / 1000.0 - 2 * np.pi * k / 3) for k in range(3)]
-    t_dft = median(lambda: positive_sequence(*x, 20), args.runs)
-    t_direct = median(lambda: direct_dft(*x, 20), args.runs)
-    assert np.allclose(positive_sequence(*x, 20), direct_dft(*x, 20), atol=1e-9)
+    xa, xb, xc = (np.cos(2 * np.pi * 50 * np.arange(samples) / 1000.0 - 2 * np.pi * k / 3) for k in range(3))
+    t_dft = median(lambda: positive_sequence(xa, xb, xc, 20), args.runs)
+    t_direct = median(lambda: direct_dft(xa, xb, xc, 20), args.runs)
+    assert np.allclose(positive_sequence(xa, xb, xc, 20), direct_dft(xa, xb, xc, 20), atol=1e-9)
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"{len(runs)} scenarios x 12 s at 1 kHz ({samples} samples each of 12 channels), median of {args.runs}")
     print(f"  CSV set import (baseline)     {t_csv:7.2f} s")

@@ -53,7 +53,7 @@ def main() -> None:
     rates = []
     for _ in range(args.repeats):
         p = MonitorPipeline(PipelineSettings(auto_recalibrate=False))
-        p.recalibrator.finish = lambda now: []  # type: ignore[method-assign]
+        p.recalibrator.finish = lambda stream_time_ns: []  # type: ignore[method-assign]
         t0 = time.perf_counter()
         replay(rec, p)
         rates.append(p.samples_in / (time.perf_counter() - t0))
@@ -82,7 +82,7 @@ def main() -> None:
         store = Path(tempfile.mkdtemp()) / "events.sqlite"
         p = MonitorPipeline(PipelineSettings(store_path=str(store), auto_recalibrate=auto))
         if not auto:
-            p.recalibrator.finish = lambda now: []  # type: ignore[method-assign]
+            p.recalibrator.finish = lambda stream_time_ns: []  # type: ignore[method-assign]
         series: list[tuple[float, float]] = []
 
         def watch(_out: object, p: MonitorPipeline = p, series: list = series) -> None:

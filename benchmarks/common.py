@@ -6,6 +6,7 @@ import statistics
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import TypeVar
 
 from phid_ros.ident.scenario import ScenarioData
 from phid_ros.io.bags import read_recording
@@ -20,9 +21,15 @@ def catalogue_scenarios(path: Path = CATALOGUE) -> list[ScenarioData]:
     return scs
 
 
-def median_time(fn: Callable[[], object], repeats: int) -> tuple[float, object]:
-    times, out = [], None
-    for _ in range(repeats):
+T = TypeVar("T")
+
+
+def median_time(fn: Callable[[], T], repeats: int) -> tuple[float, T]:
+    """The median wall time of ``repeats`` calls (at least one), and the last call's result."""
+    t0 = time.perf_counter()
+    out = fn()
+    times = [time.perf_counter() - t0]
+    for _ in range(repeats - 1):
         t0 = time.perf_counter()
         out = fn()
         times.append(time.perf_counter() - t0)

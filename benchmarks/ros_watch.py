@@ -6,6 +6,7 @@ Used by bench_ros_playback.sh on a ROS 2 Jazzy machine: python3 ros_watch.py [LI
 import json
 import sys
 import time
+from typing import Any
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
@@ -15,7 +16,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 limit = float(sys.argv[1]) if len(sys.argv) > 1 else 300
 rclpy.init()
 node = rclpy.create_node("phid_watch")
-got = {"parameters": [], "hamiltonian": 0, "events": 0, "windows": [], "diag": None, "levels": set()}
+got: dict[str, Any] = {"parameters": [], "hamiltonian": 0, "events": 0, "windows": [], "diag": None, "levels": set()}
 latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 node.create_subscription(
     GeneratorParameters,

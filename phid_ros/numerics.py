@@ -23,6 +23,8 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
+from phid_ros import compiled_filters
+
 Array = NDArray[np.float64]
 
 
@@ -45,10 +47,8 @@ def first_order_coefficients(tau: float, dt: float) -> tuple[float, float, float
 
 def first_order_response_kept(u: Array, tau: float, dt: float, step: int) -> Array:
     """:func:`first_order_response` along the rows of a 2-D ``u``, only every ``step``-th sample."""
-    from phid_ros.sim import kernel  # here: the kernel's modules import this one
-
     a, b0, b1 = first_order_coefficients(tau, dt)
-    y = kernel.first_order_rows(u, a, b0, b1, step)
+    y = compiled_filters.first_order_rows(u, a, b0, b1, step)
     return y if y is not None else first_order_response(u, tau, dt, axis=1)[:, ::step]
 
 
@@ -60,7 +60,7 @@ def recursive_first_order(x: Array, a: float, axis: int = -1) -> Array:
 def all_pole(x: Array, a: tuple[float, ...], axis: int = -1) -> Array:
     """``y[n] = x[n] - a_1 y[n-1] - ... - a_k y[n-k]`` from rest: lfilter([1], [1, *a], x).
 
-    The recursion compiled (:func:`phid_ros.sim.kernel.all_pole`) where numba is; else solved as
+    The recursion compiled (:func:`phid_ros.compiled_filters.all_pole`) where numba is; else solved as
     the unit lower-triangular banded system it is, by LAPACK's banded triangular solve (forward
     substitution, all columns at once, no factorisation): the same steps, at lfilter's speed.
     """
@@ -69,9 +69,7 @@ def all_pole(x: Array, a: tuple[float, ...], axis: int = -1) -> Array:
     if n == 0:
         return np.moveaxis(x.copy(), 0, axis)
     rhs = x if x.ndim == 2 else x.reshape(n, -1)  # 2-D: a column-major view, no copy for axis=1 input
-    from phid_ros.sim import kernel  # here: the kernel's modules import this one
-
-    y = kernel.all_pole(rhs, a)
+    y = compiled_filters.all_pole(rhs, a)
     if y is not None:
         return np.moveaxis(y.reshape(x.shape), 0, axis)
     from scipy.linalg.lapack import dtbtrs  # here: with numba, identification does without scipy.linalg
@@ -137,7 +135,7 @@ def lowpass2_derivative(x: Array, fc: float, dt: float, axis: int = -1) -> Array
     return _lowpass2_from_rest(x, fc, dt, True, axis)
 
 
-def find_peaks(x: Array, distance: int = 1) -> Array:
+def find_peaks(x: Array, distance: int = 1) -> NDArray[np.intp]:
     """Indices of the local maxima of ``x`` at least ``distance`` samples apart, the higher kept first.
 
     scipy.signal.find_peaks(x, distance=...) (a test holds them equal): a plateau counts once,
@@ -169,7 +167,7 @@ def find_peaks(x: Array, distance: int = 1) -> Array:
     return peaks[keep]
 
 
-def _local_maxima_with_plateaus(x: Array) -> Array:
+def _local_maxima_with_plateaus(x: Array) -> NDArray[np.intp]:
     peaks = []
     i, n = 1, len(x)
     while i < n - 1:

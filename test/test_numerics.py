@@ -84,10 +84,10 @@ def test_find_peaks_equals_scipy(seed):
 @pytest.mark.parametrize("a", [(-0.999,), (-1.9, 0.905), (-0.5, 0.1, -0.01)])
 @pytest.mark.parametrize("shape, axis", [((3000,), -1), ((3000, 5), 0), ((4, 3000), 1), ((2, 3000, 3), 1)])
 def test_compiled_recursion_equals_the_banded_solve(a, shape, axis, monkeypatch):
+    from phid_ros.jit import available
     from phid_ros.numerics import all_pole
-    from phid_ros.sim import kernel
 
-    if not kernel.available():
+    if not available():
         pytest.skip("numba is not installed")
     x = RNG.standard_normal(shape)
     got = all_pole(x, a, axis=axis)

@@ -7,7 +7,7 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import phid_ros
-from phid_ros.cli.main import build_parser
+from phid_ros.cli.parser import build_parser
 
 ROOT = Path(__file__).resolve().parents[1]
 

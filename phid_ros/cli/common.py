@@ -7,25 +7,13 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
+from phid_ros.api import load_recording
 from phid_ros.io.recording import Recording
 
 
 def warn(message: str) -> None:
     """A warning: on stderr, one line, so that stdout stays the command's result."""
     print(f"phid: warning: {message}", file=sys.stderr)
-
-
-def load_recording(path: str | Path) -> Recording:
-    """A rosbag2 folder, a single .mcap, or a CSV manifest.json; the reader's warnings in ``warnings``."""
-    from phid_ros.io.bags import read_recording
-    from phid_ros.io.csv_import import import_csv_set
-
-    p = Path(path)
-    if p.suffix == ".json":
-        rec, notes = import_csv_set(p)
-        rec.warnings.extend(notes)
-        return rec
-    return read_recording(p)
 
 
 def read_input(path: str | Path) -> tuple[Recording, str]:

@@ -4,25 +4,24 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from rich.console import Console
 
+from phid_ros.api import identify_recording
 from phid_ros.cli.common import finish, read_input, warn
 from phid_ros.cli.progress import ProgressLine
 from phid_ros.cli.tables import Col, fmt, pct, print_table
 from phid_ros.errors import PhidError
 from phid_ros.ident.constraints import parse_constraints
-from phid_ros.ident.pipeline import IdentificationResult, IdentifyOptions, identify
-from phid_ros.ident.scenario import ScenarioData, StepThresholds
+from phid_ros.ident.pipeline import IdentificationResult, IdentifyOptions
+from phid_ros.ident.scenario import StepThresholds
 from phid_ros.io.recording import Recording
 from phid_ros.io.results import read_json, write_json
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, SYMBOLS, GeneratorParameters
 
 # imported here, with the command, so that their import is start-up and not "reading"
-from phid_ros.stream.scenarios import scenarios_from_recording
 
 
 def step_thresholds(args: Any) -> StepThresholds:
@@ -140,27 +139,6 @@ def print_validation(console: Console, res: IdentificationResult) -> None:
         rows,
         "RMSE, MAE, STD of the state-trajectory error and max ΔP, ΔQ in pu; MOD-026: |ΔP|, |ΔQ| ≤ 0.05 pu",
     )
-
-
-def identify_recording(
-    rec: Recording,
-    source: str,
-    options: IdentifyOptions,
-    truth: GeneratorParameters | None = None,
-    progress: Callable[[str], None] | None = None,
-) -> tuple[list[ScenarioData], IdentificationResult]:
-    """A recording's scenarios and their identification; PhidError when nothing could be identified."""
-    if progress:
-        progress(f"cutting the scenarios of {source}")
-    scenarios, problems = scenarios_from_recording(rec, source, options.step_thresholds)
-    if not any(sc.role == "identify" for sc in scenarios):
-        why = "; ".join(problems[-3:]) or f"{len(scenarios)} scenario(s), all for validation"
-        raise PhidError(f"{source}: nothing to identify from: no usable identification scenario ({why})")
-    res = identify(scenarios, options, truth, progress)
-    res.problems[:0] = problems
-    if not any(e is not None and math.isfinite(e.value) for e in res.estimates.values()):
-        raise PhidError(f"{source}: nothing identified: " + ("; ".join(res.problems) or "every stage failed"))
-    return scenarios, res
 
 
 def run(args: Any, console: Console) -> int:

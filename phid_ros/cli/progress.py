@@ -20,7 +20,7 @@ import sys
 import threading
 import time
 from types import TracebackType
-from typing import TextIO
+from typing import Any, TextIO
 
 QUIET_S = 2.0  # no progress at all for a command that ends sooner
 MIN_GAP_S = 1.0  # plain lines: at most one a second
@@ -42,7 +42,7 @@ class ProgressLine:
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
-        self._rich = None
+        self._rich: Any = None  # a rich Progress while live
         self._task = None
 
     def __enter__(self) -> ProgressLine:

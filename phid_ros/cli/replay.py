@@ -71,8 +71,8 @@ class OutputCollector:
             msg = m.parameters_message(self.types, r)
             if msg is not None:
                 self._add("parameters", r.stream_time_ns, msg)
-        for e in out.energy:
-            for t, msg in zip(e.t_ns, m.hamiltonian_messages(self.types, e)):
+        for energy in out.energy:
+            for t, msg in zip(energy.t_ns, m.hamiltonian_messages(self.types, energy)):
                 self._add("hamiltonian", int(t), msg)
         for p in out.tracked:
             self._add("tracked_parameters", p.t_ns, m.tracked_message(self.types, p))

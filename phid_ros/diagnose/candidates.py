@@ -90,7 +90,7 @@ class Candidate:
         return out
 
     @classmethod
-    def admissible(cls, values: dict[str, Array], base: dict[str, float]) -> Array:
+    def admissible(cls, values: dict[str, Array], base: dict[str, float]) -> NDArray[np.bool_]:
         """Which trial values respect the effect's own ordering rules."""
         return np.ones(len(next(iter(values.values()))), bool) if values else np.ones(1, bool)
 
@@ -147,7 +147,7 @@ class Candidate:
     @classmethod
     def joint_screen(
         cls, base: dict[str, float], pre: dict[str, float], setting: dict[str, str] | None = None
-    ) -> tuple[dict[str, Array], dict[str, Array]] | None:
+    ) -> tuple[dict[str, Any], dict[str, Array]] | None:
         """Trial values of the effect *and* of the base parameters it distorts, or None.
 
         For an effect that breaks the three-stage identification itself (its estimates land
@@ -196,7 +196,7 @@ class SaturationCandidate(Candidate):
     signature = "field-flux drift after voltage changes: rotor angle, I_d and Q, slow band, settling and steady state"
 
     @classmethod
-    def admissible(cls, values: dict[str, Array], base: dict[str, float]) -> Array:
+    def admissible(cls, values: dict[str, Array], base: dict[str, float]) -> NDArray[np.bool_]:
         return values["s12"] > values["s10"]
 
     @classmethod
@@ -221,7 +221,7 @@ class SaturationCandidate(Candidate):
     @classmethod
     def joint_screen(
         cls, base: dict[str, float], pre: dict[str, float], setting: dict[str, str] | None = None
-    ) -> tuple[dict[str, Array], dict[str, Array]] | None:
+    ) -> tuple[dict[str, Any], dict[str, Array]] | None:  # trial values, and the effect's settings by name
         s10, s12, xdp, td0 = (
             a.ravel()
             for a in np.meshgrid(
@@ -305,7 +305,7 @@ class SubtransientCandidate(Candidate):
         return tuple(p for p in super().free() if p.name != "x_l")
 
     @classmethod
-    def admissible(cls, values: dict[str, Array], base: dict[str, float]) -> Array:
+    def admissible(cls, values: dict[str, Array], base: dict[str, float]) -> NDArray[np.bool_]:
         return (values["x_dpp"] < 0.95 * base["X_d_prime"]) & (values["x_qpp"] < 0.95 * base["X_q_prime"])
 
     @classmethod

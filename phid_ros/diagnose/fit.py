@@ -24,12 +24,12 @@ from numpy.typing import NDArray
 from scipy.linalg.lapack import dgeqrf
 from scipy.optimize import least_squares
 
+from phid_ros import jit
 from phid_ros.diagnose.candidates import Candidate, FreeParameter
 from phid_ros.diagnose.playin import OUTPUTS, PlayIn, play_in, residual_matrix
 from phid_ros.ident.scenario import ScenarioData
 from phid_ros.model.conventions import DEFAULT_F_NOMINAL_HZ
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME
-from phid_ros.sim import kernel
 
 Array = NDArray[np.float64]
 FD_STEP = 1e-5  # relative (log-scale) finite-difference step; the play-in is deterministic
@@ -249,7 +249,7 @@ def fit(problem: Problem, max_nfev: int = 12, x0: Array | None = None) -> FitRes
     thousands of rows, so every step it takes is the step it would take on the full rows.
     """
     lo, hi = problem.bounds()
-    together = not kernel.available()
+    together = not jit.available()
     cache: dict[bytes, tuple[Array, Array | None]] = {}
 
     def evaluate(x: Array, want_jac: bool) -> tuple[Array, Array | None]:

@@ -64,7 +64,7 @@ class GapReport:
         return {k: v for k, v in self.__dict__.items()} | {"total": self.total}
 
 
-def _phases(s: ScenarioData, idx: Array) -> dict[str, Array]:
+def _phases(s: ScenarioData, idx: Array) -> dict[str, NDArray[np.bool_]]:
     end = s.k_clear if s.k_clear is not None else s.k_event
     one_s = int(round(1.0 / s.dt))
     steady = int(round(0.8 * s.n))

@@ -44,6 +44,15 @@ class ColumnParameters:
     """The eight base parameters, each a scalar or one value per simulated model (duck-types
     :class:`~phid_ros.model.parameters.GeneratorParameters` for the plant's equations)."""
 
+    H: Array
+    D: Array
+    X_d: Array
+    X_q: Array
+    X_d_prime: Array
+    X_q_prime: Array
+    T_d0_prime: Array
+    T_q0_prime: Array
+
     def __init__(self, values: Mapping[str, Any], m: int) -> None:
         for name in PARAMETER_NAMES:
             setattr(self, name, np.broadcast_to(np.asarray(values[name], float), (m,)).copy())
@@ -189,7 +198,7 @@ def residual_matrix(
     st = _setup(scenarios, base, effects, m, f_nominal_hz, step)
     n_keep = np.array([len(i) for i in st.idx], dtype=np.int64)
     if out is None:
-        out = np.empty((len(OUTPUTS) * int(n_keep.sum()), m), order=order)
+        out = np.empty((len(OUTPUTS) * int(n_keep.sum()), m), order="F" if order == "F" else "C")
     meas = [st.staged(c)[::2] for c in OUTPUTS]
     offsets = np.cumsum([0] + [a.shape[1] for a in meas])
     layout = kernel.ResidualLayout(
@@ -252,7 +261,8 @@ def _numpy_outputs(
     v_t, theta = v_t[::2], theta[::2]
     x = np.moveaxis(states, 1, 0)  # (n_states, steps, cols)
     eq_i, ed_i, xd_i, xq_i = plant._emf(x)
-    i_d, i_q, v_d, v_q = plant._currents(x[0], eq_i, ed_i, v_t, theta, 0.0, 0.0, xd_i, xq_i)
+    zero = np.zeros(1)  # the play-in's source has no Thevenin impedance
+    i_d, i_q, v_d, v_q = plant._currents(x[0], eq_i, ed_i, v_t, theta, zero, zero, xd_i, xq_i)
     p_e, q_e = electrical_power(v_d, v_q, i_d, i_q)
     return {"omega": x[1], "delta": x[0], "i_d": i_d, "i_q": i_q, "p_e": p_e, "q_e": q_e}
 

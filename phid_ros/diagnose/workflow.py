@@ -38,6 +38,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from phid_ros import jit
 from phid_ros.cluster import Jobs
 from phid_ros.diagnose.candidates import Candidate, library
 from phid_ros.diagnose.fit import FitResult, ModelSpec, Problem, chi_square, fit
@@ -48,7 +49,6 @@ from phid_ros.ident.results import MAX_RELATIVE_STD
 from phid_ros.ident.scenario import ScenarioData
 from phid_ros.model.conventions import DEFAULT_F_NOMINAL_HZ
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, GeneratorParameters
-from phid_ros.sim import kernel
 
 Array = NDArray[np.float64]
 
@@ -420,7 +420,7 @@ def _diagnose(
     rounds: list[Round] = []
     steps: list[tuple[str, Score]] = []
     # threads where the play-ins run compiled without the GIL: the speed of processes, a third of the memory
-    with Jobs(opt.workers, opt.scheduler, threads=kernel.available()) as jobs:
+    with Jobs(opt.workers, opt.scheduler, threads=jit.available()) as jobs:
         while len(current.model.effects) < opt.max_effects:
             taken = set(current.model.names)
             pool = [c for c in library() if c.name() not in taken and not _conflicts(c, current.model)]

@@ -200,7 +200,9 @@ def changes(rows: Sequence[Row], sigmas: float = DRIFT_SIGMAS) -> list[Change]:
     """
     found: list[Change] = []
     for _, unit_rows in iter_units(rows):
-        timed = sorted((r for r in unit_rows if r.status == "ok" and r.start_ns is not None), key=lambda r: r.start_ns)
+        timed = sorted(
+            (r for r in unit_rows if r.status == "ok" and r.start_ns is not None), key=lambda r: r.start_ns or 0
+        )
         for name in PARAMETER_NAMES:
             good = [r for r in timed if r.well_identified(name)]
             for a, b in zip(good, good[1:]):

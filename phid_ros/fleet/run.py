@@ -163,7 +163,7 @@ def _check_workers(client: Client) -> None:
     except Exception as exc:  # the worker cannot even unpickle the check: no phid_ros there
         raise PhidError(f"a Dask worker cannot run phid tasks: {one_line(exc)}") from None
     if not versions:
-        raise PhidError(f"the Dask cluster at {client.scheduler.address} has no workers")
+        raise PhidError(f"the Dask cluster at {getattr(client.scheduler, 'address', '?')} has no workers")
     wrong = {w: v for w, v in versions.items() if v != __version__}
     if wrong:
         w, v = next(iter(wrong.items()))
@@ -176,7 +176,7 @@ def _check_workers(client: Client) -> None:
 def _worker_version() -> str:
     try:
         import phid_ros
-        import phid_ros.cli.identify  # noqa: F401 - what every task needs, imported once per worker
+        import phid_ros.api  # noqa: F401 - what every task needs, imported once per worker
     except ImportError as exc:
         return f"no usable phid_ros ({exc})"
     return phid_ros.__version__

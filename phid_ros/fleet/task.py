@@ -42,8 +42,7 @@ def process_recording(unit: str, path: str, content_hash: str, diagnose: bool = 
 
 
 def _identify_into(row: Row, path: str, diagnose: bool) -> None:
-    from phid_ros.cli.common import load_recording
-    from phid_ros.cli.identify import identify_recording
+    from phid_ros.api import identify_recording, load_recording
     from phid_ros.ident.pipeline import IdentifyOptions
 
     rec = load_recording(path)

@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import overload
 
 from phid_ros.errors import ParameterError
 from phid_ros.ident.results import Estimate
@@ -30,6 +31,10 @@ class Constraints:
     def __bool__(self) -> bool:
         return bool(self.fixed or self.bounds or self.start)
 
+    @overload
+    def limits(self, name: str, default: tuple[float, float]) -> tuple[float, float]: ...
+    @overload
+    def limits(self, name: str, default: None = None) -> tuple[float, float] | None: ...
     def limits(self, name: str, default: tuple[float, float] | None = None) -> tuple[float, float] | None:
         """The user's bounds on ``name`` within ``default`` (a stage's own search range), or None."""
         b = self.bounds.get(name)

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -42,6 +43,12 @@ class AxisEnvelope:
     t_open: float  # T'_d0 or T'_q0 by (16)/(17)
     cost: float
     at_bound: list[str] = field(default_factory=list)
+
+
+def _envelope(fit: Any, cost: float, bounds: Any, names: list[str]) -> AxisEnvelope:
+    """One axis's envelope from its fitted (E, X, X', T'); T'_0 = T' X / X' by (16)/(17)."""
+    e, x_sync, x_prime, t_short = (float(v) for v in fit[:4])
+    return AxisEnvelope(e, x_sync, x_prime, t_short, t_short * x_sync / x_prime, cost, _bound_hits(fit, bounds, names))
 
 
 @dataclass
@@ -121,18 +128,8 @@ def identify(scenarios: Sequence[ScenarioData], x_d_ref: float, x_q_ref: float, 
     xq_fit, cost_q = _fit(t, np.concatenate(iqs), w, bounds_q, seed + 1)
     names_d = ["E", "X_d", "X_d_prime", "T_d_prime"]
     names_q = ["E", "X_q", "X_q_prime", "T_q_prime"]
-    d = AxisEnvelope(
-        *map(float, xd_fit),
-        t_open=float(xd_fit[3] * xd_fit[1] / xd_fit[2]),
-        cost=cost_d,  # (16)
-        at_bound=_bound_hits(xd_fit, bounds_d, names_d),
-    )
-    q = AxisEnvelope(
-        *map(float, xq_fit),
-        t_open=float(xq_fit[3] * xq_fit[1] / xq_fit[2]),
-        cost=cost_q,  # (17)
-        at_bound=_bound_hits(xq_fit, bounds_q, names_q),
-    )
+    d = _envelope(xd_fit, cost_d, bounds_d, names_d)  # (16)
+    q = _envelope(xq_fit, cost_q, bounds_q, names_q)  # (17)
     # a short-circuit time constant at its bound carries into the open-circuit one
     d.at_bound += ["T_d0_prime"] if "T_d_prime" in d.at_bound else []
     q.at_bound += ["T_q0_prime"] if "T_q_prime" in q.at_bound else []

@@ -26,6 +26,7 @@ from phid_ros.ident.stages import (
     SwingRegression,
     stage3_methods,
 )
+from phid_ros.ident.validation import ValidationResult
 from phid_ros.model.conventions import DEFAULT_F_NOMINAL_HZ
 from phid_ros.model.parameters import PARAMETER_NAMES, GeneratorParameters, validation_problems
 
@@ -59,8 +60,8 @@ class IdentificationResult:
     stage1: stage1.Stage1Result | None = None
     stage2: stage2.Stage2Result | None = None
     stage3: stage3.Stage3Result | None = None
-    validation: validation.ValidationResult | None = None
-    validation_truth: validation.ValidationResult | None = None
+    validation: ValidationResult | None = None
+    validation_truth: ValidationResult | None = None
     problems: list[str] = field(default_factory=list)
     timing: dict[str, float] = field(default_factory=dict)
     constraints: Constraints = NONE

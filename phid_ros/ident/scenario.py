@@ -91,7 +91,7 @@ class ScenarioData:
 
     @property
     def t(self) -> Array:
-        return np.arange(self.n) * self.dt
+        return np.arange(self.n, dtype=np.float64) * self.dt
 
     @property
     def switching(self) -> list[int]:

@@ -203,7 +203,7 @@ def _envelope(s: ScenarioData, window_s: float = 15.0) -> tuple[float, float]:
     w_ss = float(np.mean(s["omega"][s.steady_slice()]))
     dev = lowpass2(w - w_ss, 10.0, s.dt, steady_start=True)  # the encoder's noise makes false peaks
     peaks = find_peaks(np.abs(dev), distance=max(1, int(0.1 / s.dt)))
-    peaks = peaks[np.abs(dev[peaks]) > 20 * max(np.std(s["omega"][s.steady_slice()]), 1e-9)]
+    peaks = peaks[np.abs(dev[peaks]) > 20 * max(float(np.std(s["omega"][s.steady_slice()])), 1e-9)]
     if len(peaks) < 3:
         raise Stage1Error(f"{s.name}: fewer than 3 speed oscillation peaks above the noise")
     t = peaks * s.dt

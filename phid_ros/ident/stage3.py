@@ -223,7 +223,8 @@ def _axis_system(
     nuisance.reshape(-1)[flat] = g[src]  # each switch's column: g shifted to start at its sample
     if d_axis:
         # r_d = E0 decay + L[V_f] - X_d L[I_d] + X'_d (L[I_d] - I_d) - V_q
-        y = ax.voltage_kept - first_order_response_kept(ax.drive, tau, dt, step)  # type: ignore[arg-type]
+        assert ax.drive is not None  # the d axis carries P[V_f]
+        y = ax.voltage_kept - first_order_response_kept(ax.drive, tau, dt, step)
         sync_col = -l_i
         prime_col = l_i - current
     else:
@@ -238,7 +239,7 @@ def _axis_system(
         cols = [prime_col, sync_col]
     for v in (y, *cols):
         np.copyto(v, 0.0, where=ax.off_kept)
-    return y, cols, nuisance  # type: ignore[return-value]
+    return y, cols, nuisance
 
 
 def solve_axis(
@@ -316,14 +317,14 @@ def _penalty(xdp: float, xqp: float, td0: float, tq0: float, xd: float, xq: floa
     return LAMBDA_PENALTY * v
 
 
-def _prior(theta: Sequence[float], prior: Sequence[float] | None) -> float:
+def _prior(theta: Sequence[float] | Array, prior: Sequence[float] | None) -> float:
     if prior is None:
         return 0.0
     return LAMBDA_PRIOR * float(sum(((t - p) / p) ** 2 for t, p in zip(theta, prior)))
 
 
 def objective(
-    data: Stage3Data, theta: Sequence[float], x_d: float, x_q: float, prior: Sequence[float] | None = None
+    data: Stage3Data, theta: Sequence[float] | Array, x_d: float, x_q: float, prior: Sequence[float] | None = None
 ) -> float:
     """J(theta) for theta = (X'_d, X'_q, T'_d0, T'_q0), initial fluxes eliminated."""
     xdp, xqp, td0, tq0 = (float(v) for v in theta)
@@ -360,7 +361,7 @@ def _profile(
         counter[0] += 1
         return fit_at(math.exp(log_tau)).sse
 
-    lo, hi = (math.log(b) for b in constraints.limits(tau_name, bounds))  # type: ignore[union-attr]
+    lo, hi = (math.log(b) for b in constraints.limits(tau_name, bounds))
     # coarse grid first (the profile can have a shallow second minimum near the bounds), about
     # one point per 0.5 in log(tau): 9 over the full range, fewer for a warm start's narrow one
     grid = np.linspace(lo, hi, int(np.clip(math.ceil((hi - lo) / 0.5) + 1, 4, 9)))

@@ -51,7 +51,7 @@ def identification_channels(
             n = samples_per_cycle(fs, f0)
         except PhasorError as exc:
             raise ChannelMapError(f"{source}: {exc}") from None
-        t = (np.arange(len(v1)) + (n - 1) / 2) / fs
+        t = (np.arange(len(v1), dtype=np.float64) + (n - 1) / 2) / fs
         f_sys = system_frequency(v1, fs, f0, n)
 
         def value(q: str) -> Array:
@@ -61,7 +61,7 @@ def identification_channels(
         n = 1
         value = pu
         theta_nominal = value("theta_t")
-        t = np.arange(len(theta_nominal)) / fs
+        t = np.arange(len(theta_nominal), dtype=np.float64) / fs
         v1 = value("v_t") * np.exp(1j * theta_nominal)
         m = min(len(t), max(int(0.5 * fs), 10))
         f_sys = f0 + np.polyfit(t[:m], np.unwrap(theta_nominal[:m]), 1)[0] / (2 * np.pi)

@@ -52,11 +52,11 @@ class McapMessageWriter:
 
     def write(self, log_ns: int, topic: str, msgtype: str, msg: object) -> None:
         if msgtype not in self._schemas:
-            msgdef, _ = self.store.generate_msgdef(msgtype, ros_version=2)  # type: ignore[attr-defined]
+            msgdef, _ = self.store.generate_msgdef(msgtype, ros_version=2)
             self._schemas[msgtype] = self._writer.register_schema(msgtype, "ros2msg", msgdef.encode())
         if topic not in self._channels:
             self._channels[topic] = self._writer.register_channel(topic, "cdr", self._schemas[msgtype])
-        data = bytes(self.store.serialize_cdr(msg, msgtype))  # type: ignore[attr-defined]
+        data = bytes(self.store.serialize_cdr(msg, msgtype))
         self._writer.add_message(self._channels[topic], log_time=log_ns, data=data, publish_time=log_ns)
 
     def close(self) -> Path:

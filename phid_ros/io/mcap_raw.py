@@ -21,7 +21,7 @@ import struct
 from collections import deque
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Union
+from typing import TypeVar, Union
 
 import numpy as np
 from numpy.typing import NDArray
@@ -37,9 +37,10 @@ class McapFormatError(Exception):
     """The file is not an MCAP this walker understands (or it is damaged)."""
 
 
-def _tolerant(
-    records: Iterator[tuple[str, str, str, memoryview]], st: WalkStatus
-) -> Iterator[tuple[str, str, str, memoryview]]:
+_Record = TypeVar("_Record")  # what a walk yields: a message, or a run of them with positions
+
+
+def _tolerant(records: Iterator[_Record], st: WalkStatus) -> Iterator[_Record]:
     try:
         yield from records
     except _CutTail:

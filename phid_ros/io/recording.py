@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -26,6 +27,7 @@ from phid_ros.io.topics import (
 )
 from phid_ros.model.conventions import NS, split_stamp, stamp_ns
 
+STREAM_NAMES = tuple(s.name for s in STREAMS)
 DEFAULT_BLOCK_SIZE = 100  # 100 ms blocks at 1 kHz: 10 messages/s per stream
 
 
@@ -105,13 +107,13 @@ def describe_span(rec: Recording) -> str:
 
 
 # -- time stamps -------------------------------------------------------------
-def ns_to_time(ns: int) -> object:
+def ns_to_time(ns: int) -> Any:  # rosbags' generated message classes: no static type
     store = typestore()
     sec, nanosec = split_stamp(ns)
     return store.types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec)
 
 
-def _header(stamp_ns: int) -> object:
+def _header(stamp_ns: int) -> Any:
     return typestore().types["std_msgs/msg/Header"](stamp=ns_to_time(stamp_ns), frame_id="generator")
 
 
@@ -323,11 +325,11 @@ def is_phid_topic(topic: str) -> bool:
 
 
 def recording_from_messages(
-    items: Iterable[tuple[str, str, object]],
+    items: Iterable[tuple[str, str, Any]],
     *,
     source: str,
     metadata: dict[str, str] | None = None,
-    required: Iterable[str] = tuple(s.name for s in STREAMS),
+    required: Iterable[str] = STREAM_NAMES,
 ) -> Recording:
     """Assemble a recording from (topic, msgtype, message object); ``source`` names the file in errors."""
     asm = _Assembler(source)
@@ -345,7 +347,7 @@ def recording_from_messages(
         index = counts.get(name, 0)
         counts[name] = index + 1
         arrays = [np.asarray(getattr(msg, c), dtype=np.float64) for c in spec.channels]
-        asm.add_message(name, topic, index, stamp_ns(msg.header.stamp), msg.sample_period, arrays, seq)  # type: ignore[attr-defined]
+        asm.add_message(name, topic, index, stamp_ns(msg.header.stamp), msg.sample_period, arrays, seq)
     return asm.finish(required, metadata)
 
 
@@ -354,7 +356,7 @@ def recording_from_raw(
     *,
     source: str,
     metadata: dict[str, str] | None = None,
-    required: Iterable[str] = tuple(s.name for s in STREAMS),
+    required: Iterable[str] = STREAM_NAMES,
 ) -> Recording:
     """Assemble a recording from raw CDR (topic, msgtype, bytes), decoding sensor blocks vectorised.
 
@@ -370,7 +372,7 @@ def recording_from_raw(
     topics: dict[str, str] = {}
     markers: list[tuple[int, bytes, str, str]] = []
 
-    def deserialize(raw: bytes, msgtype: str, topic: str) -> object:
+    def deserialize(raw: bytes, msgtype: str, topic: str) -> Any:
         try:
             return store.deserialize_cdr(raw, msgtype)
         except Exception as exc:  # deserialisers raise struct/index/value errors on bad bytes
@@ -392,7 +394,7 @@ def recording_from_raw(
             route[1].append(where)
         elif topic == SCENARIO_TOPIC:
             if isinstance(raw, np.ndarray):  # a run of markers: each one on its own
-                markers += [(int(w), bytes(r), msgtype, topic) for r, w in zip(raw, where)]
+                markers += [(int(w), bytes(r), msgtype, topic) for r, w in zip(raw, np.asarray(where))]
             else:
                 markers.append((where, bytes(raw), msgtype, topic))
     # markers in file order, whichever way they came
@@ -420,7 +422,7 @@ def recording_from_raw(
                 stamp_ns(msg.header.stamp),
                 msg.sample_period,
                 arrays,
-                int(seq_of[i]),  # type: ignore[attr-defined]
+                int(seq_of[i]),
             )
     return asm.finish(required, metadata)
 
@@ -462,20 +464,20 @@ def _route(source: str, topic: str, msgtype: str, raws: dict[str, list], topics:
     return raws.setdefault(name, [])
 
 
-def scenario_from_message(msg: object) -> ScenarioInfo:
+def scenario_from_message(msg: Any) -> ScenarioInfo:
     """A ScenarioMarker message (from a bag, or as a node receives it) as the recording's marker."""
     m = msg
     return ScenarioInfo(
         name=m.name,
         kind=m.kind,
         role=m.role,
-        generator_damping=bool(m.generator_damping),  # type: ignore[attr-defined]
+        generator_damping=bool(m.generator_damping),
         magnitude=float(m.magnitude),
         start_ns=stamp_ns(m.start),
-        event_ns=stamp_ns(m.event),  # type: ignore[attr-defined]
+        event_ns=stamp_ns(m.event),
         clearing_ns=stamp_ns(m.clearing),
         end_ns=stamp_ns(m.end),
-        description=m.description,  # type: ignore[attr-defined]
+        description=m.description,
     )
 
 

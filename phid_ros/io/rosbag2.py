@@ -6,6 +6,7 @@ import os
 import shutil
 from collections.abc import Iterable, Iterator
 from pathlib import Path
+from typing import Literal
 
 from rosbags.rosbag2 import Reader, Writer
 from rosbags.rosbag2.enums import CompressionFormat, CompressionMode, StoragePlugin
@@ -26,7 +27,7 @@ from phid_ros.io.recording import (
 )
 from phid_ros.io.topics import DEFAULT_NAMESPACE
 
-ROSBAG2_VERSION = 9  # what ROS 2 Jazzy writes
+ROSBAG2_VERSION: Literal[8, 9] = 9  # what ROS 2 Jazzy writes
 
 
 def write_rosbag2(

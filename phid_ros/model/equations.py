@@ -60,7 +60,7 @@ class Coefficients:
         """From one set, or from several laid out as columns (``repeat`` times over, the sets
         varying fastest); ``damping`` (0 or 1 per column) switches D off where a run had none."""
         one = not isinstance(params, Sequence)  # one set, whose values may be arrays (one per column)
-        sets = [params] if one else list(params)
+        sets: list[Any] = list(params) if isinstance(params, Sequence) else [params]
         col = {n: np.tile([getattr(p, n) for p in sets], repeat).astype(float) for n in PARAMETER_NAMES}
         if one and repeat == 1:
             col = {n: v[0] for n, v in col.items()}
@@ -174,11 +174,12 @@ def stator_currents(
     e_q: ArrayLike, e_d: ArrayLike, v_d: ArrayLike, v_q: ArrayLike, params: GeneratorParameters
 ) -> tuple[Array, Array]:
     """(I_d, I_q) from (11)-(12) for one parameter set and any inputs."""
-    return currents(*(np.asarray(a, float) for a in (e_q, e_d, v_d, v_q)), Coefficients.of(params))
+    e_q_, e_d_, v_d_, v_q_ = (np.asarray(a, float) for a in (e_q, e_d, v_d, v_q))
+    return currents(e_q_, e_d_, v_d_, v_q_, Coefficients.of(params))
 
 
 def reconstruct_fluxes(
-    v_d: ArrayLike, v_q: ArrayLike, i_d: ArrayLike, i_q: ArrayLike, x_d_prime: float, x_q_prime: float
+    v_d: ArrayLike, v_q: ArrayLike, i_d: ArrayLike, i_q: ArrayLike, x_d_prime: ArrayLike, x_q_prime: ArrayLike
 ) -> tuple[Array, Array]:
     """Algebraic reconstruction (40)-(41): ``E'_q = V_q + X'_d I_d``, ``E'_d = V_d - X'_q I_q``."""
     vd, vq, id_, iq = (np.asarray(a, float) for a in (v_d, v_q, i_d, i_q))

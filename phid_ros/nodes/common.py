@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import array
 import contextlib
+import math
 import signal
 from collections.abc import Iterator
 from typing import Any
@@ -79,8 +80,9 @@ def declare(node: Node, table: tuple[Tunable, ...]) -> dict[str, Any]:
     for t in table:
         d = ParameterDescriptor(description=t.description, read_only=not t.runtime)
         if t.type is float and t.low is not None:
-            d.floating_point_range = [FloatingPointRange(from_value=float(t.low), to_value=float(t.high), step=0.0)]
-        elif t.type is int and t.low is not None:
+            high = math.inf if t.high is None else float(t.high)
+            d.floating_point_range = [FloatingPointRange(from_value=float(t.low), to_value=high, step=0.0)]
+        elif t.type is int and t.low is not None and t.high is not None:
             d.integer_range = [IntegerRange(from_value=int(t.low), to_value=int(t.high), step=1)]
         values[t.name] = node.declare_parameter(t.name, t.default, d).value
         refused = validate(table, t.name, values[t.name], running=False)

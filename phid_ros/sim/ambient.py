@@ -75,7 +75,7 @@ def simulate_ambient(settings: AmbientSettings, cfg: SimulationConfig | None = N
     rng = np.random.default_rng(settings.seed)
     plant = cfg.plant()
     ss = plant.steady_state(cfg.operating_point)
-    t = np.arange(n + 1) * dt
+    t = np.arange(n + 1, dtype=np.float64) * dt
     # inputs per step: ambient wander plus alternating small steps that come back after half the period
     p_m = ss.p_m + _ou(n + 1, dt, settings.load_std, settings.load_tau_s, rng)
     v_inf = ss.v_inf * (1.0 + _ou(n + 1, dt, settings.voltage_std, settings.voltage_tau_s, rng))

@@ -20,16 +20,17 @@ returns None, so the caller falls back to numpy, when numba is not installed, wh
 from __future__ import annotations
 
 import hashlib
-import os
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from phid_ros.jit import available, maybe_jit
 from phid_ros.model import conventions, equations
 from phid_ros.sim import effects
 
@@ -72,20 +73,6 @@ SAT_CURVE, SAT_C1, SAT_C2, SAT_Q = range(9, 13)
 X_DPP, X_QPP, T_D0PP, T_Q0PP, XDP_L, XQP_L, G_D, G_Q, LOAD_D, LOAD_Q = range(13, 23)
 INV_2H_T, INV_2H_G, K_SHAFT, D_SHAFT = range(23, 27)
 SATURATION_FORMS = {"gensal": 1, "genrou": 2}  # the kernel's `sat` flag; 0: none
-
-try:
-    from numba import njit
-
-    _jit: Any = njit(cache=True, nogil=True, error_model="numpy")  # cache: compiled once per machine, not per process
-except ImportError:  # the numpy path runs instead
-    njit = None
-    _jit = None
-
-
-def available() -> bool:
-    """numba importable and not switched off (``PHID_NO_JIT=1``)."""
-    return njit is not None and not os.environ.get("PHID_NO_JIT")
-
 
 OUTPUTS = ("delta", "omega", "i_d", "i_q", "p_e", "q_e")  # rows of what :func:`integrate` returns
 
@@ -255,23 +242,18 @@ def _terms(plant: Any, cols: int, damping: Array) -> tuple[Array, tuple[int, int
     return coef, (flags["saturation"], flags["subtransient"], flags["torsion"])
 
 
-def _maybe_jit(f: Any) -> Any:
-    return _jit(f) if _jit is not None else f
-
-
-def _maybe_jit_inlined(f: Any) -> Any:
-    """Compiled into each caller (numba's own inlining): the step calls the column's right-hand
-    side four times, and as a call each passed three arrays and a dozen scalars: 1.5x the time."""
-    return njit(cache=True, nogil=True, error_model="numpy", inline="always")(f) if njit is not None else f
+# inlined: the step calls the column's right-hand side four times, and as a call each passed
+# three arrays and a dozen scalars: 1.5x the time
+_maybe_jit_inlined = partial(maybe_jit, inline=True)
 
 
 # the equations, compiled as they are written (one place each)
-_dq_of, _powers = (_maybe_jit(getattr(conventions, n)) for n in ("dq_of", "powers"))
+_dq_of, _powers = (maybe_jit(getattr(conventions, n)) for n in ("dq_of", "powers"))
 _rotor_angle, _swing, _field_d, _field_q, _stator, _airgap_power = (
-    _maybe_jit(getattr(equations, n)) for n in ("rotor_angle", "swing", "field_d", "field_q", "stator", "airgap_power")
+    maybe_jit(getattr(equations, n)) for n in ("rotor_angle", "swing", "field_d", "field_q", "stator", "airgap_power")
 )
 _saturation_factor, _flux_magnitude, _damper_emf, _damper_drives, _shaft_torque = (
-    _maybe_jit(getattr(effects, n))
+    maybe_jit(getattr(effects, n))
     for n in ("saturation_factor", "flux_magnitude", "damper_emf", "damper_drives", "shaft_torque")
 )
 
@@ -404,7 +386,7 @@ def _compiled_step(sources: str) -> Any:
     of those files' text.
     """
 
-    @_maybe_jit
+    @maybe_jit
     def rk4_outputs(
         x0: Array,
         p_m: Array,
@@ -438,7 +420,7 @@ def _compiled_step(sources: str) -> Any:
                     out[q, k, c] = res[q]
         return out
 
-    @_maybe_jit
+    @maybe_jit
     def rk4_residuals(
         x0: Array,
         p_m: Array,
@@ -518,7 +500,7 @@ def paper_rk4(x0: Array, staged: tuple[Array, Array, Array, Array], coef: Any, n
     return _paper_rk4(x, v_t, theta, p_m, v_f, rows, float(coef.w_s), int(n_steps), float(h))
 
 
-@_maybe_jit
+@maybe_jit
 def _paper_rhs_column(
     x: Array, out: Array, c: int, vt: float, th: float, pm: float, vf: float, coef: Array, ws: float
 ) -> None:
@@ -535,7 +517,7 @@ def _paper_rhs_column(
 def _compiled_paper_step(sources: str) -> Any:
     """The compiled paper-model play-in, keyed to the equations' text as :func:`_compiled_step` is."""
 
-    @_maybe_jit
+    @maybe_jit
     def paper_steps(
         x0: Array, v_t: Array, theta: Array, p_m: Array, v_f: Array, coef: Array, ws: float, n_steps: int, h: float
     ) -> Array:
@@ -570,142 +552,3 @@ def _compiled_paper_step(sources: str) -> Any:
 
 
 _paper_rk4 = _compiled_paper_step(_sources_digest())
-
-
-def all_pole(x: Array, a: tuple[float, ...]) -> Array | None:
-    """``y[n] = x[n] - a_1 y[n-1] - ... - a_k y[n-k]`` from rest down each column of a 2-D
-    ``x`` (n, m), compiled; None when numba is not there (or ``PHID_NO_JIT``).
-
-    Why: LAPACK's banded triangular solve that :func:`phid_ros.numerics.all_pole` uses spent
-    4-7 ns a sample (0.8 ms on a stage-3 block of 15 columns of 13 000 samples, 0.09 s of a
-    catalogue identification); this loop is about one multiply-add chain per sample. The sums
-    are taken in the solve's order (the oldest output first), so the two differ only where
-    OpenBLAS fuses a multiply-add (1e-14 relative; a test holds them together).
-    """
-    global _all_pole_compiled
-    if not available():
-        return None
-    if _all_pole_compiled is None:
-        # one signature, any layout ("A"), loaded from numba's cache on first use: left to numba,
-        # each layout met (C, F, strided) compiles and loads its own copy, 25 ms each per process
-        from numba import types
-
-        sig = types.void(_f64(2, True), _f64(1, True), _f64(2))
-        _all_pole_compiled = njit(sig, cache=True, nogil=True)(_all_pole_columns)
-    y = np.empty(x.shape, order="F")
-    _all_pole_compiled(np.asarray(x, dtype=np.float64), np.asarray(a, dtype=np.float64), y)
-    return y
-
-
-def _f64(dims: int, readonly: bool = False) -> Any:
-    """A float64 array of any layout, for an explicit signature. The loops' inputs are typed
-    read-only: that type accepts writable arrays too (not the other way round)."""
-    from numba import types
-
-    return types.Array(types.float64, dims, "A", readonly=readonly)
-
-
-_all_pole_compiled: Any = None
-
-
-def _all_pole_columns(x: Array, a: Array, y: Array) -> None:
-    n, m = x.shape
-    k = a.shape[0]
-    for j in range(m):
-        if k == 1:  # stage 3's first-order recursions: one chain, no inner loop
-            a1 = a[0]
-            prev = 0.0
-            for i in range(n):
-                prev = x[i, j] - a1 * prev
-                y[i, j] = prev
-        elif k == 2:  # the second-order low-passes
-            a1, a2 = a[0], a[1]
-            p1 = 0.0
-            p2 = 0.0
-            for i in range(n):
-                v = (x[i, j] - a2 * p2) - a1 * p1
-                y[i, j] = v
-                p2 = p1
-                p1 = v
-        else:
-            for i in range(n):
-                v = x[i, j]
-                for q in range(min(k, i), 0, -1):
-                    v -= a[q - 1] * y[i - q, j]
-                y[i, j] = v
-
-
-def first_order_rows(u: Array, a: float, b0: float, b1: float, step: int) -> Array | None:
-    """:func:`phid_ros.numerics.first_order_response` along each row of ``u`` (m, n), kept at
-    every ``step``-th sample (m, ceil(n / step)), compiled; None without numba (or ``PHID_NO_JIT``).
-
-    Why: stage 3 filters every scenario's current at every trial time constant and reads one
-    sample in five; the first-order-hold input, the recursion and the decimation in one pass
-    skip three full-length temporaries. The same operations in the same order as the numpy
-    input stage and :func:`all_pole`, so the kept samples are theirs bit for bit (a test).
-    """
-    global _first_order_rows_compiled
-    if not available():
-        return None
-    if _first_order_rows_compiled is None:
-        from numba import types
-
-        sig = types.void(_f64(2, True), types.float64, types.float64, types.float64, types.int64, _f64(2))
-        _first_order_rows_compiled = njit(sig, cache=True, nogil=True)(_first_order_rows)
-    m, n = u.shape
-    out = np.empty((m, -(-n // step)))
-    if n == 0 or m == 0:  # nothing to filter (the loop writes the first sample of every row)
-        return out
-    x = np.asarray(u, dtype=np.float64)
-    if m < 4:  # the loop takes four rows at a time: padded with rows of zeros (rows do not mix)
-        x = np.vstack([x, np.zeros((4 - m, n))])
-        padded = np.empty((4, out.shape[1]))
-        _first_order_rows_compiled(x, float(a), float(b0), float(b1), int(step), padded)
-        out[:] = padded[:m]
-        return out
-    _first_order_rows_compiled(x, float(a), float(b0), float(b1), int(step), out)
-    return out
-
-
-_first_order_rows_compiled: Any = None
-
-
-def _first_order_rows(u: Array, a: float, b0: float, b1: float, step: int, out: Array) -> None:
-    # Four rows at a time (at least four rows; the caller pads fewer): a row's recursion is a
-    # chain of dependent multiply-adds, and four chains in flight run 2.2x faster than one
-    # (0.36 -> 0.16 ms on 15 rows of 13 000), each row's operations those of a one-row loop. Rows
-    # left over by the fours go again with the three before them (the same values written twice).
-    # The kept samples are counted, not found by ``i % step``: an integer division a sample cost
-    # a third of the loop.
-    m, n = u.shape
-    a1 = -a
-    r = 0
-    while r < m:
-        r = min(r, m - 4)
-        p0 = p1 = p2 = p3 = 0.0  # from rest
-        for q in range(4):
-            out[r + q, 0] = 0.0
-        c = 0
-        k = 0
-        for i in range(1, n):
-            v0 = b1 * u[r, i]
-            v0 += b0 * u[r, i - 1]
-            p0 = v0 - a1 * p0
-            v1 = b1 * u[r + 1, i]
-            v1 += b0 * u[r + 1, i - 1]
-            p1 = v1 - a1 * p1
-            v2 = b1 * u[r + 2, i]
-            v2 += b0 * u[r + 2, i - 1]
-            p2 = v2 - a1 * p2
-            v3 = b1 * u[r + 3, i]
-            v3 += b0 * u[r + 3, i - 1]
-            p3 = v3 - a1 * p3
-            c += 1
-            if c == step:
-                c = 0
-                k += 1
-                out[r, k] = p0
-                out[r + 1, k] = p1
-                out[r + 2, k] = p2
-                out[r + 3, k] = p3
-        r += 4

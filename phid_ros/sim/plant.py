@@ -344,7 +344,7 @@ class Plant:
         v_d, v_q = terminal_dq(vth_d, vth_q, i_d, i_q, r_th, x_th)
         p_e, q_e = electrical_power(v_d, v_q, i_d, i_q)
         return Trajectory(
-            t=np.arange(n) * dt,
+            t=np.arange(n, dtype=np.float64) * dt,
             delta=delta,
             omega=omega,
             e_q=e_q,

@@ -162,8 +162,9 @@ def pipeline_settings(
 def apply(settings: PipelineSettings, name: str, value: Any) -> PipelineSettings:
     """A run-time change applied to live settings (already validated)."""
     if name in ("pre_event_s", "post_event_s"):
-        field = {"pre_event_s": "pre_s", "post_event_s": "post_s"}[name]
-        return replace(settings, detector=replace(settings.detector, **{field: float(value)}))
+        if name == "pre_event_s":
+            return replace(settings, detector=replace(settings.detector, pre_s=float(value)))
+        return replace(settings, detector=replace(settings.detector, post_s=float(value)))
     if name in ("min_interval_s", "latest_per_kind", "max_relative_jump"):
         return replace(settings, policy=replace(settings.policy, **{name: value}))
     if name in ("hamiltonian_rate_hz", "auto_recalibrate", "stale_timeout_s", "tracking_enabled"):

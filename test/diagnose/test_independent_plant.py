@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import pytest
 
-from phid_ros.cli.common import load_recording
+from phid_ros.api import load_recording
 from phid_ros.diagnose.results import to_json
 from phid_ros.diagnose.workflow import DiagnoseOptions, diagnose
 from phid_ros.ident.pipeline import IdentifyOptions, identify

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import pytest
 
-from phid_ros.cli.common import load_recording
+from phid_ros.api import load_recording
 from phid_ros.ident.pipeline import IdentifyOptions, identify
 from phid_ros.sim.scenarios import paper_catalogue, with_duration
 from phid_ros.stream.scenarios import scenarios_from_recording

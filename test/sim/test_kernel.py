@@ -7,6 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from phid_ros import compiled_filters
 from phid_ros.diagnose.playin import OUTPUTS, play_in
 from phid_ros.model.parameters import TABLE1
 from phid_ros.sim import kernel
@@ -195,5 +196,5 @@ def test_preparing_an_identification_loads_every_compiled_part_it_runs():
     if not kernel.available():
         pytest.skip("numba is not installed")
     prepare()
-    assert kernel._all_pole_compiled is not None and kernel._first_order_rows_compiled is not None
+    assert compiled_filters._all_pole_compiled is not None and compiled_filters._first_order_rows_compiled is not None
     assert kernel._paper_rk4.signatures  # the validation play-in, loaded for the layout it is called with

@@ -1,0 +1,65 @@
+"""phid as a library: a recording read and identified, the way ``phid identify`` does it.
+
+The command line, the fleet's tasks, the studies in ``benchmarks/`` and scripts of users call
+these; none of them needs the command line's parser or its terminal output.
+
+>>> from phid_ros.api import load_recording, identify_recording
+>>> from phid_ros.ident.pipeline import IdentifyOptions
+>>> rec = load_recording("bags/catalogue")
+>>> scenarios, result = identify_recording(rec, "bags/catalogue", IdentifyOptions(f_nominal_hz=rec.f_nominal_hz))
+>>> result.parameters.H  # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from phid_ros.errors import PhidError
+
+if TYPE_CHECKING:  # imported where used: reading a recording does not need the identification
+    from phid_ros.ident.pipeline import IdentificationResult, IdentifyOptions
+    from phid_ros.ident.scenario import ScenarioData
+    from phid_ros.io.recording import Recording
+    from phid_ros.model.parameters import GeneratorParameters
+
+__all__ = ["identify_recording", "load_recording"]
+
+
+def load_recording(path: str | Path) -> Recording:
+    """A rosbag2 folder, a single .mcap, or a CSV manifest.json; the reader's warnings in ``warnings``."""
+    from phid_ros.io.bags import read_recording
+    from phid_ros.io.csv_import import import_csv_set
+
+    p = Path(path)
+    if p.suffix == ".json":
+        rec, notes = import_csv_set(p)
+        rec.warnings.extend(notes)
+        return rec
+    return read_recording(p)
+
+
+def identify_recording(
+    rec: Recording,
+    source: str,
+    options: IdentifyOptions,
+    truth: GeneratorParameters | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> tuple[list[ScenarioData], IdentificationResult]:
+    """A recording's scenarios and their identification; PhidError when nothing could be identified."""
+    from phid_ros.ident.pipeline import identify
+    from phid_ros.stream.scenarios import scenarios_from_recording
+
+    if progress:
+        progress(f"cutting the scenarios of {source}")
+    scenarios, problems = scenarios_from_recording(rec, source, options.step_thresholds)
+    if not any(sc.role == "identify" for sc in scenarios):
+        why = "; ".join(problems[-3:]) or f"{len(scenarios)} scenario(s), all for validation"
+        raise PhidError(f"{source}: nothing to identify from: no usable identification scenario ({why})")
+    res = identify(scenarios, options, truth, progress)
+    res.problems[:0] = problems
+    if not any(e is not None and math.isfinite(e.value) for e in res.estimates.values()):
+        raise PhidError(f"{source}: nothing identified: " + ("; ".join(res.problems) or "every stage failed"))
+    return scenarios, res

@@ -1,0 +1,306 @@
+"""What each ``phid`` command does, given its parsed arguments (the parser: :mod:`phid_ros.cli.parser`).
+
+The longer commands live in their own modules (``cli/identify.py``, ``cli/replay.py``, ...),
+imported when the command runs, so that ``phid --help`` does not load the identification.
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+from rich.console import Console
+from rich.markup import escape
+from rich.table import Table
+
+from phid_ros.cli.common import warn, write_output
+from phid_ros.cli.progress import ProgressLine
+from phid_ros.errors import PhidError
+from phid_ros.io.outputs import atomic_output, refuse_inputs
+from phid_ros.io.recording import Recording
+from phid_ros.model.conventions import NS, utc_of_stamp
+
+
+# -- simulate ------------------------------------------------------------------
+def _parse_effects(items: Sequence[str]) -> tuple:
+    from phid_ros.sim.effects import parse_effect
+
+    return tuple(parse_effect(item) for item in items)
+
+
+def cmd_simulate(args: argparse.Namespace, console: Console) -> int:
+    from phid_ros.cli.simulate import recording_from_runs, truth_document
+    from phid_ros.io.results import truth_path_for, write_json
+    from phid_ros.sim.runner import SimulationConfig, simulate_scenarios
+    from phid_ros.sim.scenarios import find_scenario, paper_catalogue, validation_scenarios
+    from phid_ros.sim.sensors import SensorModel
+
+    effects = _parse_effects(args.effect or [])
+    if args.ambient and effects:
+        raise PhidError("--effect is not available with --ambient yet (the long-run integrator has no effect hooks)")
+    if args.ambient:
+        return _simulate_ambient(args, console)
+    if args.drift:
+        raise PhidError("--drift needs --ambient (a drift happens over a long run)")
+    if args.scenario:
+        scenarios = [find_scenario(name) for name in args.scenario]
+    elif args.catalogue == "validation":
+        scenarios = validation_scenarios()
+    else:
+        scenarios = paper_catalogue()
+    if args.duration is not None:
+        from phid_ros.sim.scenarios import with_duration
+
+        scenarios = [with_duration(s, args.duration) for s in scenarios]
+    out = _simulation_output(args)
+    cfg = SimulationConfig(
+        f_nominal_hz=args.f_nominal, sensors=SensorModel(seed=args.seed, noiseless=args.noiseless), effects=effects
+    )
+    with ProgressLine(f"simulating {len(scenarios)} scenario(s)") as progress:
+        runs = simulate_scenarios(scenarios, cfg)
+        progress.update(f"writing {out}")
+        rec = recording_from_runs(runs, cfg)
+        write_output(out, rec, args.block_size)
+    truth = write_json(truth_path_for(out), truth_document(cfg, scenarios))
+    start, end = rec.span_ns()
+    console.print(f"wrote {out} ({len(scenarios)} scenarios, {(end - start) / NS:.1f} s of data) and {truth}")
+    return 0
+
+
+def _simulation_output(args: argparse.Namespace) -> Path:
+    from phid_ros.io.outputs import refuse_inputs
+    from phid_ros.io.results import truth_path_for
+
+    out = Path(args.out)
+    if out.name == "manifest.json":  # a CSV scenario set: its folder is the output
+        out.parent.mkdir(parents=True, exist_ok=True)
+    refuse_inputs([out, truth_path_for(out)], [])
+    for p in (out, truth_path_for(out)):
+        if p.exists() and not args.force:
+            raise PhidError(f"{p}: already exists, not overwriting (--force to replace it)")
+    return out
+
+
+def _parse_drift(text: str) -> object:
+    from phid_ros.sim.ambient import Drift
+
+    try:
+        name, rest = text.split("=", 1)
+        rel, span = rest.split("@", 1)
+        start, end = span.split("-", 1)
+        return Drift(name.strip(), float(start), float(end), float(rel))
+    except ValueError:
+        raise PhidError(f"--drift {text!r}: expected NAME=REL@START-END, e.g. T_d0_prime=0.1@300-1500") from None
+
+
+def _simulate_ambient(args: argparse.Namespace, console: Console) -> int:
+    import numpy as np
+
+    from phid_ros.cli.simulate import DEFAULT_START_NS, recording_metadata, truth_document
+    from phid_ros.io.bags import write_recording
+    from phid_ros.io.recording import Recording, StreamSamples
+    from phid_ros.io.results import truth_path_for, write_json
+    from phid_ros.io.topics import STREAMS
+    from phid_ros.model.conventions import NS
+    from phid_ros.sim.ambient import AmbientSettings, simulate_ambient
+    from phid_ros.sim.runner import SimulationConfig
+    from phid_ros.sim.sensors import SensorModel
+
+    out = _simulation_output(args)
+    drifts = tuple(_parse_drift(d) for d in (args.drift or []))
+    settings = AmbientSettings(duration_s=args.ambient, drifts=drifts, seed=args.seed)  # type: ignore[arg-type]
+    cfg = SimulationConfig(f_nominal_hz=args.f_nominal, sensors=SensorModel(seed=args.seed, noiseless=args.noiseless))
+    with ProgressLine(f"simulating {args.ambient:g} s of ambient operation") as progress:
+        run = simulate_ambient(settings, cfg)
+        dt_ns = int(round(cfg.dt * NS))
+        t_ns = DEFAULT_START_NS + np.arange(len(run.t), dtype=np.int64) * dt_ns
+        streams = {s.name: StreamSamples(t_ns.copy(), dt_ns, {c: run.measured[c] for c in s.channels}) for s in STREAMS}
+        progress.update(f"writing {out}")
+        with atomic_output(out) as tmp:
+            write_recording(tmp, Recording(streams, [], recording_metadata(cfg)), block_size=args.block_size)
+    truth = truth_document(cfg, [])
+    truth["ambient"] = {"duration_s": args.ambient, "seed": args.seed, "drifts": [d.__dict__ for d in drifts]}
+    truth["drifting_parameters_every_s"] = {name: v[:: int(1 / cfg.dt)].tolist() for name, v in run.parameters.items()}
+    path = write_json(truth_path_for(out), truth)
+    console.print(f"wrote {out} ({args.ambient:g} s, {len(drifts)} drift(s)) and {path}")
+    return 0
+
+
+# -- import-csv ------------------------------------------------------------------
+def cmd_import_csv(args: argparse.Namespace, console: Console) -> int:
+    from phid_ros.io.bags import write_recording
+    from phid_ros.io.csv_import import import_csv_set
+
+    out = Path(args.out)
+    refuse_inputs([out], [args.manifest])
+    if out.exists():
+        raise PhidError(f"{out}: already exists, not overwriting")
+    with ProgressLine(f"importing {args.manifest}") as progress:
+        rec, warnings = import_csv_set(args.manifest, strict=args.strict)
+        progress.update(f"writing {out}")
+        with atomic_output(out) as tmp:
+            write_recording(tmp, rec, block_size=args.block_size)
+    for w in warnings:
+        warn(w)
+    console.print(f"wrote {out} ({len(rec.scenarios)} scenarios)")
+    return 0
+
+
+def cmd_import_comtrade(args: argparse.Namespace, console: Console) -> int:
+    from phid_ros.io.comtrade_import import import_comtrade
+
+    return _import_field(args, console, import_comtrade)
+
+
+def cmd_import_pmu(args: argparse.Namespace, console: Console) -> int:
+    from phid_ros.io.pmu_csv import import_pmu_csv
+
+    return _import_field(args, console, import_pmu_csv)
+
+
+def _import_field(args: argparse.Namespace, console: Console, read: Callable[..., Recording]) -> int:
+    """Field recordings through a channel map -> one scenario set, written as ``phid simulate`` writes."""
+    from phid_ros.io.channel_map import load_channel_map
+
+    out = Path(args.out)
+    if out.name == "manifest.json":  # a CSV scenario set: its folder is the output
+        out.parent.mkdir(parents=True, exist_ok=True)
+    refuse_inputs([out], [*args.recordings, args.map])
+    if out.exists():
+        raise PhidError(f"{out}: already exists, not overwriting")
+    with ProgressLine(f"importing {len(args.recordings)} recording(s)") as progress:
+        rec = read(args.recordings, load_channel_map(args.map))
+        progress.update(f"writing {out}")
+        write_output(out, rec, args.block_size)
+    console.print(f"wrote {out} ({len(rec.scenarios)} scenarios)")
+    return 0
+
+
+# -- info --------------------------------------------------------------------------
+def _iso(ns: int) -> str:
+    return utc_of_stamp(ns).isoformat(timespec="milliseconds")
+
+
+def cmd_info(args: argparse.Namespace, console: Console) -> int:
+    from phid_ros.cli.info import summarise_streams
+    from phid_ros.io.bags import read_recording, topic_table, walked_topic_table
+    from phid_ros.io.recording import expected_type
+
+    path = Path(args.bag)
+    try:
+        topics = topic_table(path)
+    except PhidError as index_error:
+        # a file cut short has no index at its end: walk what is there and say how much it was
+        if not path.exists():
+            raise
+        try:
+            topics, cut = walked_topic_table(path)
+        except (PhidError, OSError):
+            raise index_error from None
+        if not cut:
+            raise
+        if not topics:  # cut before the first whole message: nothing to show
+            raise PhidError(cut[0]) from None
+        for w in cut:
+            warn(w)
+    if not any(expected_type(t) for t, _, _ in topics):
+        # an output bag (phid replay) or foreign data: the topic table is all there is to show
+        table = Table(title=escape(f"{path} (no sensor streams)"), title_justify="left")
+        for col in ("topic", "type", "messages"):
+            table.add_column(col, justify="right" if col == "messages" else "left")
+        for topic, msgtype, count in topics:
+            table.add_row(topic, msgtype, str(count))
+        console.print(table)
+        return 0
+    rec = read_recording(path)  # its own warnings were said above, with the topic table
+    table = Table(title=escape(f"{path}"), title_justify="left")
+    for col in ("topic", "type", "messages"):
+        table.add_column(col, justify="right" if col == "messages" else "left")
+    for topic, msgtype, count in topics:
+        table.add_row(topic, msgtype, str(count))
+    console.print(table)
+    streams = Table(title="sensor streams", title_justify="left")
+    for col in ("stream", "samples", "rate Hz", "start (UTC)", "span s", "gaps", "gap s", "backwards"):
+        streams.add_column(col, justify="left" if col in ("stream", "start (UTC)") else "right")
+    for s in summarise_streams(rec):
+        streams.add_row(
+            s.name,
+            str(s.samples),
+            f"{s.rate_hz:g}",
+            _iso(s.start_ns),
+            f"{(s.end_ns - s.start_ns) / NS:.3f}",
+            str(s.gaps),
+            f"{s.gap_seconds:.3f}",
+            str(s.backwards),
+        )
+    console.print(streams)
+    if rec.scenarios:
+        sc_table = Table(title="scenarios", title_justify="left")
+        for col in ("name", "kind", "role", "damping", "event s", "window s"):
+            sc_table.add_column(col)
+        t0 = rec.span_ns()[0]
+        for sc in rec.scenarios:
+            ev = f"{(sc.event_ns - t0) / NS:.3f}" if sc.event_ns else "?"
+            sc_table.add_row(
+                escape(sc.name),
+                escape(sc.kind),
+                escape(sc.role),
+                "yes" if sc.generator_damping else "no",
+                ev,
+                f"{(sc.end_ns - sc.start_ns) / NS:.1f}",
+            )
+        console.print(sc_table)
+    if rec.metadata:
+        console.print(
+            escape("metadata: " + ", ".join(f"{k}={v}" for k, v in sorted(rec.metadata.items()))), highlight=False
+        )
+    return 0
+
+
+# -- identify ------------------------------------------------------------------------
+def cmd_identify(args: argparse.Namespace, console: Console) -> int:
+    from phid_ros.cli.identify import run
+
+    return run(args, console)
+
+
+# -- replay --------------------------------------------------------------------------
+def cmd_replay(args: argparse.Namespace, console: Console) -> int:
+    from phid_ros.cli.replay import run
+
+    return run(args, console)
+
+
+# -- diagnose ------------------------------------------------------------------------
+def cmd_diagnose(args: argparse.Namespace, console: Console) -> int:
+    from phid_ros.cli.diagnose import run
+
+    return run(args, console)
+
+
+# -- track ---------------------------------------------------------------------------
+def cmd_track(args: argparse.Namespace, console: Console) -> int:
+    from phid_ros.cli.track import run
+
+    return run(args, console)
+
+
+# -- fleet, history ---------------------------------------------------------------------
+def cmd_fleet(args: argparse.Namespace, console: Console) -> int:
+    from phid_ros.cli.fleet import run
+
+    return run(args, console)
+
+
+def cmd_export(args: argparse.Namespace, console: Console) -> int:
+    from phid_ros.cli.export import run
+
+    return run(args, console)
+
+
+def cmd_history(args: argparse.Namespace, console: Console) -> int:
+    from phid_ros.cli.fleet import run_history
+
+    refuse_inputs([args.report], [Path(args.fleet) / "history.sqlite"])
+    return run_history(args, console)

@@ -1,0 +1,44 @@
+"""numba, where it is installed (the ``[jit]`` extra): one switch for every compiled loop.
+
+Every compiled part of phid (the play-in in ``sim/kernel.py``, the filters in
+``compiled_filters.py``) has a numpy path that gives the same numbers; :func:`available` says
+which one runs. ``PHID_NO_JIT=1`` forces the numpy path (the tests compare the two).
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+njit: Any
+try:
+    from numba import njit
+except ImportError:  # the numpy paths run instead
+    njit = None
+
+# cache: compiled once per machine, not per process; nogil: the diagnosis's job threads run
+# compiled play-ins side by side; error_model numpy: a division by zero is inf, as in numpy
+OPTIONS: dict[str, Any] = {"cache": True, "nogil": True, "error_model": "numpy"}
+
+
+def available() -> bool:
+    """numba importable and not switched off (``PHID_NO_JIT=1``)."""
+    return njit is not None and not os.environ.get("PHID_NO_JIT")
+
+
+def maybe_jit(f: Any, *, inline: bool = False) -> Any:
+    """``f`` compiled lazily on first call, or ``f`` itself without numba.
+
+    ``inline``: compiled into each compiled caller (numba's own inlining) instead of called.
+    """
+    if njit is None:
+        return f
+    return njit(**OPTIONS, **({"inline": "always"} if inline else {}))(f)
+
+
+def f64(dims: int, readonly: bool = False) -> Any:
+    """A float64 array of any layout, for an explicit signature. Loops' inputs are typed
+    read-only: that type accepts writable arrays too (not the other way round)."""
+    from numba import types
+
+    return types.Array(types.float64, dims, "A", readonly=readonly)
