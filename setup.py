@@ -19,11 +19,12 @@ extras = {
     "fleet": ["dask>=2024.1", "distributed>=2024.1", "bokeh>=3.1", "cloudpickle>=3.0"],
     # COMTRADE (IEEE C37.111) reading for phid import-comtrade: a maintained parser, not ours
     "field": ["comtrade>=0.1"],
-    "docs": ["sphinx>=7.2", "myst-parser>=2.0", "sphinx-argparse>=0.4"],
+    "docs": ["sphinx>=8.0", "myst-parser>=4.0", "sphinx-argparse>=0.5"],
 }
 extras["all"] = sorted({r for k in ("jit", "fleet", "field") for r in extras[k]})
 # andes: the independent simulator the exported planning records are checked in
-extras["test"] = sorted({*extras["all"], *extras["docs"], "pytest>=7.4", "andes>=1.9", "ruff>=0.4", "mypy>=1.8"})
+# the checkers pinned to a minor version: a newer one may judge the same code differently
+extras["test"] = sorted({*extras["all"], *extras["docs"], "pytest>=7.4", "andes>=1.9", "ruff~=0.17.6", "mypy~=2.4.1"})
 
 
 def data(folder: str, pattern: str = "*") -> list[str]:

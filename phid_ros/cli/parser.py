@@ -274,7 +274,7 @@ def _add_fleet(sub: Subparsers) -> None:
     p = sub.add_parser("fleet", help="identify every recording of many units on a Dask cluster, into a history")
     p.add_argument(
         "inventory",
-        help="a folder of unit folders (UNIT/.../*.mcap, bag folders, CSV manifests) or a YAML/CSV list of "
+        help="a folder of unit folders (.mcap files, bag folders, CSV manifests) or a YAML/CSV list of "
         "(unit, recording)",
     )
     p.add_argument("--out", required=True, metavar="FLEET_DIR", help="fleet folder: history.sqlite lives here")

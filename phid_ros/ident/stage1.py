@@ -24,10 +24,12 @@ H the median of (31) over |d omega/dt| > 0.001 with 1 < H < 10 (32).
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.optimize import OptimizeWarning, curve_fit
 
 from phid_ros.errors import StageError
 from phid_ros.ident.constraints import NONE, Constraints, at_user_bound, held
@@ -35,7 +37,6 @@ from phid_ros.ident.results import STD_CALIBRATION, Estimate, flag
 from phid_ros.ident.scenario import ScenarioData
 from phid_ros.ident.uncertainty import block_ids, cluster_robust_cov, information_share
 from phid_ros.numerics import find_peaks, lowpass2, lowpass2_derivative
-from phid_ros.optimize import decay_fit
 
 DEFAULT_CUTOFF_HZ = 2.0
 BLOCK_SECONDS = 1.0
@@ -209,9 +210,16 @@ def _envelope(s: ScenarioData, window_s: float = 15.0) -> tuple[float, float]:
     t = peaks * s.dt
     amp = np.abs(dev[peaks])
 
+    def envelope(tt: np.ndarray, a0: float, alpha: float) -> np.ndarray:
+        return a0 * np.exp(-alpha * tt)
+
+    # MINPACK's Levenberg-Marquardt: our own exact-Jacobian version of it reached the same optimum
+    # (to 1e-7) 2.7x slower (benchmarks/bench_own_code.py, 2026-11-25), so the library's it is
     try:
-        _, alpha = decay_fit(t - t[0], amp, float(amp[0]), 0.5)
-    except ValueError as exc:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", OptimizeWarning)  # the covariance it could not form: not used
+            (_, alpha), _ = curve_fit(envelope, t - t[0], amp, p0=(amp[0], 0.5), method="lm", maxfev=2000)
+    except (RuntimeError, ValueError) as exc:  # no convergence within maxfev; non-finite data
         raise Stage1Error(f"{s.name}: the speed envelope's exponential fit failed: {exc}") from exc
     # |dev| peaks come every half period
     omega_d = math.pi / float(np.mean(np.diff(t)))

@@ -1,0 +1,32 @@
+"""Sphinx configuration: Markdown pages (MyST), the CLI reference from the parser, the API by autodoc.
+
+Built by ``.ci/run`` with warnings as errors:
+``sphinx-build -W -q -b html docs docs/_build``.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+import phid_ros  # noqa: E402
+
+project = "phid_ros"
+author = "phid_ros maintainers"
+copyright = "2026, phid_ros maintainers (Apache-2.0)"
+release = version = phid_ros.__version__
+
+extensions = ["myst_parser", "sphinx.ext.autodoc", "sphinx.ext.napoleon", "sphinxarg.ext"]
+source_suffix = {".md": "markdown"}
+myst_enable_extensions = ["colon_fence", "deflist"]
+myst_heading_anchors = 3
+exclude_patterns = ["_build", "make_screenshots.py"]
+autodoc_typehints = "description"
+autodoc_member_order = "bysource"
+html_theme = "alabaster"
+html_theme_options = {"description": "Port-Hamiltonian identification of synchronous generators", "fixed_sidebar": True}
+# The guides link to files of the repository (a test, a module, a config file) by path in
+# backquotes; they are not documents of this site, and nothing here should pretend they are.
