@@ -35,9 +35,10 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from phid_ros.fleet.inventory import content_hash, discover, recording_files  # noqa: E402
+from phid_ros.fleet.inventory import discover  # noqa: E402
 from phid_ros.fleet.run import FleetOptions, run_fleet  # noqa: E402
 from phid_ros.fleet.task import process_recording  # noqa: E402
+from phid_ros.io.digest import content_hash, recording_files  # noqa: E402
 
 
 def make_inventory(root: Path, n: int) -> None:

@@ -25,7 +25,7 @@ if TYPE_CHECKING:  # imported where used: reading a recording does not need the 
     from phid_ros.io.recording import Recording
     from phid_ros.model.parameters import GeneratorParameters
 
-__all__ = ["identify_recording", "load_recording"]
+__all__ = ["identify_recording", "identify_scenarios", "load_recording"]
 
 
 def load_recording(path: str | Path) -> Recording:
@@ -49,7 +49,6 @@ def identify_recording(
     progress: Callable[[str], None] | None = None,
 ) -> tuple[list[ScenarioData], IdentificationResult]:
     """A recording's scenarios and their identification; PhidError when nothing could be identified."""
-    from phid_ros.ident.pipeline import identify
     from phid_ros.stream.scenarios import scenarios_from_recording
 
     if progress:
@@ -58,8 +57,26 @@ def identify_recording(
     if not any(sc.role == "identify" for sc in scenarios):
         why = "; ".join(problems[-3:]) or f"{len(scenarios)} scenario(s), all for validation"
         raise PhidError(f"{source}: nothing to identify from: no usable identification scenario ({why})")
-    res = identify(scenarios, options, truth, progress)
+    res = identify_scenarios(scenarios, source, options, truth, progress)
     res.problems[:0] = problems
     if not any(e is not None and math.isfinite(e.value) for e in res.estimates.values()):
         raise PhidError(f"{source}: nothing identified: " + ("; ".join(res.problems) or "every stage failed"))
     return scenarios, res
+
+
+def identify_scenarios(
+    scenarios: list[ScenarioData],
+    source: str,
+    options: IdentifyOptions,
+    truth: GeneratorParameters | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> IdentificationResult:
+    """The identification of scenarios cut from ``source``; a unit or convention mistake the
+    channels show (:mod:`phid_ros.ident.consistency`) is an error naming ``source``."""
+    from phid_ros.ident.consistency import ConsistencyError
+    from phid_ros.ident.pipeline import identify
+
+    try:
+        return identify(scenarios, options, truth, progress)
+    except ConsistencyError as exc:
+        raise ConsistencyError(f"{source}: {exc}") from None

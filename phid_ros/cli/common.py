@@ -24,6 +24,14 @@ def read_input(path: str | Path) -> tuple[Recording, str]:
     return rec, str(path)
 
 
+def provenance(path: str | Path) -> dict[str, str]:
+    """Which recording a result came from: its path and its content's SHA-256 (``phid export``
+    compares the identification's and the diagnosis's before merging them)."""
+    from phid_ros.io.digest import content_hash
+
+    return {"input": str(path), "input_sha256": content_hash(Path(path))}
+
+
 def write_output(out: Path, rec: Recording, block_size: int) -> None:
     """A recording to a bag folder, a single .mcap, or a CSV set (``DIR/manifest.json``), whole or not at all."""
     from phid_ros.io.bags import write_recording

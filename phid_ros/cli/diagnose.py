@@ -7,7 +7,8 @@ from typing import Any
 
 from rich.console import Console
 
-from phid_ros.cli.common import finish
+from phid_ros.api import identify_scenarios
+from phid_ros.cli.common import finish, provenance
 from phid_ros.cli.identify import load_input, load_truth, step_thresholds
 from phid_ros.cli.progress import ProgressLine
 from phid_ros.cli.tables import CHANNEL_LABELS, Col, effect_values_text, fmt, pct, print_table, signed_int
@@ -16,7 +17,7 @@ from phid_ros.diagnose.playin import OUTPUTS
 from phid_ros.diagnose.results import is_determined, to_json
 from phid_ros.diagnose.workflow import DiagnoseOptions, diagnose
 from phid_ros.errors import PhidError
-from phid_ros.ident.pipeline import IdentifyOptions, identify
+from phid_ros.ident.pipeline import IdentifyOptions
 from phid_ros.io.results import read_json, write_json
 from phid_ros.model.parameters import PARAMETER_NAMES, SYMBOLS
 from phid_ros.stream.scenarios import scenarios_from_recording
@@ -100,7 +101,7 @@ def run(args: Any, console: Console) -> int:
         if not any(s.role == "identify" for s in scenarios):
             raise PhidError(f"{source}: no identification scenarios; the diagnosis needs them to fit candidate models")
         opts = IdentifyOptions(baseline=False, validate=False, f_nominal_hz=f_hz)
-        res = identify(scenarios, opts, progress=progress.update)
+        res = identify_scenarios(scenarios, source, opts, progress=progress.update)
         start = res.parameters
         model = res.complete()
         progress.update("locating the gap between the model and the measurements")
@@ -113,7 +114,7 @@ def run(args: Any, console: Console) -> int:
         )
     d.problems[:0] = problems + [p for p in res.problems if "kept the label" not in p]
     doc = to_json(d, truth, truth_effects)
-    doc["input"] = source
+    doc.update(provenance(args.input))
     if gap is not None:
         doc["gap_before"] = gap.as_dict()
     doc["seconds"] = time.perf_counter() - t_start

@@ -10,7 +10,7 @@ from typing import Any
 from rich.console import Console
 
 from phid_ros.api import identify_recording
-from phid_ros.cli.common import finish, read_input, warn
+from phid_ros.cli.common import finish, provenance, read_input, warn
 from phid_ros.cli.progress import ProgressLine
 from phid_ros.cli.tables import Col, fmt, pct, print_table
 from phid_ros.errors import PhidError
@@ -162,7 +162,7 @@ def run(args: Any, console: Console) -> int:
         scenarios, res = identify_recording(rec, source, options, truth, progress.update)
     res.timing = {"read": round(t_read, 6), **res.timing}
     doc = res.to_json(truth)
-    doc["input"] = source
+    doc.update(provenance(args.input))
     doc["f_nominal_hz"] = rec.f_nominal_hz  # what phid export needs to write a planning model
     if rec.metadata.get("base_mva") is not None:
         doc["base_mva"] = float(rec.metadata["base_mva"])

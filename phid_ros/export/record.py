@@ -15,12 +15,13 @@ smaller transient reactance inert, and short subtransient time constants for the
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
 from phid_ros.errors import PhidError
-from phid_ros.model.parameters import PARAMETER_NAMES
+from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME
 from phid_ros.sim.effects import leakage_default
 
 MODELS = ("GENROU", "GENSAL")
@@ -163,9 +164,11 @@ def build_record(
             "(it needs 'parameters' and 'identifiable', as phid identify --json writes)"
         )
     effects = _effects(diagnosis, diagnosis_source)
+    _same_recording(result, source, diagnosis, diagnosis_source)
     held = (result.get("constraints") or {}).get("fixed") or {}
     chosen = _base_values(result, diagnosis, source, diagnosis_source, held)
     flagged = [n for n in PARAMETER_NAMES if not chosen[n][2]]
+    _physical(chosen, source if diagnosis is None else f"{source} and {diagnosis_source}")
     f_nominal = float(result.get("f_nominal_hz", 50.0))
     values: dict[str, float] = {}
     sources: dict[str, str] = {}
@@ -204,6 +207,35 @@ def build_record(
         )
     _check(rec)
     return rec
+
+
+def _same_recording(
+    result: Mapping[str, Any], source: str, diagnosis: Mapping[str, Any] | None, diagnosis_source: str
+) -> None:
+    """A diagnosis is merged only into the identification of the same recording: by content
+    (``input_sha256``) where both results carry it, else by path."""
+    if diagnosis is None:
+        return
+    for key in ("input_sha256", "input"):
+        a, b = result.get(key), diagnosis.get(key)
+        if key == "input" and a and b:
+            a, b = os.path.normpath(str(a)), os.path.normpath(str(b))
+        if a and b:
+            if a != b:
+                raise ExportError(
+                    f"{diagnosis_source}: diagnoses {diagnosis.get('input', '?')}, but {source} identified "
+                    f"{result.get('input', '?')} ({'different content' if key == 'input_sha256' else 'another file'}); "
+                    "export each recording's own diagnosis"
+                )
+            return
+
+
+def _physical(chosen: Mapping[str, tuple[float, str, bool]], where: str) -> None:
+    """No planning model is written with a value outside the machine's physical ranges, flagged
+    or not (--allow-flagged writes unidentified values, never impossible ones)."""
+    problems = [p for n in PARAMETER_NAMES if (p := SPECS_BY_NAME[n].outside(chosen[n][0])) is not None]
+    if problems:
+        raise ExportError(f"{where}: {'; '.join(problems)}: not a physical machine, no record written")
 
 
 def _base_values(

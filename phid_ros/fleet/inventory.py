@@ -14,7 +14,6 @@ and a rewritten one is new.
 from __future__ import annotations
 
 import csv
-import hashlib
 import json
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -23,7 +22,6 @@ from pathlib import Path
 from phid_ros.errors import PhidError
 
 LIST_SUFFIXES = (".yaml", ".yml", ".csv")
-_CHUNK = 1 << 20
 
 
 class InventoryError(PhidError):
@@ -136,46 +134,3 @@ def _read_csv_list(path: Path) -> list[tuple[str, str]]:
     if rows and not {"unit", "recording"} <= set(rows[0]):
         raise InventoryError(f"{path}: header must name 'unit' and 'recording', got {sorted(rows[0])}")
     return [((r.get("unit") or "").strip(), (r.get("recording") or "").strip()) for r in rows]
-
-
-def recording_files(path: Path) -> list[Path]:
-    """The files whose bytes are the recording, in a fixed order."""
-    if path.is_dir():
-        return sorted(p for p in path.rglob("*") if p.is_file())
-    if path.suffix == ".json":
-        files = [path]
-        try:
-            doc = json.loads(path.read_text(encoding="utf-8"))
-            files += [path.parent / str(s["file"]) for s in doc.get("scenarios", []) if isinstance(s, dict)]
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError, KeyError):
-            pass  # the import names the problem; the manifest's own bytes still identify it
-        return files
-    return [path]
-
-
-def content_hash(path: Path) -> str:
-    """SHA-256 over the recording's files (relative names and bytes)."""
-    h = hashlib.sha256()
-    base = path if path.is_dir() else path.parent
-    for f in recording_files(path):
-        h.update(str(f.relative_to(base) if f.is_relative_to(base) else f.name).encode() + b"\0")
-        try:
-            with f.open("rb") as fh:
-                while chunk := fh.read(_CHUNK):
-                    h.update(chunk)
-        except OSError:
-            h.update(b"<missing>")
-        h.update(b"\0")
-    return h.hexdigest()
-
-
-def stat_key(path: Path) -> str:
-    """Size and modification time of every file: a rehash is needed only when this changes."""
-    parts = []
-    for f in recording_files(path):
-        try:
-            st = f.stat()
-            parts.append(f"{f}:{st.st_size}:{st.st_mtime_ns}")
-        except OSError:
-            parts.append(f"{f}:missing")
-    return hashlib.sha256("\n".join(parts).encode()).hexdigest()

@@ -20,8 +20,9 @@ from phid_ros import __version__
 from phid_ros.errors import PhidError
 from phid_ros.extras import require
 from phid_ros.fleet.history import History, Row
-from phid_ros.fleet.inventory import Item, content_hash, discover, stat_key
+from phid_ros.fleet.inventory import Item, discover
 from phid_ros.fleet.task import one_line, process_recording
+from phid_ros.io.digest import content_hash, stat_key
 
 if TYPE_CHECKING:
     from distributed import Client

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from phid_ros.errors import StageError
-from phid_ros.ident import stage1, stage2, stage3, validation
+from phid_ros.ident import consistency, stage1, stage2, stage3, validation
 from phid_ros.ident.constraints import NONE, Constraints, at_user_bound, held
 from phid_ros.ident.results import Estimate
 from phid_ros.ident.scenario import DEFAULT_THRESHOLDS, ScenarioData, StepThresholds
@@ -28,7 +28,7 @@ from phid_ros.ident.stages import (
 )
 from phid_ros.ident.validation import ValidationResult
 from phid_ros.model.conventions import DEFAULT_F_NOMINAL_HZ
-from phid_ros.model.parameters import PARAMETER_NAMES, GeneratorParameters, validation_problems
+from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, GeneratorParameters, validation_problems
 
 METHODS = tuple(stage3_methods())  # ("fast", "paper"): the command line's names of stage 3's methods
 
@@ -201,6 +201,30 @@ def prepare() -> None:
     validation.prepare()
 
 
+def _withhold(res: IdentificationResult, suspicions: Sequence[consistency.Suspicion]) -> None:
+    """What a suspected unit or convention mistake touches is not published as identified."""
+    for sus in suspicions:
+        res.problems.append(f"channels: {sus.message}")
+        for name in sus.parameters:
+            if name in res.estimates:
+                res.estimates[name].disqualify(f"withheld: {sus.message}")
+
+
+def _physical_ranges(res: IdentificationResult) -> None:
+    """A value outside its declared physical range, or a transient reactance not below its
+    synchronous one, is never published as identified, however small its std."""
+    for name, est in res.estimates.items():
+        problem = SPECS_BY_NAME[name].outside(est.value) if math.isfinite(est.value) else None
+        if problem is not None and est.identifiable:
+            est.disqualify(f"outside its physical range: {problem}")
+    for small, large in (("X_d_prime", "X_d"), ("X_q_prime", "X_q")):
+        a, b = res.estimates.get(small), res.estimates.get(large)
+        if a is not None and b is not None and not a.value < b.value:
+            for est in (a, b):
+                if est.identifiable:
+                    est.disqualify(f"{small} = {a.value:.4g} is not below {large} = {b.value:.4g}")
+
+
 def identify(
     scenarios: Sequence[ScenarioData],
     options: IdentifyOptions | None = None,
@@ -225,11 +249,16 @@ def identify(
     if not ident:
         res.problems.append("no identification scenarios: nothing to identify")
         return res
+    say("checking the channels' units and conventions")
+    findings = consistency.check(scs, opt.f_nominal_hz)
+    consistency.raise_errors(findings)  # a unit or sign mistake: nothing identified from it is true
     for key, step in STEPS:
         t0 = time.perf_counter()
         step(res, ident, opt, say)
         _timed(res.timing, key, t0)
     _apply_constraints(res, opt.constraints)
+    _withhold(res, findings.suspicions)
+    _physical_ranges(res)
     for est in res.estimates.values():
         if not est.identifiable and est.note:
             res.problems.append(est.note)

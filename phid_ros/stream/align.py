@@ -57,6 +57,9 @@ class StreamHealth:
     zero_stamps: int = 0  # samples of messages stamped 0: an unset clock, not a time
     wild_stamps: int = 0  # samples of a block whose stamp jumped and came straight back
     malformed: int = 0  # samples of messages whose channel arrays differ in length (the longest counted)
+    # samples kept with a channel that had no finite value in the whole message (a dead sensor
+    # channel beside live ones: its samples are NaN, a gap on that channel only, not dropped)
+    dead_channel: int = 0
     gaps: int = 0
     missing: int = 0  # samples absent in those gaps (by the stamps): what was lost on the way
     clock_jumps: int = 0
@@ -135,6 +138,9 @@ class StreamHealth:
                 f"wild stamp {self.wild_stamps}, malformed {self.malformed})"
             )
             level = "WARN" if level == "OK" else level
+        if self.dead_channel:
+            problems.append(f"{self.dead_channel} samples with a dead channel (no finite value in their message)")
+            level = "ERROR" if self.samples and self.dead_channel > 0.5 * self.samples else "WARN"
         if self.missing:
             problems.append(f"{self.missing} samples missing in {self.gaps} gap(s)")
             level = "WARN" if level == "OK" else level
@@ -395,11 +401,21 @@ class Aligner:
         if period_ns > 0 and (last is None or t[0] > last) and (x >= lo).all() and (x <= hi).all():
             self._accept(stream, h, t, x, period_ns, regular=True)
             return
-        with np.errstate(invalid="ignore"):
-            plausible = ((x >= lo) & (x <= hi)).all(axis=1)  # False for NaN too
         n = len(t)
+        dead = ~np.isfinite(x).any(axis=0) if n > 1 else np.zeros(x.shape[1], dtype=bool)
+        if dead.any() and not dead.all():
+            # a channel dead for the whole message: its samples kept as NaN, the live channels judged
+            x = x.copy()
+            x[:, dead] = np.nan
+            h.dead_channel += n
+            live = ~dead
+            x_live, lo, hi = x[:, live], lo[live], hi[live]
+        else:
+            x_live = x
+        with np.errstate(invalid="ignore"):
+            plausible = ((x_live >= lo) & (x_live <= hi)).all(axis=1)  # False for NaN too
         ok = np.ones(n, dtype=bool)
-        finite = np.isfinite(x).all(axis=1)
+        finite = np.isfinite(x_live).all(axis=1)
         h.nonfinite += int((~finite).sum())
         ok &= finite
         bad_range = finite & ~plausible
@@ -481,8 +497,11 @@ class Aligner:
             return
         if self._next_grid is None:
             firsts = [int(p.arrays()[0][0]) for p in self._pending.values() if p.t]
-            if len(firsts) < len(self._pending) and not final:
-                return  # wait until every stream has started
+            if len(firsts) < len(self._pending) and not final and max(have) - min(firsts) <= self.stale_ns:
+                # wait until every stream has started, but not for one that sends nothing usable (a
+                # dead channel, every sample NaN): waiting for it held every other stream's samples
+                # back to the end and the ring buffer kept only the last of them (14 of 18 events lost)
+                return
             start = max(firsts)
             self._next_grid = -(-start // self.period_ns) * self.period_ns
         newest = max(have)

@@ -199,8 +199,12 @@ class Detector:
         elif len(t) < expected:
             w.usable, w.reason = False, f"window has {len(t)} of {expected} samples (ring buffer too short or gap)"
         if w.usable and not np.isfinite(x).all():
-            bad = [c for i, c in enumerate(CHANNELS) if not np.isfinite(x[:, i]).all()]
-            w.usable, w.reason = False, f"stale data in the window: {bad} have gaps"
+            finite = np.isfinite(x)
+            dead = [c for i, c in enumerate(CHANNELS) if len(x) and not finite[:, i].any()]
+            gappy = [c for i, c in enumerate(CHANNELS) if finite[:, i].any() and not finite[:, i].all()]
+            why = [f"no data on {', '.join(dead)} (a dead channel)"] if dead else []
+            why += [f"{gappy} have gaps"] if gappy else []
+            w.usable, w.reason = False, "stale data in the window: " + "; ".join(why)
         return w
 
 

@@ -137,3 +137,30 @@ def test_a_field_from_an_effect_parameter_the_diagnosis_did_not_determine_is_fla
     assert rec.sources["Tq20"] == "diagnosis: subtransient_dynamics t_q0pp NOT IDENTIFIED"
     assert rec.sources["Xd2"] == "diagnosis: subtransient_dynamics x_dpp" and rec.values["Tq20"] == 0.035
     assert "NOT IDENTIFIED: Tq20 (subtransient_dynamics t_q0pp)" in rec.comment()
+
+
+@pytest.mark.parametrize("name, value", [("H", -3.48), ("H", 3480.0), ("X_d", -2.54), ("T_d0_prime", 0.0)])
+def test_an_impossible_value_is_never_written_even_when_flagged_writes_are_allowed(name: str, value: float) -> None:
+    doc = result(**{name: False})
+    doc["parameters"][name] = value
+    with pytest.raises(ExportError, match=rf"r\.json: {name}=.* outside \[.*not a physical machine"):
+        build_record(doc, source="r.json", mva=1000.0, allow_flagged=True)
+
+
+def test_a_diagnosis_of_another_recording_is_refused() -> None:
+    doc = result() | {"input": "unit_a.mcap", "input_sha256": "a" * 64}
+    diag = diagnosis(("stator_resistance", {"r_a": 0.004})) | {"input": "unit_b.mcap", "input_sha256": "b" * 64}
+    with pytest.raises(ExportError, match=r"d\.json: diagnoses unit_b\.mcap, but r\.json identified unit_a\.mcap"):
+        build_record(doc, source="r.json", mva=1000.0, diagnosis=diag, diagnosis_source="d.json")
+    # the same content under another name is the same recording
+    diag |= {"input": "copy_of_a.mcap", "input_sha256": "a" * 64}
+    assert (
+        build_record(doc, source="r.json", mva=1000.0, diagnosis=diag, diagnosis_source="d.json").values["ra"] == 0.004
+    )
+    # results from before the digest: compared by path, normalised
+    old_doc, old_diag = result() | {"input": "./bags/x"}, diagnosis() | {"input": "bags/x"}
+    build_record(old_doc, source="r.json", mva=1000.0, diagnosis=old_diag, diagnosis_source="d.json")
+    with pytest.raises(ExportError, match="another file"):
+        build_record(
+            old_doc, source="r.json", mva=1000.0, diagnosis=diagnosis() | {"input": "bags/y"}, diagnosis_source="d.json"
+        )

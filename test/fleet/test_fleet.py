@@ -232,7 +232,7 @@ def test_history_command_flags_a_jump_and_writes_its_report(tmp_path: Path, caps
 
 
 def test_a_csv_scenario_set_and_a_rosbag2_folder_are_one_recording_each(tmp_path: Path):
-    from phid_ros.fleet.inventory import content_hash
+    from phid_ros.io.digest import content_hash
 
     unit = tmp_path / "tree" / "G1"
     (unit / "set").mkdir(parents=True)

@@ -82,7 +82,11 @@ def test_a_gap_gives_nan_and_is_counted():
             "nonfinite",
         ),
         (
-            lambda name, a: a.__setitem__("omega", np.full(len(a["omega"]), np.inf)) if name == "encoder" else None,
+            lambda name, a: (
+                a.__setitem__("omega", np.where(np.arange(len(a["omega"])) == 3, np.inf, a["omega"]))
+                if name == "encoder"
+                else None
+            ),
             "nonfinite",
         ),
         (lambda name, a: a.__setitem__("v_t", a["v_t"] * 20.0) if name == "pt_ct" else None, "implausible"),  # kV feed
@@ -101,6 +105,36 @@ def test_bad_values_are_dropped_and_counted(bad, counter):
     clean = 0.9 + 0.01 * np.arange(len(CHANNELS))[None, :] + 1e-3 * t[:, None] / 1e9
     ok = np.isfinite(x)
     assert np.allclose(x[ok], clean[ok], atol=1e-12)
+
+
+def test_a_dead_channel_leaves_its_stream_s_live_channels_in_place():
+    """omega with no finite value in a whole message: P_m of the same message is kept (a torque
+    step stays visible), omega is a gap there, and the samples are counted, not dropped."""
+    al = Aligner()
+    feed(al, 0, 100)
+    dead = lambda name, a: a.__setitem__("omega", np.full(len(a["omega"]), np.nan)) if name == "encoder" else None  # noqa: E731
+    feed(al, 100 * MS, 100, mutate=dead)
+    feed(al, 200 * MS, 100)
+    t, x = collect(al.pull(final=True))
+    h = al.health["encoder"]
+    assert h.dead_channel == 100 and h.dropped == 0 and h.accepted == 300
+    inside = (t >= 100 * MS) & (t < 200 * MS)
+    assert np.isnan(x[inside, COL["omega"]]).all() and np.isfinite(x[inside, COL["p_m"]]).all()
+    assert np.isfinite(x[~inside, COL["omega"]]).all()
+    assert h.status(stream_now_ns=int(t[-1]))[0] == "WARN"
+
+
+def test_a_stream_that_never_starts_does_not_hold_the_others_back():
+    """Every sample of the excitation stream NaN: the grid starts without it after stale_ns
+    instead of keeping the other streams' samples until the end of the input."""
+    al = Aligner()
+    dead = lambda name, a: a.__setitem__("v_f", np.full(len(a["v_f"]), np.nan)) if name == "excitation" else None  # noqa: E731
+    blocks = []
+    for k in range(30):
+        feed(al, k * 100 * MS, 100, mutate=dead)
+        blocks += al.pull()
+    t, x = collect(blocks)
+    assert t.size >= 1900 and np.isnan(x[:, COL["v_f"]]).all() and np.isfinite(x[:, COL["v_t"]]).all()
 
 
 def test_duplicates_and_out_of_order_are_dropped_and_told_apart():
