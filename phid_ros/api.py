@@ -29,16 +29,25 @@ __all__ = ["identify_recording", "identify_scenarios", "load_recording"]
 
 
 def load_recording(path: str | Path) -> Recording:
-    """A rosbag2 folder, a single .mcap, or a CSV manifest.json; the reader's warnings in ``warnings``."""
+    """A rosbag2 folder, a single .mcap, or a CSV manifest.json; the reader's warnings in ``warnings``.
+
+    A stream whose clock is so far off that its stamps meet no other stream's is an error
+    (:mod:`phid_ros.io.clock_check`).
+    """
     from phid_ros.io.bags import read_recording
+    from phid_ros.io.clock_check import clock_problems
     from phid_ros.io.csv_import import import_csv_set
 
     p = Path(path)
     if p.suffix == ".json":
         rec, notes = import_csv_set(p)
         rec.warnings.extend(notes)
-        return rec
-    return read_recording(p)
+    else:
+        rec = read_recording(p)
+    problems = clock_problems(rec)
+    if problems:
+        raise PhidError(f"{path}: {problems[0]}")
+    return rec
 
 
 def identify_recording(

@@ -9,7 +9,7 @@ ROOT = Path(__file__).resolve().parents[1] / "phid_ros"
 # lowest first; a package may import its own modules and those of any lower layer
 LAYERS = (
     {"errors", "__version__"},
-    {"jit", "extras"},
+    {"jit", "extras", "provenance"},
     {"cluster", "model", "compiled_filters"},
     {"numerics"},
     {"io"},

@@ -28,8 +28,9 @@ def provenance(path: str | Path) -> dict[str, str]:
     """Which recording a result came from: its path and its content's SHA-256 (``phid export``
     compares the identification's and the diagnosis's before merging them)."""
     from phid_ros.io.digest import content_hash
+    from phid_ros.provenance import method_version
 
-    return {"input": str(path), "input_sha256": content_hash(Path(path))}
+    return {"input": str(path), "input_sha256": content_hash(Path(path)), "method_version": method_version()}
 
 
 def write_output(out: Path, rec: Recording, block_size: int) -> None:

@@ -69,7 +69,9 @@ def run(args: Any, console: Console) -> int:
     for w in result.warnings:
         warn(w)
     console.print(
-        f"{result.recordings} recording(s): {result.skipped} already in the history, {result.submitted} run, "
+        f"{result.recordings} recording(s): {result.skipped} already in the history, {result.submitted} run"
+        + (f" ({result.redone} identified by an older method, so again)" if result.redone else "")
+        + ", "
         f"{result.failed} failed; {time.perf_counter() - t0:.1f} s; history {Path(args.out) / HISTORY_FILE}",
         highlight=False,
     )

@@ -14,6 +14,7 @@ from phid_ros.cli.parser import EXIT_USER_ERROR, build_parser
 from phid_ros.cli.tables import make_console
 from phid_ros.cluster import tune_malloc
 from phid_ros.errors import PhidError
+from phid_ros.io.outputs import CANNOT_WRITE
 
 __all__ = ["EXIT_USER_ERROR", "build_parser", "entry", "main"]
 
@@ -27,6 +28,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(args.func(args, console))
     except PhidError as exc:
         print(f"phid: error: {exc}", file=sys.stderr)
+        return EXIT_USER_ERROR
+    except OSError as exc:
+        # a full disk, a read-only or forbidden place met outside an output's own handling (a
+        # store, a fleet folder): the machine's, not a bug, so one line and no traceback
+        if exc.errno not in CANNOT_WRITE:
+            raise
+        print(f"phid: error: {exc.filename or 'output'}: {exc.strerror}", file=sys.stderr)
         return EXIT_USER_ERROR
     except KeyboardInterrupt:
         print("phid: interrupted", file=sys.stderr)

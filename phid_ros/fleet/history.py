@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from phid_ros.errors import PhidError
-from phid_ros.io.sqlite_schema import migrate, table_columns
+from phid_ros.io.sqlite_schema import check_intact, migrate, table_columns
 from phid_ros.model.parameters import PARAMETER_NAMES
 
 DRIFT_SIGMAS = 4.0  # a change between consecutive well-identified sets beyond this many σ is flagged
@@ -49,6 +49,7 @@ class Row:
     error: str = ""
     worker: str = ""
     finished_utc: str = ""
+    method_version: str = ""  # phid_ros.provenance.method_version() of the code that made the row
 
     def well_identified(self, name: str) -> bool:
         v, s = self.values.get(name, math.nan), self.stds.get(name, math.nan)
@@ -61,14 +62,16 @@ class Row:
         )
 
 
+ADDED_COLUMNS = ("method_version",)  # by schema steps after the first
 _SCALARS = [f.name for f in fields(Row) if f.name not in ("values", "stds", "identifiable", "flags", "effects")]
 _PARAM_COLUMNS = [c for n in PARAMETER_NAMES for c in (n, f"{n}_std", f"{n}_identifiable")]
 _COLUMNS = _SCALARS + _PARAM_COLUMNS + ["flags", "effects"]
 
 
 def _create_sql() -> str:
+    """Version 1 of the runs table (frozen: later columns come by their own steps)."""
     types = {"start_ns": "INTEGER", "end_ns": "INTEGER", "wall_s": "REAL"}
-    cols = [f"{c} {types.get(c, 'TEXT')}" for c in _SCALARS]
+    cols = [f"{c} {types.get(c, 'TEXT')}" for c in _SCALARS if c not in ADDED_COLUMNS]
     cols += [f"{c} {'INTEGER' if c.endswith('_identifiable') else 'REAL'}" for c in _PARAM_COLUMNS]
     cols += ["flags TEXT", "effects TEXT"]
     return (
@@ -83,6 +86,8 @@ SCHEMA_STEPS = (
     _create_sql()
     + "; CREATE INDEX IF NOT EXISTS runs_unit ON runs (unit, start_ns)"
     + "; CREATE TABLE IF NOT EXISTS hash_cache (path TEXT PRIMARY KEY, stat_key TEXT, sha256 TEXT)",
+    # 2: the method version, so that a rerun redoes what an older method identified
+    "ALTER TABLE runs ADD COLUMN method_version TEXT NOT NULL DEFAULT ''",
 )
 
 
@@ -105,6 +110,13 @@ class History:
             self.db = sqlite3.connect(self.path, timeout=30.0, isolation_level=None)
             self.db.execute("PRAGMA journal_mode=WAL")
             self.db.execute("PRAGMA busy_timeout=30000")
+            check_intact(
+                self.db,
+                f"{self.path}: fleet history",
+                HistoryError,
+                f"move it away (mv {self.path} {self.path}.damaged) and rerun phid fleet: it identifies the "
+                "recordings again into a new history",
+            )
             self._migrate()
         except sqlite3.DatabaseError as exc:
             raise HistoryError(f"{self.path}: not a usable fleet history ({exc})") from None
@@ -122,13 +134,19 @@ class History:
         self.close()
 
     # -- what is done ---------------------------------------------------------------------
-    def done(self, unit: str, content_hash: str, version: str) -> bool:
-        q = "SELECT 1 FROM runs WHERE unit=? AND content_hash=? AND phid_version=?"
-        return self.db.execute(q, (unit, content_hash, version)).fetchone() is not None
+    def done(self, unit: str, content_hash: str, method: str) -> bool:
+        """Whether this recording of this unit has a row made by this method version."""
+        q = "SELECT 1 FROM runs WHERE unit=? AND content_hash=? AND method_version=?"
+        return self.db.execute(q, (unit, content_hash, method)).fetchone() is not None
 
-    def failed(self, unit: str, content_hash: str, version: str) -> bool:
-        q = "SELECT 1 FROM runs WHERE unit=? AND content_hash=? AND phid_version=? AND status='failed'"
-        return self.db.execute(q, (unit, content_hash, version)).fetchone() is not None
+    def failed(self, unit: str, content_hash: str, method: str) -> bool:
+        q = "SELECT 1 FROM runs WHERE unit=? AND content_hash=? AND method_version=? AND status='failed'"
+        return self.db.execute(q, (unit, content_hash, method)).fetchone() is not None
+
+    def done_before(self, unit: str, content_hash: str) -> bool:
+        """Whether some method version, any, has a row for this recording of this unit."""
+        q = "SELECT 1 FROM runs WHERE unit=? AND content_hash=?"
+        return self.db.execute(q, (unit, content_hash)).fetchone() is not None
 
     def cached_hash(self, path: Path, stat_key: str) -> str | None:
         found = self.db.execute("SELECT stat_key, sha256 FROM hash_cache WHERE path=?", (str(path),)).fetchone()
@@ -148,7 +166,13 @@ class History:
             values += [_real(row.values.get(n)), _real(row.stds.get(n)), int(bool(row.identifiable.get(n)))]
         values += [json.dumps(row.flags), json.dumps(row.effects)]
         marks = ", ".join("?" * len(_COLUMNS))
-        self.db.execute(f"INSERT OR REPLACE INTO runs ({', '.join(_COLUMNS)}) VALUES ({marks})", values)
+        try:
+            self.db.execute(f"INSERT OR REPLACE INTO runs ({', '.join(_COLUMNS)}) VALUES ({marks})", values)
+        except sqlite3.OperationalError as exc:  # a full disk, a read-only folder, a lock held too long
+            raise HistoryError(
+                f"{self.path}: cannot record {row.recording} of {row.unit}: {exc}; the rows before it are kept, "
+                "and a rerun of phid fleet does the rest"
+            ) from None
 
     def rows(self, unit: str | None = None) -> list[Row]:
         """Rows of one unit (or all), in recording time order (failures without a time last)."""

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import csv
 import json
+import os
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
@@ -53,36 +54,65 @@ def discover(inventory: str | Path) -> tuple[list[Item], list[str]]:
 def _from_tree(root: Path) -> tuple[list[Item], list[str]]:
     items: list[Item] = []
     warnings: list[str] = []
+    seen: dict[Path, Path] = {}  # resolved folder or file -> where it was first met
     for entry in sorted(root.iterdir()):
         if entry.name.startswith("."):
+            continue
+        if entry.is_symlink() and not entry.exists():
+            warnings.append(f"{entry}: a dangling link (to {os.readlink(entry)}); skipped")
             continue
         if not entry.is_dir():
             if _is_recording(entry):
                 warnings.append(f"{entry}: not inside a unit folder ({root}/UNIT/...); skipped")
             continue
-        found = list(_recordings_under(entry))
+        found = list(_recordings_under(entry, seen, warnings))
         if not found:
             warnings.append(f"unit {entry.name}: no recordings under {entry}")
         items += [Item(entry.name, p.resolve()) for p in found]
     return items, warnings
 
 
-def _recordings_under(folder: Path) -> Iterable[Path]:
+def _recordings_under(folder: Path, seen: dict[Path, Path], warnings: list[str]) -> Iterable[Path]:
+    """Links are followed once: a folder or file met again (a loop, two links to one recording)
+    is named and skipped, so no recording runs twice."""
+    real = folder.resolve()
+    if real in seen:
+        warnings.append(
+            f"{folder}: leads to {real}, already listed as {seen[real]} (a link loop or a duplicate); skipped"
+        )
+        return
+    seen[real] = folder
     if (folder / "metadata.yaml").exists():
         yield folder  # a rosbag2 folder: one recording, its .mcap files are its parts
         return
     for entry in sorted(folder.iterdir()):
         if entry.name.startswith("."):
             continue
-        if entry.is_dir():
-            yield from _recordings_under(entry)
+        if entry.is_symlink() and not entry.exists():
+            warnings.append(f"{entry}: a dangling link (to {os.readlink(entry)}); skipped")
+        elif entry.is_dir():
+            yield from _recordings_under(entry, seen, warnings)
         elif _is_recording(entry):
+            target = entry.resolve()
+            if target in seen:
+                warnings.append(f"{entry}: the same file as {seen[target]}; skipped")
+                continue
+            seen[target] = entry
             yield entry
+        elif entry.name == "manifest.json" or (entry.suffix in (".json", ".mcap") and _empty(entry)):
+            warnings.append(f"{entry}: {'empty' if _empty(entry) else 'not a CSV scenario-set manifest'}; skipped")
+
+
+def _empty(path: Path) -> bool:
+    try:
+        return path.stat().st_size == 0
+    except OSError:
+        return False
 
 
 def _is_recording(path: Path) -> bool:
     if path.suffix == ".mcap" and not path.name.endswith(".partial.mcap"):
-        return True
+        return not _empty(path)  # nothing recorded (a recorder that never wrote): warned by the walk, not a task
     return path.suffix == ".json" and not path.name.endswith(".truth.json") and _is_manifest(path)
 
 
@@ -98,12 +128,22 @@ def _is_manifest(path: Path) -> bool:
 def _from_list(path: Path) -> tuple[list[Item], list[str]]:
     pairs = _read_yaml_list(path) if path.suffix.lower() in (".yaml", ".yml") else _read_csv_list(path)
     items: list[Item] = []
+    warnings: list[str] = []
+    listed: dict[tuple[str, Path], int] = {}
     for k, (unit, rec) in enumerate(pairs):
         if not unit or not rec:
             raise InventoryError(f"{path}: entry {k + 1}: needs both a unit and a recording")
         p = Path(rec)
-        items.append(Item(unit, (p if p.is_absolute() else path.parent / p).resolve()))
-    return items, []
+        p = p if p.is_absolute() else path.parent / p
+        if p.is_symlink() and not p.exists():  # kept: its row says it failed, so nothing is silently left out
+            warnings.append(f"{path}: entry {k + 1}: {rec} is a dangling link (to {os.readlink(p)})")
+        key = (unit, p.resolve())
+        if key in listed:
+            warnings.append(f"{path}: entry {k + 1}: {rec} of {unit} is entry {listed[key]} again; skipped")
+            continue
+        listed[key] = k + 1
+        items.append(Item(unit, key[1]))
+    return items, warnings
 
 
 def _read_yaml_list(path: Path) -> list[tuple[str, str]]:

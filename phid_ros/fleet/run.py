@@ -23,6 +23,7 @@ from phid_ros.fleet.history import History, Row
 from phid_ros.fleet.inventory import Item, discover
 from phid_ros.fleet.task import one_line, process_recording
 from phid_ros.io.digest import content_hash, stat_key
+from phid_ros.provenance import method_version
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -44,6 +45,7 @@ class FleetOptions:
 class FleetRun:
     recordings: int = 0
     skipped: int = 0
+    redone: int = 0  # in the history from an older method version, identified again
     submitted: int = 0
     rows: list[Row] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
@@ -90,6 +92,7 @@ def run_fleet(
         raise PhidError(f"--out {out}: its parent folder {out.parent} does not exist")
     out.mkdir(exist_ok=True)
     result = FleetRun(recordings=len(items), warnings=warnings)
+    method = method_version()
     with fleet_lock(out), History(out / HISTORY_FILE) as history:
         todo: list[tuple[Item, str]] = []
         for k, item in enumerate(items):
@@ -97,16 +100,19 @@ def run_fleet(
                 on_hashing(k, len(items))
             if not item.path.exists():
                 h = f"missing:{item.path}"
-                if not history.done(item.unit, h, __version__):
+                if not history.done(item.unit, h, method):
                     row = Row(item.unit, str(item.path), h, "failed", __version__, error=f"{item.path}: no such file")
+                    row.method_version = method
                     _store(history, result, row, on_row, len(items))
                 continue
             h = _hash(history, item.path)
-            if history.done(item.unit, h, __version__) and not (
-                options.retry_failed and history.failed(item.unit, h, __version__)
+            if history.done(item.unit, h, method) and not (
+                options.retry_failed and history.failed(item.unit, h, method)
             ):
                 result.skipped += 1
                 continue
+            if history.done_before(item.unit, h):
+                result.redone += 1  # identified by an older method: its numbers may have moved
             todo.append((item, h))
         if todo:
             _run_tasks(todo, history, result, options, on_cluster, on_row)
@@ -149,6 +155,7 @@ def _run_tasks(
                 row = fut.result()
             except Exception as exc:  # a task that could not finish: the worker died under it every time
                 row = Row(item.unit, str(item.path), h, "failed", __version__, error=_lost(exc))
+                row.method_version = method_version()
             _store(history, result, row, on_row, result.recordings - result.skipped)
 
 
@@ -165,11 +172,11 @@ def _check_workers(client: Client) -> None:
         raise PhidError(f"a Dask worker cannot run phid tasks: {one_line(exc)}") from None
     if not versions:
         raise PhidError(f"the Dask cluster at {getattr(client.scheduler, 'address', '?')} has no workers")
-    wrong = {w: v for w, v in versions.items() if v != __version__}
+    wrong = {w: v for w, v in versions.items() if v != method_version()}
     if wrong:
         w, v = next(iter(wrong.items()))
         raise PhidError(
-            f"Dask worker {w} runs {v}, this phid is {__version__}: install the same phid_ros on every worker "
+            f"Dask worker {w} runs {v}, this phid is {method_version()}: install the same phid_ros on every worker "
             f"({len(wrong)} of {len(versions)} differ)"
         )
 
@@ -180,7 +187,9 @@ def _worker_version() -> str:
         import phid_ros.api  # noqa: F401 - what every task needs, imported once per worker
     except ImportError as exc:
         return f"no usable phid_ros ({exc})"
-    return phid_ros.__version__
+    from phid_ros.provenance import method_version
+
+    return method_version()
 
 
 def _lost(exc: BaseException) -> str:

@@ -18,6 +18,7 @@ from phid_ros import __version__
 from phid_ros.errors import PhidError
 from phid_ros.fleet.history import Row
 from phid_ros.model.parameters import PARAMETER_NAMES
+from phid_ros.provenance import method_version
 
 if TYPE_CHECKING:  # the pipeline (and scipy.optimize) loads when a task runs, not when this is imported
     from phid_ros.ident.pipeline import IdentificationResult
@@ -32,6 +33,7 @@ def process_recording(unit: str, path: str, content_hash: str, diagnose: bool = 
     """Identify (and with ``diagnose`` also diagnose) one recording of one unit."""
     t0 = time.perf_counter()
     row = Row(unit, path, content_hash, "failed", __version__, worker=f"{socket.gethostname()}:{os.getpid()}")
+    row.method_version = method_version()
     try:
         _identify_into(row, path, diagnose)
         row.status = "ok"

@@ -53,8 +53,8 @@ class ScenarioTable:
 
 def _open_text(path: Path) -> TextIO:
     if path.name.endswith(".gz"):
-        return io.TextIOWrapper(gzip.open(path, "rb"), encoding="utf-8")
-    return path.open("r", encoding="utf-8", newline="")
+        return io.TextIOWrapper(gzip.open(path, "rb"), encoding="utf-8-sig")
+    return path.open("r", encoding="utf-8-sig", newline="")  # -sig: a spreadsheet's byte-order mark is not part of 't'
 
 
 def read_scenario_csv(path: Path, *, strict: bool = False) -> tuple[dict[str, NDArray[np.float64]], list[str]]:
@@ -63,8 +63,12 @@ def read_scenario_csv(path: Path, *, strict: bool = False) -> tuple[dict[str, ND
         raise CsvImportError(f"{path}: no such CSV file")
     try:
         with _open_text(path) as fh:
-            header = [h.strip() for h in next(csv.reader([fh.readline()]), [])]
+            first = fh.readline()
             body = fh.read()
+        if first.count(";") > first.count(","):
+            # a spreadsheet in a decimal-comma locale: fields split by ';', 0,5 for 0.5
+            first, body = first.replace(";", ","), body.replace(",", ".").replace(";", ",")
+        header = [h.strip() for h in next(csv.reader([first]), [])]
     except (OSError, EOFError, UnicodeDecodeError, gzip.BadGzipFile) as exc:
         raise CsvImportError(f"{path}: cannot read: {exc}") from exc
     if not header or header == [""]:

@@ -9,6 +9,7 @@ the manifest) is refused before any work starts.
 
 from __future__ import annotations
 
+import errno
 import os
 import shutil
 from collections.abc import Iterable, Iterator
@@ -74,16 +75,55 @@ def atomic_output(path: str | Path, *, keep_partial: bool = False) -> Iterator[P
     """
     final = Path(path)
     tmp = partial_path(final)
-    remove(tmp)  # a leftover of an earlier killed run of ours
     try:
-        yield tmp
-    except BaseException:
+        remove(tmp)  # a leftover of an earlier killed run of ours
+        try:
+            yield tmp
+        except BaseException:
+            if not keep_partial:
+                _remove_quietly(tmp)
+            raise
+        if final.is_dir() and not final.is_symlink():
+            shutil.rmtree(final)
+        os.replace(tmp, final)
+    except OSError as exc:
+        if exc.errno not in CANNOT_WRITE or not _concerns(exc, final, tmp):
+            raise
         if not keep_partial:
-            remove(tmp)
-        raise
-    if final.is_dir() and not final.is_symlink():
-        shutil.rmtree(final)
-    os.replace(tmp, final)
+            _remove_quietly(tmp)
+        raise OutputError(f"{final}: {exc.strerror}; {_what_is_kept(final, tmp, keep_partial)}") from None
+
+
+# the write failures that are the machine's, not a bug: a full disk or quota, a read-only or
+# forbidden place. They are one line naming the path, never a traceback.
+CANNOT_WRITE = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM})
+
+
+def _concerns(exc: OSError, final: Path, tmp: Path) -> bool:
+    """Whether the failure is the output's (a writer's error often names no file) and not an
+    input's that happened to be read while the output was being written."""
+    if exc.filename is None:
+        return True
+    name = str(exc.filename)
+    return any(name.startswith(str(p)) for p in (tmp, final, final.parent.resolve())) or Path(name).parent in (
+        final.parent,
+        final.parent.resolve(),
+    )
+
+
+def _what_is_kept(final: Path, tmp: Path, keep_partial: bool) -> str:
+    if keep_partial and tmp.exists():
+        return f"what was written before it is kept in {tmp}"
+    if final.exists():
+        return f"nothing written, the earlier {final.name} is unchanged"
+    return "nothing written"
+
+
+def _remove_quietly(path: Path) -> None:
+    try:
+        remove(path)
+    except OSError:
+        pass  # on a read-only or full disk the partial output may not even be removable
 
 
 def write_text(path: str | Path, text: str) -> Path:

@@ -67,3 +67,14 @@ def migrate(
 def table_columns(db: sqlite3.Connection, table: str) -> list[str]:
     """The column names of ``table`` (empty when it does not exist)."""
     return [r[1] for r in db.execute(f"PRAGMA table_info({table})")]
+
+
+def check_intact(db: sqlite3.Connection, what: str, error: type[PhidError], way_out: str) -> None:
+    """SQLite's quick check on open: a damaged file is one line (the first problem and how many
+    more), with ``way_out`` (what to do with it), never a dump of every damaged page."""
+    found = [str(r[0]) for r in db.execute("PRAGMA quick_check(20)")]
+    if found != ["ok"]:
+        more = f" and {len(found) - 1}{'+' if len(found) >= 20 else ''} more problems" if len(found) > 1 else ""
+        first = " ".join(found[0].split())
+        first = first if len(first) <= 120 else first[:117] + "..."
+        raise error(f"{what} is damaged (SQLite: {first}{more}); {way_out}")

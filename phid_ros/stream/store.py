@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from phid_ros.errors import PhidError
-from phid_ros.io.sqlite_schema import migrate, table_columns
+from phid_ros.io.sqlite_schema import check_intact, migrate, table_columns
 from phid_ros.model.channels import CHANNELS
 from phid_ros.stream.detector import Event, EventWindow
 
@@ -89,9 +89,13 @@ class EventStore:
             self._db = sqlite3.connect(self.path, check_same_thread=False, timeout=BUSY_TIMEOUT_S, isolation_level=None)
             if self.path != ":memory:":
                 self._db.execute("PRAGMA journal_mode=WAL")
-            ok = self._db.execute("PRAGMA quick_check").fetchone()[0]
-            if ok != "ok":
-                raise StoreError(f"{self.path}: event store is damaged ({ok})")
+            check_intact(
+                self._db,
+                f"{self.path}: event store",
+                StoreError,
+                f"move it away (mv {self.path} {self.path}.damaged) and start again: the events in it are "
+                "detected again from a replay of the recording",
+            )
             self._migrate()
         except sqlite3.DatabaseError as exc:
             raise StoreError(f"{self.path}: not a usable event store ({exc})") from exc

@@ -7,6 +7,7 @@ Six short simulated recordings of three units: U1 twice unchanged, U2 with T'_d0
 from __future__ import annotations
 
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -22,6 +23,7 @@ from phid_ros.fleet.inventory import discover
 from phid_ros.fleet.run import FleetOptions, fleet_lock, run_fleet
 from phid_ros.model.parameters import PARAMETER_NAMES, TABLE1
 
+BAGS = Path(__file__).resolve().parents[2] / "bags"
 DAY_NS = 86_400 * 10**9
 DRIFT = 1.08  # U2's T'_d0 on its second day
 
@@ -251,3 +253,51 @@ def test_a_csv_scenario_set_and_a_rosbag2_folder_are_one_recording_each(tmp_path
     bag = content_hash(found[0].path)
     (unit / "bag" / "bag_0.mcap").write_bytes(b"y")
     assert content_hash(found[0].path) != bag
+
+
+def test_links_are_followed_once_and_empty_or_dangling_entries_are_named(tmp_path: Path):
+    """A link loop ran the same bag 81 times; a 0-byte manifest was ignored without a word; a
+    dangling link printed '(nan s)'. Now each is named, and every recording is listed once."""
+    root = tmp_path / "fleet"
+    unit = root / "G1"
+    (unit / "day1").mkdir(parents=True)
+    shutil.copy(BAGS / "validation.mcap", unit / "day1" / "a.mcap")
+    (unit / "day1" / "loop").symlink_to(unit, target_is_directory=True)  # G1/day1/loop -> G1
+    (unit / "again.mcap").symlink_to(unit / "day1" / "a.mcap")
+    (unit / "manifest.json").write_text("")
+    (unit / "gone.mcap").symlink_to(tmp_path / "nowhere.mcap")
+    items, warnings = discover(root)
+    assert [(i.unit, i.path.name) for i in items] == [("G1", "a.mcap")]
+    text = "\n".join(warnings)
+    assert "(a link loop or a duplicate); skipped" in text
+    assert "a.mcap: the same file as " in text and text.count("; skipped") == 4
+    assert "manifest.json: empty; skipped" in text
+    assert "gone.mcap: a dangling link (to " in text
+
+
+def test_a_list_naming_one_recording_twice_runs_it_once(tmp_path: Path):
+    shutil.copy(BAGS / "validation.mcap", tmp_path / "a.mcap")
+    listed = tmp_path / "fleet.csv"
+    listed.write_text("unit,recording\nU1,a.mcap\nU1,./a.mcap\nU2,a.mcap\n")
+    items, warnings = discover(listed)
+    assert [(i.unit, i.path.name) for i in items] == [("U1", "a.mcap"), ("U2", "a.mcap")]
+    assert warnings == [f"{listed}: entry 2: ./a.mcap of U1 is entry 1 again; skipped"]
+
+
+def test_a_rerun_after_the_method_changed_identifies_again_and_says_how_many(tmp_path: Path, monkeypatch):
+    """The fleet used to skip a recording already in the history for this release: a change that
+    moved numbers kept the old ones. It keys on the method version now."""
+    from phid_ros.fleet import run as fleet_run
+
+    root = tmp_path / "fleet"
+    (root / "G1").mkdir(parents=True)
+    shutil.copy(BAGS / "catalogue" / "catalogue.mcap", root / "G1" / "a.mcap")
+    opts = FleetOptions(workers=1, dashboard=False)
+    first = run_fleet(root, tmp_path / "out", opts)
+    assert (first.submitted, first.skipped, first.redone) == (1, 0, 0)
+    again = run_fleet(root, tmp_path / "out", opts)
+    assert (again.submitted, again.skipped, again.redone) == (0, 1, 0)
+    monkeypatch.setattr(fleet_run, "method_version", lambda: "0.2.0+changed")
+    monkeypatch.setattr(fleet_run, "_check_workers", lambda client: None)  # the workers run the real code
+    changed = run_fleet(root, tmp_path / "out", opts)
+    assert (changed.submitted, changed.skipped, changed.redone) == (1, 0, 1)

@@ -155,3 +155,24 @@ def test_manifest_not_json(tmp_path):
 
 def test_required_columns_are_the_design_contract():
     assert CSV_COLUMNS == ("t", "v_t", "theta_t", "i_d", "i_q", "omega", "delta", "v_f", "p_m", "p_e", "q_e")
+
+
+def test_a_spreadsheet_export_reads_as_the_plain_one(tmp_path):
+    """A UTF-8 byte-order mark (the header read as '\\ufefft') and a decimal-comma locale's
+    ';'-separated fields with 0,5 for 0.5 ("all 11 columns missing" before) read as the plain CSV."""
+    from phid_ros.io.csv_import import CSV_COLUMNS, read_scenario_csv
+
+    t = np.arange(5) * 1e-3
+    rows = [[ti] + [0.5 + 0.01 * k for k in range(len(CSV_COLUMNS) - 1)] for ti in t]
+    plain = tmp_path / "plain.csv"
+    plain.write_text(",".join(CSV_COLUMNS) + "\n" + "\n".join(",".join(f"{v:.6g}" for v in r) for r in rows) + "\n")
+    bom = tmp_path / "bom.csv"
+    bom.write_bytes(b"\xef\xbb\xbf" + plain.read_bytes())
+    euro = tmp_path / "euro.csv"
+    euro.write_text(
+        ";".join(CSV_COLUMNS) + "\n" + "\n".join(";".join(f"{v:.6g}".replace(".", ",") for v in r) for r in rows) + "\n"
+    )
+    want, _ = read_scenario_csv(plain)
+    for path in (bom, euro):
+        got, extra = read_scenario_csv(path)
+        assert extra == [] and all(np.array_equal(got[c], want[c]) for c in CSV_COLUMNS), path

@@ -70,7 +70,7 @@ def test_an_event_store_from_before_digests_gains_the_column(tmp_path):
     assert user_version(db) == len(STORE_STEPS) == 2 and "digest" in table_columns(db, "events")
 
 
-def test_a_history_from_before_user_version_is_taken_as_version_1(tmp_path):
+def test_a_history_from_before_user_version_is_taken_as_version_1_and_upgraded(tmp_path):
     path = tmp_path / "history.sqlite"
     db = _db(path)
     db.execute("CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT)")
@@ -83,4 +83,54 @@ def test_a_history_from_before_user_version_is_taken_as_version_1(tmp_path):
     db.close()
     with History(path) as h:
         assert h.units() == ["G1"]
-    assert user_version(_db(path)) == 1
+        (row,) = h.rows()
+        assert row.method_version == ""  # made by 0.1.0: no method recorded, so never taken as current
+        assert not h.done("G1", "h", "0.2.0+abc") and h.done_before("G1", "h")
+    assert user_version(_db(path)) == len(HISTORY_STEPS) == 2
+
+
+def _damage(path) -> None:
+    """Overwrite the middle of every page after the first (the header stays readable)."""
+    data = bytearray(path.read_bytes())
+    page = int.from_bytes(data[16:18], "big") or 65536
+    for start in range(page, len(data), page):
+        data[start + 8 : start + page // 2] = b"\xa5" * (page // 2 - 8)
+    path.write_bytes(bytes(data))
+
+
+def _checkpoint(path) -> None:
+    db = sqlite3.connect(path)
+    db.execute("PRAGMA wal_checkpoint(TRUNCATE)")
+    db.close()
+
+
+def test_a_damaged_history_is_one_line_with_a_way_out(tmp_path):
+    from phid_ros.fleet.history import Row
+
+    path = tmp_path / "history.sqlite"
+    with History(path) as h:
+        for k in range(200):
+            h.add(Row("G1", f"/rec/{k}.mcap", f"h{k}", "ok", "0.2.0", start_ns=k, end_ns=k + 1, error="x" * 200))
+    _checkpoint(path)
+    _damage(path)
+    with pytest.raises(HistoryError) as err:
+        History(path)
+    msg = str(err.value)
+    assert "\n" not in msg and msg.startswith(f"{path}: ") and len(msg) < 600
+    assert "mv " in msg or "not a usable fleet history" in msg
+
+
+def test_a_damaged_event_store_is_one_line_with_a_way_out(tmp_path):
+    path = tmp_path / "events.sqlite"
+    s = EventStore(path, unit="G1")
+    with s._write():
+        s._db.execute("CREATE TABLE filler (x TEXT)")
+        s._db.executemany("INSERT INTO filler VALUES (?)", [("y" * 500,) for _ in range(400)])
+    s.close()
+    _checkpoint(path)
+    _damage(path)
+    with pytest.raises(StoreError) as err:
+        EventStore(path, unit="G1")
+    msg = str(err.value)
+    assert "\n" not in msg and msg.startswith(f"{path}: ")
+    assert len(msg) < 600  # the first problem and a count, not every damaged page
