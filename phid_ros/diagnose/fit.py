@@ -15,7 +15,7 @@ parameter in its bounds (log scale for positive ones).
 from __future__ import annotations
 
 import math
-from collections.abc import Collection, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -27,6 +27,7 @@ from scipy.optimize import least_squares
 from phid_ros import jit
 from phid_ros.diagnose.candidates import Candidate, FreeParameter
 from phid_ros.diagnose.playin import OUTPUTS, PlayIn, play_in, residual_matrix
+from phid_ros.errors import PhidError
 from phid_ros.ident.scenario import ScenarioData
 from phid_ros.model.conventions import DEFAULT_F_NOMINAL_HZ
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME
@@ -285,7 +286,11 @@ def fit(problem: Problem, max_nfev: int = 12, x0: Array | None = None) -> FitRes
         out[0] = math.sqrt(float(r @ r))
         return out
 
-    x0 = problem.x0() if x0 is None else problem.inside(x0)
+    start = problem.x0()
+    if x0 is not None:
+        x0 = finite_start(lambda x: evaluate(x, False)[0], problem.inside(x0), start)
+    else:
+        x0 = finite_start(lambda x: evaluate(x, False)[0], start, start)
     sol = least_squares(
         residual,
         x0,
@@ -303,6 +308,32 @@ def fit(problem: Problem, max_nfev: int = 12, x0: Array | None = None) -> FitRes
     return FitResult(
         spec, float(r @ r), len(r), k, sol.nfev, sol.message, effect_std, base_std, sol.x, tuple(problem.free), jac
     )
+
+
+class FitError(PhidError):
+    """A fit cannot start: the play-in diverges at every start tried."""
+
+
+START_BACKOFFS = 8  # halvings of a predicted start's step back toward the problem's own start
+
+
+def finite_start(residual: Callable[[Array], Array], start: Array, fallback: Array) -> Array:
+    """``start``, or the first point on the way back to ``fallback`` (halving the distance) whose
+    residuals are finite.
+
+    Why: a profile point's start is predicted to first order from the final fit's Jacobian; on a
+    salient-pole machine with saturation and dampers that prediction took the play-in where it
+    diverged, and scipy's solver stopped the whole diagnosis with "Residuals are not finite in
+    the initial point". A start the data reject is a start to move, not a crash.
+    """
+    x = np.asarray(start, dtype=float)
+    for _ in range(START_BACKOFFS + 1):
+        if np.all(np.isfinite(residual(x))):
+            return x
+        x = 0.5 * (x + fallback)
+    if np.all(np.isfinite(residual(fallback))):
+        return np.asarray(fallback, dtype=float)
+    raise FitError("the play-in diverges at the start and on the way back to the model's own values")
 
 
 def compress(A: Array) -> Array:

@@ -41,7 +41,7 @@ from numpy.typing import NDArray
 from phid_ros import jit
 from phid_ros.cluster import Jobs
 from phid_ros.diagnose.candidates import Candidate, library
-from phid_ros.diagnose.fit import FitResult, ModelSpec, Problem, chi_square, fit
+from phid_ros.diagnose.fit import FitError, FitResult, ModelSpec, Problem, chi_square, fit
 from phid_ros.diagnose.localise import noise_std
 from phid_ros.diagnose.playin import OUTPUTS, PlayIn, play_in
 from phid_ros.errors import PhidError
@@ -501,7 +501,8 @@ def determined(
     outcomes = jobs.map(_profile_point, [(res, n, k, fit_w, held_w, sigma, opt) for n, k in points])
     rise: dict[str, float] = {}
     for (n, _), (sc, _) in zip(points, outcomes):
-        rise[n] = min(rise.get(n, math.inf), sc - base)
+        # a point that could not be simulated (NaN) leaves its parameter not determined
+        rise[n] = math.nan if math.isnan(sc) or math.isnan(rise.get(n, 0.0)) else min(rise.get(n, math.inf), sc - base)
     uncertainty: dict[str, float] = {}
     identifiable: dict[str, bool] = {}
     notes: list[str] = []
@@ -513,7 +514,12 @@ def determined(
         uncertainty[n] = std
         linear_ok = math.isfinite(std) and abs(v) > 0 and std / abs(v) <= MAX_RELATIVE_STD
         identifiable[n] = bool(linear_ok and rise[n] >= opt.min_heldout_drop)
-        if not identifiable[n]:
+        if not identifiable[n] and math.isnan(rise[n]):
+            notes.append(
+                f"{n} = {v:.4g} not determined: held {100 * PROFILE_STEP:.0f} % away, the model could not be "
+                "simulated (the play-in diverged), so the data were not asked"
+            )
+        elif not identifiable[n]:
             notes.append(
                 f"{n} = {v:.4g} not determined by these data: held {100 * PROFILE_STEP:.0f} % away, the other "
                 f"parameters refit to a held-out error {rise[n]:+.3f} noise variances from the best"
@@ -563,7 +569,10 @@ def _profile_point(
     spec = final.model
     moved = ModelSpec({**spec.base, name: spec.base[name] * factor}, list(spec.effects))
     p = Problem(fit_w, sigma, moved, opt.f_nominal_hz, wide=opt.wide, held=(*opt.held, name))
-    res = fit(p, opt.max_nfev, profile_start(final, p, name, factor))
+    try:
+        res = fit(p, opt.max_nfev, profile_start(final, p, name, factor))
+    except FitError:  # the model cannot be simulated there: the point tells nothing, so not determined
+        return math.nan, {}
     values = {
         c.name(): {k: float(v) for k, v in vals.items() if isinstance(v, (int, float)) and not isinstance(v, bool)}
         for c, vals in res.model.effects

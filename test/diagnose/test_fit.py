@@ -106,3 +106,21 @@ def test_an_effect_parameter_that_rides_a_flat_valley_is_not_determined() -> Non
     assert len(notes) == 2 and "x_qpp = 0.2787 not determined" in notes[0] and "0.2762-0.2815" in notes[0]
     # no refit alike the best (every base parameter determined): every effect parameter stands
     assert all(all(f.values()) for f in effects_determined(res, [])[0].values())
+
+
+def test_a_start_the_play_in_rejects_is_moved_back_not_a_crash() -> None:
+    """A profile point's predicted start where the play-in diverged stopped the whole diagnosis
+    ("Residuals are not finite in the initial point", a GENSAL machine with saturation and
+    dampers). The start steps back toward the model's own values until the residuals are finite."""
+    import pytest
+
+    from phid_ros.diagnose.fit import FitError, finite_start
+
+    def residual(x: np.ndarray) -> np.ndarray:  # the model diverges beyond x = 2
+        return np.where(x < 2.0, x - 1.0, np.nan)
+
+    got = finite_start(residual, np.array([9.0]), np.array([1.0]))
+    assert 1.0 < got[0] < 2.0  # 9 -> 5 -> 3 -> 2 -> 1.5: the first finite point on the way back
+    assert np.array_equal(finite_start(residual, np.array([1.5]), np.array([1.0])), [1.5])  # a good start stays
+    with pytest.raises(FitError, match="diverges at the start and on the way back"):
+        finite_start(lambda x: np.full(3, np.nan), np.array([9.0]), np.array([1.0]))
