@@ -15,7 +15,7 @@ import difflib
 import gzip
 import io
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TextIO
 
@@ -49,6 +49,8 @@ class ScenarioTable:
     columns: dict[str, NDArray[np.float64]]
     event_time_s: float | None = None  # on ``t``'s axis
     source: str = ""  # the file it came from, for messages
+    notes: list[str] = field(default_factory=list)  # what the importer did to it (resampled, ...)
+    start_ns: int | None = None  # when the file says it began (a COMTRADE .cfg's start time)
 
 
 def _open_text(path: Path) -> TextIO:

@@ -132,7 +132,11 @@ def field_recording(tables: list[ScenarioTable], cmap: ChannelMap, source: str, 
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
         raise ChannelMapError(f"recordings with the same name {dup}: scenario names must differ")
-    rec = recording_from_tables(tables, cmap.f_nominal_hz, cmap.mva, source)
+    starts = [t.start_ns for t in tables if t.start_ns is not None]
+    # the recording begins when its first file says it did (the import's own date before)
+    kwargs = {"start_ns": min(starts)} if starts else {}
+    rec = recording_from_tables(tables, cmap.f_nominal_hz, cmap.mva, source, **kwargs)
+    rec.warnings.extend(n for t in tables for n in t.notes)
     if window_s > 0:
         rec.metadata[MEASUREMENT_WINDOW_KEY] = repr(window_s)
     return rec

@@ -12,7 +12,13 @@ import numpy as np
 
 
 def _cfg(
-    channels: dict[str, tuple[np.ndarray, str]], n: int, fs: float, f_line: float, rev: str, ft: str
+    channels: dict[str, tuple[np.ndarray, str]],
+    n: int,
+    fs: float,
+    f_line: float,
+    rev: str,
+    ft: str,
+    start: str = "01/01/2026,00:00:00.000000",
 ) -> tuple[str, dict]:
     lines = [f"PHID TEST,SIMULATOR,{rev}", f"{len(channels)},{len(channels)}A,0D"]
     scales = {}
@@ -20,7 +26,9 @@ def _cfg(
         a = max(float(np.max(np.abs(x))), 1e-12) / 32000.0
         scales[name] = a
         lines.append(f"{k},{name},,,{unit},{a:.12g},0,0,-32767,32767,1,1,P")
-    lines += [f"{f_line:g}", "1", f"{fs:g},{n}", "01/01/2026,00:00:00.000000", "01/01/2026,00:00:00.100000", ft, "1"]
+    # fs 0: no rate (nrates 0, a frequency-tracking recorder): the stamps are the times
+    rates = ["0", f"0,{n}"] if fs == 0 else ["1", f"{fs:g},{n}"]
+    lines += [f"{f_line:g}", *rates, start, start, ft, "1"]
     if rev == "2013":
         lines += ["+0h00,+0h00", "0,0"]
     return "\r\n".join(lines) + "\r\n", scales
@@ -38,12 +46,22 @@ def write_comtrade(
     f_line: float = 50.0,
     rev: str = "1999",
     ft: str = "ASCII",
+    stamps: np.ndarray | None = None,
+    start: str = "01/01/2026,00:00:00.000000",
+    declare_rate: bool = True,
+    pad: int = 0,
 ) -> Path:
-    """``path`` ending in .cfg (with its .dat) or .cff; ``channels``: name -> (values, unit)."""
+    """``path`` ending in .cfg (with its .dat) or .cff; ``channels``: name -> (values, unit).
+
+    A recorder's habits, as C37.111 allows them: ``stamps`` (µs) instead of the rate's (wrapped,
+    all 0, uneven), no rate in the .cfg (``declare_rate`` False: nrates 0), ``pad`` 0x1A bytes
+    after a binary .dat's last record, the .cfg's ``start`` date and time.
+    """
     n = len(next(iter(channels.values()))[0])
-    cfg, scales = _cfg(channels, n, fs, f_line, rev, ft)
+    cfg, scales = _cfg(channels, n, fs if declare_rate else 0.0, f_line, rev, ft, start)
     data = _rows(channels, scales, fs)
-    stamps = np.round(np.arange(n) * 1e6 / fs).astype(np.int64)
+    if stamps is None:
+        stamps = np.round(np.arange(n) * 1e6 / fs).astype(np.int64)
     if ft == "ASCII":
         body = (
             "\r\n".join(
@@ -54,7 +72,7 @@ def write_comtrade(
     else:
         rec = np.zeros(n, dtype=[("n", "<u4"), ("t", "<u4"), ("a", "<i2", (data.shape[1],))])
         rec["n"], rec["t"], rec["a"] = np.arange(1, n + 1), stamps, data
-        body = rec.tobytes()
+        body = rec.tobytes() + b"\x1a" * pad
     if path.suffix.lower() == ".cff":
         head = "--- file type: CFG ---\r\n" + cfg
         dat = f"--- file type: DAT {ft}" + (f": {len(body)}" if ft != "ASCII" else "") + " ---\r\n"

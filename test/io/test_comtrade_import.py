@@ -173,8 +173,11 @@ def test_bad_recordings_are_named(tmp_path) -> None:
     rows = [r.split(",") for r in lines]
     rows[5][1], rows[6][1] = rows[6][1], rows[5][1]
     dat.write_text("\n".join(",".join(r) for r in rows) + "\n")
-    with pytest.raises(ComtradeImportError, match=r"rec\.cfg: sample times do not increase \(sample 7"):
-        import_comtrade([path], cmap)
+    # with a rate in the .cfg the stamps are non-critical (C37.111): times from the rate, and a note
+    rec = import_comtrade([path], cmap)
+    assert any(
+        "sample times taken from the .cfg's rate (1000 Hz); the stamps are wrapped or uneven" in w for w in rec.warnings
+    )
     path, cmap = small_recording(tmp_path, fs=800.0)
     with pytest.raises(ComtradeImportError, match=r"rec\.cfg: sampling rate 800 Hz is below the 960 Hz"):
         import_comtrade([path], cmap)
@@ -199,3 +202,73 @@ def test_bad_maps_are_named(tmp_path) -> None:
     m.write_text(MAP.replace("unit: Hz", "unit: furlongs"))
     with pytest.raises(ChannelMapError, match=r"omega unit 'furlongs' not one of pu, Hz, rpm"):
         load_channel_map(m)
+
+
+def _habit_recording(folder, fs: float, **habits) -> tuple:
+    """small_recording's unit (V_t = 1, P = 0.8 cos 0.5 pu, load angle 40 deg) with a recorder's habit."""
+    n = int(fs * 0.6) if habits.get("t") is None else len(habits["t"])
+    t = np.arange(n) / fs if habits.get("t") is None else habits.pop("t")
+    ch = {}
+    for k, p in enumerate("ABC"):
+        ch["V" + p] = (np.sqrt(2) * V_BASE * np.cos(2 * np.pi * 50 * t - 2 * np.pi * k / 3), "V")
+        ch["I" + p] = (np.sqrt(2) * 0.8 * I_BASE * np.cos(2 * np.pi * 50 * t - 0.5 - 2 * np.pi * k / 3), "A")
+    ch.update({"SPEED": (np.full(n, 50.0), "Hz"), "LOAD_ANGLE": (np.full(n, 40.0), "deg")})
+    ch.update({"EFD": (np.full(n, 2.0), "pu"), "PMECH": (np.full(n, 800.0), "MW")})
+    path = write_comtrade(folder / "rec.cfg", ch, fs, **habits)
+    (folder / "map.yaml").write_text(MAP.replace("  p_e: {name: P, unit: MW}\n  q_e: {name: Q, unit: Mvar}\n", ""))
+    return path, load_channel_map(folder / "map.yaml")
+
+
+def _as_the_unit(rec) -> None:
+    pt_ct, pmu = rec.streams["pt_ct"].channels, rec.streams["pmu"].channels
+    assert np.allclose(pt_ct["v_t"], 1.0, atol=5e-4) and np.allclose(pt_ct["p_e"], 0.8 * np.cos(0.5), atol=1e-3)
+    assert np.allclose(pmu["delta"] - pmu["theta_t"], np.radians(40), atol=1e-6)
+
+
+@pytest.mark.parametrize(
+    "habit, note",
+    [
+        ({"stamps": np.round(np.arange(600) * 1e3).astype(np.int64) % (1 << 16)}, "the stamps are wrapped or uneven"),
+        ({"stamps": np.zeros(600, dtype=np.int64)}, "the stamps are all 0"),
+        ({"ft": "BINARY", "pad": 37}, None),  # SEL relays pad the .dat with 0x1A to a block
+    ],
+    ids=["stamps-wrapped-at-2^16-us", "stamps-all-zero", "dat-padded-with-0x1A"],
+)
+def test_recorder_habits_c37_111_allows_are_read(tmp_path, habit, note) -> None:
+    """6 of 9 real COMTRADE files were refused before their channel map was read."""
+    path, cmap = _habit_recording(tmp_path, 1000.0, **habit)
+    rec = import_comtrade([path], cmap)
+    _as_the_unit(rec)
+    if note:
+        assert any(f"rec.cfg: sample times taken from the .cfg's rate (1000 Hz); {note}" in w for w in rec.warnings)
+
+
+def test_an_off_grid_rate_and_a_frequency_tracking_recorder_are_resampled(tmp_path) -> None:
+    """5760 Hz at 50 Hz (115.2 samples a cycle), and nrates 0 with uneven steps around 1001.6 Hz:
+    resampled to a whole number of samples per cycle, and the note says by how much."""
+    path, cmap = _habit_recording(tmp_path, 5760.0)
+    rec = import_comtrade([path], cmap)
+    _as_the_unit(rec)
+    assert any(
+        "resampled from 115.200 samples per 50 Hz cycle to 5800 Hz (116 per cycle) by a cubic spline" in w
+        for w in rec.warnings
+    )
+    rng = np.random.default_rng(3)
+    steps = (1.0 / 1001.6) * (1 + 0.02 * rng.uniform(-1, 1, 700))
+    t = np.concatenate(([0.0], np.cumsum(steps)))[:700]
+    (tmp_path / "b").mkdir()
+    path, cmap = _habit_recording(
+        tmp_path / "b", 1001.6, t=t, stamps=np.round(t * 1e6).astype(np.int64), declare_rate=False
+    )
+    rec = import_comtrade([path], cmap)
+    _as_the_unit(rec)
+    assert any("resampled from uneven steps to 1050 Hz (21 per cycle) by a cubic spline" in w for w in rec.warnings)
+
+
+def test_the_recording_starts_when_its_cfg_says(tmp_path) -> None:
+    path, cmap = _habit_recording(tmp_path, 1000.0, start="20/09/2015,12:52:35.236463")
+    rec = import_comtrade([path], cmap)
+    from datetime import datetime, timezone
+
+    start = datetime(2015, 9, 20, 12, 52, 35, 236463, tzinfo=timezone.utc).timestamp()
+    assert rec.span_ns()[0] == pytest.approx(start * 1e9, abs=1e6)  # within the phasor's half cycle
