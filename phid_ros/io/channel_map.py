@@ -4,6 +4,7 @@ One format for COMTRADE and PMU exports (YAML or JSON)::
 
     machine: {mva: 1000, kv: 20, f_nominal_hz: 50}   # kv: rated line-to-line terminal voltage
     time: Timestamp                                     # PMU exports: the report-time column
+    date: Date                                          # trend logs: a date column beside time of day
     ratios: {pt: "20000/110", ct: "30000/1"}            # primary/secondary, or a number
     values: secondary                                   # the recorded values' side (default primary)
     channels:
@@ -77,6 +78,7 @@ class ChannelMap:
     rated_rpm: float | None = None
     scenarios: dict[str, dict[str, Any]] = field(default_factory=dict)
     time_column: str = "Timestamp"  # PMU exports: the report-time column
+    date_column: str | None = None  # trend logs: a date column beside a time-of-day one
     phasor_window_cycles: float = 0.0  # PMU exports: the cycles the PMU's phasor filter spans (0: unknown)
 
     @property
@@ -196,6 +198,7 @@ def load_channel_map(path: str | Path) -> ChannelMap:
         rated_rpm=_positive(m, "rated_rpm", f"{where}: machine") if "rated_rpm" in m else None,
         scenarios={str(k): dict(v) for k, v in scenarios.items()},
         time_column=str(doc.get("time", "Timestamp")),
+        date_column=str(doc["date"]) if doc.get("date") else None,
         phasor_window_cycles=_positive(m, "phasor_window_cycles", f"{where}: machine")
         if "phasor_window_cycles" in m
         else 0.0,
