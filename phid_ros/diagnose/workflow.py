@@ -44,6 +44,7 @@ from phid_ros.diagnose.candidates import Candidate, library
 from phid_ros.diagnose.fit import FitError, FitResult, ModelSpec, Problem, chi_square, fit
 from phid_ros.diagnose.localise import noise_std
 from phid_ros.diagnose.playin import OUTPUTS, PlayIn, play_in
+from phid_ros.diagnose.playin import STEP_SECONDS as PLAYIN_STEP_SECONDS
 from phid_ros.errors import PhidError
 from phid_ros.ident.results import MAX_RELATIVE_STD
 from phid_ros.ident.scenario import ScenarioData
@@ -428,6 +429,7 @@ def _diagnose(
                 break
             trials = _round_trials(pool, current, current_score, fit_w, held_w, sigma, opt, jobs, say)
             passing = [t for t in trials if t.fit is not None and _passes(t, current_score, bool(steps), opt)]
+            problems.extend(_unresolved(trials))
             if not passing:
                 rounds.append(Round(trials, None))
                 break
@@ -600,6 +602,18 @@ def profile_start(final: FitResult, p: Problem, name: str, factor: float) -> Arr
     return final.x[others] + step
 
 
+def _unresolved(trials: Sequence[Trial]) -> list[str]:
+    """Notes for fits the play-in cannot tell from its own discretisation (never named)."""
+    out = []
+    for t in trials:
+        if t.fit is not None and t.fit.model.effects:
+            cand, values = t.fit.model.effects[-1]
+            why = cand.unresolvable(values, PLAYIN_STEP_SECONDS)
+            if why is not None:
+                out.append(f"{t.candidate} not named: {why}")
+    return out
+
+
 def _passes(trial: Trial, current: Score, after_first: bool, opt: DiagnoseOptions) -> bool:
     """Whether ``trial``'s effect is named: the evidence in the module docstring, all of it.
 
@@ -612,6 +626,10 @@ def _passes(trial: Trial, current: Score, after_first: bool, opt: DiagnoseOption
     """
     if trial.heldout is None or not trial.delta_bic < -opt.bic_margin:
         return False
+    if trial.fit is not None and trial.fit.model.effects:
+        cand, values = trial.fit.model.effects[-1]
+        if cand.unresolvable(values, PLAYIN_STEP_SECONDS) is not None:
+            return False
     drop = current.overall**2 - trial.heldout.overall**2
     need = max(opt.min_heldout_drop, opt.min_remaining_share * current.overall**2 if after_first else 0.0)
     if drop < need:

@@ -151,3 +151,25 @@ def test_options_after_an_identification_hold_stage1_d_and_free_what_sat_at_a_bo
     assert opt.held == ("D",) and opt.wide == ("T_q0_prime",) and opt.workers == 3
     est["D"] = Estimate(float("nan"))  # stage 1 did not identify D: nothing to hold
     assert DiagnoseOptions.after(IdentificationResult(est, "fast", [])).held == ()
+
+
+def test_a_delay_the_play_in_step_can_mimic_is_never_named():
+    """1 ms on PT/CT was named on machines without any delay (a STEPS GENSAL set, ANDES's GENROU
+    with strong dampers): half the 2 ms play-in step, its discretisation error. A delay must
+    exceed the step; 20 ms (a PMU's latency) still passes the same evidence."""
+    from phid_ros.diagnose.candidates import SensorDelayCandidate
+    from phid_ros.diagnose.fit import FitResult, ModelSpec
+    from phid_ros.diagnose.workflow import DiagnoseOptions, Score, Trial, _passes, _unresolved
+
+    def trial(delay_ms: float) -> Trial:
+        spec = ModelSpec({}, [(SensorDelayCandidate, {"stream": "pt_ct", "delay_ms": delay_ms})])
+        held = Score(overall=0.5, channels={})
+        return Trial("sensor_delay", {}, FitResult(spec, 1.0, 10, 1), 0.0, held, -500.0, 0.5, 10.0)
+
+    current = Score(overall=1.0, channels={})
+    opt = DiagnoseOptions()
+    assert not _passes(trial(1.0), current, False, opt) and not _passes(trial(2.0), current, False, opt)
+    assert _passes(trial(20.0), current, False, opt)
+    assert _unresolved([trial(1.0)]) == [
+        "sensor_delay not named: a 1 ms delay is not beyond the play-in step of 2 ms, whose error mimics it"
+    ]
