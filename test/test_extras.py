@@ -97,5 +97,4 @@ def test_jobs_run_here_without_dask(monkeypatch):
 def test_phid_fleet_without_dask_says_which_extra(monkeypatch):
     monkeypatch.setitem(sys.modules, "distributed", None)
     with pytest.raises(MissingExtraError, match=r"phid_ros\[fleet\]"):
-        with cluster.cluster(None, 1):
-            pass
+        cluster.cluster(None, 1).__enter__()

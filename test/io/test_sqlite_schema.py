@@ -15,7 +15,7 @@ from phid_ros.stream.store import EventStore, StoreError
 
 
 class _Err(PhidError):
-    pass
+    """An owner's error type, as the store and the history pass theirs."""
 
 
 def _db(path) -> sqlite3.Connection:
