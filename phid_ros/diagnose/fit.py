@@ -158,7 +158,8 @@ def chi_square(
             sigma,
             f_nominal_hz=f_nominal_hz,
         )
-        out[sl] = np.sum(finite(r) ** 2, axis=0)
+        with np.errstate(over="ignore"):  # a model that diverged to 1e200 squares to inf: the worst, as it is
+            out[sl] = np.sum(finite(r) ** 2, axis=0)
     return out
 
 
