@@ -237,3 +237,28 @@ def test_a_pmu_clock_seconds_off_is_found_by_the_swings_a_latency_is_left_to_the
     else:
         assert problems == []
     assert clock_problems(short_recording) == []
+
+
+@pytest.mark.parametrize("stream", ["pt_ct", "encoder"])
+def test_a_pt_ct_or_encoder_clock_seconds_off_is_found_by_the_swing_equation(short_recording, stream):
+    """P_e's swings are the speed's rate's, turned over (2H dω/dt = P_m − P_e − D(ω − 1)):
+    cross-correlated they give a PT/CT clock's offset; an encoder off both others is named as such."""
+    import copy
+
+    from phid_ros.io.clock_check import clock_problems, pt_ct_lag_s
+    from phid_ros.model.conventions import NS
+
+    rec = copy.deepcopy(short_recording)
+    rec.streams[stream].t_ns = rec.streams[stream].t_ns + int(1.5 * NS)
+    if stream == "pt_ct":
+        assert pt_ct_lag_s(rec) == pytest.approx(1.5, abs=0.011)
+        assert clock_problems(rec) == [
+            "the pt_ct stream stamps the rotor's swings 1.50 s after the encoder does (P_e against dω/dt, "
+            "cross-correlated): a clock offset; correct the clock of one of them"
+        ]
+    else:
+        assert clock_problems(rec) == [
+            "the encoder stream stamps the rotor's swings 1.50 s after both the pmu and the pt_ct streams do "
+            "(cross-correlated): a clock offset of the encoder; correct it"
+        ]
+    assert pt_ct_lag_s(short_recording) == pytest.approx(0.0, abs=0.011)
