@@ -7,6 +7,7 @@ twice), and the identification and the diagnosis write it into their results, so
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 from pathlib import Path
@@ -20,11 +21,10 @@ def recording_files(path: Path) -> list[Path]:
         return sorted(p for p in path.rglob("*") if p.is_file())
     if path.suffix == ".json":
         files = [path]
-        try:
+        # an unreadable manifest: the import names the problem; its own bytes still identify it
+        with contextlib.suppress(OSError, UnicodeDecodeError, json.JSONDecodeError, KeyError):
             doc = json.loads(path.read_text(encoding="utf-8"))
             files += [path.parent / str(s["file"]) for s in doc.get("scenarios", []) if isinstance(s, dict)]
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError, KeyError):
-            pass  # the import names the problem; the manifest's own bytes still identify it
         return files
     return [path]
 

@@ -9,6 +9,7 @@ the manifest) is refused before any work starts.
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import os
 import shutil
@@ -120,10 +121,9 @@ def _what_is_kept(final: Path, tmp: Path, keep_partial: bool) -> str:
 
 
 def _remove_quietly(path: Path) -> None:
-    try:
+    # on a read-only or full disk the partial output may not even be removable
+    with contextlib.suppress(OSError):
         remove(path)
-    except OSError:
-        pass  # on a read-only or full disk the partial output may not even be removable
 
 
 def write_text(path: str | Path, text: str) -> Path:
