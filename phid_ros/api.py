@@ -13,7 +13,7 @@ these; none of them needs the command line's parser or its terminal output.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -25,7 +25,7 @@ if TYPE_CHECKING:  # imported where used: reading a recording does not need the 
     from phid_ros.io.recording import Recording
     from phid_ros.model.parameters import GeneratorParameters
 
-__all__ = ["identify_recording", "identify_scenarios", "load_recording"]
+__all__ = ["identify_recording", "identify_recordings", "identify_scenarios", "load_recording"]
 
 
 def load_recording(path: str | Path) -> Recording:
@@ -58,16 +58,40 @@ def identify_recording(
     progress: Callable[[str], None] | None = None,
 ) -> tuple[list[ScenarioData], IdentificationResult]:
     """A recording's scenarios and their identification; PhidError when nothing could be identified."""
+    return identify_recordings([(rec, source)], options, truth, progress)
+
+
+def identify_recordings(
+    recordings: Sequence[tuple[Recording, str]],
+    options: IdentifyOptions,
+    truth: GeneratorParameters | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> tuple[list[ScenarioData], IdentificationResult]:
+    """Several recordings of one unit (a no-load test from one day, a relay's COMTRADE and a
+    controller's trend log from another) as one scenario set: each recording's scenarios, named
+    ``recording/scenario``, on the coarsest sample period among them
+    (:func:`phid_ros.ident.scenario.resampled`); PhidError when nothing could be identified."""
+    from phid_ros.ident.scenario import on_one_grid
     from phid_ros.stream.scenarios import scenarios_from_recording
 
-    if progress:
-        progress(f"cutting the scenarios of {source}")
-    scenarios, problems = scenarios_from_recording(rec, source, options.step_thresholds)
+    scenarios: list[ScenarioData] = []
+    problems: list[str] = []
+    for rec, source in recordings:
+        if progress:
+            progress(f"cutting the scenarios of {source}")
+        cut, skipped = scenarios_from_recording(rec, source, options.step_thresholds)
+        if len(recordings) > 1:
+            for sc in cut:
+                sc.name = f"{Path(source).stem}/{sc.name}"
+        scenarios += cut
+        problems += skipped
+    source = " + ".join(src for _, src in recordings)
     if not any(sc.role == "identify" for sc in scenarios):
         why = "; ".join(problems[-3:]) or f"{len(scenarios)} scenario(s), all for validation"
         raise PhidError(f"{source}: nothing to identify from: no usable identification scenario ({why})")
+    scenarios, notes = on_one_grid(scenarios)
     res = identify_scenarios(scenarios, source, options, truth, progress)
-    res.problems[:0] = problems
+    res.problems[:0] = problems + notes
     if not any(e is not None and math.isfinite(e.value) for e in res.estimates.values()):
         raise PhidError(f"{source}: nothing identified: " + ("; ".join(res.problems) or "every stage failed"))
     return scenarios, res

@@ -173,6 +173,8 @@ def _import_field(args: argparse.Namespace, console: Console, read: Callable[...
         rec = read(args.recordings, load_channel_map(args.map))
         progress.update(f"writing {out}")
         write_output(out, rec, args.block_size)
+    for w in rec.warnings:  # what the import did: resampled clocks, the field base it calibrated
+        warn(w)
     console.print(f"wrote {out} ({len(rec.scenarios)} scenarios)")
     return 0
 
@@ -251,11 +253,37 @@ def cmd_info(args: argparse.Namespace, console: Console) -> int:
                 f"{(sc.end_ns - sc.start_ns) / NS:.1f}",
             )
         console.print(sc_table)
+    _print_determinable(console, rec)
     if rec.metadata:
         console.print(
             escape("metadata: " + ", ".join(f"{k}={v}" for k, v in sorted(rec.metadata.items()))), highlight=False
         )
     return 0
+
+
+def _print_determinable(console: Console, rec: Recording) -> None:
+    """Channels recorded -> parameters determinable, for a recording that lacks some channels."""
+    import numpy as np
+
+    from phid_ros.cli.tables import print_determinable
+    from phid_ros.ident.determinable import plan_for_channels
+    from phid_ros.model.channels import CHANNELS
+
+    columns = {c: x for s in rec.streams.values() for c, x in s.channels.items()}
+    # an angle that is 0 throughout is the reference of a recording without one, not a measurement
+    recorded = {
+        c
+        for c, x in columns.items()
+        if np.isfinite(x).any() and (c != "theta_t" or float(np.nanmax(x) - np.nanmin(x)) > 0)
+    }
+    if recorded >= set(CHANNELS):
+        return
+    current = np.hypot(columns["p_e"], columns["q_e"]) if {"p_e", "q_e"} <= recorded else np.zeros(1)
+    planned = plan_for_channels(
+        recorded, {}, no_load=bool((current < 0.02).any()), loaded=bool((current >= 0.02).any())
+    )
+    missing = ", ".join(c for c in CHANNELS if c not in recorded)
+    print_determinable(console, f"what these channels determine (not recorded: {missing})", planned)
 
 
 # -- identify ------------------------------------------------------------------------

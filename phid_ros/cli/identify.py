@@ -9,7 +9,7 @@ from typing import Any
 
 from rich.console import Console
 
-from phid_ros.api import identify_recording
+from phid_ros.api import identify_recordings
 from phid_ros.cli.common import finish, provenance, read_input, warn
 from phid_ros.cli.progress import ProgressLine
 from phid_ros.cli.tables import Col, fmt, pct, print_table
@@ -144,10 +144,13 @@ def print_validation(console: Console, res: IdentificationResult) -> None:
 def run(args: Any, console: Console) -> int:
     from phid_ros.io.outputs import refuse_inputs
 
-    refuse_inputs([args.json, args.report], [args.input, args.truth])
+    refuse_inputs([args.json, args.report], [*args.input, args.truth])
     t_start = time.perf_counter()
-    with ProgressLine(f"reading {args.input}") as progress:
-        rec, source = load_input(args.input)
+    with ProgressLine(f"reading {' + '.join(args.input)}") as progress:
+        recordings = [load_input(path) for path in args.input]
+        rec, source = recordings[0]
+        if any(r.f_nominal_hz != rec.f_nominal_hz for r, _ in recordings):
+            raise PhidError(f"{' + '.join(args.input)}: the recordings' nominal frequencies differ: not one unit")
         t_read = time.perf_counter() - t_start
         truth = load_truth(args.truth, rec) if args.truth else None
         options = IdentifyOptions(
@@ -159,10 +162,11 @@ def run(args: Any, console: Console) -> int:
             step_thresholds=step_thresholds(args),
             constraints=parse_constraints(args.fix, args.bounds, args.start),
         )
-        scenarios, res = identify_recording(rec, source, options, truth, progress.update)
+        scenarios, res = identify_recordings(recordings, options, truth, progress.update)
+    source = " + ".join(src for _, src in recordings)
     res.timing = {"read": round(t_read, 6), **res.timing}
     doc = res.to_json(truth)
-    doc.update(provenance(args.input))
+    doc.update(provenance(*args.input))
     doc["f_nominal_hz"] = rec.f_nominal_hz  # what phid export needs to write a planning model
     if rec.metadata.get("base_mva") is not None:
         doc["base_mva"] = float(rec.metadata["base_mva"])
@@ -174,6 +178,12 @@ def run(args: Any, console: Console) -> int:
     if args.json:  # the JSON carries the final timing too
         doc["timing_s"] = res.timing
         write_json(args.json, doc)
+    if res.determined_by:  # a recorder's channel set: say first what it determines and how
+        from phid_ros.cli.tables import print_determinable
+        from phid_ros.ident.determinable import plan
+
+        planned = plan(scenarios, options.constraints.fixed)
+        print_determinable(console, "what these channels determine", planned, res.determined_by)
     print_parameters(console, res, truth)
     print_validation(console, res)
     if res.stage1_paper is not None:

@@ -174,7 +174,11 @@ def _add_field_imports(sub: Subparsers) -> None:
 
 def _add_identify(sub: Subparsers) -> None:
     p = sub.add_parser("identify", help="three-stage identification of the eight parameters")
-    p.add_argument("input", help="rosbag2 folder, .mcap file, or CSV manifest.json")
+    p.add_argument(
+        "input",
+        nargs="+",
+        help="rosbag2 folder, .mcap file, or CSV manifest.json; several recordings of one unit make one scenario set",
+    )
     p.add_argument("--json", metavar="OUT", help="write the results JSON here")
     p.add_argument(
         "--method",

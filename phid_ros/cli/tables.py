@@ -195,3 +195,14 @@ def effect_values_text(values: dict[str, Any], effect: dict[str, Any] | None = N
         return text + (nd if effect is not None and not _effect_determined(effect, k) else "")
 
     return ", ".join(one(k, v) for k, v in values.items())
+
+
+def print_determinable(
+    console: Console, title: str, planned: Sequence[Any], done: dict[str, str] | None = None
+) -> None:
+    """The channel set's table: each parameter and the route that determines it, or what it needs
+    (``planned``: :class:`phid_ros.ident.determinable.Planned` rows; ``done``: the routes taken)."""
+    from phid_ros.ident.determinable import describe_plan
+
+    cols = [Col("param", "left", key=True), Col("determined by", "left", text=True)]
+    print_table(console, title, cols, [list(r) for r in describe_plan(planned, done)])

@@ -104,6 +104,11 @@ class MachineRecord:
 
 def _number(doc: Mapping[str, Any], key: str, source: str) -> float:
     v = doc.get(key)
+    if v is None and key in doc:  # a recorder's channel set did not determine it
+        raise ExportError(
+            f"{source}: parameter {key} was not determined from the recording's channels (null): a planning "
+            f"record needs all eight; hold it at a datasheet value (phid identify --fix {key}=...)"
+        )
     if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(float(v)):
         raise ExportError(f"{source}: parameter {key} is {v!r}, not a finite number")
     return float(v)

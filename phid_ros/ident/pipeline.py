@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from phid_ros.errors import StageError
-from phid_ros.ident import consistency, stage1, stage2, stage3, validation
+from phid_ros.ident import consistency, determinable, stage1, stage2, stage3, validation
 from phid_ros.ident.constraints import NONE, Constraints, at_user_bound, held
 from phid_ros.ident.results import Estimate
 from phid_ros.ident.scenario import DEFAULT_THRESHOLDS, ScenarioData, StepThresholds
@@ -65,6 +65,8 @@ class IdentificationResult:
     problems: list[str] = field(default_factory=list)
     timing: dict[str, float] = field(default_factory=dict)
     constraints: Constraints = NONE
+    # with channels missing: parameter -> the route that determined it (ident/determinable.py)
+    determined_by: dict[str, str] = field(default_factory=dict)
 
     @property
     def parameters(self) -> dict[str, float]:
@@ -118,6 +120,8 @@ class IdentificationResult:
         }
         if self.constraints:
             doc["constraints"] = self.constraints.as_dict()
+        if self.determined_by:
+            doc["determined_by"] = self.determined_by
         if self.stage1_paper is not None:
             doc["stage1_differential_damping"] = {
                 "H": self.stage1_paper.H.value,
@@ -219,7 +223,9 @@ def _physical_ranges(res: IdentificationResult) -> None:
             est.disqualify(f"outside its physical range: {problem}")
     for small, large in (("X_d_prime", "X_d"), ("X_q_prime", "X_q")):
         a, b = res.estimates.get(small), res.estimates.get(large)
-        if a is not None and b is not None and not a.value < b.value:
+        if a is None or b is None or not (math.isfinite(a.value) and math.isfinite(b.value)):
+            continue
+        if not a.value < b.value:
             for est in (a, b):
                 if est.identifiable:
                     est.disqualify(f"{small} = {a.value:.4g} is not below {large} = {b.value:.4g}")
@@ -252,10 +258,15 @@ def identify(
     say("checking the channels' units and conventions")
     findings = consistency.check(scs, opt.f_nominal_hz)
     consistency.raise_errors(findings)  # a unit or sign mistake: nothing identified from it is true
-    for key, step in STEPS:
+    if determinable.full_channels(ident):
+        for key, step in STEPS:
+            t0 = time.perf_counter()
+            step(res, ident, opt, say)
+            _timed(res.timing, key, t0)
+    else:  # a recorder's channel set: what it determines, the rest named as not identifiable
         t0 = time.perf_counter()
-        step(res, ident, opt, say)
-        _timed(res.timing, key, t0)
+        res.determined_by = determinable.identify_by_channels(res, ident, opt, say)
+        _timed(res.timing, "by_channels", t0)
     _apply_constraints(res, opt.constraints)
     _withhold(res, findings.suspicions)
     _physical_ranges(res)

@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from phid_ros.errors import PhidError
-from phid_ros.model.channels import CHANNELS, Frame  # the one channel table, shared by every layer
+from phid_ros.model.channels import CHANNELS, SAME_PERIOD, Frame  # the one channel table, shared by every layer
 from phid_ros.model.conventions import NS, seconds_to_ns, terminal_to_dq
 
 Array = NDArray[np.float64]
@@ -67,6 +67,9 @@ class ScenarioData:
     # the window the samples were measured over (a one-cycle DFT's phasors, a PMU's filter): a
     # switching instant is smeared over it, so stage 3 leaves it out around each switch
     measurement_window_s: float = 0.0
+    # channels the recording did not carry (NaN throughout): the stages that need one leave it
+    # out and say so (phid_ros.ident.determinable)
+    absent: frozenset[str] = frozenset()
 
     def __post_init__(self) -> None:
         self.v_d, self.v_q = terminal_to_dq(self["v_t"], self["delta"], self["theta_t"])
@@ -74,6 +77,14 @@ class ScenarioData:
             raise ScenarioError(
                 f"scenario {self.name}: event sample {self.k_event} outside the window of {self.n} samples"
             )
+
+    def has(self, *channels: str) -> bool:
+        """Whether the recording carried every one of ``channels`` (v_d, v_q: V_t, theta_t and delta)."""
+        for c in channels:
+            needs = ("v_t", "theta_t", "delta") if c in ("v_d", "v_q") else (c,)
+            if any(n in self.absent for n in needs):
+                return False
+        return True
 
     @property
     def n(self) -> int:
@@ -112,6 +123,22 @@ class ScenarioData:
             return self.v_q
         return self.frame.channel(name)
 
+    def with_frame(self, frame: Frame) -> ScenarioData:
+        """The scenario over another frame of as many samples (restamped, or channels derived)."""
+        return ScenarioData(
+            self.name,
+            self.kind,
+            self.role,
+            self.generator_damping,
+            frame,
+            self.k_event,
+            self.k_clear,
+            list(self.notes),
+            list(self.extra_switching),
+            self.measurement_window_s,
+            self.absent,
+        )
+
     def rows(self, a: int, b: int) -> ScenarioData:
         """The scenario cut to samples a to b (exclusive; the event must lie inside), as views."""
         return ScenarioData(
@@ -125,6 +152,7 @@ class ScenarioData:
             list(self.notes),
             [k - a for k in self.extra_switching if a < k < b],
             self.measurement_window_s,
+            self.absent,
         )
 
 
@@ -190,9 +218,16 @@ def classify(
 STEP_SIGNAL = {"torque_step": "p_m", "voltage_step": "v_t", "field_step": "v_f"}
 
 
+# where a labelled step shows when its own signal was not recorded (a PMU export has no P_m, a
+# trend log may lack E_fd): the electrical response, located less sharply
+STEP_FALLBACK = {"torque_step": "p_e", "field_step": "v_t"}
+
+
 def locate_labelled_step(signals: Mapping[str, Array], dt: float, kind: str) -> tuple[int, str]:
     """The event sample of a step the input labelled, however small, if it stands out of the noise."""
     c = STEP_SIGNAL[kind]
+    if not np.isfinite(signals[c]).any() and kind in STEP_FALLBACK:
+        c = STEP_FALLBACK[kind]
     x = np.asarray(signals[c], float)
     span = max(5, int(round(0.2 / dt)))
     k, d = _largest_step(x, span)
@@ -238,15 +273,20 @@ def make_scenario(
     if n < int(2.0 / dt):
         raise ScenarioError(f"scenario {name}: window of {n * dt:.2f} s is too short (needs >= 2 s)")
     bad = ~np.isfinite(frame.values)
-    if bad.any():
-        i = int(np.flatnonzero(bad.any(axis=0))[0])
+    none = bad.all(axis=0)
+    if (bad.any(axis=0) & ~none).any():
+        i = int(np.flatnonzero(bad.any(axis=0) & ~none)[0])
         rows = np.flatnonzero(bad[:, i])
         raise ScenarioError(
             f"scenario {name}: channel {CHANNELS[i]} has {rows.size} NaN/Inf sample(s), "
             f"first at t = {rows[0] * dt:.3f} s"
         )
+    absent = frozenset(CHANNELS[i] for i in np.flatnonzero(none))
+    missing = [c for c in ("v_t", "p_e", "q_e") if c in absent]
+    if missing:
+        raise ScenarioError(f"scenario {name}: no data on {', '.join(missing)}: every identification needs them")
     sig = frame.columns()
-    notes: list[str] = []
+    notes: list[str] = [f"not recorded: {', '.join(c for c in CHANNELS if c in absent)}"] if absent else []
     if kind in STEP_SIGNAL and (k_event is None or k_event <= 0):
         try:
             found, k_ev, k_cl, reason = classify(sig, dt, thresholds=thresholds)
@@ -287,6 +327,7 @@ def make_scenario(
         k_clear=None if k_clear is None else int(k_clear),
         notes=notes,
         measurement_window_s=measurement_window_s,
+        absent=absent,
     )
 
 
@@ -374,3 +415,57 @@ def find_events(
                 events.append((kind, _refine(np.asarray(x, float), k_peak, span), None))
     events.sort(key=lambda e: e[1])
     return events
+
+
+def resampled(s: ScenarioData, period_ns: int) -> ScenarioData:
+    """The scenario on a coarser grid: each channel low-passed forward and backward (4th-order
+    Butterworth at 0.8 of the new Nyquist frequency, no delay) and interpolated; its event,
+    clearing and switching samples moved to the new grid."""
+    from scipy.signal import butter, sosfiltfilt
+
+    if abs(period_ns - s.frame.period_ns) <= SAME_PERIOD * period_ns:  # one rate, clocks a few ns apart
+        t_ns = int(s.frame.t_ns[0]) + np.arange(s.n, dtype=np.int64) * period_ns
+        return s.with_frame(Frame(t_ns, s.frame.values, period_ns))
+    old_dt, new_dt = s.dt, period_ns / NS
+    t_old = np.arange(s.n) * old_dt
+    t_new = np.arange(0.0, t_old[-1] + 0.5 * old_dt, new_dt)
+    sos = butter(4, 0.8 * (0.5 / new_dt) / (0.5 / old_dt), output="sos")
+    values = np.empty((len(t_new), s.frame.values.shape[1]), order="F")
+    for i in range(values.shape[1]):
+        x = s.frame.values[:, i]
+        values[:, i] = np.interp(t_new, t_old, sosfiltfilt(sos, x) if np.isfinite(x).all() else x)
+
+    def at(k: int) -> int:
+        return int(round(k * old_dt / new_dt))
+
+    out = ScenarioData(
+        s.name,
+        s.kind,
+        s.role,
+        s.generator_damping,
+        Frame(int(s.frame.t_ns[0]) + np.arange(len(t_new), dtype=np.int64) * period_ns, values, period_ns),
+        at(s.k_event),
+        None if s.k_clear is None else at(s.k_clear),
+        [*s.notes, f"resampled from {1 / old_dt:g} to {1 / new_dt:g} samples/s (zero-phase low-pass, linear)"],
+        [at(k) for k in s.extra_switching],
+        s.measurement_window_s,
+        s.absent,
+    )
+    return out
+
+
+def on_one_grid(scenarios: list[ScenarioData]) -> tuple[list[ScenarioData], list[str]]:
+    """Scenarios of several recorders on the coarsest sample period among them (stages 1 and 3
+    read one period), with a note per recording rate changed."""
+    periods = sorted({s.frame.period_ns for s in scenarios})
+    if len(periods) <= 1:
+        return scenarios, []
+    target = periods[-1]
+    if periods[0] >= (1 - SAME_PERIOD) * target:
+        return [resampled(s, target) for s in scenarios], []
+    moved = [s.name for s in scenarios if s.frame.period_ns < (1 - SAME_PERIOD) * target]
+    note = (
+        f"{len(moved)} scenario(s) resampled to the coarsest rate among the recordings, "
+        f"{NS / target:g} samples/s: {', '.join(moved[:4])}{' ...' if len(moved) > 4 else ''}"
+    )
+    return [resampled(s, target) for s in scenarios], [note]

@@ -79,7 +79,10 @@ def _scenario_rows(s: ScenarioData, cutoff_hz: float, h_imp: np.ndarray) -> tupl
     end = min(s.n, s.k_event + int(round(WINDOW_AFTER_EVENT_S / dt)))
     omega = s["omega"][:end]
     w0 = float(np.mean(omega[pre]))
-    dp = (s["p_m"] - s["p_e"])[:end]
+    # without a P_m channel P_m is taken constant between steps: its constant cancels against
+    # the pre-event balance below, and a torque step's unknown size is a step column of its own
+    p_m = s["p_m"] if s.has("p_m") else np.zeros(s.n)
+    dp = (p_m - s["p_e"])[:end]
     # filters start from rest on deviations from the pre-event steady state: exactly
     # linear, no start-up transient; the D column is then F[omega - omega_0] because the
     # pre-event balance already holds D(omega_0 - 1) and the transducer offsets
@@ -91,6 +94,8 @@ def _scenario_rows(s: ScenarioData, cutoff_hz: float, h_imp: np.ndarray) -> tupl
         ]
     )
     nuisance = [lowpass2(np.ones(end), cutoff_hz, dt)]
+    if not s.has("p_m") and s.kind == "torque_step":
+        nuisance.append(lowpass2((np.arange(end) >= s.k_event).astype(float), cutoff_hz, dt))
     for k in (k for k in s.switching if k < end):
         for lag in (0, 1):  # impulse and doublet: any sub-sample switching time
             col = np.zeros(end)

@@ -541,55 +541,74 @@ def global_search(
 def _estimates(
     data: Stage3Data, fd: AxisFit, fq: AxisFit, held_names: set[str] | frozenset[str] = frozenset()
 ) -> tuple[Estimate, Estimate, Estimate, Estimate]:
-    """Cluster-robust standard errors from the linearised residual in (x', log tau).
+    """Cluster-robust standard errors from the linearised residual in (x', log tau), per axis.
 
     A held parameter's column leaves the Jacobian: the free one's error bar is recomputed without it.
     """
-    out = []
-    for ax, fit, d_axis, names in (
-        (data.d, fd, True, ("X_d_prime", "T_d0_prime")),
-        (data.q, fq, False, ("X_q_prime", "T_q0_prime")),
-    ):
-
-        def resid(xp: float, tau: float) -> Array:
-            # the nuisance terms are re-fitted at each perturbation (profile residual)
-            return solve_axis(ax, tau, data.dt, d_axis, fit.x_sync, x_prime=xp, keep_residual=True).residual  # type: ignore[return-value]
-
-        r0 = resid(fit.x_prime, fit.tau)
-        h_x, h_t = 1e-6, 1e-5
-        r_x = resid(fit.x_prime + h_x, fit.tau)
-        r_t = resid(fit.x_prime, fit.tau * (1 + h_t))
-        jac = np.column_stack([(r_x - r0) / h_x, (r_t - r0) / (fit.tau * h_t)])
-        rows_per_scn = ax.mask[:, ax.keep].sum(axis=1).tolist()
-        step = max(1, int(round(BLOCK_SECONDS / (data.dt * (ax.keep.step or 1)))))
-        free = [k for k in range(2) if names[k] not in held_names]
-        cov = np.zeros((2, 2))
-        if free:
-            cov[np.ix_(free, free)] = cluster_robust_cov(jac[:, free], r0, block_ids(rows_per_scn, step))
-        share_x = information_share(jac, rows_per_scn, 0)
-        share_t = information_share(jac, rows_per_scn, 1)
-        top = lambda s: [ax.names[i] for i in np.argsort(s)[::-1][:3] if s[i] > 0.05]  # noqa: E731
-        att = attenuation(ax, fit.tau, data.dt, d_axis, fit.x_sync)
-        # errors in variables bias X' toward zero by about 1.7 times the attenuation and move T'
-        # by about as much (coverage study); the bias is not in the sandwich, so it is added to it
-        sd_x = STD_CALIBRATION * math.hypot(math.sqrt(max(cov[0, 0], 0.0)), EIV_ALLOWANCE_X * att * fit.x_prime)
-        sd_t = STD_CALIBRATION * math.hypot(math.sqrt(max(cov[1, 1], 0.0)), EIV_ALLOWANCE_T * att * fit.tau)
-        xp_est = flag(Estimate(fit.x_prime, sd_x, drivers=top(share_x)), names[0])
-        xp_est.std_random = STD_CALIBRATION * math.sqrt(max(cov[0, 0], 0.0))
-        if att > MAX_ATTENUATION:
-            current = "I_d" if d_axis else "I_q"
-            xp_est.disqualify(
-                f"{names[0]}: {current} barely moves against its sensor noise here (errors in variables bias it "
-                f"about {-100 * att:.0f} %); larger disturbances would fix it"
-            )
-        out.append(xp_est)
-        tau_est = flag(Estimate(fit.tau, sd_t, drivers=top(share_t)), names[1])
-        tau_est.std_random = STD_CALIBRATION * math.sqrt(max(cov[1, 1], 0.0))
-        if att > MAX_ATTENUATION_TAU:
-            tau_est.disqualify(f"{names[1]}: the axis is dominated by sensor noise here; not trusted")
-        out.append(tau_est)
-    xdp, td0, xqp, tq0 = out
+    xdp, td0 = _axis_estimates(data, True, fd, held_names)
+    xqp, tq0 = _axis_estimates(data, False, fq, held_names)
     return xdp, xqp, td0, tq0
+
+
+def _axis_estimates(
+    data: Stage3Data, d_axis: bool, fit: AxisFit, held_names: set[str] | frozenset[str]
+) -> tuple[Estimate, Estimate]:
+    """(X', T') of one axis with their standard deviations and identifiability."""
+    ax = data.d if d_axis else data.q
+    names = ("X_d_prime", "T_d0_prime") if d_axis else ("X_q_prime", "T_q0_prime")
+
+    def resid(xp: float, tau: float) -> Array:
+        # the nuisance terms are re-fitted at each perturbation (profile residual)
+        return solve_axis(ax, tau, data.dt, d_axis, fit.x_sync, x_prime=xp, keep_residual=True).residual  # type: ignore[return-value]
+
+    r0 = resid(fit.x_prime, fit.tau)
+    h_x, h_t = 1e-6, 1e-5
+    r_x = resid(fit.x_prime + h_x, fit.tau)
+    r_t = resid(fit.x_prime, fit.tau * (1 + h_t))
+    jac = np.column_stack([(r_x - r0) / h_x, (r_t - r0) / (fit.tau * h_t)])
+    rows_per_scn = ax.mask[:, ax.keep].sum(axis=1).tolist()
+    step = max(1, int(round(BLOCK_SECONDS / (data.dt * (ax.keep.step or 1)))))
+    free = [k for k in range(2) if names[k] not in held_names]
+    cov = np.zeros((2, 2))
+    if free:
+        cov[np.ix_(free, free)] = cluster_robust_cov(jac[:, free], r0, block_ids(rows_per_scn, step))
+    share_x = information_share(jac, rows_per_scn, 0)
+    share_t = information_share(jac, rows_per_scn, 1)
+    top = lambda s: [ax.names[i] for i in np.argsort(s)[::-1][:3] if s[i] > 0.05]  # noqa: E731
+    att = attenuation(ax, fit.tau, data.dt, d_axis, fit.x_sync)
+    # errors in variables bias X' toward zero by about 1.7 times the attenuation and move T'
+    # by about as much (coverage study); the bias is not in the sandwich, so it is added to it
+    sd_x = STD_CALIBRATION * math.hypot(math.sqrt(max(cov[0, 0], 0.0)), EIV_ALLOWANCE_X * att * fit.x_prime)
+    sd_t = STD_CALIBRATION * math.hypot(math.sqrt(max(cov[1, 1], 0.0)), EIV_ALLOWANCE_T * att * fit.tau)
+    xp_est = flag(Estimate(fit.x_prime, sd_x, drivers=top(share_x)), names[0])
+    xp_est.std_random = STD_CALIBRATION * math.sqrt(max(cov[0, 0], 0.0))
+    if att > MAX_ATTENUATION:
+        current = "I_d" if d_axis else "I_q"
+        xp_est.disqualify(
+            f"{names[0]}: {current} barely moves against its sensor noise here (errors in variables bias it "
+            f"about {-100 * att:.0f} %); larger disturbances would fix it"
+        )
+    tau_est = flag(Estimate(fit.tau, sd_t, drivers=top(share_t)), names[1])
+    tau_est.std_random = STD_CALIBRATION * math.sqrt(max(cov[1, 1], 0.0))
+    if att > MAX_ATTENUATION_TAU:
+        tau_est.disqualify(f"{names[1]}: the axis is dominated by sensor noise here; not trusted")
+    return xp_est, tau_est
+
+
+def one_axis(
+    data: Stage3Data, d_axis: bool, x_sync: float | None, constraints: Constraints = NONE
+) -> tuple[Estimate, Estimate, float]:
+    """Stage 3 on one axis only (the other's channels were not recorded): (X', T', X used)."""
+    bounds = T_D0_BOUNDS if d_axis else T_Q0_BOUNDS
+    fit = _profile(data, d_axis, x_sync, bounds, [0], constraints)
+    x_prime, tau = _axis_estimates(data, d_axis, fit, set(constraints.fixed))
+    lo, hi = bounds
+    if not lo * 1.001 < fit.tau < hi * 0.999:
+        tau.at_bound = True
+        tau.disqualify(
+            f"{'T_d0_prime' if d_axis else 'T_q0_prime'} = {fit.tau:.4g} s is at its search bound [{lo}, {hi}]"
+        )
+    return x_prime, tau, fit.x_sync
 
 
 MAX_ATTENUATION = 0.02  # errors-in-variables bias of X' above which it is flagged

@@ -12,14 +12,22 @@ One format for COMTRADE and PMU exports (YAML or JSON)::
       i_a: {name: IA, unit: A}
       load_angle: {name: ROTOR, unit: deg}
       omega: {name: SPEED, unit: Hz}
-      v_f: EFD
+      v_f: EFD                                          # per unit, or {name, unit: V, base: volts per pu}
+      i_fd: {name: IFD, unit: A}                        # field current (stands in for E_fd in steady state)
       p_m: {name: PMECH, unit: MW}
     scenarios:                                          # optional, by recording file stem
       trip_0412: {kind: fault, role: identify, event_time_s: 0.1}
 
 Everything becomes per unit on the machine base: V_base = kv/sqrt(3) per phase, I_base =
 mva/(sqrt(3) kv), S_base = mva. Secondary values are scaled by the PT ratio (voltages), the CT
-ratio (currents) or both (powers); a secondary value without its ratio is refused.
+ratio (currents) or both (powers); a secondary value without its ratio is refused. The field's
+quantities (E_fd in V, I_fd in A) take their base from the map (``base``: the value that is
+1 pu, IEEE 115's air-gap-line base) or, without one, from a no-load test in the same set
+(:func:`phid_ros.io.field_channels.calibrate_field`).
+
+Only the terminal voltage and the stator current (or P and Q) are required: a channel the
+recorder did not carry (rotor angle, speed, P_m, E_fd) is left out of the map, and the
+identification determines what the others allow (:mod:`phid_ros.ident.determinable`).
 """
 
 from __future__ import annotations
@@ -47,8 +55,10 @@ QUANTITIES: dict[str, tuple[str, tuple[str, ...], str]] = {
     "delta": ("angle", ("deg", "rad"), "deg"),  # rotor angle against a nominal-frequency reference
     "load_angle": ("angle", ("deg", "rad"), "deg"),  # rotor angle against the terminal voltage
     "omega": ("speed", ("pu", "Hz", "rpm"), "pu"),
-    "v_f": ("field", ("pu",), "pu"),  # the field voltage's base is the machine's (IEEE 115): per unit only
+    "v_f": ("field", ("pu", "V"), "pu"),  # E_fd; in V with its base, or calibrated at no load
+    "i_fd": ("field", ("pu", "A"), "pu"),  # I_fd; likewise
 }
+FIELD_QUANTITIES = ("v_f", "i_fd")
 WAVEFORMS = ("v_a", "v_b", "v_c", "i_a", "i_b", "i_c")
 SCALE = {"V": 1.0, "kV": 1e3, "V_ll": 1.0, "kV_ll": 1e3, "A": 1.0, "kA": 1e3, "W": 1.0, "kW": 1e3, "MW": 1e6}
 SCALE.update({"var": 1.0, "kvar": 1e3, "Mvar": 1e6, "deg": math.pi / 180, "rad": 1.0})
@@ -65,6 +75,7 @@ class ChannelSpec:
     name: str
     unit: str
     side: str  # primary | secondary
+    base: float | None = None  # field quantities in V or A: the value that is 1 pu (None: calibrate)
 
 
 @dataclass
@@ -106,8 +117,11 @@ class ChannelMap:
         return math.prod(self.ratios[r] for r in RATIO_OF[kind])
 
     def to_pu(self, spec: ChannelSpec, x: Any) -> Any:
-        """A recorded channel in per unit on the machine base (angles in radians, speed as recorded)."""
+        """A recorded channel in per unit on the machine base (angles in radians, speed as recorded,
+        a field quantity without its base as recorded: :func:`field_channels.calibrate_field`)."""
         kind = QUANTITIES[spec.quantity][0]
+        if kind == "field" and spec.base is not None:
+            return x / spec.base
         if spec.unit == "pu" or kind in ("speed", "field"):
             return x
         if kind == "angle":
@@ -155,7 +169,12 @@ def _channel(quantity: str, entry: Any, side: str, where: str) -> ChannelSpec:
     s = entry.get("side", side)
     if s not in ("primary", "secondary"):
         raise ChannelMapError(f"{where}: {quantity} side {s!r} must be primary or secondary")
-    return ChannelSpec(quantity, entry["name"], unit, s)
+    base = None
+    if "base" in entry:
+        if quantity not in FIELD_QUANTITIES or unit == "pu":
+            raise ChannelMapError(f"{where}: {quantity}: base is for a field quantity recorded in V or A")
+        base = _positive(entry, "base", f"{where}: {quantity}")
+    return ChannelSpec(quantity, entry["name"], unit, s, base)
 
 
 def load_channel_map(path: str | Path) -> ChannelMap:
@@ -222,16 +241,18 @@ def check_recording(cmap: ChannelMap, source: str, available: list[str]) -> None
 
 
 def require_complete(cmap: ChannelMap, source: str, available: list[str]) -> None:
-    """Every quantity the identification needs can be formed from what is mapped; else name what
-    is missing and the recording's channels to choose from."""
+    """The terminal voltage and the stator current can be formed from what is mapped (every
+    identification needs them; the rotor angle, speed, P_m and E_fd widen what it determines);
+    else name what is missing and the recording's channels to choose from."""
     needs = []
-    if not (cmap.has("v_a", "v_b", "v_c") or cmap.has("v_t", "theta_t")):
-        needs.append("the terminal voltage (v_a, v_b, v_c waveforms, or v_t and theta_t)")
+    if not (cmap.has("v_a", "v_b", "v_c") or cmap.has("v_t")):
+        needs.append("the terminal voltage (v_a, v_b, v_c waveforms, or v_t)")
     if not (cmap.has("i_a", "i_b", "i_c") or cmap.has("i_t", "phi_i") or cmap.has("p_e", "q_e")):
         needs.append("the stator current (i_a, i_b, i_c waveforms, or i_t and phi_i, or p_e and q_e)")
-    if not (cmap.has("delta") or cmap.has("load_angle")):
-        needs.append("the rotor angle (delta or load_angle)")
-    needs += [q for q in ("omega", "v_f", "p_m") if not cmap.has(q)]
+    if cmap.has("i_t", "phi_i") and not cmap.has("theta_t"):
+        needs.append("theta_t (phi_i is an angle against the same reference)")
+    if cmap.has("delta") and not (cmap.has("theta_t") or cmap.has("v_a", "v_b", "v_c")):
+        needs.append("theta_t (delta is an angle against the same reference; or map load_angle)")
     if needs:
         raise ChannelMapError(
             f"{cmap.path}: no channel mapped for {'; '.join(needs)}; {source} has: {', '.join(available)}"

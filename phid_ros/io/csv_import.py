@@ -26,7 +26,7 @@ from phid_ros.errors import CsvImportError
 from phid_ros.io.recording import MEASUREMENT_WINDOW_KEY, Recording, ScenarioInfo, StreamSamples
 from phid_ros.io.results import read_json
 from phid_ros.io.topics import STREAMS
-from phid_ros.model.channels import CHANNELS, unit_problem
+from phid_ros.model.channels import CHANNELS, SAME_PERIOD, unit_problem
 from phid_ros.model.conventions import NS
 
 CSV_COLUMNS: tuple[str, ...] = ("t",) + CHANNELS
@@ -249,11 +249,11 @@ def recording_from_tables(
         p_ns = int(round(float(np.median(np.diff(t))) * NS))
         if period_ns is None:
             period_ns = p_ns
-        elif p_ns != period_ns:
+        elif abs(p_ns - period_ns) > SAME_PERIOD * period_ns:  # a jittered clock's mean differs by ns
             raise CsvImportError(
                 f"{tab.source}: sample period {p_ns} ns differs from the first scenario's {period_ns} ns"
             )
-        stamps = cursor + np.arange(len(t), dtype=np.int64) * p_ns
+        stamps = cursor + np.arange(len(t), dtype=np.int64) * period_ns
         event_ns = 0 if tab.event_time_s is None else int(stamps[0]) + int(round((tab.event_time_s - t[0]) * NS))
         t_parts.append(stamps)
         for c in CHANNELS:

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from phid_ros.io.channel_map import QUANTITIES, WAVEFORMS, ChannelMap, ChannelMapError
+from phid_ros.io.channel_map import FIELD_QUANTITIES, QUANTITIES, WAVEFORMS, ChannelMap, ChannelMapError
 from phid_ros.io.csv_import import KINDS, ROLES, ScenarioTable, recording_from_tables
 from phid_ros.io.phasors import (
     PhasorError,
@@ -27,7 +27,6 @@ from phid_ros.io.phasors import (
     three_phase_phasors,
 )
 from phid_ros.io.recording import MEASUREMENT_WINDOW_KEY, Recording
-from phid_ros.model.channels import CHANNELS
 from phid_ros.model.conventions import terminal_to_dq
 
 Array = NDArray[np.float64]
@@ -37,7 +36,13 @@ MIN_OUTPUT_RATE_HZ = 1000.0  # waveforms above twice this are decimated to at le
 def identification_channels(
     cmap: ChannelMap, recorded: Callable[[str], Array], fs: float, source: str
 ) -> tuple[Array, dict[str, Array], float]:
-    """(t from the first sample in s, the CHANNELS in per unit, the system frequency in Hz)."""
+    """(t from the first sample in s, the CHANNELS in per unit, the system frequency in Hz).
+
+    A channel the map does not name comes out NaN (not recorded): the identification runs what
+    the others determine. Without a terminal angle (a trend log's V_t, P, Q) the terminal
+    voltage is the reference, theta_t is 0 and the frequency the nominal one. A field current
+    (``i_fd``) comes out beside the CHANNELS, for :func:`calibrate_field`.
+    """
     f0 = cmap.f_nominal_hz
 
     def pu(q: str) -> Array:
@@ -60,11 +65,16 @@ def identification_channels(
     else:
         n = 1
         value = pu
-        theta_nominal = value("theta_t")
-        t = np.arange(len(theta_nominal), dtype=np.float64) / fs
-        v1 = value("v_t") * np.exp(1j * theta_nominal)
-        m = min(len(t), max(int(0.5 * fs), 10))
-        f_sys = f0 + np.polyfit(t[:m], np.unwrap(theta_nominal[:m]), 1)[0] / (2 * np.pi)
+        v_mag = value("v_t")
+        t = np.arange(len(v_mag), dtype=np.float64) / fs
+        if cmap.has("theta_t"):
+            theta_nominal = value("theta_t")
+            v1 = v_mag * np.exp(1j * theta_nominal)
+            m = min(len(t), max(int(0.5 * fs), 10))
+            f_sys = f0 + np.polyfit(t[:m], np.unwrap(theta_nominal[:m]), 1)[0] / (2 * np.pi)
+        else:
+            v1 = v_mag.astype(complex)
+            f_sys = f0
     frame = np.exp(-2j * np.pi * (f_sys - f0) * t)  # nominal-frequency reference -> synchronous frame
     v = v1 * frame
     if cmap.has("i_a", "i_b", "i_c"):
@@ -78,24 +88,47 @@ def identification_channels(
     else:
         i = np.conj((value("p_e") + 1j * value("q_e")) / v)
     theta_t = np.unwrap(np.angle(v))
+    nan = np.full(len(t), np.nan)
     if cmap.has("load_angle"):
         delta = theta_t + value("load_angle")
-    else:
+    elif cmap.has("delta"):
         delta = value("delta") - 2 * np.pi * (f_sys - f0) * t
+    else:
+        delta = nan
     s = v * np.conj(i)
     out = {
         "v_t": np.abs(v),
         "theta_t": theta_t,
-        "omega": _speed(cmap, value("omega"), f_sys),
+        "omega": _speed(cmap, value("omega"), f_sys) if cmap.has("omega") else nan,
         "delta": delta,
-        "v_f": value("v_f"),
-        "p_m": value("p_m"),
+        "v_f": value("v_f") if cmap.has("v_f") else nan,
+        "p_m": value("p_m") if cmap.has("p_m") else nan,
         "p_e": value("p_e") if cmap.has("p_e") else s.real,
         "q_e": value("q_e") if cmap.has("q_e") else s.imag,
     }
     out["i_d"], out["i_q"] = terminal_to_dq(np.abs(i), delta, np.angle(i))
+    if cmap.has("i_t") and not cmap.has("phi_i") and (cmap.has("p_e", "q_e")):
+        _check_current(np.abs(i), value("i_t"), source)
+    if cmap.has("i_fd"):
+        out["i_fd"] = value("i_fd")
     step = int(fs // MIN_OUTPUT_RATE_HZ) if waveforms and fs >= 2 * MIN_OUTPUT_RATE_HZ else 1
-    return t[::step], {c: np.ascontiguousarray(out[c][::step]) for c in CHANNELS}, float(f_sys)
+    return t[::step], {c: np.ascontiguousarray(x[::step]) for c, x in out.items()}, float(f_sys)
+
+
+CURRENT_TOLERANCE = 0.05  # |S|/V against a recorded I_t: beyond this a CT ratio or a base is wrong
+
+
+def _check_current(from_powers: Array, i_t: Array, source: str) -> None:
+    """A recorded I_t against |P + jQ| / V_t: the three disagree when a ratio or base is wrong."""
+    loaded = from_powers > 0.1
+    if loaded.sum() < 10:
+        return
+    r = float(np.median(i_t[loaded] / from_powers[loaded]))
+    if abs(r - 1.0) > CURRENT_TOLERANCE:
+        raise ChannelMapError(
+            f"{source}: I_t is {r:.3g} times |P + jQ| / V_t: the CT ratio, a unit or the machine's base "
+            "(mva, kv) in the map is wrong"
+        )
 
 
 def _speed(cmap: ChannelMap, x: Array, f_sys: float) -> Array:
@@ -132,11 +165,77 @@ def field_recording(tables: list[ScenarioTable], cmap: ChannelMap, source: str, 
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
         raise ChannelMapError(f"recordings with the same name {dup}: scenario names must differ")
+    field_notes = calibrate_field(tables, cmap)
     starts = [t.start_ns for t in tables if t.start_ns is not None]
     # the recording begins when its first file says it did (the import's own date before)
     kwargs = {"start_ns": min(starts)} if starts else {}
     rec = recording_from_tables(tables, cmap.f_nominal_hz, cmap.mva, source, **kwargs)
     rec.warnings.extend(n for t in tables for n in t.notes)
+    rec.warnings.extend(field_notes)
     if window_s > 0:
         rec.metadata[MEASUREMENT_WINDOW_KEY] = repr(window_s)
     return rec
+
+
+NO_LOAD_CURRENT = 0.02  # pu: a steady state with less stator current than this is at no load
+STEADY_SHARE = 0.2  # the final fifth of a recording (and the part before its event) as steady states
+
+
+def _steady_slices(tab: ScenarioTable) -> list[slice]:
+    """The recording's steady parts: before its event (or its first fifth) and its final fifth."""
+    n = len(tab.t)
+    if tab.event_time_s is not None:
+        k = int(np.searchsorted(tab.t, tab.event_time_s)) - max(1, n // 100)
+    else:
+        k = int(n * STEADY_SHARE)
+    head = slice(0, k) if k >= 10 else None
+    return [sl for sl in (head, slice(int(n * (1 - STEADY_SHARE)), n)) if sl is not None]
+
+
+def no_load_points(tables: list[ScenarioTable], quantity: str) -> list[tuple[float, float, str]]:
+    """(the field quantity as recorded, V_t, the recording) at each steady state without stator current."""
+    out = []
+    for tab in tables:
+        if quantity not in tab.columns:
+            continue
+        c = tab.columns
+        current = np.hypot(c["p_e"], c["q_e"]) / np.maximum(c["v_t"], 1e-6)
+        for sl in _steady_slices(tab):
+            if float(np.median(current[sl])) < NO_LOAD_CURRENT:
+                out.append((float(np.median(c[quantity][sl])), float(np.median(c["v_t"][sl])), tab.name))
+    return out
+
+
+def calibrate_field(tables: list[ScenarioTable], cmap: ChannelMap) -> list[str]:
+    """Field quantities recorded in V or A without a stated base get it from the set's no-load tests.
+
+    At no load in steady state the fourth-order model has V_t = E'_q = E_fd (and = I_fd, both in
+    IEEE 115's air-gap-line per unit), so the slope of the recorded field quantity against V_t
+    through the origin is its base. A saturated no-load point (above rated voltage) gives a base
+    too high; the note says how far the points scatter about the line. Returns the notes.
+    """
+    notes = []
+    for q in FIELD_QUANTITIES:
+        spec = cmap.channels.get(q)
+        if spec is None or spec.unit == "pu" or spec.base is not None:
+            continue
+        pts = no_load_points(tables, q)
+        if not pts:
+            raise ChannelMapError(
+                f"{cmap.path}: {q} ({spec.name}) is recorded in {spec.unit} without a base, and no no-load test "
+                f"in the set calibrates it: add one, or give {q}: {{name: {spec.name}, unit: {spec.unit}, "
+                f"base: <{spec.unit} at 1 pu on the air-gap line>}}"
+            )
+        raw, v_t = np.array([p[0] for p in pts]), np.array([p[1] for p in pts])
+        base = float(raw @ v_t / (v_t @ v_t))
+        scatter = float(np.max(np.abs(raw / (base * v_t) - 1.0)))
+        for tab in tables:
+            if q in tab.columns:
+                tab.columns[q] = tab.columns[q] / base
+        recordings = sorted({p[2] for p in pts})
+        notes.append(
+            f"{q} ({spec.name}): 1 pu = {base:.5g} {spec.unit}, calibrated on the air-gap line from "
+            f"{len(pts)} no-load steady state(s) of {', '.join(recordings)} (V_t = {q} at no load; "
+            f"V_t {v_t.min():.3f}-{v_t.max():.3f} pu, points within {100 * scatter:.2f} % of the line)"
+        )
+    return notes

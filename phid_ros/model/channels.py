@@ -17,6 +17,9 @@ from numpy.typing import NDArray
 
 CHANNELS: tuple[str, ...] = ("v_t", "theta_t", "i_d", "i_q", "omega", "delta", "v_f", "p_m", "p_e", "q_e")
 CHANNEL_INDEX: dict[str, int] = {c: i for i, c in enumerate(CHANNELS)}  # column of a channel in a frame
+# sample periods closer than this are one rate: a jittered clock resampled onto its mean period
+# (a trend log's) differs from another file's by nanoseconds
+SAME_PERIOD = 1e-4
 
 
 def channel_columns(values: Any) -> dict[str, Any]:

@@ -48,6 +48,8 @@ def aligned_frame(rec: Recording, source: str, windows: list[tuple[int, int]] | 
     period = rec.streams["pt_ct"].period_ns
     al = Aligner(period, stale_ns=2 * NS)
     for name, stream in rec.streams.items():
+        if stream.channels and all(np.isnan(x).all() for x in stream.channels.values()):
+            continue  # a stream the recorder did not carry (a field import's): its columns stay NaN
         # one ingest per run of uniform stamps: vectorised, and a gap or duplicate starts a new run
         for a, b in block_bounds(stream.t_ns, stream.period_ns, len(stream.t_ns) or 1):
             al.ingest(name, int(stream.t_ns[a]), stream.period_ns, {c: x[a:b] for c, x in stream.channels.items()})

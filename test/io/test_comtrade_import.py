@@ -189,10 +189,15 @@ def test_bad_recordings_are_named(tmp_path) -> None:
 def test_bad_maps_are_named(tmp_path) -> None:
     path, _ = small_recording(tmp_path)
     m = tmp_path / "map.yaml"
-    m.write_text(
-        MAP.replace("  v_f: EFD\n", "").replace("  p_e: {name: P, unit: MW}\n  q_e: {name: Q, unit: Mvar}\n", "")
-    )
-    with pytest.raises(ChannelMapError, match=r"no channel mapped for v_f; rec\.cfg has: VA, IA, VB"):
+    # a channel the recorder did not carry is left out of the map, and comes out not recorded (NaN)
+    pq = "  p_e: {name: P, unit: MW}\n  q_e: {name: Q, unit: Mvar}\n"
+    m.write_text(MAP.replace("  v_f: EFD\n", "").replace(pq, ""))
+    rec = import_comtrade([path], load_channel_map(m))
+    assert np.isnan(rec.streams["excitation"].channels["v_f"]).all()
+    assert np.isfinite(rec.streams["pt_ct"].channels["i_d"]).all()
+    no_current = "".join(f"  i_{p}: I{p.upper()}\n" for p in "abc")
+    m.write_text(MAP.replace(no_current, "").replace(pq, ""))
+    with pytest.raises(ChannelMapError, match=r"no channel mapped for the stator current .*; rec\.cfg has: VA, IA, VB"):
         import_comtrade([path], load_channel_map(m))
     m.write_text(MAP.replace("  i_a: IA", "  i_a: {name: IA, side: secondary}"))
     with pytest.raises(ChannelMapError, match=r"i_a \(IA\) is a secondary value but the map gives no CT ratio"):

@@ -7,9 +7,9 @@ import pytest
 
 from phid_ros.io.channel_map import ChannelMapError, load_channel_map
 from phid_ros.io.pmu_csv import PmuImportError, import_pmu_csv
-from phid_ros.model.conventions import dq_to_terminal
 from phid_ros.sim.runner import SimulationConfig, simulate_scenarios
 from phid_ros.sim.scenarios import find_scenario, with_duration
+from test.io.field_sets import phasor_columns, pmu_lines
 
 KV, MVA = 20.0, 1000.0
 V_BASE = KV * 1e3 / np.sqrt(3)
@@ -37,24 +37,17 @@ def export(tmp_path_factory):
     folder = tmp_path_factory.mktemp("pmu")
     run = simulate_scenarios([with_duration(find_scenario("S09"), 6.0)], SimulationConfig())[0]
     m = {c: x[: run.n_analysis : STEP] for c, x in run.measured.items()}
-    i_mag, i_ang = dq_to_terminal(m["i_d"], m["i_q"], m["delta"])
-    t0 = np.datetime64("2026-03-04T05:06:07.000000000")
-    stamps = [str(t0 + np.timedelta64(int(k * STEP * 1e6), "ns")) for k in range(len(m["v_t"]))]
-    cols = {
-        "Timestamp": stamps,
-        "GEN1:V1_MAG": m["v_t"] * V_BASE,
-        "GEN1:V1_ANG": np.degrees(np.angle(np.exp(1j * m["theta_t"]))),  # wrapped, as PMUs report
-        "GEN1:I1_MAG": i_mag * I_BASE,
-        "GEN1:I1_ANG": np.degrees(np.angle(np.exp(1j * i_ang))),
-        "GEN1:FREQ": 50.0 * m["omega"],
-        "SPEED": m["omega"],
-        "ROTOR_ANGLE": np.degrees(m["delta"]),
-        "EFD": m["v_f"],
-        "PMECH": m["p_m"] * MVA,
-    }
-    lines = [",".join(cols)] + [
-        ",".join(v if isinstance(v, str) else repr(float(v)) for v in row) for row in zip(*cols.values())
-    ]
+    cols = phasor_columns(m, STEP, "GEN1")
+    cols.update(
+        {
+            "GEN1:FREQ": 50.0 * m["omega"],
+            "SPEED": m["omega"],
+            "ROTOR_ANGLE": np.degrees(m["delta"]),
+            "EFD": m["v_f"],
+            "PMECH": m["p_m"] * MVA,
+        }
+    )
+    lines = pmu_lines(cols)
     path = folder / "S09.csv"
     path.write_text("\n".join(lines) + "\n")
     (folder / "map.yaml").write_text(MAP)

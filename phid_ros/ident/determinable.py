@@ -1,0 +1,362 @@
+"""What a recording's channels determine, and the identification of what they do.
+
+Fault recorders, relays, PMUs and excitation controllers record the terminal quantities and
+rarely more: a MOD-026 voltage-step test carries V_t, I_t, P, Q and E_fd; a PMU export V and I
+phasors; a no-load test V_t and E_fd. Each way to a parameter is a :class:`Route`: the recorded
+channels it reads, the held values it needs, and what it assumes. :func:`plan` picks, for each
+parameter, the first route the scenarios allow (in the order below: the paper's stages on the
+full channel set first), or says what is missing, and :func:`identify_by_channels` runs the plan.
+A parameter no route reaches is reported "not identifiable from these channels (needs ...)",
+never as a number.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from phid_ros.errors import StageError
+from phid_ros.ident import open_circuit, stage1, stage2, stage3, terminal
+from phid_ros.ident.results import Estimate
+from phid_ros.ident.scenario import ScenarioData
+from phid_ros.model.parameters import PARAMETER_NAMES
+
+if TYPE_CHECKING:
+    from phid_ros.ident.pipeline import IdentificationResult, IdentifyOptions
+
+ANGLE = ("v_t", "theta_t", "delta", "i_d", "i_q")  # the rotor angle and the currents in its frame
+TERMINAL = ("v_t", "p_e", "q_e")
+
+
+@dataclass(frozen=True)
+class Route:
+    key: str
+    parameters: tuple[str, ...]
+    channels: tuple[str, ...]  # recorded in the scenarios it uses
+    how: str
+    held: tuple[str, ...] = ()  # parameters the user must hold (--fix)
+    no_load: bool = False  # uses no-load tests (no stator current)
+    loaded: bool = False  # uses tests under load
+
+    def scenarios(self, scs: Sequence[ScenarioData]) -> list[ScenarioData]:
+        out = [s for s in scs if s.has(*self.channels)]
+        if "theta_t" in self.channels:  # an angle recorded as 0 throughout is the reference, not a measurement
+            out = [s for s in out if float(np.ptp(s["theta_t"])) > 0]
+        if self.no_load:
+            out = [s for s in out if terminal.at_no_load(s)]
+        if self.loaded:
+            out = [s for s in out if not terminal.at_no_load(s)]
+        return out
+
+
+ROUTES: tuple[Route, ...] = (
+    Route("swing", ("H", "D"), ("omega", "p_m", "p_e"), "stage 1: the swing equation"),
+    Route(
+        "swing_constant_pm",
+        ("H", "D"),
+        ("omega", "p_e"),
+        "stage 1 with P_m taken constant between steps (P_m not recorded)",
+    ),
+    Route(
+        "swing_reconstructed",
+        ("H", "D"),
+        ("v_t", "theta_t", "p_e", "q_e"),
+        "stage 1 on the rotor speed reconstructed from V and I with X_q held (and X'_q, T'_q0 for a round "
+        "rotor), P_m constant between steps",
+        held=("X_q",),
+        loaded=True,
+    ),
+    Route("steady_states", ("X_d", "X_q"), (*ANGLE, "v_f"), "stage 2: the steady states"),
+    Route(
+        "steady_states_paper",
+        ("X_d", "X_q"),
+        ANGLE,
+        "stage 2 by the paper's (37): X_d from several operating points without E_fd",
+    ),
+    Route(
+        "steady_terminal",
+        ("X_d",),
+        (*TERMINAL, "v_f"),
+        "the steady states of V_t, P, Q and E_fd, the rotor angle reconstructed with X_q",
+        loaded=True,
+    ),
+    Route("d_axis", ("X_d_prime", "T_d0_prime"), (*ANGLE, "v_f"), "stage 3, d axis"),
+    Route(
+        "d_axis_terminal",
+        ("X_d_prime", "T_d0_prime"),
+        (*TERMINAL, "v_f"),
+        "stage 3's d axis on the rotor angle reconstructed from V_t, P, Q",
+        loaded=True,
+    ),
+    Route(
+        "open_circuit",
+        ("T_d0_prime",),
+        ("v_t", "v_f"),
+        "no-load field steps: V_t follows E_fd through T'_d0",
+        no_load=True,
+    ),
+    Route("q_axis", ("X_q_prime", "T_q0_prime"), ANGLE, "stage 3, q axis"),
+)
+ROUTES_BY_KEY = {r.key: r for r in ROUTES}
+
+
+@dataclass(frozen=True)
+class Planned:
+    parameter: str
+    route: Route | None
+    needs: str  # what would make it determinable when route is None
+
+
+def _needs(parameter: str, held: Mapping[str, float]) -> str:
+    """What the user would add to determine ``parameter``: the channels of its routes."""
+    wanted = []
+    for r in ROUTES:
+        if parameter in r.parameters:
+            parts = [c for c in r.channels]
+            parts += [f"--fix {h}" for h in r.held if h not in held]
+            if r.no_load:
+                parts.append("at no load")
+            wanted.append(" + ".join(parts))
+    return " or ".join(dict.fromkeys(wanted))
+
+
+def _plan(usable: Callable[[Route], bool], held: Mapping[str, float]) -> list[Planned]:
+    out = []
+    for name in PARAMETER_NAMES:
+        if name in held:
+            out.append(Planned(name, None, "held (--fix)"))
+            continue
+        chosen = next(
+            (r for r in ROUTES if name in r.parameters and all(h in held for h in r.held) and usable(r)), None
+        )
+        out.append(Planned(name, chosen, "" if chosen else _needs(name, held)))
+    return out
+
+
+def plan(scenarios: Sequence[ScenarioData], held: Mapping[str, float]) -> list[Planned]:
+    """For each parameter, the first route its scenarios' channels and held values allow (in ROUTES order)."""
+    ident = [s for s in scenarios if s.role == "identify"]
+    return _plan(lambda r: bool(r.scenarios(ident)), held)
+
+
+def plan_for_channels(
+    recorded: set[str], held: Mapping[str, float], *, no_load: bool = True, loaded: bool = True
+) -> list[Planned]:
+    """The plan from a recording's channel set alone (``phid info``): whether its tests are at
+    no load or under load is taken from the caller (both possible unless it knows)."""
+    return _plan(
+        lambda r: set(r.channels) <= recorded and (no_load or not r.no_load) and (loaded or not r.loaded), held
+    )
+
+
+def full_channels(scenarios: Sequence[ScenarioData]) -> bool:
+    """Whether every identification scenario carries every channel (the paper's three stages)."""
+    return all(not s.absent for s in scenarios if s.role == "identify")
+
+
+def not_determined(name: str, needs: str) -> Estimate:
+    return Estimate(
+        math.nan, math.nan, identifiable=False, note=f"{name}: not identifiable from these channels (needs {needs})"
+    )
+
+
+Say = Callable[[str], None]
+
+
+def identify_by_channels(
+    res: IdentificationResult, ident: list[ScenarioData], opt: IdentifyOptions, say: Say
+) -> dict[str, str]:
+    """Run the plan on scenarios that lack channels; returns parameter -> how it was determined."""
+    held = opt.constraints.fixed
+    chosen = {p.parameter: p for p in plan(ident, held)}
+    how: dict[str, str] = {}
+
+    def route_of(*names: str) -> Route | None:
+        routes = {chosen[n].route for n in names if chosen[n].route is not None}
+        return routes.pop() if len(routes) == 1 else None
+
+    def put(estimates: Mapping[str, Estimate], route: Route) -> None:
+        for n, e in estimates.items():
+            if n in route.parameters and n not in held:
+                res.estimates[n] = e
+                how[n] = route.how
+
+    # -- H and D -------------------------------------------------------------------------------
+    r = route_of("H", "D")
+    if r is not None:
+        say(f"H, D: {r.how}")
+        scs = r.scenarios(ident)
+        if r.key == "swing_reconstructed":
+            q = _held_q_transient(held)
+            scs = [
+                terminal.with_channels(
+                    s,
+                    {"omega": terminal.rotor_speed(s, held["X_q"], q, opt.f_nominal_hz)},
+                    f"rotor speed from the rotor angle reconstructed with X_q = {held['X_q']:g} pu (held)"
+                    + ("" if q is None else f", X'_q = {q[0]:g} pu, T'_q0 = {q[1]:g} s (held)"),
+                )
+                for s in scs
+            ]
+        try:
+            out = stage1.swing_regression(scs, opt.stage1_cutoff_hz, opt.constraints)
+            res.stage1 = out
+            put({"H": out.H, "D": out.D}, r)
+        except StageError as exc:
+            res.problems.append(f"stage 1 (H, D) did not run: {exc}")
+    # -- X_d, X_q ------------------------------------------------------------------------------
+    r = chosen["X_d"].route
+    x_q_for_angle: float | None = held.get("X_q")
+    if r is not None and r.key in ("steady_states", "steady_states_paper"):
+        say(f"X_d, X_q: {r.how}")
+        try:
+            out2 = stage2.identify_reactances(r.scenarios(ident), use_field_voltage=r.key == "steady_states")
+            res.stage2 = out2
+            put({"X_d": out2.X_d, "X_q": out2.X_q}, r)
+            res.problems.extend(f"stage 2: {p}" for p in out2.problems)
+        except StageError as exc:
+            res.problems.append(f"stage 2 (X_d, X_q) did not run: {exc}")
+    elif r is not None:
+        say(f"X_d: {r.how}")
+        try:
+            st = terminal.steady_reactances(r.scenarios(ident), held.get("X_q"))
+            put({"X_d": st.X_d}, r)
+            if "X_q" not in held:
+                x_q_for_angle = st.X_q.value
+                res.estimates["X_q"] = Estimate(
+                    math.nan,
+                    math.nan,
+                    identifiable=False,
+                    note=(
+                        f"X_q: not identifiable from V_t, P, Q, E_fd (the steady states hardly depend on it; they "
+                        f"put it at {st.X_q.value:.3g} pu, which the rotor angle's reconstruction used): hold a "
+                        "datasheet value (--fix X_q=...) or record the rotor angle"
+                    ),
+                )
+        except StageError as exc:
+            res.problems.append(f"X_d did not run: {exc}")
+    # -- the d axis's transient ----------------------------------------------------------------
+    known = {n: e.value for n, e in res.estimates.items() if n in ("X_d", "X_q") and math.isfinite(e.value)}
+    known.update({n: v for n, v in held.items() if n in ("X_d", "X_q")})
+    r = route_of("X_d_prime", "T_d0_prime") or chosen["T_d0_prime"].route
+    if r is not None and r.key == "d_axis" and "X_d" in known:
+        say(f"X'_d, T'_d0: {r.how}")
+        _one_axis(res, r, r.scenarios(ident), True, known["X_d"], opt, put)
+    elif r is not None and r.key == "d_axis_terminal" and "X_d" in known and x_q_for_angle is not None:
+        say(f"X'_d, T'_d0: {r.how}")
+        _d_axis_terminal(res, r, r.scenarios(ident), known["X_d"], x_q_for_angle, opt, put)
+    oc = ROUTES_BY_KEY["open_circuit"]
+    if "T_d0_prime" not in held and oc.scenarios(ident):
+        say(f"T'_d0: {oc.how}")
+        try:
+            o = open_circuit.open_circuit(oc.scenarios(ident))
+            res.problems.extend(o.problems)
+            current = res.estimates.get("T_d0_prime")
+            better = (
+                current is None
+                or not current.identifiable
+                or o.T_d0_prime.std / o.T_d0_prime.value < current.std / current.value
+            )
+            if better and o.T_d0_prime.identifiable:
+                put({"T_d0_prime": o.T_d0_prime}, oc)
+        except StageError as exc:
+            res.problems.append(f"open circuit (T'_d0) did not run: {exc}")
+    # -- the q axis's transient ----------------------------------------------------------------
+    r = route_of("X_q_prime", "T_q0_prime")
+    if r is not None and "X_q" in known:
+        say(f"X'_q, T'_q0: {r.how}")
+        _one_axis(res, r, r.scenarios(ident), False, known["X_q"], opt, put)
+    for p in plan(ident, held):
+        if p.parameter not in res.estimates and p.parameter not in held:
+            needs = p.needs or f"what {p.route.how if p.route else 'its route'} needs, which did not run"
+            res.estimates[p.parameter] = not_determined(p.parameter, needs)
+    return how
+
+
+def _one_axis(
+    res: IdentificationResult,
+    route: Route,
+    scs: list[ScenarioData],
+    d_axis: bool,
+    x_sync: float,
+    opt: IdentifyOptions,
+    put: Callable[[Mapping[str, Estimate], Route], None],
+) -> tuple[Estimate, Estimate] | None:
+    names = ("X_d_prime", "T_d0_prime") if d_axis else ("X_q_prime", "T_q0_prime")
+    try:
+        x_prime, tau, _ = stage3.one_axis(stage3.prepare(scs, opt.prefilter_hz), d_axis, x_sync, opt.constraints)
+    except StageError as exc:
+        res.problems.append(f"stage 3 ({', '.join(names)}) did not run: {exc}")
+        return None
+    put(dict(zip(names, (x_prime, tau))), route)
+    return x_prime, tau
+
+
+def _held_q_transient(held: Mapping[str, float]) -> tuple[float, float] | None:
+    """(X'_q, T'_q0) when the user holds both (a round rotor's datasheet), else None."""
+    return (held["X_q_prime"], held["T_q0_prime"]) if "X_q_prime" in held and "T_q0_prime" in held else None
+
+
+X_Q_ALLOWANCE = 0.10  # X_q from the steady states of V_t, P, Q, E_fd was off by up to 11 % (noiseless)
+
+
+def _d_axis_terminal(
+    res: IdentificationResult,
+    route: Route,
+    scs: list[ScenarioData],
+    x_d: float,
+    x_q: float,
+    opt: IdentifyOptions,
+    put: Callable[[Mapping[str, Estimate], Route], None],
+) -> None:
+    """X'_d and T'_d0 on the reconstructed rotor angle; without X_q held, their error bars carry
+    what +-10 % of X_q does to them."""
+    held = opt.constraints.fixed
+    q = _held_q_transient(held)
+    if q is not None:
+        why = "held"
+    else:
+        search = terminal.q_axis_search(scs, x_q, x_d, opt.prefilter_hz)
+        q = search.q_transient
+        why = "at rest" if q is None else f"X'_q = {q[0]:.3g} pu, T'_q0 = {q[1]:.3g} s by the d axis's residual"
+    source = "held" if "X_q" in held else "the steady states"
+    rebuilt = [terminal.with_rotor_angle(s, x_q, source, q) for s in scs]
+    got = _one_axis(res, route, rebuilt, True, x_d, opt, put)
+    if got is None:
+        return
+    for e in got:
+        e.add_note(f"rotor angle reconstructed from V_t, P, Q with X_q = {x_q:.4g} pu ({source}); q axis {why}")
+    if "X_q" in held:
+        return
+    spread = [0.0, 0.0]
+    for f in (1.0 - X_Q_ALLOWANCE, 1.0 + X_Q_ALLOWANCE):
+        q_f = None if q is None else (q[0] * f, q[1])
+        alt = [terminal.with_rotor_angle(s, x_q * f, source, q_f) for s in scs]
+        try:
+            xp, tau, _ = stage3.one_axis(stage3.prepare(alt, opt.prefilter_hz), True, x_d, opt.constraints)
+        except StageError:
+            continue
+        spread = [max(spread[0], abs(xp.value - got[0].value)), max(spread[1], abs(tau.value - got[1].value))]
+    for e, s in zip(got, spread):
+        e.std = math.hypot(e.std, s)
+        if e.identifiable and e.std / abs(e.value) > 0.10:
+            e.disqualify("not determined with X_q unknown: hold a datasheet X_q (--fix X_q=...)")
+        else:
+            e.add_note(f"std includes {s:.3g} for X_q +-{100 * X_Q_ALLOWANCE:g} %")
+
+
+def describe_plan(planned: Sequence[Planned], done: Mapping[str, str] | None = None) -> list[tuple[str, str]]:
+    """(parameter, how or what it needs) for the table identify and info print; ``done``: how
+    each parameter was determined in the end (an identification's ``determined_by``)."""
+    out = []
+    for p in planned:
+        if done and p.parameter in done:
+            out.append((p.parameter, done[p.parameter]))
+        elif p.route is not None:
+            out.append((p.parameter, p.route.how))
+        else:
+            out.append((p.parameter, p.needs if p.needs == "held (--fix)" else f"needs {p.needs}"))
+    return out
