@@ -100,6 +100,12 @@ def run(args: Any, console: Console) -> int:
         del rec  # the windows are cut: the whole recording need not stay in memory for minutes of fitting
         if not any(s.role == "identify" for s in scenarios):
             raise PhidError(f"{source}: no identification scenarios; the diagnosis needs them to fit candidate models")
+        missing = sorted({c for s in scenarios for c in s.absent})
+        if missing:
+            raise PhidError(
+                f"{source}: not recorded: {', '.join(missing)}; the diagnosis plays the model in against every "
+                "channel (phid identify determines what these channels allow)"
+            )
         opts = IdentifyOptions(baseline=False, validate=False, f_nominal_hz=f_hz)
         res = identify_scenarios(scenarios, source, opts, progress=progress.update)
         start = res.parameters
