@@ -34,22 +34,29 @@ class PmuImportError(PhidError):
     """A PMU export that is malformed or does not fit its channel map."""
 
 
-def _seconds(values: list[str], path: Path, column: str, dates: list[str] | None = None) -> np.ndarray:
-    """Report times in s from the first: seconds, ISO 8601 date-times, or (with ``dates``, a
-    trend log's date column) times of day beside dates."""
+UNIX_SECONDS = 1e9  # seconds this large are UNIX time (2001 on), not seconds from the start
+
+
+def _seconds(
+    values: list[str], path: Path, column: str, dates: list[str] | None = None
+) -> tuple[np.ndarray, int | None]:
+    """Report times in s from the first, and when the first was taken (UTC ns since the epoch;
+    None for times of day without a date and for seconds from the start): seconds, ISO 8601
+    date-times, or (with ``dates``, a trend log's date column) times of day beside dates."""
     if dates is not None:
         values = [f"{_iso_date(d, path)}T{v.strip()}" for d, v in zip(dates, values)]
     elif values and all(_TIME_OF_DAY.fullmatch(v.strip()) for v in values):
-        return _times_of_day(values)
+        return _times_of_day(values), None
     if all(is_number(v) for v in values):  # seconds (UNIX or from the start); else ISO 8601 times
-        return np.array([float(v) for v in values])
+        secs = np.array([float(v) for v in values])
+        return secs, int(round(secs[0] * NS)) if secs[0] >= UNIX_SECONDS else None
     try:
         stamps = np.array(
             [np.datetime64(_ns_digits(v.strip().replace("Z", ""))) for v in values], dtype="datetime64[ns]"
         )
     except ValueError as exc:
         raise PmuImportError(f"{path}: column {column!r} holds neither seconds nor ISO 8601 times ({exc})") from None
-    return (stamps - stamps[0]).astype(np.int64) / NS
+    return (stamps - stamps[0]).astype(np.int64) / NS, int(stamps[0].astype(np.int64))
 
 
 _TIME_OF_DAY = re.compile(r"(\d{1,2}):(\d{2}):(\d{2}(?:\.\d+)?)")
@@ -85,9 +92,10 @@ def _times_of_day(values: list[str]) -> np.ndarray:
 
 def read_pmu_csv(
     path: str | Path, cmap: ChannelMap, notes: list[str] | None = None
-) -> tuple[np.ndarray, dict[str, np.ndarray], float]:
-    """(t from the first report, per-unit channels, the reporting rate); what was done to the
-    reports (a jittered clock resampled) is added to ``notes``."""
+) -> tuple[np.ndarray, dict[str, np.ndarray], float, int | None]:
+    """(t from the first report, per-unit channels, the reporting rate, when the first report
+    was taken if the file says: UTC ns); what was done to the reports (a jittered clock
+    resampled) is added to ``notes``."""
     notes = notes if notes is not None else []
     p = Path(path)
     if not p.is_file():
@@ -118,7 +126,7 @@ def read_pmu_csv(
     if ragged is not None:
         raise PmuImportError(f"{p}: line {ragged + 2} has {len(body[ragged])} fields, the header {len(header)}")
     dates = [r[columns[date_col]] for r in body] if date_col is not None else None
-    t = _seconds([r[columns[time_col]] for r in body], p, time_col, dates)
+    t, start_ns = _seconds([r[columns[time_col]] for r in body], p, time_col, dates)
     dt = np.diff(t)
     if np.any(dt <= 0):
         k = int(np.flatnonzero(dt <= 0)[0])
@@ -157,7 +165,7 @@ def read_pmu_csv(
         return np.interp(grid, t, x) if grid is not None else x
 
     t_out, channels, _ = identification_channels(cmap, recorded, 1.0 / period, str(p))
-    return t[0] + t_out, channels, 1.0 / period
+    return t[0] + t_out, channels, 1.0 / period, start_ns
 
 
 def import_pmu_csv(paths: Sequence[str | Path], cmap: ChannelMap) -> Recording:
@@ -167,9 +175,10 @@ def import_pmu_csv(paths: Sequence[str | Path], cmap: ChannelMap) -> Recording:
     tables = []
     for path in paths:
         notes: list[str] = []
-        t, channels, _ = read_pmu_csv(path, cmap, notes)
+        t, channels, _, start_ns = read_pmu_csv(path, cmap, notes)
         table = scenario_table(Path(path), cmap, t - t[0], channels)
         table.notes = notes
+        table.start_ns = start_ns
         tables.append(table)
     window = cmap.phasor_window_cycles / cmap.f_nominal_hz
     return field_recording(tables, cmap, f"import-pmu {cmap.path}", window)

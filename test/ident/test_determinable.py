@@ -22,6 +22,7 @@ from phid_ros.ident.scenario import make_scenario, scenario_from_simulation
 from phid_ros.io.channel_map import ChannelMapError, load_channel_map
 from phid_ros.io.pmu_csv import import_pmu_csv
 from phid_ros.model.channels import CHANNEL_INDEX, Frame
+from phid_ros.model.conventions import utc_of_stamp
 from phid_ros.model.parameters import TABLE1
 from phid_ros.sim.runner import simulate_scenarios
 from phid_ros.sim.scenarios import Scenario
@@ -59,6 +60,8 @@ def test_trend_logs_calibrate_the_field_base_at_no_load(trend) -> None:
     # the scenarios lie one after another; no rotor angle, speed or P_m was recorded
     assert [s.name for s in trend.scenarios][:2] == ["noload", "step_0"]
     assert np.isnan(trend.streams["encoder"].channels["omega"]).all()
+    # the set begins when its first file's date and time of day say
+    assert utc_of_stamp(trend.span_ns()[0]).isoformat().startswith("2015-09-20T12:52:35.236")
 
 
 def test_d_axis_from_voltage_steps_and_a_no_load_step(trend) -> None:
