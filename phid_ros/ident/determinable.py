@@ -224,6 +224,11 @@ def identify_by_channels(
         try:
             st = terminal.steady_reactances(r.scenarios(ident), held.get("X_q"))
             put({"X_d": st.X_d}, r)
+            res.route_details["steady_terminal"] = {
+                "X_q_used": st.X_q.value,
+                "rms_pu": st.rms_pu,
+                "steady_points": [pt.__dict__ for pt in st.points],
+            }
             if "X_q" not in held:
                 x_q_for_angle = st.X_q.value
                 res.estimates["X_q"] = Estimate(
@@ -254,6 +259,13 @@ def identify_by_channels(
         try:
             o = open_circuit.open_circuit(oc.scenarios(ident))
             res.problems.extend(o.problems)
+            res.route_details["open_circuit"] = {
+                "T_d0_prime": o.T_d0_prime.value,
+                "T_d0_prime_std": o.T_d0_prime.std,
+                "field_gain": o.field_gain,  # V_t per unit E_fd at no load: 1 on the air-gap line
+                "scenarios": o.scenarios,
+                "rms_pu": o.rms_pu,
+            }
             current = res.estimates.get("T_d0_prime")
             better = (
                 current is None
@@ -321,6 +333,13 @@ def _d_axis_terminal(
     else:
         search = terminal.q_axis_search(scs, x_q, x_d, opt.prefilter_hz)
         q = search.q_transient
+        res.route_details["q_axis_search"] = {
+            "X_q_prime": None if q is None else q[0],
+            "T_q0_prime": None if q is None else q[1],
+            "sse": search.sse,
+            "sse_at_rest": search.sse_at_rest,
+            "evaluations": search.evaluations,
+        }
         why = "at rest" if q is None else f"X'_q = {q[0]:.3g} pu, T'_q0 = {q[1]:.3g} s by the d axis's residual"
     source = "held" if "X_q" in held else "the steady states"
     rebuilt = [terminal.with_rotor_angle(s, x_q, source, q) for s in scs]

@@ -67,6 +67,7 @@ class IdentificationResult:
     constraints: Constraints = NONE
     # with channels missing: parameter -> the route that determined it (ident/determinable.py)
     determined_by: dict[str, str] = field(default_factory=dict)
+    route_details: dict[str, Any] = field(default_factory=dict)  # those routes' own figures (JSON "stages")
 
     @property
     def parameters(self) -> dict[str, float]:
@@ -142,7 +143,7 @@ class IdentificationResult:
         return doc
 
     def _stage_details(self) -> dict[str, Any]:
-        out: dict[str, Any] = {}
+        out: dict[str, Any] = dict(self.route_details)
         if self.stage1:
             out["stage1"] = {"method": self.stage1.method, **self.stage1.details}
         if self.stage2:
