@@ -20,6 +20,7 @@ from phid_ros.cli.report import STYLE, html_table, png_data_uri
 from phid_ros.cli.tables import CONCISE_LEGEND, estimate_text
 from phid_ros.fleet.history import DRIFT_SIGMAS
 from phid_ros.io.outputs import write_text
+from phid_ros.io.overview import Overview
 from phid_ros.io.recording import Recording
 from phid_ros.model.conventions import NS
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, SYMBOLS
@@ -32,7 +33,6 @@ if TYPE_CHECKING:
 
 KIND_COLORS = {"fault": "#c0392b", "torque_step": "#1f5fbf", "voltage_step": "#2e8b57", "field_step": "#8e44ad"}
 LEVEL_COLORS = {"OK": "#2e8b57", "WARN": "#e69f00", "ERROR": "#c0392b", "STALE": "#888888"}
-MAX_POINTS = 4000  # samples drawn per trace: a day at 1 kHz would not be readable anyway
 
 
 @dataclass
@@ -59,27 +59,17 @@ class HealthLog:
 
 # -- figures ----------------------------------------------------------------------------------------
 def _events_figure(
-    rec: Recording, events: Sequence[tuple[str, float, bool]], marks: Sequence[tuple[float, str]]
+    overview: Overview, events: Sequence[tuple[str, float, bool]], marks: Sequence[tuple[float, str]]
 ) -> str:
     """V_t and P_m over the recording, each event a line in its kind's colour (dashed: window unusable)."""
     import matplotlib.pyplot as plt
 
-    start = rec.span_ns()[0]
+    start = overview.span_ns()[0]
     fig, axes = plt.subplots(2, 1, figsize=(10, 4.6), sharex=True, layout="constrained")
-    for ax, (stream, channel, label) in zip(axes, (("pt_ct", "v_t", "V_t (pu)"), ("encoder", "p_m", "P_m (pu)"))):
-        s = rec.streams[stream]
-        step = max(1, len(s.t_ns) // MAX_POINTS)
-        t = (s.t_ns[::step] - start) / NS
-        # min and max of each stride, so that a 100 ms fault dip is not decimated away
-        x = s.channels[channel]
-        n = len(x) // step * step
-        if step > 1 and n:
-            blocks = x[:n].reshape(-1, step)
-            tt = np.repeat(t[: len(blocks)], 2)
-            xx = np.column_stack((blocks.min(axis=1), blocks.max(axis=1))).ravel()
-            ax.plot(tt, xx, color="0.35", lw=0.6)
-        else:
-            ax.plot(t, x[::step], color="0.35", lw=0.6)
+    for ax, (channel, label) in zip(axes, (("v_t", "V_t (pu)"), ("p_m", "P_m (pu)"))):
+        t_ns, lo, hi = overview.envelope(channel)
+        # min and max of each bin, so that a 100 ms fault dip is not decimated away
+        ax.plot(np.repeat((t_ns - start) / NS, 2), np.column_stack((lo, hi)).ravel(), color="0.35", lw=0.6)
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
         for kind, t_ev, ok in events:
@@ -226,12 +216,12 @@ def replay_alarms(points: list[ParameterPoint], sigmas: float = DRIFT_SIGMAS) ->
 
 
 def write_replay_report(
-    path: str | Path, rec: Recording, outputs: Outputs, collector: OutputCollector, source: str
+    path: str | Path, overview: Overview, outputs: Outputs, collector: OutputCollector, source: str
 ) -> Path:
     import matplotlib
 
     matplotlib.use("Agg")
-    start = rec.span_ns()[0]
+    start = overview.span_ns()[0]
     usable = {w.event.event_id: w.usable for w in outputs.windows}
     events = [(e.kind, (e.inception_ns - start) / NS, usable.get(e.event_id, False)) for e in outputs.events]
     marks = [((r.stream_time_ns - start) / NS, "#2e8b57" if r.accepted else "#c0392b") for r in outputs.recalibrations]
@@ -269,9 +259,9 @@ def write_replay_report(
         for r in outputs.recalibrations
     ]
     head, prow = _parameter_rows(points, PARAMETER_NAMES)
-    span = (rec.span_ns()[1] - start) / NS
+    span = (overview.span_ns()[1] - start) / NS
     sections = [
-        _figure("Events", _events_figure(rec, events, marks), "events timeline"),
+        _figure("Events", _events_figure(overview, events, marks), "events timeline"),
         html_table(["t s", "kind", "scenario", "severity", "window"], ev_rows),
         _figure(
             "Parameters over time",
@@ -304,7 +294,8 @@ def write_track_report(
     from phid_ros.stream.tracker import TRACKED
 
     matplotlib.use("Agg")
-    start = rec.span_ns()[0]
+    overview = Overview.of(rec)
+    start = overview.span_ns()[0]
     seen: dict[int, str] = {}
     for p in track:
         for kind, t_ns in p.steps:
@@ -315,7 +306,7 @@ def write_track_report(
     head, rows = _parameter_rows(points, TRACKED)
     alarms = [f"<li>{(p.t_ns - start) / NS:.0f} s: {html.escape(a)}</li>" for p in track for a in p.alarms]
     sections = [
-        _figure("Events", _events_figure(rec, events, []), "events timeline"),
+        _figure("Events", _events_figure(overview, events, []), "events timeline"),
         _figure(
             "Parameters over time",
             _parameters_figure(points, TRACKED, "Tracked parameters at the end of each window (±2σ)"),

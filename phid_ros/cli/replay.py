@@ -3,15 +3,15 @@
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from phid_ros.io.recording import Recording
 from phid_ros.io.topics import OUTPUT_TOPICS, output_topic
 from phid_ros.model.conventions import NS
 from phid_ros.stream.pipeline import MonitorPipeline, Outputs
-from phid_ros.stream.replay import replay
+from phid_ros.stream.replay import replay_parts
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -125,14 +125,14 @@ def severity_text(kind: str, severity: float) -> str:
 
 
 def print_summary(
-    console: Console, rec: Recording, pipeline: MonitorPipeline, outputs: Outputs, collector: OutputCollector
+    console: Console, start: int, pipeline: MonitorPipeline, outputs: Outputs, collector: OutputCollector
 ) -> None:
-    """What a replay found, in the same words on every run of the same bag (no wall times)."""
+    """What a replay found, in the same words on every run of the same bag (no wall times);
+    ``start``: the recording's first stamp, times are shown from it."""
     from phid_ros.cli.tables import CONCISE_LEGEND, Col, estimate_text, fmt, print_table
     from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, SYMBOLS
     from phid_ros.stream.detector import window_status
 
-    start = rec.span_ns()[0]
     usable = {w.event.event_id: window_status(w) for w in outputs.windows}
     cols = [
         Col("t s"),
@@ -199,46 +199,58 @@ def print_summary(
     print_table(console, "stream health", hcols, hrows)
 
 
-def run(args: object, console: object) -> int:
+def run(args: Any, console: Any) -> int:
+    import itertools
     import resource
 
-    from phid_ros.cli.common import read_input, warn
+    from phid_ros.cli.common import warn
     from phid_ros.cli.progress import ProgressLine
     from phid_ros.io.bags import open_message_writer
     from phid_ros.io.outputs import atomic_output, partial_path, refuse_inputs
+    from phid_ros.io.overview import Overview
+    from phid_ros.io.parts import recording_parts
     from phid_ros.stream.pipeline import PipelineSettings
 
-    out_path = Path(args.out)  # type: ignore[attr-defined]
-    refuse_inputs([out_path, args.store, args.report], [args.bag])  # type: ignore[attr-defined]
-    refuse_inputs([out_path], [args.store])  # type: ignore[attr-defined]
-    check_output(out_path, args.force)  # type: ignore[attr-defined]
-    with ProgressLine(f"reading {args.bag}"):  # type: ignore[attr-defined]
-        rec, _ = read_input(args.bag)  # type: ignore[attr-defined]
-    unit = args.unit or rec.metadata.get("unit", "")  # type: ignore[attr-defined]
+    out_path = Path(args.out)
+    refuse_inputs([out_path, args.store, args.report], [args.bag])
+    refuse_inputs([out_path], [args.store])
+    check_output(out_path, args.force)
+    # the recording is read part by part as it is played: memory holds one part, not the file
+    with ProgressLine(f"reading {args.bag}"):
+        parts = recording_parts(args.bag)
+        part_iter = iter(parts)
+        first = next(part_iter)
+    unit = args.unit or parts.metadata.get("unit", "")
     # the grid at the PT/CT rate, as phid identify aligns the recording (a node: its sample_rate_hz)
     settings = PipelineSettings(
-        period_ns=rec.streams["pt_ct"].period_ns if "pt_ct" in rec.streams else PipelineSettings.period_ns,
-        store_path=args.store or ":memory:",  # type: ignore[attr-defined]
+        period_ns=first.streams["pt_ct"].period_ns if "pt_ct" in first.streams else PipelineSettings.period_ns,
+        store_path=args.store or ":memory:",
         unit=unit,
     )
     pipeline = MonitorPipeline(settings)
     if len(pipeline.store):
         # a kept store is the deployment's memory: its events take part in every recalibration, so
         # a replay into it differs from one into an empty store, and says so
-        console.print(  # type: ignore[attr-defined]
-            f"store {args.store}: {len(pipeline.store)} events from earlier runs take part in the recalibrations "  # type: ignore[attr-defined]
+        console.print(
+            f"store {args.store}: {len(pipeline.store)} events from earlier runs take part in the recalibrations "
             "(an empty store, or none, gives the same result on every run)",
             highlight=False,
             markup=False,
         )
+    overview = Overview()
+    start_ns = min((int(s.t_ns[0]) for s in first.streams.values() if len(s)), default=0)
+
+    def read_on() -> Iterator[Recording]:
+        for part in itertools.chain([first], part_iter):
+            overview.add(part)
+            yield part
+
     t0 = time.perf_counter()
     # outputs go to OUT.partial as they are made and become OUT at the end: an interruption
     # leaves what was published so far, readable, and the events already in the store
     with atomic_output(out_path, keep_partial=True) as tmp:
-        writer = open_message_writer(tmp, {"source": f"phid replay {args.bag}"})  # type: ignore[attr-defined]
-        collector = OutputCollector(pipeline, sink=writer.write)  # type: ignore[attr-defined]
-        start, end = rec.span_ns()
-        span = (end - start) / NS
+        writer = open_message_writer(tmp, {"source": f"phid replay {args.bag}"})
+        collector = OutputCollector(pipeline, sink=writer.write)
         events = 0
 
         def collect(out: Outputs) -> None:
@@ -247,28 +259,43 @@ def run(args: object, console: object) -> int:
             events += len(out.events)
 
         def played(seconds: float) -> None:
-            progress.update(f"replaying: {seconds:.0f} of {span:.0f} s of stream time, {events} event(s)")
+            # on a terminal the line is redrawn; in a log it is written every few seconds of wall time
+            progress.update(
+                f"replaying: {seconds:.0f} s of stream time, {100 * parts.fraction:.0f} % of the file, "
+                f"{events} event(s)"
+            )
 
         try:
-            with ProgressLine(f"replaying {args.bag}") as progress:  # type: ignore[attr-defined]
-                outputs = replay(rec, pipeline, rate=args.rate, on_outputs=collect, keep_arrays=False, progress=played)  # type: ignore[attr-defined]
+            with ProgressLine(f"replaying {args.bag}") as progress:
+                outputs = replay_parts(
+                    read_on(),
+                    pipeline,
+                    rate=args.rate,
+                    on_outputs=collect,
+                    keep_arrays=False,
+                    progress=played,
+                )
         except BaseException:
-            writer.close()  # type: ignore[attr-defined]
+            writer.close()
             pipeline.close()
             warn(f"replay stopped: what was published so far is in {partial_path(out_path)}")
             raise
-        writer.close()  # type: ignore[attr-defined]
+        writer.close()
+    for w in parts.warnings:
+        warn(w)
     wall = time.perf_counter() - t0
-    print_summary(console, rec, pipeline, outputs, collector)  # type: ignore[arg-type]
-    if args.report:  # type: ignore[attr-defined]
+    start, end = overview.span_ns()
+    span = (end - start) / NS
+    print_summary(console, start_ns, pipeline, outputs, collector)
+    if args.report:
         from phid_ros.cli.monitor_report import write_replay_report
 
-        with ProgressLine(f"writing {args.report}"):  # type: ignore[attr-defined]
-            write_replay_report(args.report, rec, outputs, collector, source=str(args.bag))  # type: ignore[attr-defined]
-        console.print(f"wrote {args.report}", highlight=False)  # type: ignore[attr-defined]
+        with ProgressLine(f"writing {args.report}"):
+            write_replay_report(args.report, overview, outputs, collector, source=str(args.bag))
+        console.print(f"wrote {args.report}", highlight=False)
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     # the one line that differs between two replays of the same bag: it is measured, not replayed
-    console.print(  # type: ignore[attr-defined]
+    console.print(
         f"wrote {sum(collector.counts.values())} messages to {out_path}; "
         f"timing: {span:.1f} s replayed in {wall:.2f} s wall time ({span / wall:.0f}x real time), "
         f"{pipeline.samples_in / wall / 1e6:.2f} M channel-samples/s, peak memory {peak:.0f} MB",

@@ -69,6 +69,18 @@ class IdentificationResult:
     determined_by: dict[str, str] = field(default_factory=dict)
     route_details: dict[str, Any] = field(default_factory=dict)  # those routes' own figures (JSON "stages")
 
+    def light(self) -> IdentificationResult:
+        """The estimates and what was said of them, without the scenarios' samples and the stages'
+        arrays (a long replay keeps one of these per recalibration)."""
+        return IdentificationResult(
+            self.estimates,
+            self.method,
+            [],
+            problems=list(self.problems),
+            constraints=self.constraints,
+            determined_by=dict(self.determined_by),
+        )
+
     @property
     def parameters(self) -> dict[str, float]:
         return {n: self.estimates[n].value if n in self.estimates else math.nan for n in PARAMETER_NAMES}

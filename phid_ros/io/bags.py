@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from pathlib import Path
+from typing import Protocol
 
 from phid_ros.errors import BagError
 from phid_ros.io.mcap_file import read_mcap, write_mcap
@@ -39,9 +40,18 @@ def write_messages(
     return write_rosbag2_messages(p, messages, metadata)
 
 
-def open_message_writer(path: str | Path, metadata: dict[str, str] | None = None) -> object:
-    """A writer with ``write(log_ns, topic, msgtype, msg)``, ``close()`` and ``abort()``:
-    ``*.mcap`` -> single MCAP file, anything else -> rosbag2 folder."""
+class MessageWriter(Protocol):
+    """Messages into a new recording as they come (:class:`McapMessageWriter`, :class:`Rosbag2MessageWriter`)."""
+
+    def write(self, log_ns: int, topic: str, msgtype: str, msg: object) -> None: ...
+
+    def close(self) -> Path: ...
+
+    def abort(self) -> None: ...
+
+
+def open_message_writer(path: str | Path, metadata: dict[str, str] | None = None) -> MessageWriter:
+    """``*.mcap`` -> a single MCAP file, anything else -> a rosbag2 folder."""
     from phid_ros.io.mcap_file import McapMessageWriter
     from phid_ros.io.rosbag2 import Rosbag2MessageWriter
 

@@ -17,6 +17,8 @@ Python step a message.
 
 from __future__ import annotations
 
+import mmap
+import os
 import struct
 from collections import deque
 from collections.abc import Iterator
@@ -25,6 +27,8 @@ from typing import TypeVar, Union
 
 import numpy as np
 from numpy.typing import NDArray
+
+Buffer = Union[bytes, mmap.mmap]  # a file's bytes, read or mapped
 
 MAGIC = b"\x89MCAP0\r\n"
 OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK, OP_DATA_END, OP_FOOTER = 0x03, 0x04, 0x05, 0x06, 0x0F, 0x02
@@ -47,7 +51,7 @@ def _tolerant(records: Iterator[_Record], st: WalkStatus) -> Iterator[_Record]:
         st.complete = False  # the file's tail is cut inside a record: what came before stands, the caller warns
 
 
-def _string(buf: bytes | memoryview, pos: int) -> tuple[str, int]:
+def _string(buf: Buffer | memoryview, pos: int) -> tuple[str, int]:
     (n,) = _U32.unpack_from(buf, pos)
     pos += 4
     return bytes(buf[pos : pos + n]).decode("utf-8"), pos + n
@@ -90,7 +94,7 @@ class WalkStatus:
 
 
 def _register(
-    op: int, buf: bytes, body: int, schemas: dict[int, str], channels: dict[int, tuple[str, int, str]]
+    op: int, buf: Buffer, body: int, schemas: dict[int, str], channels: dict[int, tuple[str, int, str]]
 ) -> None:
     """A Schema or Channel record into the walk's tables."""
     if op == OP_SCHEMA:
@@ -214,7 +218,7 @@ def _runs(
 LOOKAHEAD = 4  # chunks decompressed ahead of the walk (about 1 MB each in our bags)
 
 
-def _top_records(buf: bytes, pos: int, end: int) -> Iterator[tuple[int, int, int]]:
+def _top_records(buf: Buffer, pos: int, end: int) -> Iterator[tuple[int, int, int]]:
     """(opcode, body start, next record) of the file's top-level records, in order."""
     while pos < end:
         if pos + 9 > end:
@@ -230,7 +234,7 @@ def _top_records(buf: bytes, pos: int, end: int) -> Iterator[tuple[int, int, int
         pos = nxt
 
 
-def _chunk_body(buf: bytes, body: int, nxt: int) -> tuple[str, bytes, int]:
+def _chunk_body(buf: Buffer, body: int, nxt: int) -> tuple[str, bytes, int]:
     """A Chunk record's compression, compressed bytes and uncompressed size."""
     _, _, usize, _ = struct.unpack_from("<QQQI", buf, body)
     kind, p = _string(buf, body + 28)
@@ -254,11 +258,34 @@ def iter_message_runs(path: str | Path, status: WalkStatus | None = None, first:
 
 def _walk_file(path: str | Path, status: WalkStatus | None, counted: list[int] | None) -> Iterator[object]:
     """The walk; ``counted`` (the messages so far) asks for positions and runs."""
-    data = Path(path).read_bytes()
+    with open(path, "rb") as fh:
+        size = os.fstat(fh.fileno()).st_size
+        # mapped, not read: a day's bag is gigabytes; the pages walked are given back as the walk
+        # goes on (every record's bytes are copied out before its place is released)
+        data = mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) if size else b""
+    try:
+        yield from _walk_mapped(data, status, counted)
+    finally:
+        if isinstance(data, mmap.mmap):
+            data.close()
+
+
+RELEASE_BYTES = 64 << 20  # the walked part of a mapped file is given back this much at a time
+
+
+def _walk_mapped(data: Buffer, status: WalkStatus | None, counted: list[int] | None) -> Iterator[object]:
     st = status if status is not None else WalkStatus()
     st.size = len(data)
-    if not data.startswith(MAGIC):
+    if data[: len(MAGIC)] != MAGIC:
         raise McapFormatError("not an MCAP file (bad magic)")
+    released = [0]
+
+    def release(upto: int) -> None:
+        if isinstance(data, mmap.mmap) and upto - released[0] >= RELEASE_BYTES:
+            end = upto - upto % mmap.PAGESIZE
+            data.madvise(mmap.MADV_DONTNEED, released[0], end - released[0])
+            released[0] = end
+
     schemas: dict[int, str] = {}
     channels: dict[int, tuple[str, int, str]] = {}
 
@@ -270,7 +297,7 @@ def _walk_file(path: str | Path, status: WalkStatus | None, counted: list[int] |
         st.messages += n
         return items
 
-    def walk(buf: bytes, pos: int, end: int) -> Iterator[object]:
+    def walk(buf: Buffer, pos: int, end: int) -> Iterator[object]:
         """The file's top-level records in order; a chunk's messages come from :func:`_chunk_records`.
 
         The next chunks are decompressed on two threads while this one's messages are walked
@@ -326,6 +353,7 @@ def _walk_file(path: str | Path, status: WalkStatus | None, counted: list[int] |
                     st.read_to = nxt
                     return
                 st.read_to = nxt
+                release(body - 9)  # this record's bytes are copied out (a chunk's when it was looked ahead at)
                 fill()
         finally:
             for entry in ahead:

@@ -133,10 +133,9 @@ def bag_metadata(path: Path) -> dict:
         return yaml.load(f, Loader=loader)["rosbag2_bagfile_information"]
 
 
-def _fast_read(path: Path, source: str) -> Recording | None:
-    """Our own MCAP walker over the bag's storage files; None when it cannot apply."""
-    from phid_ros.io.mcap_raw import McapFormatError, WalkStatus, iter_message_runs
-
+def mcap_storage(path: Path) -> tuple[list[Path], dict[str, str]] | None:
+    """A bag folder's storage files, when our MCAP walker reads them (uncompressed MCAP), and
+    its phid metadata; None for other storage (the rosbags reader's)."""
     try:
         meta = bag_metadata(path)
     except Exception:
@@ -148,8 +147,17 @@ def _fast_read(path: Path, source: str) -> Recording | None:
         return None
     custom = meta.get("custom_data")
     custom = custom if isinstance(custom, dict) else {}  # "null" (no custom data), as its text
-    metadata = {k[len("phid.") :]: str(v) for k, v in custom.items() if k.startswith("phid.")}
+    return files, {k[len("phid.") :]: str(v) for k, v in custom.items() if k.startswith("phid.")}
 
+
+def _fast_read(path: Path, source: str) -> Recording | None:
+    """Our own MCAP walker over the bag's storage files; None when it cannot apply."""
+    from phid_ros.io.mcap_raw import McapFormatError, WalkStatus, iter_message_runs
+
+    storage = mcap_storage(path)
+    if storage is None:
+        return None
+    files, metadata = storage
     statuses = {f: WalkStatus() for f in files}
 
     def items() -> Iterator[tuple]:

@@ -7,6 +7,7 @@ ROS nodes and ``phid replay`` call exactly these methods; neither owns logic.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -83,10 +84,12 @@ class Outputs:
     def light(self) -> Outputs:
         """The same outputs without their bulk arrays (windows' samples, all but the last energy
         sample), for a running summary that must not grow with the length of a replay."""
+        # copies, not slices: a slice of an array keeps the whole of it alive (a 30 min replay held
+        # 130 MB of windows through their empty views)
         windows = [
             EventWindow(
-                t_ns=w.t_ns[:0],
-                values=w.values[:0],
+                t_ns=np.empty(0, np.int64),
+                values=np.empty((0, w.values.shape[1])),
                 period_ns=w.period_ns,
                 event=w.event,
                 usable=w.usable,
@@ -95,9 +98,11 @@ class Outputs:
             for w in self.windows
         ]
         energy = [
-            EnergySamples(*(getattr(e, f)[-1:] for f in EnergySamples.__dataclass_fields__)) for e in self.energy[-1:]
+            EnergySamples(*(getattr(e, f)[-1:].copy() for f in EnergySamples.__dataclass_fields__))
+            for e in self.energy[-1:]
         ]
-        return Outputs(list(self.events), windows, list(self.recalibrations), energy, list(self.tracked))
+        recalibrations = [dataclasses.replace(r, result=r.result and r.result.light()) for r in self.recalibrations]
+        return Outputs(list(self.events), windows, recalibrations, energy, list(self.tracked))
 
 
 class MonitorPipeline:
@@ -106,7 +111,12 @@ class MonitorPipeline:
         self.aligner = self._new_aligner()
         self.ring = RingBuffer(int(s.ring_seconds * NS // s.period_ns), CHANNELS, s.period_ns)
         self.detector = Detector(self.ring, s.period_ns, s.detector)
-        self.store = EventStore(s.store_path, unit=s.unit or None)
+        # in memory (a replay without --store) the store keeps what a recalibration can read, the
+        # newest windows of each kind: enough for ready() as long as that is no fewer than it asks
+        retain = s.policy.latest_per_kind if s.store_path == ":memory:" else None
+        if retain is not None and retain < max(s.policy.min_swing_events, s.policy.min_step_events):
+            retain = None
+        self.store = EventStore(s.store_path, unit=s.unit or None, retain_per_kind=retain)
         self.recalibrator = Recalibrator(self.store, s.policy, s.identify)
         self.recalibrator.last_good = s.initial_parameters
         self.markers: list[ScenarioInfo] = []  # a recording's scenario markers: they name the events

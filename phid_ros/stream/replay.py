@@ -10,7 +10,7 @@ windows a node would cut are the windows the batch commands use.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 
 import numpy as np
 
@@ -81,63 +81,131 @@ def replay(
     when ``keep_arrays`` is False, so a long replay's memory stays flat. ``progress`` hears
     the stream time played so far (seconds) after every processing step.
     """
-    for m in rec.scenarios:
-        pipeline.add_marker(m)
-    total = Outputs()
-    blocks = sensor_blocks(rec, block_size)
-    if not blocks:
-        return total
-    played_at = _played(blocks)
-    wall0 = time.perf_counter()
-    next_process = PROCESS_EVERY_NS
-    i = 0
-    while i < len(blocks):
-        j = i  # the step: blocks i..j, then the pipeline runs
-        while j + 1 < len(blocks) and played_at[j] < next_process:
-            j += 1
-        step = range(i, j + 1)
-        # unpaced, a step's messages go in as one run a stream where that is the same as one by one
-        runs = None if rate else _runs(rec, [blocks[k] for k in step])
-        if runs is None or not pipeline.ingest_runs(runs):
-            for k in step:
-                _, name, a, b = blocks[k]
-                if rate:
-                    ahead = played_at[k] / NS / rate - (time.perf_counter() - wall0)
-                    if ahead > 0:
-                        time.sleep(ahead)
-                s = rec.streams[name]
-                chans = STREAMS_BY_NAME[name].channels
-                pipeline.ingest_message(name, int(s.t_ns[a]), s.period_ns, {c: s.channels[c][a:b] for c in chans})
-        i = j + 1
-        if played_at[j] >= next_process:
-            out = pipeline.process()
-            # a run started in this step is waited for, so the next step polls its outcome: when an
-            # outcome is taken, and so the order of the outputs, then never depends on how fast the
-            # worker happened to be (two replays of one bag wrote the same messages in other orders)
-            pipeline.recalibrator.join()
-            next_process = played_at[j] + PROCESS_EVERY_NS
-            total.extend(out if keep_arrays else out.light())
-            if on_outputs:
-                on_outputs(out)
-            if progress:
-                progress(played_at[j] / NS)
-    out = pipeline.process(final=True)
-    total.extend(out if keep_arrays else out.light())
-    if on_outputs:
-        on_outputs(out)
-    return total
+    return replay_parts(
+        [rec],
+        pipeline,
+        rate=rate,
+        block_size=block_size,
+        on_outputs=on_outputs,
+        keep_arrays=keep_arrays,
+        progress=progress,
+    )
 
 
-def _played(blocks: list[tuple[int, str, int, int]]) -> list[int]:
-    """Stream time played after each block: stamps advance it, a clock that jumps does not."""
-    played, prev_end, out = 0, blocks[0][0], []
-    for end_ns, _, _, _ in blocks:
-        if 0 < end_ns - prev_end <= MAX_PACE_STEP_NS:
-            played += end_ns - prev_end
-        if end_ns > prev_end or end_ns < prev_end - MAX_PACE_STEP_NS:
-            prev_end = end_ns
-        out.append(played)
-    return out
+def replay_parts(
+    parts: Iterable[Recording],
+    pipeline: MonitorPipeline,
+    *,
+    rate: float | None = None,
+    block_size: int = DEFAULT_BLOCK_SIZE,
+    on_outputs: Callable[[Outputs], None] | None = None,
+    keep_arrays: bool = True,
+    progress: Callable[[float], None] | None = None,
+) -> Outputs:
+    """:func:`replay` over a recording read in consecutive parts (:mod:`phid_ros.io.parts`): the
+    pipeline is fed and run at the same points as for the whole recording, so the outputs are
+    the same, and only one part is held at a time."""
+    player = Player(
+        pipeline, rate=rate, block_size=block_size, on_outputs=on_outputs, keep_arrays=keep_arrays, progress=progress
+    )
+    for part in parts:
+        player.feed(part)
+    return player.finish()
+
+
+class Player:
+    """Feeds parts of a recording to the pipeline in file order, running it every half second
+    of stream time; the played time, the next run's time and the pace carry over between parts."""
+
+    def __init__(
+        self,
+        pipeline: MonitorPipeline,
+        *,
+        rate: float | None = None,
+        block_size: int = DEFAULT_BLOCK_SIZE,
+        on_outputs: Callable[[Outputs], None] | None = None,
+        keep_arrays: bool = True,
+        progress: Callable[[float], None] | None = None,
+    ) -> None:
+        self.pipeline = pipeline
+        self.rate = rate
+        self.block_size = block_size
+        self.on_outputs = on_outputs
+        self.keep_arrays = keep_arrays
+        self.progress = progress
+        self.total = Outputs()
+        self.played = 0  # stream time played, ns
+        self.prev_end: int | None = None  # the last block's stamp that advanced the clock
+        self.next_process = PROCESS_EVERY_NS
+        self.wall0 = time.perf_counter()
+        self.fed = False
+
+    def _emit(self, out: Outputs) -> None:
+        self.total.extend(out if self.keep_arrays else out.light())
+        if self.on_outputs:
+            self.on_outputs(out)
+
+    def feed(self, rec: Recording) -> None:
+        """One part: its markers, then its blocks, the pipeline run whenever half a second has played."""
+        pipeline = self.pipeline
+        for m in rec.scenarios:
+            pipeline.add_marker(m)
+        blocks = sensor_blocks(rec, self.block_size)
+        if not blocks:
+            return
+        if self.prev_end is None:
+            self.prev_end = blocks[0][0]
+        played_at = self._played(blocks)
+        self.fed = True
+        rate = self.rate
+        i = 0
+        while i < len(blocks):
+            j = i  # the step: blocks i..j, then the pipeline runs
+            while j + 1 < len(blocks) and played_at[j] < self.next_process:
+                j += 1
+            step = range(i, j + 1)
+            # unpaced, a step's messages go in as one run a stream where that is the same as one by one
+            runs = None if rate else _runs(rec, [blocks[k] for k in step])
+            if runs is None or not pipeline.ingest_runs(runs):
+                for k in step:
+                    _, name, a, b = blocks[k]
+                    if rate:
+                        ahead = played_at[k] / NS / rate - (time.perf_counter() - self.wall0)
+                        if ahead > 0:
+                            time.sleep(ahead)
+                    s = rec.streams[name]
+                    chans = STREAMS_BY_NAME[name].channels
+                    pipeline.ingest_message(name, int(s.t_ns[a]), s.period_ns, {c: s.channels[c][a:b] for c in chans})
+            i = j + 1
+            if played_at[j] >= self.next_process:
+                out = pipeline.process()
+                # a run started in this step is waited for, so the next step polls its outcome: when an
+                # outcome is taken, and so the order of the outputs, then never depends on how fast the
+                # worker happened to be (two replays of one bag wrote the same messages in other orders)
+                pipeline.recalibrator.join()
+                self.next_process = played_at[j] + PROCESS_EVERY_NS
+                self._emit(out)
+                if self.progress:
+                    self.progress(played_at[j] / NS)
+
+    def _played(self, blocks: list[tuple[int, str, int, int]]) -> list[int]:
+        """Stream time played after each block: stamps advance it, a clock that jumps does not."""
+        played, prev_end, out = self.played, self.prev_end, []
+        assert prev_end is not None
+        for end_ns, _, _, _ in blocks:
+            if 0 < end_ns - prev_end <= MAX_PACE_STEP_NS:
+                played += end_ns - prev_end
+            if end_ns > prev_end or end_ns < prev_end - MAX_PACE_STEP_NS:
+                prev_end = end_ns
+            out.append(played)
+        self.played, self.prev_end = played, prev_end
+        return out
+
+    def finish(self) -> Outputs:
+        """The final run of the pipeline (windows the recording's end cut short); the summary."""
+        if self.fed:
+            self._emit(self.pipeline.process(final=True))
+        return self.total
 
 
 def _runs(rec: Recording, step: list[tuple[int, str, int, int]]) -> list[Run] | None:

@@ -83,8 +83,14 @@ def _legacy_version(db: sqlite3.Connection) -> int:
 
 
 class EventStore:
-    def __init__(self, path: str | Path = ":memory:", *, unit: str | None = None) -> None:
+    def __init__(
+        self, path: str | Path = ":memory:", *, unit: str | None = None, retain_per_kind: int | None = None
+    ) -> None:
+        """``retain_per_kind``: keep of each kind only the newest this many usable (and unusable)
+        windows, the most a recalibration reads: a store in memory then holds as much for a day of
+        replay as for an hour (a file store keeps every event, on disk)."""
         self.path = str(path)
+        self.retain_per_kind = retain_per_kind
         try:
             self._db = sqlite3.connect(self.path, check_same_thread=False, timeout=BUSY_TIMEOUT_S, isolation_level=None)
             if self.path != ":memory:":
@@ -164,6 +170,12 @@ class EventStore:
                         digest,
                     ),
                 )
+                if self.retain_per_kind is not None:
+                    self._db.execute(
+                        "DELETE FROM events WHERE kind = ? AND usable = ? AND event_id NOT IN (SELECT event_id "
+                        "FROM events WHERE kind = ? AND usable = ? ORDER BY inception_ns DESC LIMIT ?)",
+                        (e.kind, int(w.usable), e.kind, int(w.usable), self.retain_per_kind),
+                    )
                 return "added" if row is None else "replaced"
         except sqlite3.OperationalError as exc:  # the lock was not released within the busy timeout
             raise StoreError(f"{self.path}: cannot write event {e.event_id}: {exc}") from exc
