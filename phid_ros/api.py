@@ -21,11 +21,18 @@ from phid_ros.errors import PhidError
 
 if TYPE_CHECKING:  # imported where used: reading a recording does not need the identification
     from phid_ros.ident.pipeline import IdentificationResult, IdentifyOptions
-    from phid_ros.ident.scenario import ScenarioData
+    from phid_ros.ident.scenario import ScenarioData, StepThresholds
     from phid_ros.io.recording import Recording
     from phid_ros.model.parameters import GeneratorParameters
 
-__all__ = ["identify_recording", "identify_recordings", "identify_scenarios", "load_recording"]
+__all__ = [
+    "cut_scenarios",
+    "identify_cut",
+    "identify_recording",
+    "identify_recordings",
+    "identify_scenarios",
+    "load_recording",
+]
 
 
 def load_recording(path: str | Path) -> Recording:
@@ -71,21 +78,60 @@ def identify_recordings(
     controller's trend log from another) as one scenario set: each recording's scenarios, named
     ``recording/scenario``, on the coarsest sample period among them
     (:func:`phid_ros.ident.scenario.resampled`); PhidError when nothing could be identified."""
-    from phid_ros.ident.scenario import on_one_grid
     from phid_ros.stream.scenarios import scenarios_from_recording
 
-    scenarios: list[ScenarioData] = []
-    problems: list[str] = []
+    cut = []
     for rec, source in recordings:
         if progress:
             progress(f"cutting the scenarios of {source}")
-        cut, skipped = scenarios_from_recording(rec, source, options.step_thresholds)
-        if len(recordings) > 1:
-            for sc in cut:
+        cut.append((*scenarios_from_recording(rec, source, options.step_thresholds), source))
+    return identify_cut(cut, options, truth, progress)
+
+
+def cut_scenarios(
+    path: str | Path, thresholds: StepThresholds | None = None
+) -> tuple[list[ScenarioData], list[str], Recording]:
+    """A recording's scenarios as ``phid identify`` cuts them, and the recording's metadata.
+
+    A bag or .mcap with a summary is read part by part and only the scenarios' windows are
+    kept, so the memory follows the events, not the hours (:func:`phid_ros.stream.scenarios.scenarios_from_parts`;
+    the Recording returned then holds no samples, only the metadata and the reader's warnings);
+    anything else is read whole (:func:`load_recording`).
+    """
+    from phid_ros.ident.scenario import DEFAULT_THRESHOLDS
+    from phid_ros.io.parts import recording_parts
+    from phid_ros.io.recording import Recording
+    from phid_ros.stream.scenarios import scenarios_from_parts, scenarios_from_recording
+
+    p, th = Path(path), thresholds or DEFAULT_THRESHOLDS
+    if p.suffix != ".json":
+        parts = recording_parts(p)
+        got = scenarios_from_parts(parts, str(path), th)
+        if got is not None:
+            return got[0], got[1], Recording({}, [], dict(parts.metadata), list(parts.warnings))
+    rec = load_recording(p)
+    scenarios, problems = scenarios_from_recording(rec, str(path), th)
+    return scenarios, problems, rec
+
+
+def identify_cut(
+    cut: Sequence[tuple[list[ScenarioData], list[str], str]],
+    options: IdentifyOptions,
+    truth: GeneratorParameters | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> tuple[list[ScenarioData], IdentificationResult]:
+    """The identification of scenarios already cut, (scenarios, notes, source) per recording."""
+    from phid_ros.ident.scenario import on_one_grid
+
+    scenarios: list[ScenarioData] = []
+    problems: list[str] = []
+    for got, skipped, source in cut:
+        if len(cut) > 1:
+            for sc in got:
                 sc.name = f"{Path(source).stem}/{sc.name}"
-        scenarios += cut
+        scenarios += got
         problems += skipped
-    source = " + ".join(src for _, src in recordings)
+    source = " + ".join(src for _, _, src in cut)
     if not any(sc.role == "identify" for sc in scenarios):
         why = "; ".join(problems[-3:]) or f"{len(scenarios)} scenario(s), all for validation"
         raise PhidError(f"{source}: nothing to identify from: no usable identification scenario ({why})")

@@ -9,7 +9,7 @@ from typing import Any
 
 from rich.console import Console
 
-from phid_ros.api import identify_recordings
+from phid_ros.api import cut_scenarios, identify_cut
 from phid_ros.cli.common import finish, provenance, read_input, warn
 from phid_ros.cli.progress import ProgressLine
 from phid_ros.cli.tables import Col, fmt, pct, print_table
@@ -147,9 +147,18 @@ def run(args: Any, console: Console) -> int:
     refuse_inputs([args.json, args.report], [*args.input, args.truth])
     t_start = time.perf_counter()
     with ProgressLine(f"reading {' + '.join(args.input)}") as progress:
-        recordings = [load_input(path) for path in args.input]
-        rec, source = recordings[0]
-        if any(r.f_nominal_hz != rec.f_nominal_hz for r, _ in recordings):
+        # read part by part where the recording allows: only the scenarios' windows are kept
+        cut = []
+        recordings = []
+        for path in args.input:
+            progress.update(f"reading {path} and cutting its scenarios")
+            scenarios, notes, rec_of = cut_scenarios(path, step_thresholds(args))
+            for w in rec_of.warnings:
+                warn(w)
+            cut.append((scenarios, notes, str(path)))
+            recordings.append(rec_of)
+        rec = recordings[0]
+        if any(r.f_nominal_hz != rec.f_nominal_hz for r in recordings):
             raise PhidError(f"{' + '.join(args.input)}: the recordings' nominal frequencies differ: not one unit")
         t_read = time.perf_counter() - t_start
         truth = load_truth(args.truth, rec) if args.truth else None
@@ -162,8 +171,8 @@ def run(args: Any, console: Console) -> int:
             step_thresholds=step_thresholds(args),
             constraints=parse_constraints(args.fix, args.bounds, args.start),
         )
-        scenarios, res = identify_recordings(recordings, options, truth, progress.update)
-    source = " + ".join(src for _, src in recordings)
+        scenarios, res = identify_cut(cut, options, truth, progress.update)
+    source = " + ".join(args.input)
     res.timing = {"read": round(t_read, 6), **res.timing}
     doc = res.to_json(truth)
     doc.update(provenance(*args.input))

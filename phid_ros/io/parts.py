@@ -79,6 +79,33 @@ class RecordingParts:
         self._files = files
         self._statuses = {f: WalkStatus() for f in files}
 
+    def marker_count(self) -> int | None:
+        """Scenario markers in the recording, from its summary (an MCAP file's statistics, a bag's
+        metadata.yaml) without walking it; None when no summary says (a file cut short)."""
+        from phid_ros.io.topics import SCENARIO_TOPIC
+
+        if self._whole is not None:
+            return len(self._whole.scenarios)
+        if self.path.is_dir():
+            from phid_ros.io.rosbag2 import bag_metadata
+
+            try:
+                topics = bag_metadata(self.path).get("topics_with_message_count") or []
+                return sum(int(t["message_count"]) for t in topics if t["topic_metadata"]["name"] == SCENARIO_TOPIC)
+            except (KeyError, TypeError, ValueError, OSError):
+                return None
+        from mcap.reader import make_reader
+
+        try:
+            with self.path.open("rb") as fh:
+                summary = make_reader(fh).get_summary()
+        except Exception:  # noqa: BLE001 (the mcap reader raises assorted errors on a file cut short)
+            return None
+        if summary is None or summary.statistics is None:
+            return None
+        counts = summary.statistics.channel_message_counts
+        return sum(counts.get(i, 0) for i, c in summary.channels.items() if c.topic == SCENARIO_TOPIC)
+
     def _walked(self) -> int:
         return sum(st.read_to for st in self._statuses.values())
 

@@ -83,6 +83,17 @@ class EventWindow(Frame):
     usable: bool = True
     reason: str = ""
 
+    def light(self) -> EventWindow:
+        """The window without its samples (new empty arrays: a slice would keep them alive)."""
+        return EventWindow(
+            t_ns=np.empty(0, np.int64),
+            values=np.empty((0, self.values.shape[1])),
+            period_ns=self.period_ns,
+            event=self.event,
+            usable=self.usable,
+            reason=self.reason,
+        )
+
 
 @dataclass
 class Detector:

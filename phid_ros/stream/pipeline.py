@@ -86,17 +86,7 @@ class Outputs:
         sample), for a running summary that must not grow with the length of a replay."""
         # copies, not slices: a slice of an array keeps the whole of it alive (a 30 min replay held
         # 130 MB of windows through their empty views)
-        windows = [
-            EventWindow(
-                t_ns=np.empty(0, np.int64),
-                values=np.empty((0, w.values.shape[1])),
-                period_ns=w.period_ns,
-                event=w.event,
-                usable=w.usable,
-                reason=w.reason,
-            )
-            for w in self.windows
-        ]
+        windows = [w.light() for w in self.windows]
         energy = [
             EnergySamples(*(getattr(e, f)[-1:].copy() for f in EnergySamples.__dataclass_fields__))
             for e in self.energy[-1:]

@@ -21,14 +21,21 @@ from phid_ros.ident.scenario import (
     StepThresholds,
     make_scenario,
 )
+from phid_ros.io.parts import RecordingParts
 from phid_ros.io.recording import MEASUREMENT_WINDOW_KEY, Recording
 from phid_ros.model.channels import Frame
 from phid_ros.model.conventions import NS
 from phid_ros.stream.align import StreamHealth
+from phid_ros.stream.detector import EventWindow
 from phid_ros.stream.recalibration import scenario_from_window
 
 
-def aligned_frame(rec: Recording, source: str, windows: list[tuple[int, int]] | None = None) -> tuple[Frame, list[str]]:
+def aligned_frame(
+    rec: Recording,
+    source: str,
+    windows: list[tuple[int, int]] | None = None,
+    health: dict[str, StreamHealth] | None = None,
+) -> tuple[Frame, list[str]]:
     """All ten channels on one uniform grid, by the very aligner the online pipeline uses.
 
     So ``identify`` sees a recording exactly as ``replay`` does: a hole in the streams is a
@@ -66,7 +73,14 @@ def aligned_frame(rec: Recording, source: str, windows: list[tuple[int, int]] | 
     else:
         t = np.concatenate([b.t_ns for b in blocks])
         values = np.asfortranarray(np.concatenate([b.values for b in blocks]))
-    notes = dropped_notes(al.health, source)
+    if health is None:
+        notes = dropped_notes(al.health, source)
+    else:  # windows aligned one by one: their counts summed, said once for the recording
+        notes = []
+        for name, h in al.health.items():
+            total = health.setdefault(name, StreamHealth(name))
+            for f in DROP_COUNTERS:
+                setattr(total, f, getattr(total, f) + getattr(h, f))
     for name, h in al.health.items():
         if h.gaps and _gap_in_windows(t, values[:, CHANNEL_INDEX[STREAMS_BY_NAME[name].channels[0]]], windows):
             notes.append(f"{source}: stream {name}: {h.gaps} gap(s); windows over a gap are skipped")
@@ -76,16 +90,44 @@ def aligned_frame(rec: Recording, source: str, windows: list[tuple[int, int]] | 
 def check_streams(rec: Recording, source: str) -> None:
     """Refuse a recording that lacks a sensor stream or carries a channel in other units than per unit."""
     from phid_ros.io.topics import STREAMS
-    from phid_ros.model.channels import unit_problem
 
     missing_streams = [s.name for s in STREAMS if s.name not in rec.streams]
     if missing_streams:
         raise PhidError(f"{source}: no {', '.join(missing_streams)} stream(s)")
+    check_streams_units(rec, source)
+
+
+def check_part(part: Recording, source: str) -> None:
+    """A part of a recording read in parts: its channels' units and its streams' clocks, as
+    :func:`phid_ros.api.load_recording` checks a whole one."""
+    from phid_ros.io.clock_check import clock_problems
+
+    check_streams_units(part, source)
+    problems = clock_problems(part)
+    if problems:
+        raise PhidError(f"{source}: {problems[0]}")
+
+
+def check_streams_units(rec: Recording, source: str) -> None:
+    """Refuse a recording (or a part of one) with a channel in other units than per unit."""
+    from phid_ros.model.channels import unit_problem
+
     for stream in rec.streams.values():
         for c, x in stream.channels.items():
             problem = unit_problem(c, x)
             if problem:
                 raise PhidError(f"{source}: {problem}")
+
+
+DROP_COUNTERS = (
+    "duplicates",
+    "out_of_order",
+    "nonfinite",
+    "implausible",
+    "zero_stamps",
+    "wild_stamps",
+    "malformed",
+)
 
 
 def dropped_notes(health: dict[str, StreamHealth], source: str) -> list[str]:
@@ -121,12 +163,28 @@ def scenarios_from_recording(
     """Scenario windows from the markers, or from the online pipeline's event windows when there are none."""
     if not rec.scenarios:
         return _detected_scenarios(rec, source, thresholds)
+    out: list[ScenarioData] = []
+    problems: list[str] = []
+    _marked_scenarios(rec, source, thresholds, out, problems, {})
+    return out, problems
+
+
+def _marked_scenarios(
+    rec: Recording,
+    source: str,
+    thresholds: StepThresholds,
+    out: list[ScenarioData],
+    problems: list[str],
+    seen: dict[bytes, list[tuple[str, np.ndarray]]],
+    health: dict[str, StreamHealth] | None = None,
+) -> None:
+    """The scenarios of ``rec``'s markers into ``out``, its notes into ``problems`` (what the
+    aligner dropped summed into ``health`` instead, when given)."""
     marked = [(m.start_ns, m.end_ns) for m in rec.scenarios]
-    frame, problems = aligned_frame(rec, source, marked)
+    frame, notes = aligned_frame(rec, source, marked, health)
+    problems += notes
     t = frame.t_ns
     window_s = float(rec.metadata.get(MEASUREMENT_WINDOW_KEY, 0.0))
-    out: list[ScenarioData] = []
-    seen: dict[bytes, list[tuple[str, np.ndarray]]] = {}
     for m in rec.scenarios:
         a = int(np.searchsorted(t, m.start_ns))
         b = int(np.searchsorted(t, m.end_ns, side="right"))
@@ -148,7 +206,6 @@ def scenarios_from_recording(
             )
         except ScenarioError as exc:
             problems.append(f"{source}: skipped {exc}")
-    return out, problems
 
 
 def _detected_scenarios(
@@ -159,13 +216,24 @@ def _detected_scenarios(
 
     check_streams(rec, source)
     windows, health = event_windows(rec, thresholds)
-    problems = dropped_notes(health, source)
+    return _window_scenarios(windows, health, source, thresholds, float(rec.metadata.get(MEASUREMENT_WINDOW_KEY, 0.0)))
+
+
+def _window_scenarios(
+    windows: list[EventWindow],
+    health: dict[str, StreamHealth],
+    source: str,
+    thresholds: StepThresholds,
+    window_s: float,
+    dropped: list[str] | None = None,
+) -> tuple[list[ScenarioData], list[str]]:
+    """The online pipeline's event windows as scenarios (unusable and repeated ones named and left out)."""
+    problems = dropped_notes(health, source) + (dropped or [])
     if not windows:
         raise PhidError(
             f"{source}: no scenario markers and no disturbance found (no fault, torque step or voltage step)"
         )
     problems.append(f"{source}: no scenario markers: {len(windows)} disturbance(s) detected and cut into windows")
-    window_s = float(rec.metadata.get(MEASUREMENT_WINDOW_KEY, 0.0))
     out: list[ScenarioData] = []
     seen: dict[bytes, list[tuple[str, np.ndarray]]] = {}
     for w in windows:
@@ -199,3 +267,136 @@ def _seen_before(
             return True
     seen.setdefault(key, []).append((name, values))
     return False
+
+
+# a long recording without markers: at most this many windows of each kind are identified, the
+# largest disturbances (a day of ambient data holds thousands of small steps; their windows, not
+# the hours, are what identification holds and what its cost grows with)
+MAX_WINDOWS_PER_KIND = 40
+
+
+def scenarios_from_parts(
+    parts: RecordingParts,
+    source: str,
+    thresholds: StepThresholds = DEFAULT_THRESHOLDS,
+    max_per_kind: int = MAX_WINDOWS_PER_KIND,
+) -> tuple[list[ScenarioData], list[str]] | None:
+    """:func:`scenarios_from_recording` over a recording read part by part, holding only the
+    scenarios' windows: each marker's samples, or the online pipeline's event windows (the
+    ``max_per_kind`` largest of each kind). None when the recording's summary does not say
+    whether it has markers (read it whole then)."""
+    markers = parts.marker_count()
+    if markers is None:
+        return None
+    return (
+        _marked_parts(parts, source, thresholds)
+        if markers
+        else _detected_parts(parts, source, thresholds, max_per_kind)
+    )
+
+
+def _marked_parts(
+    parts: RecordingParts, source: str, thresholds: StepThresholds
+) -> tuple[list[ScenarioData], list[str]]:
+    """Each marker's window cut out of the parts as they pass (a marker is logged at its window's
+    start, before its samples), then aligned and prepared window by window."""
+    from phid_ros.io.recording import ScenarioInfo, StreamSamples
+
+    pieces: dict[int, dict[str, list[tuple[np.ndarray, dict[str, np.ndarray]]]]] = {}
+    markers: list[ScenarioInfo] = []
+    period: dict[str, int] = {}
+    for part in parts:
+        check_part(part, source)
+        markers += part.scenarios
+        for name, stream in part.streams.items():
+            period.setdefault(name, stream.period_ns)
+            for k, m in enumerate(markers):
+                # by mask, in file order: a duplicate or a clock that went back is the aligner's to judge
+                at = np.flatnonzero((stream.t_ns >= m.start_ns) & (stream.t_ns <= m.end_ns))
+                if at.size:
+                    chans = {c: x[at] for c, x in stream.channels.items()}
+                    pieces.setdefault(k, {}).setdefault(name, []).append((stream.t_ns[at], chans))
+    out: list[ScenarioData] = []
+    problems: list[str] = []
+    seen: dict[bytes, list[tuple[str, np.ndarray]]] = {}
+    health: dict[str, StreamHealth] = {}
+    for k, m in enumerate(markers):
+        got = pieces.pop(k, {})
+        streams = {
+            name: StreamSamples(
+                np.concatenate([t for t, _ in got[name]]),
+                period[name],
+                {c: np.concatenate([ch[c] for _, ch in got[name]]) for c in got[name][0][1]},
+            )
+            for name in got
+        }
+        window = Recording(streams=streams, scenarios=[m], metadata=dict(parts.metadata))
+        try:
+            _marked_scenarios(window, source, thresholds, out, problems, seen, health)
+        except PhidError as exc:  # a window with no samples, or a stream missing in it
+            problems.append(f"{source}: skipped scenario {m.name}: {exc}")
+    problems[:0] = dropped_notes(health, source)  # in the scenarios' windows, where it matters
+    problems += parts.warnings
+    return out, problems
+
+
+def _detected_parts(
+    parts: RecordingParts, source: str, thresholds: StepThresholds, max_per_kind: int
+) -> tuple[list[ScenarioData], list[str]]:
+    """The online pipeline over the parts; its usable windows kept, the largest of each kind."""
+    import heapq
+
+    from phid_ros.stream.detector import DetectorSettings
+    from phid_ros.stream.pipeline import MonitorPipeline, Outputs, PipelineSettings
+    from phid_ros.stream.replay import Player
+
+    kept: dict[str, list[tuple[float, int, EventWindow]]] = {}
+    unusable: list[EventWindow] = []
+    order = [0]
+    dropped = [0]
+
+    def keep(out: Outputs) -> None:
+        for w in out.windows:
+            if not w.usable:
+                unusable.append(w.light())
+                continue
+            heap = kept.setdefault(w.event.kind, [])
+            order[0] += 1
+            item = (abs(w.event.severity), -order[0], w)  # the largest kept; of equal ones the earliest
+            if len(heap) < max_per_kind:
+                heapq.heappush(heap, item)
+            else:
+                heapq.heappushpop(heap, item)
+                dropped[0] += 1
+
+    player: Player | None = None
+    for part in parts:
+        check_part(part, source)
+        if player is None:
+            settings = PipelineSettings(
+                period_ns=part.streams["pt_ct"].period_ns if "pt_ct" in part.streams else PipelineSettings.period_ns,
+                detector=DetectorSettings(thresholds=thresholds),
+                auto_recalibrate=False,
+                keep_windows=False,
+            )
+            player = Player(MonitorPipeline(settings), on_outputs=keep, keep_arrays=False)
+        player.feed(part)
+    if player is None:
+        raise PhidError(f"{source}: no sensor data")
+    try:
+        player.finish()
+        health = player.pipeline.health
+    finally:
+        player.pipeline.close()
+    windows = sorted([w for heap in kept.values() for _, _, w in heap] + unusable, key=lambda w: w.event.inception_ns)
+    notes = []
+    if dropped[0]:
+        notes.append(f"{source}: {dropped[0]} smaller disturbance(s) left out: the {max_per_kind} largest of each kind")
+    out, problems = _window_scenarios(
+        windows, health, source, thresholds, float(parts.metadata.get(MEASUREMENT_WINDOW_KEY, 0.0)), notes
+    )
+    if not windows:
+        raise PhidError(
+            f"{source}: no scenario markers and no disturbance found (no fault, torque step or voltage step)"
+        )
+    return out, problems + parts.warnings
