@@ -15,6 +15,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from phid_ros.cli.common import warn, write_output
+from phid_ros.cli.info import StreamTally
 from phid_ros.cli.progress import ProgressLine
 from phid_ros.errors import PhidError
 from phid_ros.io.outputs import atomic_output, refuse_inputs
@@ -185,8 +186,8 @@ def _iso(ns: int) -> str:
 
 
 def cmd_info(args: argparse.Namespace, console: Console) -> int:
-    from phid_ros.cli.info import summarise_streams
-    from phid_ros.io.bags import read_recording, topic_table, walked_topic_table
+    from phid_ros.io.bags import topic_table, walked_topic_table
+    from phid_ros.io.parts import recording_parts
     from phid_ros.io.recording import expected_type
 
     path = Path(args.bag)
@@ -215,7 +216,14 @@ def cmd_info(args: argparse.Namespace, console: Console) -> int:
             table.add_row(topic, msgtype, str(count))
         console.print(table)
         return 0
-    rec = read_recording(path)  # its own warnings were said above, with the topic table
+    # read part by part: a day's bag is summed up in the memory of one part
+    tally = StreamTally()
+    parts = recording_parts(path)
+    scenarios = []
+    for part in parts:
+        tally.add(part)
+        scenarios += part.scenarios
+    metadata = parts.metadata  # the reader's own warnings were said above, with the topic table
     table = Table(title=escape(f"{path}"), title_justify="left")
     for col in ("topic", "type", "messages"):
         table.add_column(col, justify="right" if col == "messages" else "left")
@@ -225,7 +233,7 @@ def cmd_info(args: argparse.Namespace, console: Console) -> int:
     streams = Table(title="sensor streams", title_justify="left")
     for col in ("stream", "samples", "rate Hz", "start (UTC)", "span s", "gaps", "gap s", "backwards"):
         streams.add_column(col, justify="left" if col in ("stream", "start (UTC)") else "right")
-    for s in summarise_streams(rec):
+    for s in tally.summaries():
         streams.add_row(
             s.name,
             str(s.samples),
@@ -237,12 +245,12 @@ def cmd_info(args: argparse.Namespace, console: Console) -> int:
             str(s.backwards),
         )
     console.print(streams)
-    if rec.scenarios:
+    if scenarios:
         sc_table = Table(title="scenarios", title_justify="left")
         for col in ("name", "kind", "role", "damping", "event s", "window s"):
             sc_table.add_column(col)
-        t0 = rec.span_ns()[0]
-        for sc in rec.scenarios:
+        t0 = min(s.start_ns for s in tally.summaries())
+        for sc in scenarios:
             ev = f"{(sc.event_ns - t0) / NS:.3f}" if sc.event_ns else "?"
             sc_table.add_row(
                 escape(sc.name),
@@ -253,35 +261,24 @@ def cmd_info(args: argparse.Namespace, console: Console) -> int:
                 f"{(sc.end_ns - sc.start_ns) / NS:.1f}",
             )
         console.print(sc_table)
-    _print_determinable(console, rec)
-    if rec.metadata:
+    _print_determinable(console, tally)
+    if metadata:
         console.print(
-            escape("metadata: " + ", ".join(f"{k}={v}" for k, v in sorted(rec.metadata.items()))), highlight=False
+            escape("metadata: " + ", ".join(f"{k}={v}" for k, v in sorted(metadata.items()))), highlight=False
         )
     return 0
 
 
-def _print_determinable(console: Console, rec: Recording) -> None:
+def _print_determinable(console: Console, tally: StreamTally) -> None:
     """Channels recorded -> parameters determinable, for a recording that lacks some channels."""
-    import numpy as np
-
     from phid_ros.cli.tables import print_determinable
     from phid_ros.ident.determinable import plan_for_channels
     from phid_ros.model.channels import CHANNELS
 
-    columns = {c: x for s in rec.streams.values() for c, x in s.channels.items()}
-    # an angle that is 0 throughout is the reference of a recording without one, not a measurement
-    recorded = {
-        c
-        for c, x in columns.items()
-        if np.isfinite(x).any() and (c != "theta_t" or float(np.nanmax(x) - np.nanmin(x)) > 0)
-    }
+    recorded = tally.measured
     if recorded >= set(CHANNELS):
         return
-    current = np.hypot(columns["p_e"], columns["q_e"]) if {"p_e", "q_e"} <= recorded else np.zeros(1)
-    planned = plan_for_channels(
-        recorded, {}, no_load=bool((current < 0.02).any()), loaded=bool((current >= 0.02).any())
-    )
+    planned = plan_for_channels(recorded, {}, no_load=tally.no_load, loaded=tally.loaded)
     missing = ", ".join(c for c in CHANNELS if c not in recorded)
     print_determinable(console, f"what these channels determine (not recorded: {missing})", planned)
 

@@ -178,11 +178,12 @@ class Player:
                     pipeline.ingest_message(name, int(s.t_ns[a]), s.period_ns, {c: s.channels[c][a:b] for c in chans})
             i = j + 1
             if played_at[j] >= self.next_process:
-                out = pipeline.process()
-                # a run started in this step is waited for, so the next step polls its outcome: when an
-                # outcome is taken, and so the order of the outputs, then never depends on how fast the
-                # worker happened to be (two replays of one bag wrote the same messages in other orders)
+                # a run started at the last processing is waited for here, before this one polls its
+                # outcome: when an outcome is taken, and so the order of the outputs, then never depends
+                # on how fast the worker happened to be (two replays of one bag wrote the same messages
+                # in other orders), and the run overlaps the feeding of the step in between
                 pipeline.recalibrator.join()
+                out = pipeline.process()
                 self.next_process = played_at[j] + PROCESS_EVERY_NS
                 self._emit(out)
                 if self.progress:
@@ -204,6 +205,7 @@ class Player:
     def finish(self) -> Outputs:
         """The final run of the pipeline (windows the recording's end cut short); the summary."""
         if self.fed:
+            self.pipeline.recalibrator.join()
             self._emit(self.pipeline.process(final=True))
         return self.total
 
