@@ -21,7 +21,6 @@ from phid_ros.cli.tables import CONCISE_LEGEND, estimate_text
 from phid_ros.fleet.history import DRIFT_SIGMAS
 from phid_ros.io.outputs import write_text
 from phid_ros.io.overview import Overview
-from phid_ros.io.recording import Recording
 from phid_ros.model.conventions import NS
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, SYMBOLS
 
@@ -282,7 +281,7 @@ def write_replay_report(
 # -- track -------------------------------------------------------------------------------------------
 def write_track_report(
     path: str | Path,
-    rec: Recording,
+    overview: Overview,
     track: Sequence[TrackPoint],
     health: HealthLog,
     source: str,
@@ -294,7 +293,6 @@ def write_track_report(
     from phid_ros.stream.tracker import TRACKED
 
     matplotlib.use("Agg")
-    overview = Overview.of(rec)
     start = overview.span_ns()[0]
     seen: dict[int, str] = {}
     for p in track:

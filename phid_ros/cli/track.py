@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import itertools
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 from rich.markup import escape
 
-from phid_ros.cli.common import read_input, warn
+from phid_ros.cli.common import warn
 from phid_ros.cli.identify import load_parameters
 from phid_ros.cli.monitor_report import HealthLog
 from phid_ros.cli.progress import ProgressLine
@@ -16,6 +18,9 @@ from phid_ros.cli.tables import CONCISE_LEGEND, estimate_text
 from phid_ros.errors import PhidError
 from phid_ros.io.bags import write_messages
 from phid_ros.io.outputs import atomic_output
+from phid_ros.io.overview import Overview
+from phid_ros.io.parts import recording_parts
+from phid_ros.io.recording import Recording
 from phid_ros.io.topics import OUTPUT_TOPICS, output_topic
 from phid_ros.model.conventions import NS
 from phid_ros.model.parameters import SYMBOLS, TABLE1, GeneratorParameters
@@ -30,25 +35,80 @@ def health_over_time(rec: Any, bin_s: float) -> HealthLog:
     STALE with none; the counters are the samples missing, the gaps and the backward
     stamps since the start.
     """
-    import numpy as np
+    tally = HealthTally(bin_s)
+    tally.add(rec)
+    return tally.log()
 
-    start, end = rec.span_ns()
-    edges = np.arange(start, end + int(bin_s * NS), int(bin_s * NS))
-    log = HealthLog(t_s=[float(t) for t in (edges[1:] - start) / NS])
-    for name, s in rec.streams.items():
-        got = np.histogram(s.t_ns, edges)[0]
-        # the last bin may be cut by the end of the recording: expect only what it spans
-        expected = (np.minimum(edges[1:], end + s.period_ns) - edges[:-1]) / s.period_ns
-        share = got / expected
-        step = np.diff(s.t_ns)
-        gap_at = s.t_ns[1:][step > 1.5 * s.period_ns]
-        back_at = s.t_ns[1:][step <= 0]
-        missing = np.cumsum(np.maximum(0, np.round(expected) - got)).astype(int)
-        gaps = np.cumsum(np.histogram(gap_at, edges)[0])
-        jumps = np.cumsum(np.histogram(back_at, edges)[0])
-        levels = np.where(share >= 0.99, "OK", np.where(share >= 0.9, "WARN", np.where(share > 0, "ERROR", "STALE")))
-        log.streams[name] = [(str(lv), int(m), int(g), int(j)) for lv, m, g, j in zip(levels, missing, gaps, jumps)]
-    return log
+
+class HealthTally:
+    """:func:`health_over_time` gathered part by part (a day's recording is never held whole):
+    per stream and bin, the samples, gaps and backward stamps counted; a step between two parts
+    counted as within one."""
+
+    def __init__(self, bin_s: float) -> None:
+        self.bin_ns = int(bin_s * NS)
+        self.start: int | None = None
+        self.end: int | None = None
+        self._streams: dict[str, dict[str, Any]] = {}
+
+    def add(self, rec: Any) -> None:
+        import numpy as np
+
+        firsts = [int(s.t_ns[0]) for s in rec.streams.values() if len(s)]
+        if not firsts:
+            return
+        if self.start is None:
+            self.start = min(firsts)
+        self.end = max([self.end or self.start, *(int(s.t_ns.max()) for s in rec.streams.values() if len(s))])
+        for name, s in rec.streams.items():
+            if not len(s):
+                continue
+            st = self._streams.setdefault(name, {"period": s.period_ns, "last": None})
+            t = s.t_ns
+            if st["last"] is None:
+                step, after = np.diff(t), t[1:]
+            else:
+                step, after = np.diff(t, prepend=st["last"]), t
+            st["last"] = int(t[-1])
+            for key, at in (("got", t), ("gaps", after[step > 1.5 * s.period_ns]), ("jumps", after[step <= 0])):
+                idx = (at[at >= self.start] - self.start) // self.bin_ns
+                counts = np.bincount(idx, minlength=0)
+                have = st.get(key, np.zeros(0, np.int64))
+                if len(counts) > len(have):
+                    have = np.concatenate((have, np.zeros(len(counts) - len(have), np.int64)))
+                have[: len(counts)] += counts
+                st[key] = have
+
+    def log(self) -> HealthLog:
+        import numpy as np
+
+        if self.start is None or self.end is None:
+            return HealthLog(t_s=[])
+        start, end = self.start, self.end
+        edges = np.arange(start, end + self.bin_ns, self.bin_ns)
+        n = len(edges) - 1
+        log = HealthLog(t_s=[float(t) for t in (edges[1:] - start) / NS])
+
+        def binned(st: dict[str, Any], key: str) -> Any:
+            x = np.zeros(n, np.int64)
+            have = st.get(key, np.zeros(0, np.int64))
+            x[: min(n, len(have))] = have[:n]
+            x[-1] += have[n:].sum()  # a stamp on the last edge is in the last bin, as np.histogram puts it
+            return x
+
+        for name, st in self._streams.items():
+            got = binned(st, "got")
+            # the last bin may be cut by the end of the recording: expect only what it spans
+            expected = (np.minimum(edges[1:], end + st["period"]) - edges[:-1]) / st["period"]
+            share = got / expected
+            missing = np.cumsum(np.maximum(0, np.round(expected) - got)).astype(int)
+            gaps = np.cumsum(binned(st, "gaps"))
+            jumps = np.cumsum(binned(st, "jumps"))
+            levels = np.where(
+                share >= 0.99, "OK", np.where(share >= 0.9, "WARN", np.where(share > 0, "ERROR", "STALE"))
+            )
+            log.streams[name] = [(str(lv), int(m), int(g), int(j)) for lv, m, g, j in zip(levels, missing, gaps, jumps)]
+        return log
 
 
 def hop_line(start_ns: int, p: TrackPoint) -> str:
@@ -81,24 +141,34 @@ def run(args: Any, console: Any) -> int:
         if Path(args.out).exists():
             raise PhidError(f"{args.out}: already exists, not overwriting")
     base = base_parameters(args)  # checked before the recording is read
+    # read part by part as it is tracked: memory holds one part and the tracker's window
     with ProgressLine(f"reading {args.bag}"):
-        rec, _ = read_input(args.bag)
-    start = rec.span_ns()[0]
+        parts = recording_parts(args.bag)
+        part_iter = iter(parts)
+        first = next(part_iter)
+    start = min(int(s.t_ns[0]) for s in first.streams.values() if len(s))
     console.print(f"sliding-window tracking ({args.window:g} s window, {args.hop:g} s hop)", highlight=False)
     console.print(escape(CONCISE_LEGEND), style="dim", highlight=False)
     console.print(f"{'t s':>7} " + " ".join(f"{SYMBOLS[n]:>11}" for n in TRACKED), highlight=False)
+    overview, health = Overview(), HealthTally(args.hop)
 
-    end = rec.span_ns()[1]
+    def read_on() -> Iterator[Recording]:
+        for part in itertools.chain([first], part_iter):
+            overview.add(part)
+            health.add(part)
+            yield part
 
     def show(p: TrackPoint) -> None:
         console.print(hop_line(start, p), highlight=False)
         for a in p.alarms:
             console.print(f"{'':>8}alarm: {a}", style="bold red", highlight=False, markup=False)
-        progress.update(f"tracking: {(p.t_ns - start) / NS:.0f} of {(end - start) / NS:.0f} s")
+        progress.update(f"tracking: {(p.t_ns - start) / NS:.0f} s, {100 * parts.fraction:.0f} % of the file")
 
     t0 = time.perf_counter()
     with ProgressLine("tracking: the first window") as progress:
-        points = track_recording(rec, base, TrackerSettings(window_s=args.window, hop_s=args.hop), show)
+        points = track_recording(read_on(), base, TrackerSettings(window_s=args.window, hop_s=args.hop), show)
+    for w in parts.warnings:
+        warn(w)
     wall = time.perf_counter() - t0
     if not points:
         raise PhidError(f"{args.bag}: shorter than one tracking window ({args.window:g} s)")
@@ -116,9 +186,9 @@ def run(args: Any, console: Any) -> int:
         with ProgressLine(f"writing {args.report}"):
             write_track_report(
                 args.report,
-                rec,
+                overview,
                 points,
-                health_over_time(rec, args.hop),
+                health.log(),
                 str(args.bag),
                 notes,
                 f"{args.window:g} s window, {args.hop:g} s hop, {len(points)} hops",

@@ -9,6 +9,7 @@ windows a node would cut are the windows the batch commands use.
 
 from __future__ import annotations
 
+import itertools
 import time
 from collections.abc import Callable, Iterable
 
@@ -259,19 +260,24 @@ def event_windows(
 
 
 def track_recording(
-    rec: Recording,
+    rec: Recording | Iterable[Recording],
     base: GeneratorParameters,
     settings: TrackerSettings,
     on_point: Callable[[TrackPoint], None] | None = None,
 ) -> list[TrackPoint]:
-    """The sliding-window tracker over a recording, as a node with tracking on runs it.
+    """The sliding-window tracker over a recording (or its parts, :mod:`phid_ros.io.parts`), as a
+    node with tracking on runs it.
 
     X_d and X_q are held at ``base``; nothing is detected or recalibrated. ``on_point`` sees each
     hop as soon as it is estimated.
     """
+    parts = iter([rec] if isinstance(rec, Recording) else rec)
+    first = next(parts, None)
+    if first is None:
+        return []
     pipeline = MonitorPipeline(
         PipelineSettings(
-            period_ns=rec.streams["pt_ct"].period_ns,
+            period_ns=first.streams["pt_ct"].period_ns if "pt_ct" in first.streams else PipelineSettings.period_ns,
             detect=False,
             auto_recalibrate=False,
             tracking_enabled=True,
@@ -285,6 +291,8 @@ def track_recording(
             on_point(p)  # type: ignore[misc]
 
     try:
-        return replay(rec, pipeline, keep_arrays=False, on_outputs=hops if on_point else None).tracked
+        return replay_parts(
+            itertools.chain([first], parts), pipeline, keep_arrays=False, on_outputs=hops if on_point else None
+        ).tracked
     finally:
         pipeline.close()
