@@ -99,12 +99,12 @@ def _simulate_ambient(args: argparse.Namespace, console: Console) -> int:
     import numpy as np
 
     from phid_ros.cli.simulate import DEFAULT_START_NS, recording_metadata, truth_document
-    from phid_ros.io.bags import write_recording
-    from phid_ros.io.recording import Recording, StreamSamples
+    from phid_ros.io.bags import open_message_writer
+    from phid_ros.io.recording import Recording, StreamSamples, recording_messages
     from phid_ros.io.results import truth_path_for, write_json
     from phid_ros.io.topics import STREAMS
     from phid_ros.model.conventions import NS
-    from phid_ros.sim.ambient import AmbientSettings, simulate_ambient
+    from phid_ros.sim.ambient import AmbientSettings, ambient_chunks
     from phid_ros.sim.runner import SimulationConfig
     from phid_ros.sim.sensors import SensorModel
 
@@ -112,17 +112,33 @@ def _simulate_ambient(args: argparse.Namespace, console: Console) -> int:
     drifts = tuple(_parse_drift(d) for d in (args.drift or []))
     settings = AmbientSettings(duration_s=args.ambient, drifts=drifts, seed=args.seed)  # type: ignore[arg-type]
     cfg = SimulationConfig(f_nominal_hz=args.f_nominal, sensors=SensorModel(seed=args.seed, noiseless=args.noiseless))
-    with ProgressLine(f"simulating {args.ambient:g} s of ambient operation") as progress:
-        run = simulate_ambient(settings, cfg)
-        dt_ns = int(round(cfg.dt * NS))
-        t_ns = DEFAULT_START_NS + np.arange(len(run.t), dtype=np.int64) * dt_ns
-        streams = {s.name: StreamSamples(t_ns.copy(), dt_ns, {c: run.measured[c] for c in s.channels}) for s in STREAMS}
-        progress.update(f"writing {out}")
-        with atomic_output(out) as tmp:
-            write_recording(tmp, Recording(streams, [], recording_metadata(cfg)), block_size=args.block_size)
+    dt_ns = int(round(cfg.dt * NS))
+    every = int(round(1 / cfg.dt))
+    drifting: dict[str, list[float]] = {d.parameter: [] for d in settings.drifts}
+    # simulated and written a chunk at a time (ten minutes of samples in memory, not the day); a
+    # chunk is a whole number of messages, so its messages follow the last chunk's in log time
+    with ProgressLine(f"simulating {args.ambient:g} s of ambient operation") as progress, atomic_output(out) as tmp:
+        writer = open_message_writer(tmp, recording_metadata(cfg))
+        try:
+            for chunk in ambient_chunks(settings, cfg):
+                first = int(round(chunk.t[0] / cfg.dt))
+                t_ns = DEFAULT_START_NS + (first + np.arange(len(chunk.t), dtype=np.int64)) * dt_ns
+                streams = {
+                    s.name: StreamSamples(t_ns.copy(), dt_ns, {c: chunk.measured[c] for c in s.channels})
+                    for s in STREAMS
+                }
+                for item in recording_messages(Recording(streams, []), block_size=args.block_size):
+                    writer.write(*item)
+                for name, v in chunk.parameters.items():  # once a second, from the run's start
+                    drifting[name] += v[(-first) % every :: every].tolist()
+                progress.update(f"simulated and written {chunk.t[-1]:.0f} of {args.ambient:g} s")
+        except BaseException:
+            writer.abort()
+            raise
+        writer.close()
     truth = truth_document(cfg, [])
     truth["ambient"] = {"duration_s": args.ambient, "seed": args.seed, "drifts": [d.__dict__ for d in drifts]}
-    truth["drifting_parameters_every_s"] = {name: v[:: int(1 / cfg.dt)].tolist() for name, v in run.parameters.items()}
+    truth["drifting_parameters_every_s"] = drifting
     path = write_json(truth_path_for(out), truth)
     console.print(f"wrote {out} ({args.ambient:g} s, {len(drifts)} drift(s)) and {path}")
     return 0
