@@ -1,14 +1,18 @@
 """Long recordings: peak memory and throughput of each command against the recording's length.
 
-    python benchmarks/bench_long.py [--hours 0.5 2] [--out benchmarks/out/long]
+    python benchmarks/bench_long.py [--hours 0.5 2 24] [--baseline ada499f] [--out benchmarks/out/long]
 
-For each length, an ambient recording (``phid simulate --ambient``: load and voltage noise with
-small steps, 1 kHz) is made once, then ``phid replay``, ``phid identify`` and ``phid info`` run on
-it, each in its own process under ``/usr/bin/time`` (peak resident memory, wall time). The
-limit a replay can reach is printed beside it: the time to walk and decompress the same bag
-alone. Prints one row per command and length; memory that grows with the hours is what issue 39
-is about (its goal: at most 1.2 GB for 2 h and for 24 h). The 24 h case (``--hours 24``) needs
-about an hour and ~45 GB before that work: not for the default run.
+For each length an ambient recording (``phid simulate --ambient``: load and voltage noise with
+small steps, 1 kHz) is made once, then ``phid replay``, ``phid identify``, ``phid track`` and
+``phid info`` run on it, each in its own process under ``/usr/bin/time`` (peak resident memory,
+wall time), with this tree and, where ``--baseline`` names a revision, with that revision
+checked out beside it (a git worktree) in the same run: the ratios are measured on the same
+machine at the same time. ``read`` is the limit a replay can reach: walking and decoding the
+same bag alone (part by part). The baseline is not run where its memory would exceed
+``--baseline-max-gb`` (0.5 GB per hour of replay on ada499f: 24 h would need ~45 GB).
+
+Issue 39's goals: at most 1.2 GB for 2 h and for 24 h; replay at least 400x real time on 2 h
+and not slower per hour on 24 h.
 """
 
 from __future__ import annotations
@@ -17,20 +21,19 @@ import argparse
 import re
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-PHID = [sys.executable, "-m", "phid_ros.cli.main"]
-WALK = [
-    sys.executable,
-    "-c",
-    "import sys; from phid_ros.io.bags import read_recording; read_recording(sys.argv[1])",
-]
+READ = "import sys; from phid_ros.io.parts import recording_parts; [p for p in recording_parts(sys.argv[1])]"
+# peak memory of ada499f per hour of recording (this script's table of 2026-11-25): what keeps the
+# baseline out of a run that would not fit
+BASELINE_GB_PER_HOUR = {"simulate": 2.45, "replay": 1.9, "identify": 1.25, "track": 1.9, "info": 0.75, "read": 0.75}
 
 
-def measured(cmd: list[str]) -> tuple[float, float, int]:
+def measured(cmd: list[str], cwd: Path) -> tuple[float, float, int]:
     """(wall s, peak RSS MB, exit status) of ``cmd`` in its own process."""
-    out = subprocess.run(["/usr/bin/time", "-f", "TIME %e %M", *cmd], capture_output=True, text=True, cwd=ROOT)
+    out = subprocess.run(["/usr/bin/time", "-f", "TIME %e %M", *cmd], capture_output=True, text=True, cwd=cwd)
     found = re.findall(r"TIME ([\d.]+) (\d+)", out.stderr)
     if not found:
         raise RuntimeError(f"{cmd}: no timing ({out.stderr[-300:]})")
@@ -38,26 +41,70 @@ def measured(cmd: list[str]) -> tuple[float, float, int]:
     return float(wall), int(kb) / 1024, out.returncode
 
 
+def commands(bag: Path, work: Path, tag: str) -> dict[str, list[str]]:
+    """Each command on ``bag`` as ``python -m phid_ros.cli.main``, run in the tree it is measured in."""
+    phid = [sys.executable, "-m", "phid_ros.cli.main"]
+    return {
+        "read": [sys.executable, "-c", READ, str(bag)],
+        "replay": [*phid, "replay", str(bag), "--out", str(work / f"replay_{tag}_{bag.stem}.mcap"), "--force"],
+        "identify": [*phid, "identify", str(bag)],
+        "track": [*phid, "track", str(bag)],
+        "info": [*phid, "info", str(bag)],
+    }
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--hours", type=float, nargs="+", default=[0.5, 2.0])
+    ap.add_argument("--baseline", help="a git revision to measure beside this tree (e.g. ada499f)")
+    ap.add_argument("--baseline-max-gb", type=float, default=16.0)
     ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "out" / "long")
     args = ap.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
-    print(f"{'recording':>10} {'command':<10} {'wall s':>8} {'peak MB':>9} {'x real time':>12} {'exit':>5}")
-    for hours in args.hours:
-        seconds = int(hours * 3600)
-        bag = args.out / f"ambient_{seconds}s.mcap"
-        rows = []
-        if not bag.exists():
-            rows.append(("simulate", *measured([*PHID, "simulate", "--ambient", str(seconds), "--out", str(bag)])))
-        rows.append(("read", *measured([*WALK, str(bag)])))
-        replay_out = args.out / f"replay_{seconds}s.mcap"
-        rows.append(("replay", *measured([*PHID, "replay", str(bag), "--out", str(replay_out), "--force"])))
-        rows.append(("identify", *measured([*PHID, "identify", str(bag)])))
-        rows.append(("info", *measured([*PHID, "info", str(bag)])))
-        for name, wall, mb, code in rows:
-            print(f"{hours:>9g}h {name:<10} {wall:>8.1f} {mb:>9.0f} {seconds / wall:>12.0f} {code:>5}")
+    trees = {"now": ROOT}
+    tmp = None
+    if args.baseline:
+        tmp = tempfile.mkdtemp(prefix="phid-baseline-")
+        subprocess.run(["git", "worktree", "add", "-q", "--detach", tmp, args.baseline], cwd=ROOT, check=True)
+        trees["base"] = Path(tmp)
+    try:
+        print(f"{'recording':>9} {'command':<9} {'tree':<5} {'wall s':>8} {'peak MB':>8} {'x real':>8} {'exit':>4}")
+        for hours in args.hours:
+            seconds = int(hours * 3600)
+            bag = args.out / f"ambient_{seconds}s.mcap"
+            rows: list[tuple[str, str, float, float, int]] = []
+            if not bag.exists():
+                sim = [sys.executable, "-m", "phid_ros.cli.main", "simulate", "--ambient", str(seconds)]
+                rows.append(("simulate", "now", *measured([*sim, "--out", str(bag)], ROOT)))
+            for name in ("read", "replay", "identify", "track", "info"):
+                for tag, tree in trees.items():
+                    if tag == "base" and BASELINE_GB_PER_HOUR[name] * hours > args.baseline_max_gb:
+                        print(
+                            f"{hours:>8g}h {name:<9} {tag:<5} {'not run: needs ~':>18}"
+                            f"{BASELINE_GB_PER_HOUR[name] * hours:.0f} GB"
+                        )
+                        continue
+                    cmd = commands(bag, args.out, tag)[name]
+                    if tag == "base" and name == "read":
+                        cmd = [
+                            sys.executable,
+                            "-c",
+                            "import sys; from phid_ros.io.bags import read_recording; read_recording(sys.argv[1])",
+                            str(bag),
+                        ]
+                    rows.append((name, tag, *measured(cmd, tree)))
+            by = {(n, t): (w, mb) for n, t, w, mb, _ in rows}
+            for name, tag, wall, mb, code in rows:
+                ratio = ""
+                if tag == "now" and (name, "base") in by:
+                    w0, mb0 = by[(name, "base")]
+                    ratio = f"  vs base: {w0 / wall:.2f}x faster, {mb0 / mb:.1f}x less memory"
+                head = f"{hours:>8g}h {name:<9} {tag:<5}"
+                print(f"{head} {wall:>8.1f} {mb:>8.0f} {seconds / wall:>8.0f} {code:>4}{ratio}")
+            sys.stdout.flush()
+    finally:
+        if tmp is not None:
+            subprocess.run(["git", "worktree", "remove", "--force", tmp], cwd=ROOT, check=False)
 
 
 if __name__ == "__main__":
