@@ -25,7 +25,11 @@ import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-READ = "import sys; from phid_ros.io.parts import recording_parts; [p for p in recording_parts(sys.argv[1])]"
+# every part read and let go (a list of them would hold the whole recording again)
+READ = (
+    "import sys, collections; from phid_ros.io.parts import recording_parts; "
+    "collections.deque(recording_parts(sys.argv[1]), maxlen=0)"
+)
 # peak memory of ada499f per hour of recording (this script's table of 2026-11-25): what keeps the
 # baseline out of a run that would not fit
 BASELINE_GB_PER_HOUR = {"simulate": 2.45, "replay": 1.9, "identify": 1.25, "track": 1.9, "info": 0.75, "read": 0.75}
