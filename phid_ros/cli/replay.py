@@ -10,12 +10,14 @@ from typing import TYPE_CHECKING, Any
 from phid_ros.io.recording import Recording
 from phid_ros.io.topics import OUTPUT_TOPICS, output_topic
 from phid_ros.model.conventions import NS
+from phid_ros.stream.messages import LEVELS
 from phid_ros.stream.pipeline import MonitorPipeline, Outputs
 from phid_ros.stream.replay import replay_parts
 
 if TYPE_CHECKING:
     from rich.console import Console
 
+HEALTH_LOG_MAX = 8000  # diagnostics snapshots kept for the report
 BAG_TOPICS = {key: (output_topic(key), msgtype) for key, (_, msgtype) in OUTPUT_TOPICS.items()}
 
 
@@ -81,14 +83,12 @@ class OutputCollector:
             if self._next_diag is None:
                 self._next_diag = now
             while now >= self._next_diag:
-                self.health_log.append(
-                    (
-                        self._next_diag,
-                        {
-                            n: (self.pipeline.aligner.status(n)[0], h.dropped, h.gaps, h.clock_jumps)
-                            for n, h in self.pipeline.health.items()
-                        },
-                    )
+                self._log_health(
+                    self._next_diag,
+                    {
+                        n: (self.pipeline.aligner.status(n)[0], h.dropped, h.gaps, h.clock_jumps)
+                        for n, h in self.pipeline.health.items()
+                    },
                 )
                 self._add(
                     "diagnostics",
@@ -103,6 +103,21 @@ class OutputCollector:
                     ),
                 )
                 self._next_diag += self._diag_period
+
+    def _log_health(self, t_ns: int, snapshot: dict[str, tuple[str, int, int, int]]) -> None:
+        """One snapshot a diagnostics period; past HEALTH_LOG_MAX of them, neighbours are merged in
+        pairs (the worse level, the later counters: they are running totals), so a day's replay
+        keeps as many as an hour's (86 400 snapshots held 90 MB) and a short ERROR is not lost."""
+        self.health_log.append((t_ns, snapshot))
+        if len(self.health_log) <= HEALTH_LOG_MAX:
+            return
+        merged = []
+        for (t0, a), (_, b) in zip(self.health_log[0::2], self.health_log[1::2]):
+            worse = {n: (max(a[n][0], b[n][0], key=LEVELS.__getitem__), *b[n][1:]) if n in a else b[n] for n in b}
+            merged.append((t0, worse))
+        if len(self.health_log) % 2:
+            merged.append(self.health_log[-1])
+        self.health_log = merged
 
     def sorted(self) -> list[tuple[int, str, str, object]]:
         return sorted(self.messages, key=lambda x: x[0])

@@ -102,3 +102,20 @@ def test_replay_aligns_on_the_recordings_own_rate(tmp_path, capsys):
     assert "stale" not in text and "recalibration at 630.0 s with 16 events: accepted" in text
     h = float(re.search(r"^ H\s+s\s+([0-9.]+)\(", text, re.M).group(1))
     assert h == pytest.approx(3.48, rel=0.005)
+
+
+def test_the_replay_health_log_stays_bounded_and_keeps_a_short_error() -> None:
+    from phid_ros.cli.replay import HEALTH_LOG_MAX, OutputCollector
+    from phid_ros.stream.pipeline import MonitorPipeline
+
+    pipeline = MonitorPipeline()
+    collector = OutputCollector(pipeline)
+    for k in range(3 * HEALTH_LOG_MAX):  # a day of one-second snapshots, one of them ERROR
+        collector._log_health(k, {"pt_ct": ("ERROR" if k == 12_345 else "OK", k, 0, 0)})
+    pipeline.close()
+    log = collector.health_log
+    assert HEALTH_LOG_MAX // 2 <= len(log) <= HEALTH_LOG_MAX
+    [error] = [snap["pt_ct"] for _, snap in log if snap["pt_ct"][0] == "ERROR"]
+    assert 12_345 <= error[1] < 12_345 + 8  # its merged neighbours' later running total
+    assert log[-1][1]["pt_ct"][1] == 3 * HEALTH_LOG_MAX - 1  # the running totals reach the end
+    assert [t for t, _ in log] == sorted(t for t, _ in log)
