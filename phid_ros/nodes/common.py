@@ -9,6 +9,7 @@ import array
 import contextlib
 import math
 import signal
+import time
 from collections.abc import Iterator
 from typing import Any
 
@@ -218,3 +219,21 @@ def _set_sigint(handler: Any) -> Any:
         except OSError:
             continue
     return None
+
+
+class InputWatch:
+    """Whether the sensor input has ended: no data for ``end_of_data_s`` of wall time since the
+    last (a bag finished, a feed stopped). ``ended()`` is true once per stop."""
+
+    def __init__(self) -> None:
+        self._last = time.monotonic()
+        self._done = True  # nothing owed before the first data
+
+    def on_data(self) -> None:
+        self._last, self._done = time.monotonic(), False
+
+    def ended(self, after_s: float) -> bool:
+        if self._done or time.monotonic() - self._last <= after_s:
+            return False
+        self._done = True
+        return True

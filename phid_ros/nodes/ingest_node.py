@@ -30,13 +30,16 @@ class IngestNode(Node):
         self.windows_pub = common.output_publisher(self, "windows", common.reliable_qos())
         self.add_on_set_parameters_callback(common.on_set(INGEST, self._apply))
         common.steady_timer(self, self.values["process_period_s"], self.process)
-        common.subscribe_sensors(self)
+        self.input = common.InputWatch()
+        common.subscribe_sensors(self, self.input.on_data)
 
     def _apply(self, name: str, value: Any) -> None:
         self.pipeline.configure(apply(self.pipeline.settings, name, value))
 
     def process(self) -> None:
-        out = self.pipeline.process()
+        # the input ended: the windows still open are cut with what came (as phid replay does at
+        # a recording's end), so an event in its last seconds is published, not held forever
+        out = self.pipeline.process(final=self.input.ended(self.values["end_of_data_s"]))
         for e in out.events:
             self.events_pub.publish(m.event_message(self.types, e))
         for w in out.windows:

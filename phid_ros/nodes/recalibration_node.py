@@ -8,7 +8,6 @@ tracking_enabled, tracked_parameters. Services (std_srvs/Trigger): ~/recalibrate
 
 from __future__ import annotations
 
-import time
 from typing import Any
 
 from rclpy.node import Node
@@ -54,16 +53,12 @@ class RecalibrationNode(Node):
         self.create_service(Trigger, "~/recalibrate", self._recalibrate)
         self.create_service(Trigger, "~/reset", self._reset)
         self.add_on_set_parameters_callback(common.on_set(RECALIBRATION, self._apply))
-        self._last_data = time.monotonic()
-        self._ended = True  # nothing owed before the first data
+        self.input = common.InputWatch()
         common.steady_timer(self, 1.0 / self.values["hamiltonian_rate_hz"], self.process)
         common.steady_timer(self, self.values["diagnostics_period_s"], self.publish_diagnostics)
-        common.subscribe_sensors(self, self._on_data)
+        common.subscribe_sensors(self, self.input.on_data)
 
     # -- callbacks ------------------------------------------------------------------------
-    def _on_data(self) -> None:
-        self._last_data, self._ended = time.monotonic(), False
-
     def _on_window(self, msg: Any) -> None:
         self._publish(self.pipeline.add_window(m.window_from_message(msg)))
 
@@ -88,10 +83,7 @@ class RecalibrationNode(Node):
     def process(self) -> None:
         # the input ended (a bag finished, a feed stopped): do now what replay does at its end,
         # the owed recalibration, so the last set is published without waiting for more data
-        ended = not self._ended and time.monotonic() - self._last_data > self.values["end_of_data_s"]
-        if ended:
-            self._ended = True
-        self._publish(self.pipeline.process(final=ended))
+        self._publish(self.pipeline.process(final=self.input.ended(self.values["end_of_data_s"])))
 
     def _publish(self, out: Outputs) -> None:
         for r in out.recalibrations:

@@ -60,6 +60,19 @@ SENSORS: tuple[Tunable, ...] = (  # how both nodes subscribe to the sensor topic
     ),
 )
 
+# both nodes: a bag that finished or a feed that stopped is the end of the input, and each does
+# what phid replay does at its end (the ingest node cuts the windows still open with what came, the
+# recalibration node runs the owed recalibration): an event in a recording's last 30 s was lost
+END_OF_DATA = Tunable(
+    "end_of_data_s",
+    float,
+    3.0,
+    "wall time without sensor data after which the input counts as ended: open windows are cut, the owed "
+    "recalibration runs",
+    0.5,
+    3600.0,
+)
+
 INGEST: tuple[Tunable, ...] = SENSORS + (
     Tunable(
         "sample_rate_hz",
@@ -77,6 +90,7 @@ INGEST: tuple[Tunable, ...] = SENSORS + (
         "process_period_s", float, 0.1, "how often buffered samples are aligned and scanned", 0.01, 5.0, runtime=False
     ),
     Tunable("stale_timeout_s", float, 2.0, "a stream silent this long is reported STALE", 0.1, 60.0),
+    END_OF_DATA,
 )
 
 RECALIBRATION: tuple[Tunable, ...] = SENSORS + (
@@ -86,14 +100,7 @@ RECALIBRATION: tuple[Tunable, ...] = SENSORS + (
     Tunable("latest_per_kind", int, 10, "events per kind a recalibration uses (the newest)", 1, 100),
     Tunable("max_relative_jump", float, 0.5, "relative change beyond which a new set is implausible", 0.01, 10.0),
     Tunable("auto_recalibrate", bool, True, "recalibrate automatically when enough events are stored"),
-    Tunable(
-        "end_of_data_s",
-        float,
-        3.0,
-        "wall time without sensor data after which the input counts as ended: the owed recalibration runs",
-        0.5,
-        3600.0,
-    ),
+    END_OF_DATA,
     Tunable("store_path", str, "phid_events.sqlite", "event store file (SQLite); ':memory:' keeps none", runtime=False),
     Tunable(
         "unit_id",

@@ -274,7 +274,7 @@ def test_the_owed_recalibration_is_published_when_the_data_end_without_a_clock(r
     assert all(t.clock is not None and t.clock.clock_type == 3 for t in recal.timers + ingest.timers)  # steady
     play(ros, rec, ingest, recal)
     before = len(published(recal, "/generator/parameters"))
-    recal._last_data -= recal.values["end_of_data_s"] + 1  # the bag ended a while ago (wall time)
+    recal.input._last -= recal.values["end_of_data_s"] + 1  # the bag ended a while ago (wall time)
     recal.process()  # no clock message, no service call
     params = published(recal, "/generator/parameters")
     assert len(params) > before
@@ -283,3 +283,34 @@ def test_the_owed_recalibration_is_published_when_the_data_end_without_a_clock(r
     assert dict(zip(params[-1].names, np.asarray(params[-1].values))) == reference.parameters.as_dict()
     reference.close()
     assert len(published(recal, "/generator/hamiltonian")) > 1000
+
+
+def test_an_event_in_the_last_seconds_of_the_input_is_published_when_the_input_ends(ros):
+    """The ingest node held a window open until data after it came; at the end of a bag none
+    comes: the 2 h ambient bag's last event (30 s before its end) was never published. When the
+    input has been silent for end_of_data_s, the open windows are cut with what came."""
+    from phid_ros.io.recording import Recording, StreamSamples
+    from phid_ros.stream.messages import window_from_message as window_from
+
+    whole = read_recording(BAGS / "catalogue")
+    t0 = whole.span_ns()[0]
+    # the catalogue cut 10 s after its first fault's inception: that window cannot complete
+    fault = next(m for m in whole.scenarios if m.kind == "fault")
+    end = fault.event_ns + 10 * 10**9
+    streams = {}
+    for name, s in whole.streams.items():
+        keep = s.t_ns <= end
+        streams[name] = StreamSamples(s.t_ns[keep], s.period_ns, {c: x[keep] for c, x in s.channels.items()})
+    rec = Recording(streams, [m for m in whole.scenarios if m.start_ns < end], whole.metadata)
+    assert t0 < end
+    ingest, recal = make_nodes(ros)
+    play(ros, rec, ingest, recal)
+    before = [w.event.inception_ns for w in map(window_from, published(ingest, "/generator/event_windows"))]
+    assert fault.event_ns not in before
+    ingest.input._last -= ingest.values["end_of_data_s"] + 1  # silent a while (wall time)
+    ingest.process()
+    after = [window_from(w) for w in published(ingest, "/generator/event_windows")]
+    last = after[-1]
+    assert abs(last.event.inception_ns - fault.event_ns) < 5 * 10**6 and last.usable
+    ingest.process()  # once per stop: nothing more
+    assert len(published(ingest, "/generator/event_windows")) == len(after)
