@@ -143,6 +143,8 @@ class Player:
 
     def _emit(self, out: Outputs) -> None:
         self.total.extend(out if self.keep_arrays else out.light())
+        if not self.keep_arrays:  # the summary's energy is its last sample: one kept, not one a step
+            del self.total.energy[:-1]
         if self.on_outputs:
             self.on_outputs(out)
 
