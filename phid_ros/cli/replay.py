@@ -12,7 +12,7 @@ from phid_ros.io.topics import OUTPUT_TOPICS, output_topic
 from phid_ros.model.conventions import NS
 from phid_ros.stream.messages import LEVELS
 from phid_ros.stream.pipeline import MonitorPipeline, Outputs
-from phid_ros.stream.replay import replay_parts
+from phid_ros.stream.replay import replay
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -282,7 +282,7 @@ def run(args: Any, console: Any) -> int:
 
         try:
             with ProgressLine(f"replaying {args.bag}") as progress:
-                outputs = replay_parts(
+                outputs = replay(
                     read_on(),
                     pipeline,
                     rate=args.rate,

@@ -67,7 +67,7 @@ def sensor_blocks(rec: Recording, block_size: int = DEFAULT_BLOCK_SIZE) -> list[
 
 
 def replay(
-    rec: Recording,
+    rec: Recording | Iterable[Recording],
     pipeline: MonitorPipeline,
     *,
     rate: float | None = None,
@@ -78,38 +78,16 @@ def replay(
 ) -> Outputs:
     """Feed every sensor block in stamp order; ``rate`` paces it at R x real time (None: as fast as possible).
 
-    ``on_outputs`` sees every output in full; the returned summary drops the bulk arrays
-    when ``keep_arrays`` is False, so a long replay's memory stays flat. ``progress`` hears
-    the stream time played so far (seconds) after every processing step.
+    ``rec`` is a recording or its consecutive parts (:mod:`phid_ros.io.parts`): the pipeline is
+    fed and run at the same points either way, so the outputs are the same, and only one part is
+    held at a time. ``on_outputs`` sees every output in full; the returned summary drops the bulk
+    arrays when ``keep_arrays`` is False, so a long replay's memory stays flat. ``progress``
+    hears the stream time played so far (seconds) after every processing step.
     """
-    return replay_parts(
-        [rec],
-        pipeline,
-        rate=rate,
-        block_size=block_size,
-        on_outputs=on_outputs,
-        keep_arrays=keep_arrays,
-        progress=progress,
-    )
-
-
-def replay_parts(
-    parts: Iterable[Recording],
-    pipeline: MonitorPipeline,
-    *,
-    rate: float | None = None,
-    block_size: int = DEFAULT_BLOCK_SIZE,
-    on_outputs: Callable[[Outputs], None] | None = None,
-    keep_arrays: bool = True,
-    progress: Callable[[float], None] | None = None,
-) -> Outputs:
-    """:func:`replay` over a recording read in consecutive parts (:mod:`phid_ros.io.parts`): the
-    pipeline is fed and run at the same points as for the whole recording, so the outputs are
-    the same, and only one part is held at a time."""
     player = Player(
         pipeline, rate=rate, block_size=block_size, on_outputs=on_outputs, keep_arrays=keep_arrays, progress=progress
     )
-    for part in parts:
+    for part in [rec] if isinstance(rec, Recording) else rec:
         player.feed(part)
     return player.finish()
 
@@ -293,7 +271,7 @@ def track_recording(
             on_point(p)  # type: ignore[misc]
 
     try:
-        return replay_parts(
+        return replay(
             itertools.chain([first], parts), pipeline, keep_arrays=False, on_outputs=hops if on_point else None
         ).tracked
     finally:

@@ -13,7 +13,7 @@ from phid_ros.io.msg_schemas import typestore
 from phid_ros.io.overview import Overview
 from phid_ros.io.parts import recording_parts
 from phid_ros.stream.pipeline import MonitorPipeline, PipelineSettings
-from phid_ros.stream.replay import replay, replay_parts
+from phid_ros.stream.replay import replay
 from phid_ros.stream.store import EventStore
 
 BAGS = Path(__file__).resolve().parents[2] / "bags"
@@ -27,7 +27,7 @@ def _published(bag: Path, part_messages: int | None) -> list[tuple[int, str, byt
     if part_messages is None:
         replay(read_recording(bag), pipeline, on_outputs=collector, keep_arrays=False)
     else:
-        replay_parts(recording_parts(bag, part_messages), pipeline, on_outputs=collector, keep_arrays=False)
+        replay(recording_parts(bag, part_messages), pipeline, on_outputs=collector, keep_arrays=False)
     pipeline.close()
     return [(t, topic, bytes(store.serialize_cdr(m, ty))) for t, topic, ty, m in collector.sorted()]
 
