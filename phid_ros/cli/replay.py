@@ -264,7 +264,7 @@ def run(args: Any, console: Any) -> int:
     # outputs go to OUT.partial as they are made and become OUT at the end: an interruption
     # leaves what was published so far, readable, and the events already in the store
     with atomic_output(out_path, keep_partial=True) as tmp:
-        writer = open_message_writer(tmp, {"source": f"phid replay {args.bag}"})
+        writer = open_message_writer(tmp, {"source": f"phid replay {args.bag}"}, background=True)
         collector = OutputCollector(pipeline, sink=writer.write)
         events = 0
 

@@ -50,13 +50,80 @@ class MessageWriter(Protocol):
     def abort(self) -> None: ...
 
 
-def open_message_writer(path: str | Path, metadata: dict[str, str] | None = None) -> MessageWriter:
-    """``*.mcap`` -> a single MCAP file, anything else -> a rosbag2 folder."""
+def open_message_writer(
+    path: str | Path, metadata: dict[str, str] | None = None, *, background: bool = False
+) -> MessageWriter:
+    """``*.mcap`` -> a single MCAP file, anything else -> a rosbag2 folder; ``background``: written
+    by a thread of its own (:class:`BackgroundWriter`)."""
     from phid_ros.io.mcap_file import McapMessageWriter
     from phid_ros.io.rosbag2 import Rosbag2MessageWriter
 
     p = Path(path)
-    return McapMessageWriter(p, metadata) if p.suffix == ".mcap" else Rosbag2MessageWriter(p, metadata)
+    writer = McapMessageWriter(p, metadata) if p.suffix == ".mcap" else Rosbag2MessageWriter(p, metadata)
+    return BackgroundWriter(writer) if background else writer
+
+
+class BackgroundWriter:
+    """A writer's work (serialising, compressing, writing) in a thread of its own, fed in batches.
+
+    Why: a replay's producer waits for each recalibration run (its outcome is taken at a fixed
+    stream time, so that the outputs do not depend on the machine's speed); the messages made
+    before the wait are written meanwhile, and zstd compresses without the GIL. The messages
+    reach the file in the order they were given: the file is byte-identical to a direct write.
+    The queue is bounded, so a slow disk holds the producer back instead of filling memory; an
+    error of the writer (a full disk) is raised by the next ``write`` or by ``close``.
+    """
+
+    BATCH = 256  # messages handed over at a time: one queue operation per batch, not per message
+    DEPTH = 16  # batches in flight at most (a few MB of messages)
+
+    def __init__(self, writer: MessageWriter) -> None:
+        import queue
+        import threading
+
+        self.writer = writer
+        self._batch: list[tuple[int, str, str, object]] = []
+        self._queue: queue.Queue[list[tuple[int, str, str, object]] | None] = queue.Queue(self.DEPTH)
+        self._error: BaseException | None = None
+        self._thread = threading.Thread(target=self._drain, name="phid-bag-writer", daemon=True)
+        self._thread.start()
+
+    def _drain(self) -> None:
+        while (batch := self._queue.get()) is not None:
+            if self._error is not None:
+                continue  # after an error the rest is dropped, so the producer is never blocked
+            try:
+                for item in batch:
+                    self.writer.write(*item)
+            except BaseException as exc:  # handed to the producer's thread, raised there
+                self._error = exc
+
+    def _raise(self) -> None:
+        if self._error is not None:
+            raise self._error
+
+    def write(self, log_ns: int, topic: str, msgtype: str, msg: object) -> None:
+        self._batch.append((log_ns, topic, msgtype, msg))
+        if len(self._batch) >= self.BATCH:
+            self._raise()
+            self._queue.put(self._batch)
+            self._batch = []
+
+    def _stop(self) -> None:
+        if self._thread.is_alive():
+            self._queue.put(self._batch)
+            self._batch = []
+            self._queue.put(None)
+            self._thread.join()
+
+    def close(self) -> Path:
+        self._stop()
+        self._raise()
+        return self.writer.close()
+
+    def abort(self) -> None:
+        self._stop()
+        self.writer.abort()
 
 
 def recording_source(path: str | Path) -> str | None:
