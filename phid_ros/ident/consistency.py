@@ -26,6 +26,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 
@@ -105,7 +106,7 @@ def _near(value: float, target: float, rel: float = RATE_TOLERANCE) -> bool:
 
 
 def _check_rates(scenarios: Sequence[ScenarioData], f_hz: float, out: Findings) -> None:
-    ratios = [r for s in scenarios if math.isfinite(r := rate_ratio(s, f_hz))]
+    ratios = [r for s in scenarios if math.isfinite(r := s.derived(("rate_ratio", f_hz), partial(rate_ratio, s, f_hz)))]
     if not ratios:
         return
     out.checked.append("dδ/dt against ω")
@@ -265,7 +266,11 @@ def swing_slope(s: ScenarioData) -> float:
 
 
 def _check_swing(scenarios: Sequence[ScenarioData], out: Findings) -> None:
-    slopes = [k for s in scenarios if s.kind == "torque_step" and math.isfinite(k := swing_slope(s))]
+    slopes = [
+        k
+        for s in scenarios
+        if s.kind == "torque_step" and math.isfinite(k := s.derived(("swing_slope",), partial(swing_slope, s)))
+    ]
     if not slopes:
         return
     out.checked.append("dω/dt against P_m − P_e")

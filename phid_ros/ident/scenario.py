@@ -12,9 +12,9 @@ change without a fault).
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -49,6 +49,9 @@ class StepThresholds:
 DEFAULT_THRESHOLDS = StepThresholds()
 
 
+T = TypeVar("T")
+
+
 class ScenarioError(PhidError):
     """A scenario window cannot be prepared (too short, NaN, no disturbance found)."""
 
@@ -70,6 +73,10 @@ class ScenarioData:
     # channels the recording did not carry (NaN throughout): the stages that need one leave it
     # out and say so (phid_ros.ident.determinable)
     absent: frozenset[str] = frozenset()
+    # what the stages derive from this scenario alone, kept for the next identification that reads
+    # it (a recalibration every few minutes re-reads the same stored windows); not an init field,
+    # so a scenario made from this one (dataclasses.replace, with_frame) starts without it
+    _derived: dict[tuple[Any, ...], Any] = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         self.v_d, self.v_q = terminal_to_dq(self["v_t"], self["delta"], self["theta_t"])
@@ -77,6 +84,15 @@ class ScenarioData:
             raise ScenarioError(
                 f"scenario {self.name}: event sample {self.k_event} outside the window of {self.n} samples"
             )
+
+    def derived(self, key: tuple[Any, ...], make: Callable[[], T]) -> T:
+        """``make()``, computed once per scenario and ``key`` (the function's name and every
+        argument besides the scenario). Only for results read, never written, by the caller; the
+        scenario's own fields that ``make`` reads (its switching) are part of the key."""
+        key = (*key, self.k_event, self.k_clear, tuple(self.extra_switching), self.generator_damping, self.kind)
+        if key not in self._derived:
+            self._derived[key] = make()
+        return self._derived[key]
 
     def has(self, *channels: str) -> bool:
         """Whether the recording carried every one of ``channels`` (v_d, v_q: V_t, theta_t and delta)."""

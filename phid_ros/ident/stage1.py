@@ -27,6 +27,7 @@ import math
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 from scipy.optimize import OptimizeWarning, curve_fit
@@ -123,7 +124,12 @@ def swing_regression(
     # rows, so they are projected out scenario by scenario (Frisch-Waugh-Lovell) and the
     # final fit has two columns: same estimate as one big regression, far less work.
     h_imp = _impulse_response(cutoff_hz, scs[0].dt)
-    rows = [_scenario_rows(s, cutoff_hz, h_imp) for s in scs]
+    rows = [
+        s.derived(
+            ("stage1_rows", cutoff_hz, scs[0].dt, tuple(s.switching)), partial(_scenario_rows, s, cutoff_hz, h_imp)
+        )
+        for s in scs
+    ]
     X = np.vstack([x for _, x in rows])
     Y = np.concatenate([y for y, _ in rows])
     lengths = [len(y) for y, _ in rows]

@@ -77,6 +77,12 @@ def scenario_from_window(
     )
 
 
+def _window_key(w: EventWindow) -> tuple[str, str, int]:
+    """What tells a stored window from another: its event, its label, its length (a store replaces
+    a window cut short with the complete one of the same event)."""
+    return w.event.event_id, w.event.name, len(w.t_ns)
+
+
 @dataclass
 class Recalibrator:
     store: EventStore
@@ -92,6 +98,9 @@ class Recalibrator:
     _unpolled: list[int] = field(default_factory=list)  # start times of runs not yet polled
     _done: list[RecalibrationOutcome] = field(default_factory=list)
     _lock: threading.Lock = field(default_factory=threading.Lock)
+    # each window's scenario (or why it is not one): the latest N a kind change by one or two between
+    # runs, so most would be converted again (a tenth of a run's time); the worker's own
+    _scenarios: dict[tuple[str, str, int], ScenarioData | ScenarioError] = field(default_factory=dict)
 
     def request(self, stream_time_ns: int, *, force: bool = False) -> str:
         """Ask for a run; returns what happened (started, coalesced, or why not)."""
@@ -170,10 +179,13 @@ class Recalibrator:
             scenarios = []
             skipped = []
             for w in windows:
-                try:
-                    scenarios.append(scenario_from_window(w))
-                except ScenarioError as exc:
-                    skipped.append(str(exc))
+                made = self._scenario(w)
+                if isinstance(made, ScenarioError):
+                    skipped.append(str(made))
+                else:
+                    scenarios.append(made)
+            # the next run's windows are among these and newer ones: the cache holds one run's
+            self._scenarios = {k: self._scenarios[k] for k in map(_window_key, windows)}
             result = identify(scenarios, self.options)
             outcome = self._judge(result, ids, stream_time_ns, time.perf_counter() - t0)
             if skipped:
@@ -191,6 +203,17 @@ class Recalibrator:
         with self._lock:
             self.runs += 1
             self._done.append(outcome)
+
+    def _scenario(self, w: EventWindow) -> ScenarioData | ScenarioError:
+        """The window's scenario, made once: a stored window does not change (identification reads
+        its scenarios and never writes them, so one serves every run it takes part in)."""
+        key = _window_key(w)
+        if key not in self._scenarios:
+            try:
+                self._scenarios[key] = scenario_from_window(w)
+            except ScenarioError as exc:
+                self._scenarios[key] = exc
+        return self._scenarios[key]
 
     def _jumps(self, model: GeneratorParameters, result: IdentificationResult) -> dict[str, float]:
         """Parameters that moved implausibly: beyond the relative limit *and* the combined uncertainty.

@@ -173,3 +173,39 @@ def test_the_hamiltonian_does_not_depend_on_how_fast_recalibrations_run(catalogu
     assert [(r.stream_time_ns, r.accepted) for r in out.recalibrations] == [
         (r.stream_time_ns, r.accepted) for r in fast.recalibrations
     ]
+
+
+def test_a_recalibration_converts_each_stored_window_once(replayed, monkeypatch):
+    """The runs every few minutes read mostly the windows the last run read: each becomes a
+    scenario once, the stages' per-scenario work is kept with it, and the outcome is the same as
+    from fresh scenarios; a window replaced by a longer one of the same event is converted again."""
+    from dataclasses import replace
+
+    from phid_ros.ident.pipeline import identify
+    from phid_ros.stream import recalibration
+    from phid_ros.stream.recalibration import Recalibrator
+
+    p, out, _ = replayed
+    windows = p.store.latest(n=10)
+    made: list[str] = []
+    convert = recalibration.scenario_from_window
+    monkeypatch.setattr(recalibration, "scenario_from_window", lambda w: made.append(w.event.event_id) or convert(w))
+    rec = Recalibrator(EventStore())
+    rec._run(windows, 1)
+    first = list(made)
+    assert sorted(first) == sorted(w.event.event_id for w in windows)
+    rec._run(windows, 2)
+    assert made == first  # nothing converted again
+    again, cached = rec._done
+    assert again.accepted and cached.accepted
+    assert again.parameters.as_dict() == cached.parameters.as_dict()  # the kept work changes no digit
+    fresh = identify([convert(w) for w in windows], rec.options)
+    assert {n: e.value for n, e in fresh.estimates.items()} == {n: e.value for n, e in cached.result.estimates.items()}
+    longer = replace(windows[0], t_ns=windows[0].t_ns[:-1], values=windows[0].values[:-1])
+    rec._run([longer, *windows[1:]], 3)
+    assert made[len(first) :] == [windows[0].event.event_id]
+    # a scenario made from another starts without the other's kept work
+    s = convert(windows[0])
+    s.derived(("probe",), lambda: 1)
+    assert replace(s)._derived == {} and s.with_frame(s.frame)._derived == {}
+    rec.shutdown()
