@@ -45,11 +45,85 @@ def measured(cmd: list[str], cwd: Path) -> tuple[float, float, int]:
     return float(wall), int(kb) / 1024, out.returncode
 
 
+# the PMU export's channel map: a P-class PMU at the terminals, speed and field voltage beside it
+PMU_MAP = """machine: {mva: 1000, kv: 20, f_nominal_hz: 50, phasor_window_cycles: 2}
+time: Timestamp
+channels:
+  v_t: {name: "GEN1:V1_MAG", unit: V}
+  theta_t: {name: "GEN1:V1_ANG", unit: deg}
+  i_t: {name: "GEN1:I1_MAG", unit: A}
+  phi_i: {name: "GEN1:I1_ANG", unit: deg}
+  omega: {name: SPEED, unit: pu}
+  v_f: EFD
+"""
+PMU_EVERY = 20  # 1 kHz samples -> 50 reports per second, a PMU's rate on a 50 Hz system
+
+
+def pmu_export(bag: Path, out: Path) -> Path:
+    """The recording as a PMU's day-long CSV export (ISO stamps, phasors in V, A and degrees),
+    written part by part: what ``phid import-pmu`` reads in the ``import`` row."""
+    import numpy as np
+
+    from phid_ros.io.parts import recording_parts
+    from phid_ros.model.conventions import dq_to_terminal
+
+    kv, mva = 20.0, 1000.0
+    v_base, i_base = kv * 1e3 / np.sqrt(3), mva * 1e6 / (np.sqrt(3) * kv * 1e3)
+    names = ["Timestamp", "GEN1:V1_MAG", "GEN1:V1_ANG", "GEN1:I1_MAG", "GEN1:I1_ANG", "SPEED", "EFD"]
+    pending: dict[str, tuple[np.ndarray, dict[str, np.ndarray]]] = {}  # per stream: what the others lack
+    t0: int | None = None
+    with out.open("w") as fh:
+        fh.write(",".join(names) + "\n")
+        for part in recording_parts(bag):
+            # a part's streams end at different stamps: rows are written up to the earliest end
+            for name, st in part.streams.items():
+                t, ch = pending.get(name, (np.empty(0, np.int64), {}))
+                pending[name] = (
+                    np.concatenate([t, st.t_ns]),
+                    {c: np.concatenate([ch.get(c, np.empty(0)), np.asarray(x)]) for c, x in st.channels.items()},
+                )
+            upto = min(int(t[-1]) for t, _ in pending.values())
+            if t0 is None:
+                t0 = int(pending["pt_ct"][0][0])
+            m: dict[str, np.ndarray] = {}
+            for name, (t, ch) in list(pending.items()):
+                n = int(np.searchsorted(t, upto, side="right"))
+                report = ((t[:n] - t0) // part.streams[name].period_ns) % PMU_EVERY == 0
+                m.update({c: x[:n][report] for c, x in ch.items()})
+                stamps_ns = t[:n][report]
+                pending[name] = (t[n:], {c: x[n:] for c, x in ch.items()})
+            i_mag, i_ang = dq_to_terminal(m["i_d"], m["i_q"], m["delta"])
+            stamps = np.datetime_as_string(stamps_ns.astype("datetime64[ns]"), unit="us")
+            cols = [
+                m["v_t"] * v_base,
+                np.degrees(np.angle(np.exp(1j * m["theta_t"]))),
+                i_mag * i_base,
+                np.degrees(np.angle(np.exp(1j * i_ang))),
+                m["omega"],
+                m["v_f"],
+            ]
+            rows = [",".join((t, *(f"{v:.9g}" for v in vals))) for t, *vals in zip(stamps.tolist(), *cols)]
+            if rows:
+                fh.write("\n".join(rows) + "\n")
+    (out.parent / "pmu_map.yaml").write_text(PMU_MAP)
+    return out
+
+
 def commands(bag: Path, work: Path, tag: str) -> dict[str, list[str]]:
     """Each command on ``bag`` as ``python -m phid_ros.cli.main``, run in the tree it is measured in."""
     phid = [sys.executable, "-m", "phid_ros.cli.main"]
+    pmu = bag.with_suffix(".pmu.csv")
     return {
         "read": [sys.executable, "-c", READ, str(bag)],
+        "import": [
+            *phid,
+            "import-pmu",
+            str(pmu),
+            "--map",
+            str(pmu.parent / "pmu_map.yaml"),
+            "--out",
+            str(work / f"import_{tag}_{bag.stem}.mcap"),
+        ],
         "replay": [*phid, "replay", str(bag), "--out", str(work / f"replay_{tag}_{bag.stem}.mcap"), "--force"],
         "identify": [*phid, "identify", str(bag)],
         "track": [*phid, "track", str(bag)],
@@ -80,7 +154,9 @@ def main() -> None:
             if not bag.exists():
                 sim = [sys.executable, "-m", "phid_ros.cli.main", "simulate", "--ambient", str(seconds)]
                 rows.append(("simulate", "now", *measured([*sim, "--out", str(bag)], ROOT)))
-            for name in ("read", "replay", "identify", "track", "info"):
+            if not bag.with_suffix(".pmu.csv").exists():
+                pmu_export(bag, bag.with_suffix(".pmu.csv"))
+            for name in ("read", "replay", "identify", "track", "info", "import"):
                 for tag, tree in trees.items():
                     if tag == "base" and BASELINE_GB_PER_HOUR[name] * hours > args.baseline_max_gb:
                         print(

@@ -11,9 +11,11 @@ for a P-class PMU) says over how many cycles, so stage 3 can leave that out arou
 from __future__ import annotations
 
 import csv
+import itertools
 import re
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TextIO
 
 import numpy as np
 
@@ -35,29 +37,9 @@ class PmuImportError(PhidError):
 
 
 UNIX_SECONDS = 1e9  # seconds this large are UNIX time (2001 on), not seconds from the start
-
-
-def _seconds(
-    values: list[str], path: Path, column: str, dates: list[str] | None = None
-) -> tuple[np.ndarray, int | None]:
-    """Report times in s from the first, and when the first was taken (UTC ns since the epoch;
-    None for times of day without a date and for seconds from the start): seconds, ISO 8601
-    date-times, or (with ``dates``, a trend log's date column) times of day beside dates."""
-    if dates is not None:
-        values = [f"{_iso_date(d, path)}T{v.strip()}" for d, v in zip(dates, values)]
-    elif values and all(_TIME_OF_DAY.fullmatch(v.strip()) for v in values):
-        return _times_of_day(values), None
-    if all(is_number(v) for v in values):  # seconds (UNIX or from the start); else ISO 8601 times
-        secs = np.array([float(v) for v in values])
-        return secs, int(round(secs[0] * NS)) if secs[0] >= UNIX_SECONDS else None
-    try:
-        stamps = np.array(
-            [np.datetime64(_ns_digits(v.strip().replace("Z", ""))) for v in values], dtype="datetime64[ns]"
-        )
-    except ValueError as exc:
-        raise PmuImportError(f"{path}: column {column!r} holds neither seconds nor ISO 8601 times ({exc})") from None
-    return (stamps - stamps[0]).astype(np.int64) / NS, int(stamps[0].astype(np.int64))
-
+# reports parsed at a time: a day's export (4.3 million reports at 50/s) was held as Python strings
+# whole, 3 GB and more; now only the mapped columns, as numbers
+CHUNK_ROWS = 65_536
 
 _TIME_OF_DAY = re.compile(r"(\d{1,2}):(\d{2}):(\d{2}(?:\.\d+)?)")
 _DATE = (
@@ -79,15 +61,133 @@ def _ns_digits(text: str) -> str:
     return re.sub(r"(\.\d{9})\d+", r"\1", text)
 
 
-def _times_of_day(values: list[str]) -> np.ndarray:
-    """hh:mm:ss.fffffff without a date, in s from the first; a recording across midnight goes on."""
-    secs = np.empty(len(values))
-    for k, v in enumerate(values):
-        found = _TIME_OF_DAY.fullmatch(v.strip())
-        assert found is not None  # the caller matched every value
-        secs[k] = int(found[1]) * 3600 + int(found[2]) * 60 + float(found[3])
-    secs += 86400.0 * np.concatenate(([0], np.cumsum(np.diff(secs) < -43200.0)))
-    return secs - secs[0]
+class _Clock:
+    """The time column, read a chunk at a time in the form its first reports have: seconds (UNIX
+    or from the start), times of day, ISO 8601 date-times, or (with a date column, a trend log's)
+    times of day beside dates."""
+
+    def __init__(self, path: Path, column: str, first: list[str], dated: bool) -> None:
+        self.path, self.column = path, column
+        if dated:
+            self.form = "dated"
+        elif all(_TIME_OF_DAY.fullmatch(v.strip()) for v in first):
+            self.form = "time of day"
+        elif all(is_number(v) for v in first):
+            self.form = "seconds"
+        else:
+            self.form = "iso"
+        self._parts: list[np.ndarray] = []
+
+    def add(self, values: list[str], dates: list[str] | None, line: int) -> None:
+        """One chunk's times; ``line`` is the file's line of its first report."""
+        try:
+            self._parts.append(self._parse(values, dates))
+        except (ValueError, AssertionError):
+            k = next(k for k in range(len(values)) if not self._fits(values[k], dates[k] if dates else None))
+            raise PmuImportError(
+                f"{self.path}: line {line + k}, column {self.column!r}: {values[k]!r} is not a time "
+                f"({'a time of day beside a date' if self.form == 'dated' else self.form}, as the first reports)"
+            ) from None
+
+    def _fits(self, value: str, date: str | None) -> bool:
+        try:
+            self._parse([value], [date] if date is not None else None)
+        except (ValueError, AssertionError):
+            return False
+        return True
+
+    def _parse(self, values: list[str], dates: list[str] | None) -> np.ndarray:
+        if self.form == "seconds":
+            return np.array([float(v) for v in values])
+        if self.form == "time of day":
+            secs = np.empty(len(values))
+            for k, v in enumerate(values):
+                found = _TIME_OF_DAY.fullmatch(v.strip())
+                assert found is not None
+                secs[k] = int(found[1]) * 3600 + int(found[2]) * 60 + float(found[3])
+            return secs
+        if dates is not None:
+            values = [f"{_iso_date(d, self.path)}T{v.strip()}" for d, v in zip(dates, values)]
+        return np.array([np.datetime64(_ns_digits(v.strip().replace("Z", ""))) for v in values], dtype="datetime64[ns]")
+
+    def seconds(self) -> tuple[np.ndarray, int | None]:
+        """Report times in s (from the first, or UNIX seconds as written), and when the first was
+        taken (UTC ns since the epoch; None for times of day without a date and for seconds from
+        the start)."""
+        x = np.concatenate(self._parts)
+        if self.form == "seconds":
+            return x, int(round(x[0] * NS)) if x[0] >= UNIX_SECONDS else None
+        if self.form == "time of day":  # a recording across midnight goes on
+            x = x + 86400.0 * np.concatenate(([0], np.cumsum(np.diff(x) < -43200.0)))
+            return x - x[0], None
+        return (x - x[0]).astype(np.int64) / NS, int(x[0].astype(np.int64))
+
+
+class _Column:
+    """A mapped column as numbers, chunk by chunk; the first entry that is not a finite number is
+    remembered (line and text) and reported when the column is used, after the time checks."""
+
+    def __init__(self) -> None:
+        self.parts: list[np.ndarray] = []
+        self.bad: tuple[int, str, str] | None = None  # (line, text, "not a number" | "not finite")
+
+    def add(self, values: list[str], line: int) -> None:
+        try:
+            x = np.array([float(v) for v in values])
+        except ValueError:
+            x = np.array([float(v) if is_number(v) else np.nan for v in values])
+            k = next(k for k, v in enumerate(values) if not is_number(v))
+            self._note(line + k, values[k], "is not a number")
+        bad = ~np.isfinite(x)
+        if bad.any():
+            k = int(np.flatnonzero(bad)[0])
+            self._note(line + k, values[k], "is not finite")
+        self.parts.append(x)
+
+    def _note(self, line: int, text: str, what: str) -> None:
+        if self.bad is None or line < self.bad[0]:
+            self.bad = (line, text, what)
+
+
+def _read_columns(
+    path: Path,
+    fh: TextIO,
+    delimiter: str,
+    euro: bool,
+    header: list[str],
+    clock_col: str,
+    date_col: str | None,
+    wanted: list[str],
+) -> tuple[_Clock, dict[str, _Column]]:
+    """The body of the export, ``CHUNK_ROWS`` reports at a time: the time (and date) column and
+    the ``wanted`` ones, as numbers; every line checked for its number of fields."""
+    columns = {h: i for i, h in enumerate(header)}
+    reader = csv.reader(fh, delimiter=delimiter)
+    clock: _Clock | None = None
+    out = {name: _Column() for name in wanted}
+    line = 2  # the file's line of the chunk's first report
+    while chunk := list(itertools.islice(reader, CHUNK_ROWS)):
+        ragged = next((k for k, r in enumerate(chunk) if len(r) != len(header)), None)
+        if ragged is not None:
+            raise PmuImportError(
+                f"{path}: line {line + ragged} has {len(chunk[ragged])} fields, the header {len(header)}"
+            )
+
+        def field(name: str) -> list[str]:
+            i = columns[name]
+            return [r[i].replace(",", ".") for r in chunk] if euro else [r[i] for r in chunk]
+
+        times = field(clock_col)
+        dates = [r[columns[date_col]] for r in chunk] if date_col is not None else None
+        if clock is None:
+            clock = _Clock(path, clock_col, times, dated=dates is not None)
+        clock.add(times, dates, line)
+        for name, col in out.items():
+            col.add(field(name), line)
+        line += len(chunk)
+    if clock is None or line < 4:
+        raise PmuImportError(f"{path}: needs a header row and at least two reports")
+    return clock, out
 
 
 def read_pmu_csv(
@@ -95,38 +195,34 @@ def read_pmu_csv(
 ) -> tuple[np.ndarray, dict[str, np.ndarray], float, int | None]:
     """(t from the first report, per-unit channels, the reporting rate, when the first report
     was taken if the file says: UTC ns); what was done to the reports (a jittered clock
-    resampled) is added to ``notes``."""
+    resampled) is added to ``notes``. The file is read a chunk of reports at a time."""
     notes = notes if notes is not None else []
     p = Path(path)
     if not p.is_file():
         raise PmuImportError(f"{p}: no such PMU export")
     with p.open(newline="", encoding="utf-8-sig") as fh:
         first = fh.readline()
-        fh.seek(0)
         # a decimal-comma locale's export: ';' between fields, 0,5 for 0.5
         euro = first.count(";") > first.count(",")
-        rows = list(csv.reader(fh, delimiter=";" if euro else ","))
-    if euro:
-        rows = [[f.replace(",", ".") for f in r] for r in rows]
-    if len(rows) < 3:
-        raise PmuImportError(f"{p}: needs a header row and at least two reports")
-    header = [h.strip() for h in rows[0]]
-    columns = {h: i for i, h in enumerate(header)}
-    if any(cmap.has(w) for w in WAVEFORMS):
-        raise PmuImportError(f"{cmap.path}: a PMU export carries phasors, not waveforms ({', '.join(WAVEFORMS)})")
-    time_col = cmap.time_column
-    if time_col not in columns:
-        raise PmuImportError(f"{p}: no time column {time_col!r} (map: time); columns: {', '.join(header)}")
-    date_col = cmap.date_column
-    if date_col is not None and date_col not in columns:
-        raise PmuImportError(f"{p}: no date column {date_col!r} (map: date); columns: {', '.join(header)}")
-    check_recording(cmap, p.name, [h for h in header if h not in (time_col, date_col)])
-    body = rows[1:]
-    ragged = next((k for k, r in enumerate(body) if len(r) != len(header)), None)
-    if ragged is not None:
-        raise PmuImportError(f"{p}: line {ragged + 2} has {len(body[ragged])} fields, the header {len(header)}")
-    dates = [r[columns[date_col]] for r in body] if date_col is not None else None
-    t, start_ns = _seconds([r[columns[time_col]] for r in body], p, time_col, dates)
+        delimiter = ";" if euro else ","
+        header = [h.strip() for h in next(csv.reader([first], delimiter=delimiter), [])]
+        if not header or not fh.readline():
+            raise PmuImportError(f"{p}: needs a header row and at least two reports")
+        fh.seek(0)
+        fh.readline()
+        columns = {h: i for i, h in enumerate(header)}
+        if any(cmap.has(w) for w in WAVEFORMS):
+            raise PmuImportError(f"{cmap.path}: a PMU export carries phasors, not waveforms ({', '.join(WAVEFORMS)})")
+        time_col = cmap.time_column
+        if time_col not in columns:
+            raise PmuImportError(f"{p}: no time column {time_col!r} (map: time); columns: {', '.join(header)}")
+        date_col = cmap.date_column
+        if date_col is not None and date_col not in columns:
+            raise PmuImportError(f"{p}: no date column {date_col!r} (map: date); columns: {', '.join(header)}")
+        check_recording(cmap, p.name, [h for h in header if h not in (time_col, date_col)])
+        wanted = sorted({c.name for c in cmap.channels.values() if c.name in columns})
+        clock, values = _read_columns(p, fh, delimiter, euro, header, time_col, date_col, wanted)
+    t, start_ns = clock.seconds()
     dt = np.diff(t)
     if np.any(dt <= 0):
         k = int(np.flatnonzero(dt <= 0)[0])
@@ -153,15 +249,11 @@ def read_pmu_csv(
         )
 
     def recorded(name: str) -> np.ndarray:
-        col = columns[name]
-        try:
-            x = np.array([float(r[col]) for r in body])
-        except ValueError:
-            k = next(k for k, r in enumerate(body) if not is_number(r[col]))
-            raise PmuImportError(f"{p}: line {k + 2}, column {name!r}: {body[k][col]!r} is not a number") from None
-        if not np.all(np.isfinite(x)):
-            k = int(np.flatnonzero(~np.isfinite(x))[0])
-            raise PmuImportError(f"{p}: line {k + 2}, column {name!r}: {body[k][col]!r} is not finite")
+        col = values[name]
+        if col.bad is not None:
+            line, text, what = col.bad
+            raise PmuImportError(f"{p}: line {line}, column {name!r}: {text!r} {what}")
+        x = np.concatenate(col.parts)
         return np.interp(grid, t, x) if grid is not None else x
 
     t_out, channels, _ = identification_channels(cmap, recorded, 1.0 / period, str(p))

@@ -120,3 +120,37 @@ def test_a_trend_log_with_date_and_time_of_day_and_a_jittered_clock_is_read(expo
             assert got.shape == want.shape
             # a 0.3 ms shift of a 100 Hz report of slow phasors: a few 1e-4 pu at the steps
             assert np.allclose(got, want, atol=5e-3), (stream, c, float(np.max(np.abs(got - want))))
+
+
+def test_an_export_read_a_chunk_at_a_time_is_read_as_whole(export, tmp_path, monkeypatch) -> None:
+    """Chunks of 7 reports (the file's 600 in 86 chunks) give the channels of one chunk, and a
+    bad entry deep in the file is named by its line, after the time checks as before."""
+    from phid_ros.io import pmu_csv
+
+    path, cmap, _ = export
+    whole = import_pmu_csv([path], cmap)
+    monkeypatch.setattr(pmu_csv, "CHUNK_ROWS", 7)
+    chunked = import_pmu_csv([path], cmap)
+    for name, stream in whole.streams.items():
+        assert np.array_equal(stream.t_ns, chunked.streams[name].t_ns)
+        for c, x in stream.channels.items():
+            assert np.array_equal(x, chunked.streams[name].channels[c], equal_nan=True), (name, c)
+    rows = path.read_text().splitlines()
+    for line, edit, message in [
+        (400, lambda r: r.rsplit(",", 1)[0] + ",inf", r"line 400, column 'PMECH': 'inf' is not finite"),
+        (401, lambda r: r + ",1.0", r"line 401 has 11 fields, the header 10"),
+        (402, lambda r: "12.5" + r[r.index(",") :], r"line 402, column 'Timestamp': '12\.5' is not a time \(iso"),
+    ]:
+        bad = rows.copy()
+        bad[line - 1] = edit(bad[line - 1])
+        (tmp_path / "S09.csv").write_text("\n".join(bad) + "\n")
+        with pytest.raises(PmuImportError, match=message):
+            import_pmu_csv([tmp_path / "S09.csv"], cmap)
+
+
+@pytest.mark.parametrize("reports", [0, 1])
+def test_an_export_without_two_reports_is_refused(export, tmp_path, reports) -> None:
+    path, cmap, _ = export
+    (tmp_path / "S09.csv").write_text("\n".join(path.read_text().splitlines()[: 1 + reports]) + "\n")
+    with pytest.raises(PmuImportError, match=r"S09\.csv: needs a header row and at least two reports"):
+        import_pmu_csv([tmp_path / "S09.csv"], cmap)
