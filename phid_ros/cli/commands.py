@@ -100,7 +100,7 @@ def _simulate_ambient(args: argparse.Namespace, console: Console) -> int:
 
     from phid_ros.cli.simulate import DEFAULT_START_NS, recording_metadata, truth_document
     from phid_ros.io.bags import open_message_writer
-    from phid_ros.io.recording import Recording, StreamSamples, recording_messages
+    from phid_ros.io.recording import Recording, StreamSamples, iter_recording_messages
     from phid_ros.io.results import truth_path_for, write_json
     from phid_ros.io.topics import STREAMS
     from phid_ros.model.conventions import NS
@@ -127,7 +127,7 @@ def _simulate_ambient(args: argparse.Namespace, console: Console) -> int:
                     s.name: StreamSamples(t_ns.copy(), dt_ns, {c: chunk.measured[c] for c in s.channels})
                     for s in STREAMS
                 }
-                for item in recording_messages(Recording(streams, []), block_size=args.block_size):
+                for item in iter_recording_messages(Recording(streams, []), block_size=args.block_size):
                     writer.write(*item)
                 for name, v in chunk.parameters.items():  # once a second, from the run's start
                     drifting[name] += v[(-first) % every :: every].tolist()

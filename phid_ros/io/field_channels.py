@@ -77,6 +77,9 @@ def identification_channels(
             f_sys = f0
     frame = np.exp(-2j * np.pi * (f_sys - f0) * t)  # nominal-frequency reference -> synchronous frame
     v = v1 * frame
+    # the complex intermediates are let go as soon as they are used: a day's PMU export has 4.3
+    # million reports, each complex array of them 69 MB
+    del v1
     if cmap.has("i_a", "i_b", "i_c"):
         try:
             i1, _ = three_phase_phasors(pu("i_a"), pu("i_b"), pu("i_c"), fs, f0)
@@ -87,6 +90,7 @@ def identification_channels(
         i = value("i_t") * np.exp(1j * value("phi_i")) * frame
     else:
         i = np.conj((value("p_e") + 1j * value("q_e")) / v)
+    del frame
     theta_t = np.unwrap(np.angle(v))
     nan = np.full(len(t), np.nan)
     if cmap.has("load_angle"):
@@ -95,7 +99,7 @@ def identification_channels(
         delta = value("delta") - 2 * np.pi * (f_sys - f0) * t
     else:
         delta = nan
-    s = v * np.conj(i)
+    s = v * np.conj(i) if not cmap.has("p_e", "q_e") else None
     out = {
         "v_t": np.abs(v),
         "theta_t": theta_t,
@@ -103,9 +107,10 @@ def identification_channels(
         "delta": delta,
         "v_f": value("v_f") if cmap.has("v_f") else nan,
         "p_m": value("p_m") if cmap.has("p_m") else nan,
-        "p_e": value("p_e") if cmap.has("p_e") else s.real,
-        "q_e": value("q_e") if cmap.has("q_e") else s.imag,
+        "p_e": value("p_e") if cmap.has("p_e") else s.real,  # type: ignore[union-attr]
+        "q_e": value("q_e") if cmap.has("q_e") else s.imag,  # type: ignore[union-attr]
     }
+    del s, v
     out["i_d"], out["i_q"] = terminal_to_dq(np.abs(i), delta, np.angle(i))
     if cmap.has("i_t") and not cmap.has("phi_i") and (cmap.has("p_e", "q_e")):
         _check_current(np.abs(i), value("i_t"), source)

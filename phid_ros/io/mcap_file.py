@@ -18,8 +18,8 @@ from phid_ros.io.recording import (
     checked_payloads,
     describe_span,
     is_phid_topic,
+    iter_recording_messages,
     recording_from_raw,
-    recording_messages,
 )
 from phid_ros.io.topics import DEFAULT_NAMESPACE
 
@@ -30,7 +30,7 @@ def write_mcap(
     path: str | Path, rec: Recording, *, block_size: int = DEFAULT_BLOCK_SIZE, namespace: str = DEFAULT_NAMESPACE
 ) -> Path:
     return write_mcap_messages(
-        path, recording_messages(rec, block_size=block_size, namespace=namespace), metadata=rec.metadata
+        path, iter_recording_messages(rec, block_size=block_size, namespace=namespace), metadata=rec.metadata
     )
 
 

@@ -254,6 +254,7 @@ def read_pmu_csv(
             line, text, what = col.bad
             raise PmuImportError(f"{p}: line {line}, column {name!r}: {text!r} {what}")
         x = np.concatenate(col.parts)
+        col.parts = [x]  # the chunks let go: a day's column is held once, not twice
         return np.interp(grid, t, x) if grid is not None else x
 
     t_out, channels, _ = identification_channels(cmap, recorded, 1.0 / period, str(p))

@@ -7,6 +7,8 @@ one float64 array per channel; it may contain gaps (a new block starts at each).
 
 from __future__ import annotations
 
+import heapq
+import itertools
 import math
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
@@ -23,6 +25,7 @@ from phid_ros.io.topics import (
     SCENARIO_TOPIC,
     STREAMS,
     STREAMS_BY_NAME,
+    StreamSpec,
     topic_for,
 )
 from phid_ros.model.conventions import NS, split_stamp, stamp_ns
@@ -134,25 +137,33 @@ def block_bounds(t_ns: NDArray[np.int64], period_ns: int, block_size: int) -> li
 def recording_messages(
     rec: Recording, *, block_size: int = DEFAULT_BLOCK_SIZE, namespace: str = DEFAULT_NAMESPACE
 ) -> list[tuple[int, str, str, object]]:
-    """(log time ns, topic, msgtype, message) in log-time order.
+    """(log time ns, topic, msgtype, message) in log-time order, as a list (see :func:`iter_recording_messages`)."""
+    return list(iter_recording_messages(rec, block_size=block_size, namespace=namespace))
+
+
+def iter_recording_messages(
+    rec: Recording, *, block_size: int = DEFAULT_BLOCK_SIZE, namespace: str = DEFAULT_NAMESPACE
+) -> Iterator[tuple[int, str, str, object]]:
+    """(log time ns, topic, msgtype, message) in log-time order, made as they are taken.
 
     A block is logged at the stamp of its last sample, when a sensor node
-    would publish it; a scenario marker at the start of its window.
+    would publish it; a scenario marker at the start of its window. Messages of equal log time
+    keep the order of the streams, then the markers'. Why made one at a time: a day of PMU
+    reports is 170 000 messages, 190 MB as a list beside the samples they view.
     """
     store = typestore()
-    out: list[tuple[int, str, str, object]] = []
+    streams: list[Iterator[tuple[int, str, str, object]]] = []
+    in_order = True
     for spec in STREAMS:
         stream = rec.streams.get(spec.name)
         if stream is None:
             continue
-        cls = store.types[spec.msgtype]
-        period_s = stream.period_ns / NS
-        topic = topic_for(spec.name, namespace)
-        for a, b in block_bounds(stream.t_ns, stream.period_ns, block_size):
-            arrays = {c: np.ascontiguousarray(stream.channels[c][a:b]) for c in spec.channels}
-            msg = cls(header=_header(int(stream.t_ns[a])), sample_period=period_s, **arrays)
-            out.append((int(stream.t_ns[b - 1]), topic, spec.msgtype, msg))
+        bounds = block_bounds(stream.t_ns, stream.period_ns, block_size)
+        ends = np.array([int(stream.t_ns[b - 1]) for _, b in bounds], dtype=np.int64)
+        in_order &= bool(np.all(np.diff(ends) >= 0))  # a clock that jumps back: one sort of them all
+        streams.append(_stream_messages(stream, spec, store, topic_for(spec.name, namespace), bounds))
     marker_cls = store.types[SCENARIO_MSGTYPE]
+    markers = []
     for sc in rec.scenarios:
         msg = marker_cls(
             header=_header(sc.start_ns),
@@ -167,9 +178,23 @@ def recording_messages(
             end=ns_to_time(sc.end_ns),
             description=sc.description,
         )
-        out.append((sc.start_ns, SCENARIO_TOPIC, SCENARIO_MSGTYPE, msg))
-    out.sort(key=lambda item: item[0])
-    return out
+        markers.append((sc.start_ns, SCENARIO_TOPIC, SCENARIO_MSGTYPE, msg))
+    markers.sort(key=lambda item: item[0])
+    if in_order:  # heapq.merge keeps equal keys in the order of its inputs: the stable sort's order
+        yield from heapq.merge(*streams, markers, key=lambda item: item[0])
+    else:
+        yield from sorted(itertools.chain(*streams, markers), key=lambda item: item[0])
+
+
+def _stream_messages(
+    stream: StreamSamples, spec: StreamSpec, store: Any, topic: str, bounds: list[tuple[int, int]]
+) -> Iterator[tuple[int, str, str, object]]:
+    cls = store.types[spec.msgtype]
+    period_s = stream.period_ns / NS
+    for a, b in bounds:
+        arrays = {c: np.ascontiguousarray(stream.channels[c][a:b]) for c in spec.channels}
+        msg = cls(header=_header(int(stream.t_ns[a])), sample_period=period_s, **arrays)
+        yield int(stream.t_ns[b - 1]), topic, spec.msgtype, msg
 
 
 # -- messages -> recording ---------------------------------------------------
