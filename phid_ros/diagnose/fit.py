@@ -325,14 +325,22 @@ def finite_start(residual: Callable[[Array], Array], start: Array, fallback: Arr
     Why: a profile point's start is predicted to first order from the final fit's Jacobian; on a
     salient-pole machine with saturation and dampers that prediction took the play-in where it
     diverged, and scipy's solver stopped the whole diagnosis with "Residuals are not finite in
-    the initial point". A start the data reject is a start to move, not a crash.
+    the initial point". A start the data reject is a start to move, not a crash. Finite means
+    the sum of squares the solver takes is finite: on STEPS's saturated GENSAL a diverging
+    play-in returned residuals of 1e160 and more, each finite, their square sum not.
     """
+
+    def usable(x: Array) -> bool:
+        r = residual(x)
+        with np.errstate(over="ignore", invalid="ignore"):
+            return bool(np.all(np.isfinite(r)) and math.isfinite(float(r @ r)))
+
     x = np.asarray(start, dtype=float)
     for _ in range(START_BACKOFFS + 1):
-        if np.all(np.isfinite(residual(x))):
+        if usable(x):
             return x
         x = 0.5 * (x + fallback)
-    if np.all(np.isfinite(residual(fallback))):
+    if usable(fallback):
         return np.asarray(fallback, dtype=float)
     raise FitError("the play-in diverges at the start and on the way back to the model's own values")
 

@@ -124,3 +124,6 @@ def test_a_start_the_play_in_rejects_is_moved_back_not_a_crash() -> None:
     assert np.array_equal(finite_start(residual, np.array([1.5]), np.array([1.0])), [1.5])  # a good start stays
     with pytest.raises(FitError, match="diverges at the start and on the way back"):
         finite_start(lambda x: np.full(3, np.nan), np.array([9.0]), np.array([1.0]))
+    # residuals each finite whose square sum is not (STEPS's saturated GENSAL: 1e160 and more)
+    huge = finite_start(lambda x: np.where(x < 2.0, x - 1.0, 1e200) * np.ones(3), np.array([9.0]), np.array([1.0]))
+    assert 1.0 < huge[0] < 2.0
