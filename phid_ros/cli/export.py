@@ -43,8 +43,19 @@ def run(args: argparse.Namespace, console: Console) -> int:
         warn(f"writing parameters that are NOT identified (--allow-flagged): {', '.join(rec.flagged)}")
     for w in rec.warnings:
         warn(w)
+    written = dict(rec.values)
+    sources = dict(rec.sources)
+    if args.format == "psse-dyr":
+        written["D"] = rec.torque_form_damping()
+        if rec.p_m0 is None:
+            warn(
+                f"{args.result}: no operating point (identified before phid 0.3): D is written as identified, "
+                "but PSS/E divides P_m by the speed and needs D - P_m0; identify again to have it converted"
+            )
+        else:
+            sources["D"] += f", minus P_m0 = {rec.p_m0:.3g} (PSS/E's torque form)"
     write_text(out, WRITERS[args.format](rec))
-    rows = [[f, FIELDS[f].split(",")[0].split(" (")[0], f"{rec.values[f]:.6g}", rec.sources[f]] for f in rec.fields]
+    rows = [[f, FIELDS[f].split(",")[0].split(" (")[0], f"{written[f]:.6g}", sources[f]] for f in rec.fields]
     cols = [
         Col("field", justify="left", key=True),
         Col("symbol", justify="left", keep=3),

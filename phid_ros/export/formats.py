@@ -6,7 +6,8 @@ Rules followed (each writer's test reads its output back by these rules):
   free format, the record ended by ``/``; anything after the ``/`` is a comment. The constants
   are on the machine base (MBASE of the .raw generator record). GENROU: T'do T''do T'qo T''qo
   H D Xd Xq X'd X'q X''d Xl S(1.0) S(1.2); GENSAL: T'do T''do T''qo H D Xd Xq X'd X''d Xl
-  S(1.0) S(1.2). Stator resistance is not a .dyr constant (it is ZSORCE in the .raw).
+  S(1.0) S(1.2). Stator resistance is not a .dyr constant (it is ZSORCE in the .raw). PSS/E's
+  swing equation divides P_m by the speed: D is written as D - P_m0 (``MachineRecord.torque_form_damping``).
 - PSLF .dyd: ``genrou BUS "NAME" KV "ID" : #9 mva=MVA`` then ``"name" value`` pairs;
   a line ending in ``/`` continues on the next; lines starting with ``#`` are comments.
 - ANDES: a JSON object ``{"GENROU": [record]}`` with ANDES's field names (M = 2H, xd1, Td10,
@@ -68,7 +69,8 @@ def _num(v: float) -> str:
 
 
 def psse_dyr(rec: MachineRecord) -> str:
-    values = [_num(rec.values[f]) for f in PSSE_ORDER[rec.model]]
+    fields = {**rec.values, "D": rec.torque_form_damping()}  # PSS/E divides P_m by the speed
+    values = [_num(fields[f]) for f in PSSE_ORDER[rec.model]]
     lines = [f"{rec.bus} '{rec.model}' '{rec.machine_id}'"]
     for i in range(0, len(values), 6):
         lines.append("    " + " ".join(values[i : i + 6]))

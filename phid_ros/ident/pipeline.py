@@ -14,6 +14,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
 from phid_ros.errors import StageError
 from phid_ros.ident import consistency, determinable, stage1, stage2, stage3, validation
 from phid_ros.ident.constraints import NONE, Constraints, at_user_bound, held
@@ -133,6 +135,9 @@ class IdentificationResult:
         }
         if self.constraints:
             doc["constraints"] = self.constraints.as_dict()
+        point = operating_point(self.scenarios)
+        if point:
+            doc["operating_point"] = point
         if self.determined_by:
             doc["determined_by"] = self.determined_by
         if self.stage1_paper is not None:
@@ -176,6 +181,24 @@ class IdentificationResult:
                 "X_q_used": self.stage3.X_q,
             }
         return out
+
+
+OPERATING_CHANNELS = {"p_m": "p_m_pu", "p_e": "p_e_pu", "q_e": "q_e_pu", "v_t": "v_t_pu"}
+
+
+def operating_point(scenarios: Sequence[ScenarioData]) -> dict[str, float]:
+    """The mean pre-event P_m, P_e, Q_e, V_t of the identification scenarios (machine base): where
+    the identified model was linearised. A planning model whose swing equation divides P_m by the
+    speed (PSS/E's) needs it to carry D over (:mod:`phid_ros.export.record`); without a P_m channel
+    P_m is P_e before the event (R_a = 0)."""
+    ident = [s for s in scenarios if s.role == "identify"]
+    out: dict[str, float] = {}
+    for c, key in OPERATING_CHANNELS.items():
+        have = [s for s in ident if s.has(c)] or ([s for s in ident if s.has("p_e")] if c == "p_m" else [])
+        values = [float(np.nanmean(s[c if s.has(c) else "p_e"][s.pre_slice()])) for s in have]
+        if values and all(math.isfinite(v) for v in values):
+            out[key] = float(np.mean(values))
+    return out
 
 
 def _apply_constraints(res: IdentificationResult, c: Constraints) -> None:

@@ -100,3 +100,23 @@ def test_psse_dyr_is_read_by_andes(tmp_path) -> None:
     frame = _read_dyr_dict(str(path))["GENROU"]
     assert frame.shape == (1, 16) and andes is not None
     assert list(frame.iloc[0, 2:]) == pytest.approx([rec.values[f] for f in PSSE_ORDER["GENROU"]], rel=1e-6)
+
+
+def test_pss_e_gets_damping_in_its_torque_form_andes_and_pslf_as_identified():
+    """PSS/E's swing equation is (P_m - D dw)/(1 + dw) - T_e (STEPS's GENSAL and GENROU, which
+    follow PSS/E's block diagrams, compute it so): linearised, P_m0 more damping than phid's (5).
+    On STEPS's GENSAL with D = 0.4 at P_m = 0.8 phid identified D = 1.22; the .dyr carries D - P_m0."""
+    doc = {**RESULT, "operating_point": {"p_m_pu": 0.8, "p_e_pu": 0.8, "q_e_pu": 0.4, "v_t_pu": 1.0}}
+    doc["parameters"] = {**TABLE1.as_dict(), "D": 1.22}
+    rec = build_record(doc, source="r.json", mva=1000.0, allow_flagged=True)
+    assert rec.p_m0 == 0.8 and rec.values["D"] == 1.22
+    [(_, _, _, values, _)] = read_dyr(psse_dyr(rec))
+    assert values[PSSE_ORDER["GENROU"].index("D")] == pytest.approx(0.42)
+    assert json.loads(andes_json(rec))["GENROU"][0]["D"] == 1.22  # ANDES's swing equation is phid's
+    # a result without its operating point (written before phid 0.3) goes out as identified
+    assert build_record(RESULT, source="r.json", mva=1000.0, allow_flagged=True).torque_form_damping() == TABLE1.D
+    # a machine whose damping is below what PSS/E's form adds on its own: D = 0, not negative
+    doc["parameters"]["D"] = 0.5
+    low = build_record(doc, source="r.json", mva=1000.0, allow_flagged=True)
+    assert low.torque_form_damping() == 0.0
+    assert any("D = 0.5 is below P_m0 = 0.8" in w and "damps 0.3 pu more" in w for w in low.warnings)
