@@ -1,0 +1,88 @@
+"""The diagnosis on a salient-pole machine it did not simulate: STEPS's GENSAL (test/steps_plant.py).
+
+Each study simulates the paper's catalogue (12 s scenarios) with STEPS on phid's single-machine
+case (1000 MVA machine on a 100 MVA system base), adds the simulator's sensor noise, identifies
+and diagnoses. The right effects must be named and nothing else (no delay: the play-in's own
+discretisation is not one), the held-out unexplained error must fall by at least 90 %, and the
+base parameters a GENSAL has (H, X_d, X_q, X'_d, T'_d0) must come back within 2 % where the
+diagnosis determined them, and every one further off must be marked not determined. D is
+phid's power form, PSS/E's D plus P_m (STEPS computes PSS/E's (P_m - D dw)/(1 + dw)): within
+twice its std of the span of P_m the events held. A GENSAL has no q-axis field winding: the
+fourth-order model's X'_q, T'_q0 take the damper (X'', T''_q0) until the damper is named; then
+X'_q goes to X_q and T'_q0 acts on nothing (not determined).
+
+STEPS's GENSAL saturates GENROU's way (on |psi''|, both axes; see test/steps_plant.py), so the
+saturation named on ``gensal-sat`` must be in GENROU's form. Slow, with its reason: STEPS is
+built from source (benchmarks/steps_build.sh, not installable from the package index here),
+and each study takes about a minute (30 s of STEPS, 30 s of diagnosis on two cores);
+``pytest -m slow test/diagnose/test_steps_gensal.py`` runs them.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from phid_ros.api import load_recording
+from phid_ros.diagnose.results import to_json
+from phid_ros.diagnose.workflow import DiagnoseOptions, diagnose
+from phid_ros.ident.pipeline import IdentifyOptions, identify
+from phid_ros.sim.scenarios import paper_catalogue, with_duration
+from phid_ros.stream.scenarios import scenarios_from_recording
+
+pytestmark = pytest.mark.slow
+
+Q_AXIS = {"X_q_prime", "T_q0_prime"}
+STUDIES = [  # machine, effects named, form of the saturation, base parameters expected within 2 %
+    ("gensal", ["subtransient_dynamics"], None, 6),  # measured: -93 %, six of six within 2 % (D +1.8 %)
+    # T'_d0 +3 % and not determined: the saturated steady states and T'_d0 trade off
+    ("gensal-sat", ["magnetic_saturation", "subtransient_dynamics"], "genrou", 5),  # measured -95 %
+    ("gensal-controls", ["subtransient_dynamics"], None, 6),  # SEXS and TGOV1 in the loop: -93 %
+    ("gensal-sat-controls", ["magnetic_saturation", "subtransient_dynamics"], "genrou", 6),  # -94 %
+]
+
+
+def study(machine: str, folder) -> tuple[dict, dict]:
+    from test.steps_plant import MACHINES, write_set
+
+    manifest = write_set(folder, MACHINES[machine], [with_duration(s, 12.0) for s in paper_catalogue()], seed=0)
+    scenarios, problems = scenarios_from_recording(load_recording(manifest), str(manifest))
+    assert not problems
+    res = identify(scenarios, IdentifyOptions(baseline=False, validate=False))
+    d = diagnose(scenarios, res.parameters, DiagnoseOptions.after(res, workers=0))
+    return to_json(d), res.to_json()
+
+
+@pytest.mark.parametrize(("machine", "named", "form", "within"), STUDIES, ids=[s[0] for s in STUDIES])
+def test_the_right_effects_are_named_on_steps_gensal(machine, named, form, within, tmp_path):
+    pytest.importorskip("stepspy")  # per test: a module-level skip drops the package under pytest 7
+    from test.steps_plant import TRUTH
+
+    doc, ident = study(machine, tmp_path)
+    assert sorted(e["name"] for e in doc["effects"]) == sorted(named), doc["effects"]
+    assert doc["rmse_after"] <= 0.10 * doc["rmse_before"]
+    sat = [e for e in doc["effects"] if e["name"] == "magnetic_saturation"]
+    if form is not None:
+        assert sat[0]["parameters"]["form"] == form
+    after = doc["parameters"]
+    undetermined = {n for n, ok in doc["identifiable"].items() if not ok}
+    truth = dict(TRUTH[machine])
+    # with the damper named the q axis has no transient circuit left: X'_q goes to X_q (where the
+    # data determine it) and T'_q0 acts on nothing
+    assert "T_q0_prime" in undetermined
+    if "X_q_prime" not in undetermined:
+        assert abs(after["X_q_prime"] / truth["X_q"] - 1.0) < 0.02, after["X_q_prime"]
+    close = []
+    for n in ("H", "X_d", "X_q", "X_d_prime", "T_d0_prime"):
+        error = after[n] / truth[n] - 1.0
+        if n not in undetermined:
+            assert abs(error) < 0.02, (n, after[n], truth[n])
+        close.append(abs(error) < 0.02)
+    # D, held at stage 1's value, is phid's power form: PSS/E's D plus P_m, linearised where each
+    # event held the machine (0.8 before it, up to 0.95 after a torque step), so within 2 std of
+    # that span; the .dyr's D - P_m0 then lies within it less P_m0
+    std, p_m0 = ident["uncertainty"]["D"], ident["operating_point"]["p_m_pu"]
+    low, high = truth["D"] - 2 * std, truth["D"] + 0.15 + 2 * std
+    assert low < after["D"] < high, (after["D"], low, high)
+    assert abs(p_m0 - 0.8) < 0.01
+    close.append(True)
+    assert sum(close) >= within, (after, undetermined)
