@@ -30,9 +30,17 @@ READ = (
     "import sys, collections; from phid_ros.io.parts import recording_parts; "
     "collections.deque(recording_parts(sys.argv[1]), maxlen=0)"
 )
-# peak memory of ada499f per hour of recording (this script's table of 2026-11-25): what keeps the
-# baseline out of a run that would not fit
-BASELINE_GB_PER_HOUR = {"simulate": 2.45, "replay": 1.9, "identify": 1.25, "track": 1.9, "info": 0.75, "read": 0.75}
+# peak memory of ada499f per hour of recording (this script's table of 2026-11-25; import: 373c035
+# read a day's PMU export in 3.5 GB): what keeps the baseline out of a run that would not fit
+BASELINE_GB_PER_HOUR = {
+    "simulate": 2.45,
+    "replay": 1.9,
+    "identify": 1.25,
+    "track": 1.9,
+    "info": 0.75,
+    "read": 0.75,
+    "import": 0.15,
+}
 
 
 def measured(cmd: list[str], cwd: Path) -> tuple[float, float, int]:
@@ -172,6 +180,8 @@ def main() -> None:
                             "import sys; from phid_ros.io.bags import read_recording; read_recording(sys.argv[1])",
                             str(bag),
                         ]
+                    if name == "import":  # import-pmu never overwrites: the last run's bag goes first
+                        Path(cmd[-1]).unlink(missing_ok=True)
                     rows.append((name, tag, *measured(cmd, tree)))
             by = {(n, t): (w, mb) for n, t, w, mb, _ in rows}
             for name, tag, wall, mb, code in rows:

@@ -174,25 +174,28 @@ CURRENT_HYPOTHESES = (  # (sign, swapped, the condition, what it means)
 )
 
 
+def _terminal_power_row(s: ScenarioData) -> tuple[float, list[float]] | None:
+    """One scenario's steady P_e and its mismatch to (13) under each current hypothesis, or None."""
+    v_d, v_q, i_d, i_q, p_e, q_e = (_pre(s, c) for c in ("v_d", "v_q", "i_d", "i_q", "p_e", "q_e"))
+    ok = _finite(v_d, v_q, i_d, i_q, p_e)
+    if ok.sum() < 10:
+        return None
+    q_ok = ok & np.isfinite(q_e)
+    measured = (float(np.median(p_e[ok])), float(np.median(q_e[q_ok])) if q_ok.sum() >= 10 else math.nan)
+    if abs(measured[0]) < MIN_POWER_PU:
+        return None
+    mismatch = []
+    for sign, swap, _, _ in CURRENT_HYPOTHESES:
+        a, b = (i_q, i_d) if swap else (i_d, i_q)
+        p, q = powers(v_d[ok], v_q[ok], sign * a[ok], sign * b[ok])
+        dq = abs(float(np.median(q)) - measured[1]) if math.isfinite(measured[1]) else 0.0
+        mismatch.append(max(abs(float(np.median(p)) - measured[0]), dq))
+    return measured[0], mismatch
+
+
 def _check_terminal_power(scenarios: Sequence[ScenarioData], out: Findings) -> None:
     """P_e + j Q_e against (13) from V_d, V_q and the currents as recorded, sign-flipped, swapped."""
-    rows = []
-    for s in scenarios:
-        v_d, v_q, i_d, i_q, p_e, q_e = (_pre(s, c) for c in ("v_d", "v_q", "i_d", "i_q", "p_e", "q_e"))
-        ok = _finite(v_d, v_q, i_d, i_q, p_e)
-        if ok.sum() < 10:
-            continue
-        q_ok = ok & np.isfinite(q_e)
-        measured = (float(np.median(p_e[ok])), float(np.median(q_e[q_ok])) if q_ok.sum() >= 10 else math.nan)
-        if abs(measured[0]) < MIN_POWER_PU:
-            continue
-        mismatch = []
-        for sign, swap, _, _ in CURRENT_HYPOTHESES:
-            a, b = (i_q, i_d) if swap else (i_d, i_q)
-            p, q = powers(v_d[ok], v_q[ok], sign * a[ok], sign * b[ok])
-            dq = abs(float(np.median(q)) - measured[1]) if math.isfinite(measured[1]) else 0.0
-            mismatch.append(max(abs(float(np.median(p)) - measured[0]), dq))
-        rows.append((measured[0], mismatch))
+    rows = [r for s in scenarios if (r := s.derived(("terminal_power",), partial(_terminal_power_row, s)))]
     if not rows:
         return
     out.checked.append("P_e, Q_e against V_d, V_q, I_d, I_q")

@@ -35,6 +35,7 @@ import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 from numpy.typing import NDArray
@@ -117,6 +118,12 @@ class Stage3Data:
     n_samples: int
 
 
+def _noise_variance(s: ScenarioData, name: str, end: int) -> float:
+    """The white-noise variance of ``name`` over the first ``end`` samples, from first differences."""
+    d = np.diff(s[name][:end])
+    return float((1.4826 * np.median(np.abs(d - np.median(d)))) ** 2 / 2.0)
+
+
 def prepare(
     scenarios: Sequence[ScenarioData],
     prefilter_hz: float | None = DEFAULT_PREFILTER_HZ,
@@ -178,11 +185,10 @@ def prepare(
     def noise(name: str) -> Array:
         """Per scenario: sensor-noise variance of the prefiltered current, from first differences
         (robust MAD; the signal barely moves in one sample)."""
-        out = []
-        for s, e in zip(scs, ends):
-            d = np.diff(s[name][:e])
-            out.append((1.4826 * np.median(np.abs(d - np.median(d)))) ** 2 / 2.0)
-        return np.array(out) * gain
+        return (
+            np.array([s.derived(("noise", name, e), partial(_noise_variance, s, name, e)) for s, e in zip(scs, ends)])
+            * gain
+        )
 
     d_current, d_drive, d_voltage = (
         filt(pad(lambda s: s["i_d"])),
