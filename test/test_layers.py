@@ -15,6 +15,7 @@ LAYERS = (
     {"io"},
     {"sim"},
     {"ident"},
+    {"controls"},
     {"stream", "export"},
     {"diagnose"},
     {"api"},

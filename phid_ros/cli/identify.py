@@ -13,6 +13,7 @@ from phid_ros.api import cut_scenarios, identify_cut
 from phid_ros.cli.common import finish, provenance, read_input, warn
 from phid_ros.cli.progress import ProgressLine
 from phid_ros.cli.tables import Col, fmt, pct, print_table
+from phid_ros.controls.identify import ControlFit, controls_json, identify_controls
 from phid_ros.errors import PhidError
 from phid_ros.ident.constraints import parse_constraints
 from phid_ros.ident.pipeline import IdentificationResult, IdentifyOptions
@@ -101,6 +102,26 @@ def _without(cols: list[Col], rows: list[list[str]], names: tuple[str, ...]) -> 
     return [cols[i] for i in keep], [[r[i] for i in keep] for r in rows]
 
 
+def print_controls(console: Console, found: dict[str, ControlFit | str]) -> None:
+    """The exciter and governor: the model named and its constants (PSS/E's names), or why none."""
+    rows = []
+    for kind, f in found.items():
+        if not isinstance(f, ControlFit):
+            rows.append([kind, "none", f, ""])
+            continue
+        constants = ", ".join(
+            f"{n} {v:.4g}" + ("" if f.identifiable[n] else " n.d.") for n, v in f.parameters.items() if v is not None
+        )
+        rows.append([kind, f.model if f.named else "none", constants if f.named else f.why, f"{f.fit_rmse:.2e}"])
+    cols = [
+        Col("system", "left"),
+        Col("model", "left"),
+        Col("constants (± in the JSON)", "left", text=True),
+        Col("RMSE pu"),
+    ]
+    print_table(console, "excitation and turbine-governor (limits never reached: not determined)", cols, rows)
+
+
 def print_validation(console: Console, res: IdentificationResult) -> None:
     if res.validation is None:
         return
@@ -175,6 +196,9 @@ def run(args: Any, console: Console) -> int:
     source = " + ".join(args.input)
     res.timing = {"read": round(t_read, 6), **res.timing}
     doc = res.to_json(truth)
+    with ProgressLine("identifying the exciter and the governor"):
+        controls = identify_controls(scenarios)
+    doc["controls"] = controls_json(controls)
     doc.update(provenance(*args.input))
     doc["f_nominal_hz"] = rec.f_nominal_hz  # what phid export needs to write a planning model
     if rec.metadata.get("base_mva") is not None:
@@ -195,6 +219,7 @@ def run(args: Any, console: Console) -> int:
         print_determinable(console, "what these channels determine", planned, res.determined_by)
     print_parameters(console, res, truth)
     print_validation(console, res)
+    print_controls(console, controls)
     if res.stage1_paper is not None:
         console.print(
             f"paper's differential damping (stage 1a): H = {res.stage1_paper.H.value:.4f} s, "

@@ -1,0 +1,1 @@
+"""Excitation systems and turbine-governors: models declared once, identified from recordings."""

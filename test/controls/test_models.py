@@ -1,0 +1,49 @@
+"""The control models' declarations and their small-signal paths' steady states and lags."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from phid_ros.controls.models import MODELS, SEXS, TGOV1, ControlInputs, of_kind
+
+
+def inputs(n: int = 20_000, dt: float = 1e-3, v_t: float = 0.0, speed: float = 0.0) -> ControlInputs:
+    step = (np.arange(n) >= 1000).astype(float)
+    return ControlInputs(dt, v_t * step, speed * step, step)
+
+
+def test_every_model_declares_its_constants_in_range_and_is_registered_by_kind() -> None:
+    assert {m.name for m in of_kind("exciter")} >= {"SEXS"} and {m.name for m in of_kind("governor")} >= {"TGOV1"}
+    for model in MODELS.values():
+        assert model.kind in ("exciter", "governor") and model.description
+        names = [p.name for p in model.parameters]
+        assert len(names) == len(set(names)), model.name
+        for p in model.parameters:
+            assert p.low <= p.default <= p.high and not p.outside(p.default), (model.name, p.name)
+        assert any(p.limit for p in model.parameters)  # every PSS/E record has its output limits
+
+
+def test_sexs_settles_at_its_gain_and_starts_at_gain_times_ta_over_tb() -> None:
+    v = {**SEXS.defaults(), "K": 50.0, "TA/TB": 0.2, "TB": 2.0, "TE": 0.05}
+    e = SEXS.response(v, inputs(v_t=-0.01), 0.0)  # V_t 0.01 pu below the reference
+    assert e[999] == 0.0 and e[-1] == pytest.approx(0.5, rel=1e-3)  # K * 0.01 after 19 s = 9.5 T_B
+    # the lead-lag's step (0.2 of it at once, the rest with T_B) through T_E: two lags in a chain
+    t, tb, te = 0.3, 2.0, 0.05
+    chain = 1 - (tb * np.exp(-t / tb) - te * np.exp(-t / te)) / (tb - te)
+    assert e[1000 + 300] == pytest.approx(0.5 * (0.2 * (1 - np.exp(-t / te)) + 0.8 * chain), rel=1e-3)
+    # a reference step of 0.01 is the same as V_t falling by 0.01
+    assert np.allclose(SEXS.response(v, inputs(), 0.01), e)
+
+
+def test_tgov1_answers_a_speed_rise_with_minus_one_over_r_and_a_reference_step_fully() -> None:
+    v = {**TGOV1.defaults(), "R": 0.05, "T1": 0.5, "T2": 1.0, "T3": 3.0, "Dt": 0.0}
+    p = TGOV1.response(v, inputs(n=40_000, speed=0.001), 0.0)
+    assert p[-1] == pytest.approx(-0.02, rel=1e-3)  # -dw/R after 39 s
+    ref = TGOV1.response(v, inputs(n=40_000), 0.1)
+    assert ref[-1] == pytest.approx(0.1, rel=1e-3)
+    # the valve (T1) then the turbine's lead-lag: T2/T3 of the valve at once, the rest through T3
+    t, t1, t3 = 2.5, 0.5, 3.0
+    valve = 1 - np.exp(-t / t1)
+    chain = 1 - (t3 * np.exp(-t / t3) - t1 * np.exp(-t / t1)) / (t3 - t1)
+    assert ref[1000 + 2500] == pytest.approx(0.1 * (valve / 3 + 2 / 3 * chain), rel=1e-3)
