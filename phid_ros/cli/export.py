@@ -54,6 +54,11 @@ def run(args: argparse.Namespace, console: Console) -> int:
             )
         else:
             sources["D"] += f", minus P_m0 = {rec.p_m0:.3g} (PSS/E's torque form)"
+    if rec.controls and args.format == "pslf-dyd":
+        warn(
+            f"{args.result}: the {', '.join(c.model for c in rec.controls)} record(s) are not written to a .dyd "
+            "(PSLF's names for their constants are not checked here); the .dyr and ANDES formats carry them"
+        )
     write_text(out, WRITERS[args.format](rec))
     rows = [[f, FIELDS[f].split(",")[0].split(" (")[0], f"{written[f]:.6g}", sources[f]] for f in rec.fields]
     cols = [
@@ -63,5 +68,6 @@ def run(args: argparse.Namespace, console: Console) -> int:
         Col("source", justify="left", keep=8, text=True),
     ]
     print_table(console, f"{rec.model} record, bus {rec.bus} id {rec.machine_id}, {rec.mva:g} MVA base", cols, rows)
-    console.print(f"wrote {out} ({args.format})", highlight=False)
+    beside = [c.model for c in rec.controls] if args.format != "pslf-dyd" else []
+    console.print(f"wrote {out} ({args.format}{''.join(', with ' + m for m in beside)})", highlight=False)
     return 0

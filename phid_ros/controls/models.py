@@ -38,6 +38,7 @@ class ControlParameter:
     high: float
     meaning: str
     limit: bool = False  # an output or state limit: determined only where the data reached it
+    absent: float | None = None  # the value at which its term vanishes (a turbine damping of 0)
 
     def outside(self, value: float) -> bool:
         return not self.low <= value <= self.high
@@ -138,7 +139,7 @@ class TGOV1(ControlModel):
         ControlParameter("VMIN", "pu", 0.0, -0.5, 0.5, "minimum valve position", limit=True),
         ControlParameter("T2", "s", 1.0, 0.0, 20.0, "turbine lead time constant"),
         ControlParameter("T3", "s", 3.0, 0.05, 30.0, "turbine lag (reheat) time constant"),
-        ControlParameter("Dt", "pu", 0.0, 0.0, 5.0, "turbine damping"),
+        ControlParameter("Dt", "pu", 0.0, 0.0, 5.0, "turbine damping", absent=0.0),
     )
 
     @classmethod

@@ -64,6 +64,9 @@ ANDES_NAMES = {
 }
 
 
+ANDES_CONTROL_NAMES = {"TA/TB": "TATB"}  # else ANDES's SEXS and TGOV1 use PSS/E's names
+
+
 def _num(v: float) -> str:
     return f"{v:.6g}"
 
@@ -75,6 +78,9 @@ def psse_dyr(rec: MachineRecord) -> str:
     for i in range(0, len(values), 6):
         lines.append("    " + " ".join(values[i : i + 6]))
     lines[-1] += f" /  {rec.comment()}"
+    for c in rec.controls:  # the exciter and the governor beside the machine, their CONs in PSS/E's order
+        lines.append(f"{rec.bus} '{c.model}' '{rec.machine_id}' " + " ".join(_num(v) for v in c.values.values()))
+        lines[-1] += f" /  {c.comment()}"
     return "\n".join(lines) + "\n"
 
 
@@ -105,7 +111,16 @@ def andes_json(rec: MachineRecord) -> str:
         row["xq1"], row["Tq10"] = v["Xd1"], v["Td10"]
     if rec.flagged:  # ANDES rows have no comment field; the name carries the warning
         row["name"] = f"{row['name']} NOT IDENTIFIED: {', '.join(rec.flagged)}"
-    doc = {"GENROU": [row]}
+    doc: dict[str, list[dict[str, object]]] = {"GENROU": [row]}
+    for c in rec.controls:  # ANDES's SEXS and TGOV1 take PSS/E's constants, wired to the machine by syn
+        ctl: dict[str, object] = {"idx": f"{c.model}_{rec.bus}_{rec.machine_id}", "u": 1, "syn": row["idx"]}
+        ctl["name"] = f"{c.model}_{rec.bus}_{rec.machine_id}" + (
+            f" NOT IDENTIFIED: {', '.join(c.flagged)}" if c.flagged else ""
+        )
+        ctl.update({ANDES_CONTROL_NAMES.get(k, k): v for k, v in c.values.items()})
+        if c.kind == "governor":
+            ctl["Tn"] = rec.mva  # R and the valve limits on the machine's base
+        doc[c.model] = [ctl]
     return json.dumps(doc, indent=2) + "\n"
 
 

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from phid_ros.errors import PhidError
+from phid_ros.export.controls import ControlRecord, build_control_records
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME
 from phid_ros.sim.effects import leakage_default
 
@@ -86,6 +87,7 @@ class MachineRecord:
     # the mean P_m (pu, machine base) where the recordings held the machine; None when the result
     # does not say (written before phid 0.3)
     p_m0: float | None = None
+    controls: list[ControlRecord] = field(default_factory=list)  # the exciter's, the governor's
 
     @property
     def fields(self) -> list[str]:
@@ -231,6 +233,7 @@ def build_record(
         warnings=warnings,
         p_m0=float(p_m0) if isinstance(p_m0, (int, float)) and math.isfinite(p_m0) else None,
     )
+    rec.controls = build_control_records(result, source, allow_flagged=allow_flagged)
     if rec.p_m0 is not None and rec.values["D"] < rec.p_m0:
         warnings.append(
             f"D = {rec.values['D']:.3g} is below P_m0 = {rec.p_m0:.3g}, the damping PSS/E's torque form adds by "

@@ -97,3 +97,53 @@ def test_table1_machine_fault_difference_is_the_q_axis_damper(tmp_path: Path) ->
     # (README); bounded here so a change in the record's defaults is noticed
     rms_delta, _ = compare(tmp_path, TABLE1, "psse-dyr", FAULT)
     assert 0.1 < rms_delta < 1.0, rms_delta
+
+
+CONTROLS = {
+    "exciter": {
+        "model": "SEXS",
+        "parameters": {"TA/TB": 0.2, "TB": 5.0, "K": 100.0, "TE": 0.05, "EMIN": None, "EMAX": None},
+        "identifiable": {"TA/TB": True, "TB": True, "K": True, "TE": True, "EMIN": False, "EMAX": False},
+    },
+    "governor": {
+        "model": "TGOV1",
+        "parameters": {"R": 0.05, "T1": 0.5, "VMAX": None, "VMIN": None, "T2": 2.0, "T3": 6.0, "Dt": 0.0},
+        "identifiable": {"R": True, "T1": True, "VMAX": False, "VMIN": False, "T2": True, "T3": True, "Dt": False},
+    },
+}
+
+
+def test_the_exciter_and_governor_go_out_beside_the_machine_in_both_formats(tmp_path: Path) -> None:
+    """identify's ``controls`` exported with the machine: ANDES's PSS/E reader and its JSON reader
+    take the same unit (SEXS, TGOV1 wired to the GENROU), and a fault in each simulates the same;
+    the field voltage goes to its ceiling (the stated default EMAX) and back."""
+    params = TABLE1.replace(X_q_prime=TABLE1.X_d_prime)
+    result = {
+        "parameters": params.as_dict(),
+        "identifiable": {n: True for n in PARAMETER_NAMES},
+        "f_nominal_hz": 50.0,
+        "controls": CONTROLS,
+    }
+    rec = build_record(result, source="result.json", mva=MACHINE_MVA, bus=1, machine_id="1")
+    assert [c.model for c in rec.controls] == ["SEXS", "TGOV1"]
+    assert rec.controls[0].sources["EMAX"].startswith("default") and rec.controls[1].sources["Dt"].startswith("default")
+    runs = {}
+    for fmt in ("psse-dyr", "andes"):
+        path = tmp_path / ("unit.dyr" if fmt == "psse-dyr" else "unit.json")
+        path.write_text(psse_dyr(rec) if fmt == "psse-dyr" else andes_json(rec))
+        cfg = SimulationConfig(params=params)
+        if fmt == "psse-dyr":
+            s = system(dyr=path, cfg=cfg)
+        else:
+            import andes
+
+            s = system(cfg=cfg)
+            andes.io.json.read(s, str(path))
+        assert (s.GENROU.n, s.SEXS.n, s.TGOV1.n) == (1, 1, 1)
+        assert (s.SEXS.K.v[0], s.SEXS.TE.v[0], s.TGOV1.R.v[0], s.TGOV1.T3.v[0]) == (100.0, 0.05, 0.05, 6.0)
+        runs[fmt] = run(s, FAULT, dt=0.01)
+    a, b = runs["psse-dyr"], runs["andes"]
+    for c in ("delta", "omega", "v_f", "p_m"):
+        assert np.allclose(a[c], b[c], atol=1e-6), c
+    assert a["v_f"].max() == pytest.approx(5.0)  # the ceiling during the fault
+    assert abs(a["v_f"][-1] - a["v_f"][0]) < 0.05 and abs(a["p_m"][-1] - a["p_m"][0]) < 0.01  # settled back

@@ -1,0 +1,92 @@
+"""The exciter's and the governor's planning records, from identify's ``controls``.
+
+Each named control model (:mod:`phid_ros.controls.models`) becomes a record of its PSS/E
+constants in their declared order, each with where its value came from: identified, or a stated
+default where the recordings do not determine it. A small-signal test never reaches an output
+limit, so limits are always stated defaults (the model's declared ones), said so in the record's
+comment; a constant fitted but not determined is refused, as a machine parameter is, unless
+``--allow-flagged``, except at the value where its block is absent (a turbine damping D_t of 0).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from phid_ros.controls.models import MODELS
+from phid_ros.errors import PhidError
+
+
+class ControlExportError(PhidError):
+    """identify's ``controls`` cannot become a planning record as asked."""
+
+
+@dataclass
+class ControlRecord:
+    model: str
+    kind: str
+    values: dict[str, float]
+    sources: dict[str, str]
+    flagged: list[str] = field(default_factory=list)
+
+    @property
+    def defaults(self) -> list[str]:
+        return [n for n, s in self.sources.items() if s.startswith("default")]
+
+    def comment(self) -> str:
+        parts = [f"phid_ros export: {self.kind} identified from the recordings"]
+        if self.flagged:
+            parts.append("NOT IDENTIFIED: " + ", ".join(self.flagged))
+        if self.defaults:
+            parts.append("defaults (not reached in the recordings): " + ", ".join(self.defaults))
+        return "; ".join(parts)
+
+
+def build_control_records(
+    result: Mapping[str, Any], source: str, *, allow_flagged: bool = False
+) -> list[ControlRecord]:
+    """A record for each control system identify named (none where it named none)."""
+    controls = result.get("controls") or {}
+    if not isinstance(controls, Mapping):
+        raise ControlExportError(f"{source}: 'controls' is not an object")
+    out = []
+    for kind, doc in controls.items():
+        name = doc.get("model") if isinstance(doc, Mapping) else None
+        if name is None:
+            continue
+        model = MODELS.get(name)
+        if model is None:
+            raise ControlExportError(
+                f"{source}: controls.{kind}: model {name!r} is not one phid knows ({sorted(MODELS)})"
+            )
+        params, ident = doc.get("parameters") or {}, doc.get("identifiable") or {}
+        values: dict[str, float] = {}
+        sources: dict[str, str] = {}
+        flagged = []
+        for p in model.parameters:
+            v = params.get(p.name)
+            if p.limit or v is None:
+                values[p.name], sources[p.name] = p.default, "default (a limit the recordings never reached)"
+                continue
+            if not isinstance(v, (int, float)) or not math.isfinite(float(v)) or p.outside(float(v)):
+                raise ControlExportError(
+                    f"{source}: controls.{kind}.{p.name} = {v!r}: not in {p.low}..{p.high} {p.unit}"
+                )
+            values[p.name] = float(v)
+            if ident.get(p.name):
+                sources[p.name] = "identified"
+            elif p.absent is not None and abs(float(v) - p.absent) <= 1e-6 * max(1.0, abs(p.high)):
+                # the fit pressed onto the value where the term vanishes (D_t 8e-12): absent
+                values[p.name], sources[p.name] = p.absent, "default: absent (the data show no such term)"
+            else:
+                sources[p.name] = "identified, NOT determined"
+                flagged.append(p.name)
+        if flagged and not allow_flagged:
+            raise ControlExportError(
+                f"{source}: {name} {', '.join(flagged)} not identified; refusing to export it "
+                "(--allow-flagged writes it anyway, marked in the record's comment)"
+            )
+        out.append(ControlRecord(name, kind, values, sources, flagged))
+    return out
