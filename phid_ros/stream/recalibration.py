@@ -77,10 +77,24 @@ def scenario_from_window(
     )
 
 
-def _window_key(w: EventWindow) -> tuple[str, str, int]:
-    """What tells a stored window from another: its event, its label, its length (a store replaces
-    a window cut short with the complete one of the same event)."""
-    return w.event.event_id, w.event.name, len(w.t_ns)
+def _window_key(w: EventWindow) -> tuple[object, ...]:
+    """Everything :func:`scenario_from_window` reads but the samples: its event and label, the
+    event's times, the window's span (a store replaces a window cut short with the complete one
+    of the same event, and refuses one with other samples)."""
+    e = w.event
+    span = (int(w.t_ns[0]), int(w.t_ns[-1])) if len(w.t_ns) else (0, 0)
+    return (
+        e.event_id,
+        e.name,
+        e.kind,
+        e.role,
+        e.generator_damping,
+        e.inception_ns,
+        e.clearing_ns,
+        w.period_ns,
+        len(w.t_ns),
+        *span,
+    )
 
 
 @dataclass
@@ -100,7 +114,7 @@ class Recalibrator:
     _lock: threading.Lock = field(default_factory=threading.Lock)
     # each window's scenario (or why it is not one): the latest N a kind change by one or two between
     # runs, so most would be converted again (a tenth of a run's time); the worker's own
-    _scenarios: dict[tuple[str, str, int], ScenarioData | ScenarioError] = field(default_factory=dict)
+    _scenarios: dict[tuple[object, ...], ScenarioData | ScenarioError] = field(default_factory=dict)
 
     def request(self, stream_time_ns: int, *, force: bool = False) -> str:
         """Ask for a run; returns what happened (started, coalesced, or why not)."""
