@@ -37,19 +37,15 @@ from pathlib import Path
 
 import numpy as np
 
-from phid_ros.io.csv_export import write_csv_set
-from phid_ros.io.csv_import import ScenarioTable, recording_from_tables
 from phid_ros.model.conventions import network_to_dq
 from phid_ros.sim.runner import SimulationConfig
 from phid_ros.sim.scenarios import Scenario
+from test.plants import noisy_set
 
 SYSTEM_MVA = 100.0
 MACHINE_MVA = 1000.0
 KV = 20.0
 TO_SYSTEM = SYSTEM_MVA / MACHINE_MVA
-# the simulator's sensor noise (phid_ros.sim.sensors defaults), per channel
-NOISE = {"v_t": 0.002, "i_d": 0.003, "i_q": 0.003, "p_e": 0.003, "q_e": 0.003, "omega": 1e-5}
-NOISE.update({"p_m": 0.002, "theta_t": 0.001, "delta": 0.001, "v_f": 0.005})
 
 
 @dataclass(frozen=True)
@@ -250,15 +246,13 @@ def write_set(
     folder: Path, machine: Machine, scenarios: Sequence[Scenario], *, seed: int = 0, noise: float = 1.0
 ) -> Path:
     """Each scenario simulated by STEPS, sensor noise added (``noise`` x the simulator's), as a CSV set."""
-    rng = np.random.default_rng(seed)
-    tables = []
-    for sc in scenarios:
-        ch = Case(machine).run(sc)
-        t = ch.pop("t")
-        for c, x in ch.items():
-            ch[c] = x + noise * NOISE[c] * rng.standard_normal(x.size)
-        tables.append(
-            ScenarioTable(sc.name, sc.kind, sc.role, sc.generator_damping, t, ch, sc.t_event, f"steps:{sc.name}")
-        )
-    rec = recording_from_tables(tables, 50.0, MACHINE_MVA, "STEPS GENSAL single machine, infinite bus")
-    return write_csv_set(folder, rec)
+    return noisy_set(
+        folder,
+        scenarios,
+        lambda sc: Case(machine).run(sc),
+        mva=MACHINE_MVA,
+        source="steps",
+        description="STEPS GENSAL single machine, infinite bus",
+        seed=seed,
+        noise=noise,
+    )

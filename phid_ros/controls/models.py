@@ -15,6 +15,7 @@ exact for inputs linear between samples):
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import ClassVar
@@ -67,7 +68,7 @@ def lead_lag(u: Array, t_lead: float, t_lag: float, dt: float) -> Array:
     return r * u + (1.0 - r) * first_order_response(u, t_lag, dt)
 
 
-class ControlModel:
+class ControlModel(ABC):
     """A control system's small-signal path; subclass and :func:`register` to add one."""
 
     name: ClassVar[str]
@@ -84,10 +85,10 @@ class ControlModel:
         return {p.name: p.default for p in cls.parameters}
 
     @classmethod
+    @abstractmethod
     def response(cls, values: Mapping[str, float], x: ControlInputs, reference: float) -> Array:
         """The output's deviation for the scenario's inputs; ``reference`` is the size of the
         reference step (V_ref for an exciter, P_ref in pu power for a governor)."""
-        raise NotImplementedError
 
 
 MODELS: dict[str, type[ControlModel]] = {}
