@@ -40,7 +40,9 @@ BASELINE_GB_PER_HOUR = {
     "info": 0.75,
     "read": 0.75,
     "import": 0.15,
+    "import-comtrade": 1.5,  # the comtrade package's reader: Python floats of every channel
 }
+COMMANDS = ("read", "replay", "identify", "track", "info", "import", "import-comtrade")
 
 
 def measured(cmd: list[str], cwd: Path) -> tuple[float, float, int]:
@@ -117,6 +119,67 @@ def pmu_export(bag: Path, out: Path) -> Path:
     return out
 
 
+# the COMTRADE export's channel map: a disturbance recorder's waveforms, field voltage and speed
+COMTRADE_MAP = """machine: {mva: 1000, kv: 20, f_nominal_hz: 50}
+channels:
+  v_a: VA
+  v_b: VB
+  v_c: VC
+  i_a: IA
+  i_b: IB
+  i_c: IC
+  omega: {name: SPEED, unit: pu}
+  v_f: EFD
+"""
+
+
+def comtrade_export(bag: Path, out: Path) -> Path:
+    """The recording as a continuous disturbance recorder's COMTRADE (C37.111-1999, 16-bit
+    BINARY): the phase voltages and currents as waveforms at the bag's 1 kHz (20 samples a 50 Hz
+    cycle), field voltage and speed, written part by part: what the ``import-comtrade`` row reads."""
+    import numpy as np
+
+    from phid_ros.io.parts import recording_parts
+    from phid_ros.model.conventions import dq_to_terminal
+
+    kv, mva, f0, fs = 20.0, 1000.0, 50.0, 1000.0
+    v_base, i_base = kv * 1e3 / np.sqrt(3), mva * 1e6 / (np.sqrt(3) * kv * 1e3)
+    # each channel's scale: 16 bits over 2 pu peak (the stored integer = value / a)
+    scale = {"V": 2 * np.sqrt(2) * v_base / 32000, "I": 2 * np.sqrt(2) * i_base / 32000, "EFD": 4 / 32000}
+    scale["SPEED"] = 2 / 32000
+    names = ["VA", "VB", "VC", "IA", "IB", "IC", "EFD", "SPEED"]
+    row = np.dtype([("n", "<u4"), ("t", "<u4"), ("a", "<i2", (len(names),))])
+    n = 0
+    with out.with_suffix(".dat").open("wb") as fh:
+        for part in recording_parts(bag):
+            st = {name: part.streams[name] for name in ("pt_ct", "pmu", "encoder", "excitation")}
+            k = min(len(x.t_ns) for x in st.values())  # the streams share the 1 kHz grid
+            c = {q: np.asarray(x)[:k] for s in st.values() for q, x in s.channels.items()}
+            t = (np.arange(n, n + k)) / fs
+            i_mag, i_ang = dq_to_terminal(c["i_d"], c["i_q"], c["delta"])
+            phase = [2 * np.pi * (f0 * t - j / 3) for j in range(3)]
+            v = [np.sqrt(2) * c["v_t"] * v_base * np.cos(ph + c["theta_t"]) for ph in phase]
+            i = [np.sqrt(2) * i_mag * i_base * np.cos(ph + i_ang) for ph in phase]
+            a = [*(x / scale["V"] for x in v), *(x / scale["I"] for x in i)]
+            a += [c["v_f"] / scale["EFD"], c["omega"] / scale["SPEED"]]
+            rec = np.zeros(k, dtype=row)
+            rec["n"], rec["t"] = np.arange(n + 1, n + k + 1), np.round(t * 1e6).astype(np.int64) % (1 << 32)
+            rec["a"] = np.column_stack([np.round(x) for x in a]).astype(np.int16)
+            fh.write(rec.tobytes())
+            n += k
+    a_of = [scale["V"]] * 3 + [scale["I"]] * 3 + [scale["EFD"], scale["SPEED"]]
+    units = ["V"] * 3 + ["A"] * 3 + ["pu", "pu"]
+    lines = ["BENCH,RECORDER,1999", f"{len(names)},{len(names)}A,0D"]
+    lines += [
+        f"{j},{nm},,,{u},{a:.12g},0,0,-32767,32767,1,1,P" for j, (nm, u, a) in enumerate(zip(names, units, a_of), 1)
+    ]
+    start = "01/01/2026,00:00:00.000000"
+    lines += [f"{f0:g}", "1", f"{fs:g},{n}", start, start, "BINARY", "1"]
+    out.write_text("\r\n".join(lines) + "\r\n", newline="")
+    (out.parent / "comtrade_map.yaml").write_text(COMTRADE_MAP)
+    return out
+
+
 def commands(bag: Path, work: Path, tag: str) -> dict[str, list[str]]:
     """Each command on ``bag`` as ``python -m phid_ros.cli.main``, run in the tree it is measured in."""
     phid = [sys.executable, "-m", "phid_ros.cli.main"]
@@ -132,6 +195,15 @@ def commands(bag: Path, work: Path, tag: str) -> dict[str, list[str]]:
             "--out",
             str(work / f"import_{tag}_{bag.stem}.mcap"),
         ],
+        "import-comtrade": [
+            *phid,
+            "import-comtrade",
+            str(bag.with_suffix(".cfg")),
+            "--map",
+            str(bag.parent / "comtrade_map.yaml"),
+            "--out",
+            str(work / f"comtrade_{tag}_{bag.stem}.mcap"),
+        ],
         "replay": [*phid, "replay", str(bag), "--out", str(work / f"replay_{tag}_{bag.stem}.mcap"), "--force"],
         "identify": [*phid, "identify", str(bag)],
         "track": [*phid, "track", str(bag)],
@@ -144,6 +216,7 @@ def main() -> None:
     ap.add_argument("--hours", type=float, nargs="+", default=[0.5, 2.0])
     ap.add_argument("--baseline", help="a git revision to measure beside this tree (e.g. ada499f)")
     ap.add_argument("--baseline-max-gb", type=float, default=16.0)
+    ap.add_argument("--commands", nargs="+", choices=COMMANDS, default=list(COMMANDS))
     ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "out" / "long")
     args = ap.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
@@ -164,7 +237,9 @@ def main() -> None:
                 rows.append(("simulate", "now", *measured([*sim, "--out", str(bag)], ROOT)))
             if not bag.with_suffix(".pmu.csv").exists():
                 pmu_export(bag, bag.with_suffix(".pmu.csv"))
-            for name in ("read", "replay", "identify", "track", "info", "import"):
+            if not bag.with_suffix(".cfg").exists():
+                comtrade_export(bag, bag.with_suffix(".cfg"))
+            for name in args.commands:
                 for tag, tree in trees.items():
                     if tag == "base" and BASELINE_GB_PER_HOUR[name] * hours > args.baseline_max_gb:
                         print(
@@ -180,7 +255,7 @@ def main() -> None:
                             "import sys; from phid_ros.io.bags import read_recording; read_recording(sys.argv[1])",
                             str(bag),
                         ]
-                    if name == "import":  # import-pmu never overwrites: the last run's bag goes first
+                    if name.startswith("import"):  # an import never overwrites: the last run's bag goes first
                         Path(cmd[-1]).unlink(missing_ok=True)
                     rows.append((name, tag, *measured(cmd, tree)))
             by = {(n, t): (w, mb) for n, t, w, mb, _ in rows}

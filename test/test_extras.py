@@ -75,11 +75,12 @@ def test_a_missing_extra_is_one_line_naming_it(monkeypatch):
 
 
 def test_import_comtrade_without_the_field_extra_says_so(monkeypatch, tmp_path):
-    from phid_ros.io.comtrade_import import _load
+    from phid_ros.io.comtrade_dat import open_recording
 
+    (tmp_path / "rec.cfg").write_text("STATION,DEVICE,1999\n")
     monkeypatch.setitem(sys.modules, "comtrade", None)
     with pytest.raises(MissingExtraError, match=r"\[field\]"):
-        _load(tmp_path / "rec.cfg")
+        open_recording(tmp_path / "rec.cfg")
 
 
 def test_jobs_run_here_without_dask(monkeypatch):

@@ -1,101 +1,59 @@
 """COMTRADE recordings (IEEE C37.111-1999/-2013: .cfg + ASCII/binary .dat, or one .cff) -> scenarios.
 
-The files are parsed by the maintained ``comtrade`` package; before that, this module checks
-what the package would let through silently: a .dat whose rows do not carry the channel
-count the .cfg declares, sample times that do not increase, several sampling rates. The
-channel map (:mod:`phid_ros.io.channel_map`) says which channel is which quantity; the
-conversion to the identification's channels is :mod:`phid_ros.io.field_channels`.
+The configuration is parsed by the maintained ``comtrade`` package, the samples are read in
+chunks, only the mapped channels (:mod:`phid_ros.io.comtrade_dat`); this module checks the
+sample times (increasing, one rate, or the stamps a rate makes non-critical) and puts the
+channels on a whole number of samples per cycle. The channel map
+(:mod:`phid_ros.io.channel_map`) says which channel is which quantity; the conversion to the
+identification's channels is :mod:`phid_ros.io.field_channels`.
 """
 
 from __future__ import annotations
 
 import calendar
-import contextlib
-import io
 import math
-import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from phid_ros.errors import PhidError
-from phid_ros.extras import require
+from phid_ros.io import comtrade_dat
 from phid_ros.io.channel_map import WAVEFORMS, ChannelMap, ChannelMapError, check_recording
+from phid_ros.io.comtrade_dat import ComtradeImportError, Samples, open_recording, read_samples
 from phid_ros.io.csv_import import ScenarioTable
 from phid_ros.io.field_channels import field_recording, identification_channels, scenario_table
 from phid_ros.io.recording import Recording
 from phid_ros.model.conventions import NS
 
-
-class ComtradeImportError(PhidError):
-    """A COMTRADE recording that is malformed or does not fit its channel map."""
+__all__ = ["ComtradeImportError", "import_comtrade", "read_comtrade", "unwrap_stamps"]
 
 
-def _load(path: Path, what: str = "recording"):  # -> comtrade.Comtrade, or comtrade.Cfg for "cfg"
-    comtrade = require("comtrade", "field", f"{path}: reading COMTRADE")
-    rec = comtrade.Cfg(ignore_warnings=True) if what == "cfg" else comtrade.Comtrade(ignore_warnings=True)
-    try:
-        with warnings.catch_warnings(), contextlib.redirect_stdout(io.StringIO()):
-            warnings.simplefilter("ignore")
-            rec.load(str(path))
-    except FileNotFoundError as exc:
-        raise ComtradeImportError(f"{path}: {exc.strerror}: {exc.filename}") from None
-    except (comtrade.ComtradeError, ValueError, IndexError, TypeError) as exc:
-        raise ComtradeImportError(f"{path}: not a readable COMTRADE file ({exc})") from None
-    return rec
-
-
-def _check_dat(cfg_path: Path, cfg) -> list[str]:  # cfg: comtrade.Cfg
-    """The .dat against its .cfg (before the reader, which fails on it without saying why):
-    values per row, whole records, increasing sample times."""
-    n_a, n_s = cfg.analog_count, cfg.status_count
-    dat = next((cfg_path.with_suffix(s) for s in (".dat", ".DAT") if cfg_path.with_suffix(s).is_file()), None)
-    if dat is None:
-        raise ComtradeImportError(f"{cfg_path}: no .dat file beside it")
-    ft = cfg.ft.upper()
-    if ft == "ASCII":
-        with dat.open("r", encoding="utf-8", errors="replace") as fh:
-            rows = [line.strip() for line in fh if line.strip() and line.strip() != "\x1a"]
-        counts = {len(r.split(",")) for r in rows}
-        if counts != {2 + n_a + n_s}:
-            raise ComtradeImportError(
-                f"{dat}: rows carry {sorted(counts)} values but {cfg_path.name} declares {n_a} analog and "
-                f"{n_s} status channels ({2 + n_a + n_s} values with sample number and time)"
-            )
-        stamps = np.array([float(r.split(",")[1] or "nan") for r in rows])
-    else:
-        width = {"BINARY": 2, "BINARY32": 4, "FLOAT32": 4}.get(ft)
-        if width is None:
-            raise ComtradeImportError(
-                f"{cfg_path}: data file type {cfg.ft!r} not one of ASCII, BINARY, BINARY32, FLOAT32"
-            )
-        size = 8 + width * n_a + 2 * ((n_s + 15) // 16)
-        raw = dat.read_bytes()
-        excess = len(raw) % size
-        if excess and raw[-excess:] == b"\x1a" * excess:
-            raw = raw[:-excess]  # DOS end-of-file padding after the last record (SEL relays write it)
-        if len(raw) % size:
-            raise ComtradeImportError(
-                f"{dat}: {len(raw)} bytes is not a whole number of {size}-byte records for the "
-                f"{n_a} analog and {n_s} status channels {cfg_path.name} declares"
-            )
-        stamps = np.ndarray((len(raw) // size,), dtype="<u4", buffer=raw, offset=4, strides=(size,))
-        stamps = np.where(stamps == 0xFFFFFFFF, np.nan, stamps.astype(float))
-    if _rate_given(cfg):  # the times come from the rate; C37.111 calls the stamps non-critical then
+def _stamp_notes(path: Path, cfg, stamps: np.ndarray) -> list[str]:  # cfg: comtrade.Cfg
+    """The stamps against the .cfg: with a rate they are non-critical (C37.111) and a note says
+    when they disagree with it; without one they must increase."""
+    if _rate_given(cfg):
         fs = max(float(r) for r, _ in cfg.sample_rates)
         step = 1.0 / (fs * cfg.time_base * cfg.timemult)  # in the stamps' unit (µs, or ns in a 2013 file)
         known = np.isfinite(stamps)
-        k = np.flatnonzero(known)
-        if k.size and not np.allclose(stamps[k] - stamps[k[0]], (k - k[0]) * step, rtol=0, atol=0.5 * step):
-            what = "all 0" if not np.any(stamps[k]) else "wrapped or uneven"
+        if not known.any():
+            return []
+        k0 = int(np.argmax(known))
+        on_rate, zero = True, True
+        chunk = comtrade_dat.CHUNK_ROWS
+        for s in range(k0, len(stamps), chunk):  # a chunk at a time: hours of stamps, no copies of them
+            x = stamps[s : s + chunk]
+            k = np.flatnonzero(np.isfinite(x))
+            on_rate = on_rate and bool(np.all(np.abs(x[k] - stamps[k0] - (k + s - k0) * step) <= 0.5 * step))
+            zero = zero and not np.any(x[k])
+        if not on_rate:
+            what = "all 0" if zero else "wrapped or uneven"
             return [
-                f"{cfg_path.name}: sample times taken from the .cfg's rate ({fs:g} Hz); the stamps are {what} "
+                f"{path.name}: sample times taken from the .cfg's rate ({fs:g} Hz); the stamps are {what} "
                 "(non-critical by C37.111)"
             ]
         return []
-    _check_times(cfg_path, unwrap_stamps(stamps))
+    _check_times(path, unwrap_stamps(stamps))
     return []
 
 
@@ -130,45 +88,45 @@ def _check_times(path: Path, stamps: np.ndarray) -> None:
         )
 
 
-def _sample_times(path: Path, rec, notes: list[str]) -> tuple[np.ndarray, float]:
-    """Each sample's time from the start (s) and the rate.
+def _sample_times(path: Path, cfg, samples: Samples) -> tuple[np.ndarray | None, float]:  # cfg: comtrade.Cfg
+    """(each sample's time from the start in s, or None when they are ``1/rate`` apart; the rate).
 
     With a rate in the .cfg the times follow from it, whatever the stamps say (wrapped at 2^16
-    µs, or all 0: non-critical by C37.111), and a note says so when they disagree. Without one
-    (``nrates`` 0: a frequency-tracking recorder) the stamps are the times, unwrapped.
+    µs, or all 0: non-critical by C37.111). Without one (``nrates`` 0: a frequency-tracking
+    recorder) the stamps are the times, unwrapped.
     """
-    rates = {float(r) for r, _ in rec.cfg.sample_rates if float(r) > 0}
+    rates = {float(r) for r, _ in cfg.sample_rates if float(r) > 0}
     if len(rates) > 1:
         raise ComtradeImportError(f"{path}: several sampling rates {sorted(rates)}; one rate is needed")
-    n = len(rec.analog[0]) if rec.analog else 0
     if rates:
-        fs = rates.pop()
-        t = np.arange(n, dtype=np.float64) / fs
-        return t, fs
-    # the stamps as recorded (the reader scales them, and does not unwrap a counter that wrapped)
-    unit = rec.cfg.time_base * rec.cfg.timemult
-    t = unwrap_stamps(np.asarray(rec.time, dtype=float) / unit) * unit
+        return None, rates.pop()
+    t = unwrap_stamps(samples.stamps) * (cfg.time_base * cfg.timemult)
     t = t - t[0] if t.size else t
-    if t.size < 2 or np.any(np.diff(t) <= 0):
+    if t.size < 2 or not np.all(np.diff(t) > 0):
         raise ComtradeImportError(f"{path}: sample times do not increase")
+    if np.ptp(np.diff(t)) <= 1e-3 * float(np.median(np.diff(t))):
+        return None, 1.0 / float(np.median(np.diff(t)))
     return t, 1.0 / float(np.median(np.diff(t)))
 
 
-def _on_cycle_grid(t: np.ndarray, fs: float, f0: float, notes: list[str], name: str) -> tuple[np.ndarray, float] | None:
-    """The uniform grid of a whole number of samples per cycle nearest ``fs``, when ``t`` is not
-    one already (an off-grid rate, 5760 Hz at 50 Hz; a frequency-tracking recorder's uneven
-    steps): the one-cycle DFT needs whole cycles. None when ``t`` is on such a grid."""
+def _on_cycle_grid(
+    t: np.ndarray | None, n: int, fs: float, f0: float, notes: list[str], name: str
+) -> tuple[np.ndarray, float] | None:
+    """The uniform grid of a whole number of samples per cycle nearest ``fs``, when the ``n``
+    samples are not on one already (an off-grid rate, 5760 Hz at 50 Hz; a frequency-tracking
+    recorder's uneven steps ``t``; None: uniform): the one-cycle DFT needs whole cycles. None
+    when they are on such a grid."""
     per_cycle = fs / f0
-    uniform = t.size < 3 or np.ptp(np.diff(t)) <= 1e-3 / fs
-    if uniform and abs(per_cycle - round(per_cycle)) <= 1e-6 * per_cycle:
+    if t is None and abs(per_cycle - round(per_cycle)) <= 1e-6 * per_cycle:
         return None
+    end = (n - 1) / fs if t is None else t[-1]
     fs_new = math.ceil(per_cycle - 1e-9) * f0  # up, never down: no resolution is lost
-    grid = np.arange(0.0, t[-1] + 0.5 / fs_new, 1.0 / fs_new)
-    grid = grid[grid <= t[-1]]
+    grid = np.arange(0.0, end + 0.5 / fs_new, 1.0 / fs_new)
+    grid = grid[grid <= end]
     # a cubic spline through samples h apart misses a sinusoid of angular frequency w by at most
     # 5/384 (w h)^4 of its amplitude (the spline's error bound; the fourth derivative is w^4 times it)
     err = 100 * 5 / 384 * (2 * math.pi * f0 / fs) ** 4
-    how = "uneven steps" if not uniform else f"{per_cycle:.3f} samples per {f0:g} Hz cycle"
+    how = "uneven steps" if t is not None else f"{per_cycle:.3f} samples per {f0:g} Hz cycle"
     notes.append(
         f"{name}: resampled from {how} to {fs_new:g} Hz ({round(fs_new / f0)} per cycle) by a cubic spline "
         f"(a waveform moves by at most {err:.2g} % of its amplitude)"
@@ -179,31 +137,41 @@ def _on_cycle_grid(t: np.ndarray, fs: float, f0: float, notes: list[str], name: 
 def read_comtrade(path: str | Path, cmap: ChannelMap) -> ScenarioTable:
     """One recording -> one scenario table (per unit, synchronous frame)."""
     p = Path(path)
-    notes = _check_dat(p, _load(p, "cfg")) if p.suffix.lower() == ".cfg" else []
-    rec = _load(p)
-    t_rec, fs = _sample_times(p, rec, notes)
-    names = [str(n).strip() for n in rec.analog_channel_ids]
-    columns = {n: i for i, n in enumerate(names)}
+    cfg, section = open_recording(p)
+    names = [str(ch.name).strip() for ch in cfg.analog_channels]
     check_recording(cmap, p.name, names)
-    analog = rec.analog
-    regrid = _on_cycle_grid(t_rec, fs, cmap.f_nominal_hz, notes, p.name) if cmap.has(*WAVEFORMS[:3]) else None
-    if regrid is None and np.ptp(np.diff(t_rec)) > 1e-3 / fs:  # uneven phasor or value channels
+    columns = {n: i for i, n in enumerate(names)}
+    samples = read_samples(cfg, section, sorted({columns[spec.name] for spec in cmap.channels.values()}))
+    if not len(samples):
+        raise ComtradeImportError(f"{section.path}: no samples")
+    notes = _stamp_notes(p, cfg, samples.stamps)
+    t_rec, fs = _sample_times(p, cfg, samples)
+    waveforms = cmap.has(*WAVEFORMS[:3])
+    regrid = _on_cycle_grid(t_rec, len(samples), fs, cmap.f_nominal_hz, notes, p.name) if waveforms else None
+    if regrid is None and t_rec is not None:  # uneven phasor or value channels
         regrid = (np.arange(0.0, t_rec[-1], 1.0 / fs), fs)
         notes.append(f"{p.name}: resampled from uneven steps to {fs:g} Hz by a cubic spline")
     if regrid is not None:
+        t_rec = np.arange(len(samples)) / fs if t_rec is None else t_rec
         fs = regrid[1]
 
-    def recorded(name: str) -> np.ndarray:
-        x = np.asarray(analog[columns[name]], dtype=float)
-        return CubicSpline(t_rec, x)(regrid[0]) if regrid is not None else x
+    splines: dict[str, CubicSpline] = {}
 
+    def recorded(name: str, rows: slice) -> np.ndarray:
+        if regrid is None:
+            return samples.values(columns[name], rows)
+        if name not in splines:
+            splines[name] = CubicSpline(t_rec, samples.values(columns[name]))
+        return splines[name](regrid[0][rows])
+
+    length = len(regrid[0]) if regrid is not None else len(samples)
     try:
-        t, channels, f_sys = identification_channels(cmap, recorded, fs, str(p))
+        t, channels = identification_channels(cmap, recorded, length, fs, str(p))
     except ChannelMapError as exc:
         raise ComtradeImportError(str(exc)) from None
     table = scenario_table(p, cmap, t, channels)
     table.notes = notes
-    table.start_ns = _start_ns(rec.cfg.start_timestamp)
+    table.start_ns = _start_ns(cfg.start_timestamp)
     return table
 
 

@@ -17,107 +17,182 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from phid_ros.io import phasors
 from phid_ros.io.channel_map import FIELD_QUANTITIES, QUANTITIES, WAVEFORMS, ChannelMap, ChannelMapError
 from phid_ros.io.csv_import import KINDS, ROLES, ScenarioTable, recording_from_tables
 from phid_ros.io.phasors import (
     PhasorError,
+    blocks,
     moving_average,
+    phasor_piece,
     samples_per_cycle,
     system_frequency,
-    three_phase_phasors,
 )
 from phid_ros.io.recording import MEASUREMENT_WINDOW_KEY, Recording
 from phid_ros.model.conventions import terminal_to_dq
 
 Array = NDArray[np.float64]
+CArray = NDArray[np.complex128]
 MIN_OUTPUT_RATE_HZ = 1000.0  # waveforms above twice this are decimated to at least this rate
 
 
+Recorded = Callable[[str, slice], Array]  # a recorded channel's samples in a range, by the channel's name
+
+
 def identification_channels(
-    cmap: ChannelMap, recorded: Callable[[str], Array], fs: float, source: str
-) -> tuple[Array, dict[str, Array], float]:
-    """(t from the first sample in s, the CHANNELS in per unit, the system frequency in Hz).
+    cmap: ChannelMap, recorded: Recorded, length: int, fs: float, source: str
+) -> tuple[Array, dict[str, Array]]:
+    """(t from the first sample in s, the CHANNELS in per unit) of ``length`` recorded samples.
 
     A channel the map does not name comes out NaN (not recorded): the identification runs what
     the others determine. Without a terminal angle (a trend log's V_t, P, Q) the terminal
     voltage is the reference, theta_t is 0 and the frequency the nominal one. A field current
     (``i_fd``) comes out beside the CHANNELS, for :func:`calibrate_field`.
+
+    The recording is converted a block at a time (:func:`phasors.blocks`: each block's phasors
+    from the samples around it, so the outcome is the whole recording's at once): only the
+    outputs are held whole, not the complex phasors and their intermediates (a 2 h, 1 kHz
+    recording's would be gigabytes).
     """
     f0 = cmap.f_nominal_hz
-
-    def pu(q: str) -> Array:
-        x = np.asarray(cmap.to_pu(cmap.channels[q], recorded(cmap.channels[q].name)), dtype=float)
-        return np.unwrap(x) if QUANTITIES[q][0] == "angle" else x  # recorders wrap angles to +-180 deg
-
     waveforms = cmap.has(*WAVEFORMS[:3])
-    if waveforms:
-        try:
-            v1, _ = three_phase_phasors(pu("v_a"), pu("v_b"), pu("v_c"), fs, f0)
-            n = samples_per_cycle(fs, f0)
-        except PhasorError as exc:
-            raise ChannelMapError(f"{source}: {exc}") from None
-        t = (np.arange(len(v1), dtype=np.float64) + (n - 1) / 2) / fs
-        f_sys = system_frequency(v1, fs, f0, n)
-
-        def value(q: str) -> Array:
-            return moving_average(pu(q), n)
-
-    else:
-        n = 1
-        value = pu
-        v_mag = value("v_t")
-        t = np.arange(len(v_mag), dtype=np.float64) / fs
-        if cmap.has("theta_t"):
-            theta_nominal = value("theta_t")
-            v1 = v_mag * np.exp(1j * theta_nominal)
-            m = min(len(t), max(int(0.5 * fs), 10))
-            f_sys = f0 + np.polyfit(t[:m], np.unwrap(theta_nominal[:m]), 1)[0] / (2 * np.pi)
-        else:
-            v1 = v_mag.astype(complex)
-            f_sys = f0
-    frame = np.exp(-2j * np.pi * (f_sys - f0) * t)  # nominal-frequency reference -> synchronous frame
-    v = v1 * frame
-    # the complex intermediates are let go as soon as they are used: a day's PMU export has 4.3
-    # million reports, each complex array of them 69 MB
-    del v1
-    if cmap.has("i_a", "i_b", "i_c"):
-        try:
-            i1, _ = three_phase_phasors(pu("i_a"), pu("i_b"), pu("i_c"), fs, f0)
-        except PhasorError as exc:
-            raise ChannelMapError(f"{source}: {exc}") from None
-        i = i1 * frame
-    elif cmap.has("i_t", "phi_i"):
-        i = value("i_t") * np.exp(1j * value("phi_i")) * frame
-    else:
-        i = np.conj((value("p_e") + 1j * value("q_e")) / v)
-    del frame
-    theta_t = np.unwrap(np.angle(v))
-    nan = np.full(len(t), np.nan)
-    if cmap.has("load_angle"):
-        delta = theta_t + value("load_angle")
-    elif cmap.has("delta"):
-        delta = value("delta") - 2 * np.pi * (f_sys - f0) * t
-    else:
-        delta = nan
-    s = v * np.conj(i) if not cmap.has("p_e", "q_e") else None
-    out = {
-        "v_t": np.abs(v),
-        "theta_t": theta_t,
-        "omega": _speed(cmap, value("omega"), f_sys) if cmap.has("omega") else nan,
-        "delta": delta,
-        "v_f": value("v_f") if cmap.has("v_f") else nan,
-        "p_m": value("p_m") if cmap.has("p_m") else nan,
-        "p_e": value("p_e") if cmap.has("p_e") else s.real,  # type: ignore[union-attr]
-        "q_e": value("q_e") if cmap.has("q_e") else s.imag,  # type: ignore[union-attr]
-    }
-    del s, v
-    out["i_d"], out["i_q"] = terminal_to_dq(np.abs(i), delta, np.angle(i))
-    if cmap.has("i_t") and not cmap.has("phi_i") and (cmap.has("p_e", "q_e")):
-        _check_current(np.abs(i), value("i_t"), source)
-    if cmap.has("i_fd"):
-        out["i_fd"] = value("i_fd")
+    try:
+        n = samples_per_cycle(fs, f0) if waveforms else 1
+    except PhasorError as exc:
+        raise ChannelMapError(f"{source}: {exc}") from None
+    if waveforms and length < 12 * n:
+        raise ChannelMapError(f"{source}: {length} samples: too short for phasors (needs at least 12 cycles)")
+    m = length - n + 1
+    # waveforms above twice MIN_OUTPUT_RATE_HZ are decimated to at least it
     step = int(fs // MIN_OUTPUT_RATE_HZ) if waveforms and fs >= 2 * MIN_OUTPUT_RATE_HZ else 1
-    return t[::step], {c: np.ascontiguousarray(x[::step]) for c, x in out.items()}, float(f_sys)
+    t = (np.arange(0, m, step, dtype=np.float64) + (n - 1) / 2) / fs
+    names = ["v_t", "theta_t", "omega", "delta", "v_f", "p_m", "p_e", "q_e", "i_d", "i_q"]
+    out = {c: np.full(len(t), np.nan) for c in names + (["i_fd"] if cmap.has("i_fd") else [])}
+    currents: list[tuple[Array, Array]] = []  # (|P + jQ| / V_t, recorded I_t) where both are, for the check
+    f_sys = f0
+    for s, e, lo, hi in blocks(m, n) if waveforms else blocks(m, 1, 4 * phasors.BLOCK):
+        k = np.arange(s, e)
+        keep = (k % step) == 0
+        rows = slice(-(-s // step), -(-e // step))
+        t_block = (k + (n - 1) / 2).astype(np.float64) / fs
+        v1, value = _block_phasor(cmap, recorded, fs, n, (s, e, lo, hi), source)
+        if s == 0:
+            f_sys = _frequency_before(cmap, v1, value, t_block, fs, n)
+        frame = np.exp(-2j * np.pi * (f_sys - f0) * t_block)
+        v = v1 * frame
+        del v1
+        if cmap.has("i_a", "i_b", "i_c"):
+            i1, _ = _three_phase(cmap, recorded, fs, n, (s, e, lo, hi), ("i_a", "i_b", "i_c"), source)
+            i = i1 * frame
+            del i1
+        elif cmap.has("i_t", "phi_i"):
+            i = value("i_t") * np.exp(1j * value("phi_i")) * frame
+        else:
+            i = np.conj((value("p_e") + 1j * value("q_e")) / v)
+        del frame
+        theta_t = np.angle(v)  # unwrapped over the whole recording below
+        if cmap.has("load_angle"):
+            delta = theta_t + value("load_angle")
+        elif cmap.has("delta"):
+            delta = value("delta") - 2 * np.pi * (f_sys - f0) * t_block
+        else:
+            delta = None
+        block = {"v_t": np.abs(v), "theta_t": theta_t}
+        if delta is not None:
+            block["delta"] = delta
+        if cmap.has("omega"):
+            block["omega"] = _speed(cmap, value("omega"), f_sys)
+        block.update({q: value(q) for q in ("v_f", "p_m", "i_fd") if cmap.has(q)})
+        if cmap.has("p_e", "q_e"):
+            block["p_e"], block["q_e"] = value("p_e"), value("q_e")
+        else:
+            power = v * np.conj(i)
+            block["p_e"], block["q_e"] = power.real, power.imag
+        if delta is not None:
+            block["i_d"], block["i_q"] = terminal_to_dq(np.abs(i), delta, np.angle(i))
+        if cmap.has("i_t") and not cmap.has("phi_i") and cmap.has("p_e", "q_e"):
+            currents.append((np.abs(i), value("i_t")))
+        for c, x in block.items():
+            out[c][rows] = x[keep]
+    for c in ("theta_t", "delta"):  # angles are unwrapped within a block; between blocks here
+        _unwrap_in_place(out[c])
+    if currents:
+        _check_current(np.concatenate([a for a, _ in currents]), np.concatenate([b for _, b in currents]), source)
+    return t, out
+
+
+def _unwrap_in_place(x: Array, block: int = 1 << 18) -> None:
+    """``np.unwrap`` of the finite entries, a block at a time (no copies of hours of samples)."""
+    last = np.nan
+    for s in range(0, len(x), block):
+        seg = x[s : s + block]
+        known = np.flatnonzero(np.isfinite(seg))
+        if known.size:
+            y = seg[known] if np.isnan(last) else np.concatenate(([last], seg[known]))
+            y = np.unwrap(y)
+            seg[known] = y if np.isnan(last) else y[1:]
+            last = float(seg[known[-1]])
+
+
+def _values_of(cmap: ChannelMap, recorded: Recorded, rows: slice, n: int) -> Callable[[str], Array]:
+    """A block's value channels (per unit; angles unwrapped) through the phasors' one-cycle window."""
+
+    def value(q: str) -> Array:
+        x = _pu(cmap, recorded, q, rows)
+        return moving_average(x, n) if n > 1 else x
+
+    return value
+
+
+def _pu(cmap: ChannelMap, recorded: Recorded, q: str, rows: slice) -> Array:
+    spec = cmap.channels[q]
+    x = np.asarray(cmap.to_pu(spec, recorded(spec.name, rows)), dtype=float)
+    return np.unwrap(x) if QUANTITIES[q][0] == "angle" else x  # recorders wrap angles to +-180 deg
+
+
+def _three_phase(
+    cmap: ChannelMap,
+    recorded: Recorded,
+    fs: float,
+    n: int,
+    plan: tuple[int, int, int, int],
+    phases: tuple[str, str, str],
+    source: str,
+) -> tuple[CArray, Array]:
+    s, e, lo, hi = plan
+    piece = slice(lo, hi + n - 1)
+    try:
+        xa, xb, xc = (_pu(cmap, recorded, q, piece) for q in phases)
+        p, f = phasor_piece(xa, xb, xc, fs, cmap.f_nominal_hz, n, lo)
+    except PhasorError as exc:
+        raise ChannelMapError(f"{source}: {exc}") from None
+    return p[s - lo : e - lo], f[s - lo : e - lo]
+
+
+def _block_phasor(
+    cmap: ChannelMap, recorded: Recorded, fs: float, n: int, plan: tuple[int, int, int, int], source: str
+) -> tuple[CArray, Callable[[str], Array]]:
+    """(the terminal voltage phasor at the nominal frequency's reference, the value channels) of a block."""
+    s, e, _, _ = plan
+    value = _values_of(cmap, recorded, slice(s, e + n - 1), n)
+    if cmap.has(*WAVEFORMS[:3]):
+        return _three_phase(cmap, recorded, fs, n, plan, ("v_a", "v_b", "v_c"), source)[0], value
+    v_mag = value("v_t")
+    return (v_mag * np.exp(1j * value("theta_t")) if cmap.has("theta_t") else v_mag.astype(complex)), value
+
+
+def _frequency_before(
+    cmap: ChannelMap, v1: CArray, value: Callable[[str], Array], t: Array, fs: float, n: int
+) -> float:
+    """The system frequency before the disturbance, from the first block: the reference of the
+    synchronous frame (the single-machine model's infinite bus)."""
+    f0 = cmap.f_nominal_hz
+    if cmap.has(*WAVEFORMS[:3]):
+        return system_frequency(v1, fs, f0, n)
+    if not cmap.has("theta_t"):
+        return f0
+    m = min(len(t), max(int(0.5 * fs), 10))
+    return f0 + float(np.polyfit(t[:m], np.unwrap(np.angle(v1[:m])), 1)[0]) / (2 * np.pi)
 
 
 CURRENT_TOLERANCE = 0.05  # |S|/V against a recorded I_t: beyond this a CT ratio or a base is wrong

@@ -16,6 +16,8 @@ infinite bus of the single-machine model.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -47,21 +49,22 @@ def samples_per_cycle(fs: float, f_nominal: float) -> int:
     return int(round(n))
 
 
-def sliding_dft(x: Array, n: int) -> CArray:
+def sliding_dft(x: Array, n: int, first: int = 0) -> CArray:
     """RMS phasor of the nominal bin over each window of ``n`` samples, at the window's centre.
 
     Output k covers samples k .. k+n-1 (len(x) - n + 1 windows); the phase is relative to a
-    nominal-frequency reference that is 0 at sample 0.
+    nominal-frequency reference that is 0 at sample ``-first`` (``x`` a piece of a longer
+    recording that starts at its sample ``first``).
     """
-    k = np.arange(len(x))
+    k = (first + np.arange(len(x))) % n  # the reference repeats every cycle: no growing argument
     w = np.exp(-2j * np.pi * k / n)
     c = np.concatenate(([0.0], np.cumsum(x * w)))
     # the reference is absolute (sample 0), so the sum's phase is the signal's at the window centre
     return (np.sqrt(2.0) / n) * (c[n:] - c[:-n])
 
 
-def positive_sequence(xa: Array, xb: Array, xc: Array, n: int) -> CArray:
-    return (sliding_dft(xa, n) + A_OP * sliding_dft(xb, n) + A_OP**2 * sliding_dft(xc, n)) / 3.0
+def positive_sequence(xa: Array, xb: Array, xc: Array, n: int, first: int = 0) -> CArray:
+    return (sliding_dft(xa, n, first) + A_OP * sliding_dft(xb, n, first) + A_OP**2 * sliding_dft(xc, n, first)) / 3.0
 
 
 def moving_average(x: Array, n: int) -> Array:
@@ -94,11 +97,45 @@ def system_frequency(phasor: CArray, fs: float, f_nominal: float, n: int, span_s
     return f_nominal + slope / (2 * np.pi)
 
 
+BLOCK = 1 << 16  # phasors computed this many at a time: a long recording's complex intermediates stay small
+
+
+def blocks(m: int, n: int, block: int | None = None) -> Iterator[tuple[int, int, int, int]]:
+    """(s, e, lo, hi): phasors s..e-1 of ``m``, computed from the phasors lo..hi-1 around them, a
+    margin as wide as the tracked frequency's one-cycle average and its central difference
+    reach, so a block's phasors are the ones the whole recording at once gives. Phasor k needs
+    samples k .. k+n-1."""
+    margin = n + 2
+    size = block or BLOCK
+    for s in range(0, m, size):
+        e = min(s + size, m)
+        yield s, e, max(0, s - margin), min(m, e + margin)
+
+
+def phasor_piece(
+    xa: Array, xb: Array, xc: Array, fs: float, f_nominal: float, n: int, first: int
+) -> tuple[CArray, Array]:
+    """:func:`three_phase_phasors` of a piece of a recording that starts at its sample ``first``."""
+    p = positive_sequence(xa, xb, xc, n, first)
+    f = tracked_frequency(p, fs, f_nominal, n)
+    return p / droop(f - f_nominal, fs, n), f
+
+
 def three_phase_phasors(xa: Array, xb: Array, xc: Array, fs: float, f_nominal: float) -> tuple[CArray, Array]:
-    """Positive-sequence RMS phasor (magnitude droop corrected) and tracked frequency, at window centres."""
+    """Positive-sequence RMS phasor (magnitude droop corrected) and tracked frequency, at window centres.
+
+    Computed in :func:`blocks` (to rounding the whole recording at once; the running sums
+    restart each block, so they round less on hours of samples).
+    """
     n = samples_per_cycle(fs, f_nominal)
     if len(xa) < 12 * n:
         raise PhasorError(f"{len(xa)} samples: too short for phasors (needs at least 12 cycles)")
-    p = positive_sequence(np.asarray(xa, float), np.asarray(xb, float), np.asarray(xc, float), n)
-    f = tracked_frequency(p, fs, f_nominal, n)
-    return p / droop(f - f_nominal, fs, n), f
+    xa, xb, xc = (np.asarray(x, float) for x in (xa, xb, xc))
+    m = len(xa) - n + 1
+    p = np.empty(m, dtype=np.complex128)
+    f = np.empty(m)
+    for s, e, lo, hi in blocks(m, n):
+        piece = slice(lo, hi + n - 1)
+        pb, fb = phasor_piece(xa[piece], xb[piece], xc[piece], fs, f_nominal, n, lo)
+        p[s:e], f[s:e] = pb[s - lo : e - lo], fb[s - lo : e - lo]
+    return p, f

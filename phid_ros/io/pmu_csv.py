@@ -248,16 +248,18 @@ def read_pmu_csv(
             f"resampled onto {1 / period:.4g} per s by linear interpolation"
         )
 
-    def recorded(name: str) -> np.ndarray:
+    def recorded(name: str, rows: slice) -> np.ndarray:
         col = values[name]
         if col.bad is not None:
             line, text, what = col.bad
             raise PmuImportError(f"{p}: line {line}, column {name!r}: {text!r} {what}")
-        x = np.concatenate(col.parts)
-        col.parts = [x]  # the chunks let go: a day's column is held once, not twice
-        return np.interp(grid, t, x) if grid is not None else x
+        if len(col.parts) > 1:
+            col.parts = [np.concatenate(col.parts)]  # the chunks let go: a day's column is held once, not twice
+        x = col.parts[0]
+        return np.interp(grid[rows], t, x) if grid is not None else x[rows]
 
-    t_out, channels, _ = identification_channels(cmap, recorded, 1.0 / period, str(p))
+    length = len(grid) if grid is not None else len(t)
+    t_out, channels = identification_channels(cmap, recorded, length, 1.0 / period, str(p))
     return t[0] + t_out, channels, 1.0 / period, start_ns
 
 

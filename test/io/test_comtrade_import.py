@@ -277,3 +277,22 @@ def test_the_recording_starts_when_its_cfg_says(tmp_path) -> None:
 
     start = datetime(2015, 9, 20, 12, 52, 35, 236463, tzinfo=timezone.utc).timestamp()
     assert rec.span_ns()[0] == pytest.approx(start * 1e9, abs=1e6)  # within the phasor's half cycle
+
+
+@pytest.mark.parametrize("ft", ["BINARY", "ASCII"])
+def test_a_recording_converted_in_blocks_is_the_one_converted_whole(tmp_path, ft, monkeypatch) -> None:
+    """Blocks of 97 phasors (margins, angles unwrapped across the joins, decimation from 2 kHz)
+    give the outcome of one block, to rounding; and the recording's data are read in chunks."""
+    from phid_ros.io import comtrade_dat, phasors
+
+    path, cmap = _habit_recording(tmp_path, 2000.0, ft=ft)
+    monkeypatch.setattr(phasors, "BLOCK", 1 << 30)
+    whole = import_comtrade([path], cmap).streams
+    monkeypatch.setattr(phasors, "BLOCK", 97)
+    monkeypatch.setattr(comtrade_dat, "CHUNK_ROWS", 101)
+    pieces = import_comtrade([path], cmap).streams
+    for name, st in whole.items():
+        assert np.array_equal(st.t_ns, pieces[name].t_ns)
+        for c, x in st.channels.items():
+            assert np.allclose(pieces[name].channels[c], x, rtol=0, atol=1e-9, equal_nan=True), (name, c)
+    assert len(whole["pt_ct"].t_ns) == (1200 - 40 + 1 + 1) // 2  # 2 kHz decimated to 1 kHz
