@@ -197,7 +197,8 @@ def run(args: Any, console: Console) -> int:
     res.timing = {"read": round(t_read, 6), **res.timing}
     doc = res.to_json(truth)
     with ProgressLine("identifying the exciter and the governor"):
-        controls = identify_controls(scenarios)
+        candidates = {k: names for k in ("exciter", "governor") if (names := getattr(args, k, None))}
+        controls = identify_controls(scenarios, candidates)
     doc["controls"] = controls_json(controls)
     doc.update(provenance(*args.input))
     doc["f_nominal_hz"] = rec.f_nominal_hz  # what phid export needs to write a planning model

@@ -10,14 +10,17 @@ identification and the JSON take every registered model of a kind as a candidate
 Blocks (Tustin-free: each first-order lag is :func:`phid_ros.numerics.first_order_response`,
 exact for inputs linear between samples):
 ``lag(T)`` = 1/(1 + sT); ``lead_lag(T_lead, T_lag)`` = (1 + sT_lead)/(1 + sT_lag)
-= T_lead/T_lag + (1 - T_lead/T_lag) lag(T_lag).
+= T_lead/T_lag + (1 - T_lead/T_lag) lag(T_lag). A model with a feedback loop (a rate feedback
+around the regulator, the droop around a hydro governor's PI) is its closed loop's transfer
+function, :func:`transfer`, discretised with the same first-order hold.
 """
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import ClassVar
 
 import numpy as np
@@ -40,6 +43,8 @@ class ControlParameter:
     meaning: str
     limit: bool = False  # an output or state limit: determined only where the data reached it
     absent: float | None = None  # the value at which its term vanishes (a turbine damping of 0)
+    within: str | None = None  # the constant whose term this one belongs to: moot where that one is absent
+    held: bool = False  # not fitted: the model's structure holds it at its default (a stage left out)
 
     def outside(self, value: float) -> bool:
         return not self.low <= value <= self.high
@@ -53,11 +58,48 @@ class ControlInputs:
     v_t: Array  # terminal voltage deviation, pu
     speed: Array  # rotor speed deviation, pu
     reference_step: Array  # the unit step at the scenario's reference change (zeros if none)
+    p_m0: float = float("nan")  # mechanical power before the event, pu (a hydro turbine's operating point)
 
 
 def lag(u: Array, tau: float, dt: float) -> Array:
     """1/(1 + s tau) from rest; a vanishing tau is a wire."""
     return u if tau <= 1e-6 else first_order_response(u, tau, dt)
+
+
+def transfer(u: Array, num: Sequence[float] | np.ndarray, den: Sequence[float] | np.ndarray, dt: float) -> Array:
+    """num(s)/den(s) (coefficients from the highest power) from rest, for inputs linear between
+    samples (first-order hold, as :func:`lag`)."""
+    from scipy.signal import lfilter
+
+    direct, modes = _discrete_modes(tuple(map(float, num)), tuple(map(float, den)), float(dt))
+    y = np.asarray(direct * u, dtype=np.complex128)
+    for lam_i, g_in, g_out in modes:
+        y += g_out * lfilter([0.0, g_in], [1.0, -lam_i], u)
+    return np.ascontiguousarray(y.real)
+
+
+@lru_cache(maxsize=256)
+def _discrete_modes(
+    num: tuple[float, ...], den: tuple[float, ...], dt: float
+) -> tuple[float, tuple[tuple[complex, complex, complex], ...]]:
+    """The first-order-hold discretisation of num/den, mode by mode: the direct gain and each
+    mode's (pole, input gain, output gain). Cached: a fit's scenarios share one step."""
+    from scipy.signal import cont2discrete, tf2ss
+
+    # mode by mode: a direct-form polynomial of degree four in z with poles near 1 (time
+    # constants of seconds at 1 ms) rounds its response into noise a finite-difference Jacobian
+    # takes for slopes (1e-5 of the output; a hydro governor's fit stalled at its start), and so
+    # did second-order sections through the discrete zeros; each mode is a first-order recursion
+    ad, bd, cd, dd, _ = cont2discrete(tf2ss(np.asarray(num), np.asarray(den)), dt, method="foh")
+    lam, vec = np.linalg.eig(ad)
+    gain_in = np.linalg.solve(vec, bd[:, 0])
+    gain_out = cd[0] @ vec
+    return float(dd[0, 0]), tuple((complex(a), complex(b), complex(c)) for a, b, c in zip(lam, gain_in, gain_out))
+
+
+def first_order(t: float) -> NDArray[np.float64]:
+    """1 + sT as a polynomial in s."""
+    return np.array([t, 1.0])
 
 
 def lead_lag(u: Array, t_lead: float, t_lag: float, dt: float) -> Array:
@@ -78,7 +120,19 @@ class ControlModel(ABC):
 
     @classmethod
     def fitted(cls) -> tuple[ControlParameter, ...]:
-        return tuple(p for p in cls.parameters if not p.limit)
+        return tuple(p for p in cls.parameters if not p.limit and not p.held and p.high > p.low)
+
+    @classmethod
+    def start(cls, earlier: Mapping[str, Mapping[str, float]]) -> dict[str, float]:
+        """Where the fit starts, given the fits of the models registered before it (by name): a
+        model that nests a simpler one starts where that one ended, so it fits at least as well
+        (a rate feedback's loop has local minima a start from the defaults falls into)."""
+        return cls.defaults()
+
+    @classmethod
+    def completed(cls, values: Mapping[str, float]) -> dict[str, float]:
+        """The constants that follow from the fitted ones (none unless a model says so)."""
+        return dict(values)
 
     @classmethod
     def defaults(cls) -> dict[str, float]:
@@ -147,3 +201,249 @@ class TGOV1(ControlModel):
     def response(cls, values: Mapping[str, float], x: ControlInputs, reference: float) -> Array:
         valve = lag(reference * x.reference_step - x.speed / values["R"], values["T1"], x.dt)
         return lead_lag(valve, values["T2"], values["T3"], x.dt) - values["Dt"] * x.speed
+
+
+@register
+class EXST1(ControlModel):
+    """Static (bus-fed) excitation system, IEEE ST1A-like: V_t sensed through 1/(1 + sT_R), the error
+    through (1 + sT_C)/(1 + sT_B) and K_A/(1 + sT_A), a rate feedback sK_F/(1 + sT_F) of the output."""
+
+    name = "EXST1"
+    kind = "exciter"
+    description = "static excitation system, IEEE ST1A-like (PSS/E EXST1)"
+    parameters = (
+        ControlParameter("TR", "s", 0.0, 0.0, 0.5, "voltage transducer time constant", absent=0.0),
+        ControlParameter("VIMAX", "pu", 0.2, 0.0, 1.0, "maximum error signal", limit=True),
+        ControlParameter("VIMIN", "pu", -0.2, -1.0, 0.0, "minimum error signal", limit=True),
+        ControlParameter("TC", "s", 1.0, 0.01, 20.0, "lead time constant T_C"),
+        ControlParameter("TB", "s", 10.0, 0.05, 30.0, "lag time constant T_B"),
+        ControlParameter("KA", "pu", 200.0, 5.0, 1000.0, "regulator gain"),
+        ControlParameter("TA", "s", 0.02, 0.002, 1.0, "regulator time constant"),
+        ControlParameter("VRMAX", "pu", 5.0, 1.0, 20.0, "maximum regulator output", limit=True),
+        ControlParameter("VRMIN", "pu", -5.0, -20.0, 0.0, "minimum regulator output", limit=True),
+        ControlParameter("KC", "pu", 0.0, 0.0, 1.0, "rectifier loading factor (enters the limits only)", limit=True),
+        ControlParameter("KF", "pu", 0.0, 0.0, 1.0, "rate feedback gain", absent=0.0),
+        ControlParameter("TF", "s", 1.0, 0.05, 20.0, "rate feedback time constant", within="KF"),
+    )
+
+    @classmethod
+    def start(cls, earlier: Mapping[str, Mapping[str, float]]) -> dict[str, float]:
+        sexs = earlier.get("SEXS")
+        if not sexs:
+            return cls.defaults()
+        # SEXS is EXST1 without its transducer and rate feedback
+        lead = sexs["TA/TB"] * sexs["TB"]
+        return {
+            **cls.defaults(),
+            "TC": lead,
+            "TB": sexs["TB"],
+            "KA": sexs["K"],
+            "TA": sexs["TE"],
+            "TR": 1e-3,
+            "KF": 1e-3,
+        }
+
+    @classmethod
+    def response(cls, values: Mapping[str, float], x: ControlInputs, reference: float) -> Array:
+        v = values
+        sensed = lag(x.v_t, v["TR"], x.dt)
+        # E/e = K_A (1 + sT_C)(1 + sT_F) / [(1 + sT_A)(1 + sT_B)(1 + sT_F) + K_A K_F s (1 + sT_C)]
+        loop = np.polymul(np.polymul(first_order(v["TA"]), first_order(v["TB"])), first_order(v["TF"]))
+        den = np.polyadd(loop, v["KA"] * v["KF"] * np.polymul([1.0, 0.0], first_order(v["TC"])))
+        num = v["KA"] * np.polymul(first_order(v["TC"]), first_order(v["TF"]))
+        return transfer(reference * x.reference_step - sensed, num, den, x.dt)
+
+
+@register
+class IEEET1(ControlModel):
+    """DC commutator exciter (IEEE type 1, PSS/E IEEET1): K_A/(1 + sT_A) on the error less the rate
+    feedback sK_F/(1 + sT_F) of E_fd, the exciter 1/(K_E + sT_E)."""
+
+    name = "IEEET1"
+    kind = "exciter"
+    description = "DC commutator exciter, IEEE type 1 (PSS/E IEEET1)"
+    parameters = (
+        ControlParameter("TR", "s", 0.0, 0.0, 0.5, "voltage transducer time constant", absent=0.0),
+        ControlParameter("KA", "pu", 50.0, 5.0, 1000.0, "regulator gain"),
+        ControlParameter("TA", "s", 0.05, 0.002, 1.0, "regulator time constant"),
+        ControlParameter("VRMAX", "pu", 5.0, 0.5, 20.0, "maximum regulator output", limit=True),
+        ControlParameter("VRMIN", "pu", -5.0, -20.0, 0.0, "minimum regulator output", limit=True),
+        # small-signal, the saturation's slope at the operating point adds to K_E: given as K_E
+        # the small-signal response is unchanged when K_A, K_E and T_E scale together: K_E is held
+        # at 1 (a separately excited exciter's, PSS/E's usual), K_A and T_E are then K_A/K_E, T_E/K_E
+        ControlParameter("KE", "pu", 1.0, 1.0, 1.0, "exciter constant (held at 1: see the class)", held=True),
+        ControlParameter("TE", "s", 0.5, 0.02, 5.0, "exciter time constant"),
+        ControlParameter("KF", "pu", 0.05, 0.0, 0.5, "rate feedback gain", absent=0.0),
+        ControlParameter("TF", "s", 1.0, 0.05, 20.0, "rate feedback time constant", within="KF"),
+        ControlParameter("SWITCH", "", 0.0, 0.0, 0.0, "PSS/E's unused switch", held=True),
+        ControlParameter("E1", "pu", 0.0, 0.0, 0.0, "first saturation point", limit=True),
+        ControlParameter("SE1", "", 0.0, 0.0, 0.0, "saturation at E1", limit=True),
+        ControlParameter("E2", "pu", 0.0, 0.0, 0.0, "second saturation point", limit=True),
+        ControlParameter("SE2", "", 0.0, 0.0, 0.0, "saturation at E2", limit=True),
+    )
+
+    @classmethod
+    def response(cls, values: Mapping[str, float], x: ControlInputs, reference: float) -> Array:
+        v = values
+        sensed = lag(x.v_t, v["TR"], x.dt)
+        # E/e = K_A (1 + sT_F) / [(1 + sT_A)(K_E + sT_E)(1 + sT_F) + K_A K_F s]
+        loop = np.polymul(np.polymul(first_order(v["TA"]), [v["TE"], v["KE"]]), first_order(v["TF"]))
+        den = np.polyadd(loop, [v["KA"] * v["KF"], 0.0])
+        num = v["KA"] * first_order(v["TF"])
+        return transfer(reference * x.reference_step - sensed, num, den, x.dt)
+
+
+@register
+class ESST5B(ControlModel):
+    """Static exciter with two lead-lags, IEEE ST5B's voltage regulator path: (1 + sT_C1)/(1 + sT_B1),
+    (1 + sT_C2)/(1 + sT_B2), K_R/(1 + sT_1). The over- and under-excitation limiters' lead-lags
+    act only while a limiter does (never in a small-signal test): held with lead = lag.
+
+    The record's order is the one PNNL's power plant model validation tool and InterPSS read an
+    ESST5B in (T_R, K_R, T_1, K_C, V_RMAX, V_RMIN, T_C1, T_B1, T_C2, T_B2, then the limiters' T_OC1,
+    T_OB1, T_OC2, T_OB2, T_UC1, T_UB1, T_UC2, T_UB2)."""
+
+    name = "ESST5B"
+    kind = "exciter"
+    description = "static exciter with two lead-lags, IEEE ST5B (ESST5B)"
+    parameters = (
+        ControlParameter("TR", "s", 0.0, 0.0, 0.5, "voltage transducer time constant", absent=0.0),
+        ControlParameter("KR", "pu", 200.0, 5.0, 1000.0, "regulator gain"),
+        ControlParameter("T1", "s", 0.004, 0.001, 1.0, "firing circuit time constant"),
+        ControlParameter("KC", "pu", 0.0, 0.0, 1.0, "rectifier loading factor (enters the limits only)", limit=True),
+        ControlParameter("VRMAX", "pu", 5.0, 1.0, 20.0, "maximum regulator output", limit=True),
+        ControlParameter("VRMIN", "pu", -5.0, -20.0, 0.0, "minimum regulator output", limit=True),
+        ControlParameter("TC1", "s", 1.0, 0.01, 20.0, "first lead time constant"),
+        ControlParameter("TB1", "s", 10.0, 0.05, 30.0, "first lag time constant"),
+        ControlParameter("TC2", "s", 0.1, 0.01, 20.0, "second lead time constant"),
+        ControlParameter("TB2", "s", 0.1, 0.01, 30.0, "second lag time constant"),
+        *(
+            ControlParameter(n, "s", 1.0, 1.0, 1.0, "limiter lead-lag (acts only with its limiter)", held=True)
+            for n in ("TOC1", "TOB1", "TOC2", "TOB2", "TUC1", "TUB1", "TUC2", "TUB2")
+        ),
+    )
+
+    @classmethod
+    def start(cls, earlier: Mapping[str, Mapping[str, float]]) -> dict[str, float]:
+        sexs = earlier.get("SEXS")
+        if not sexs:
+            return cls.defaults()
+        # SEXS is ESST5B with its second lead-lag a wire
+        lead = sexs["TA/TB"] * sexs["TB"]
+        return {**cls.defaults(), "TC1": lead, "TB1": sexs["TB"], "KR": sexs["K"], "T1": sexs["TE"], "TR": 1e-3}
+
+    @classmethod
+    def response(cls, values: Mapping[str, float], x: ControlInputs, reference: float) -> Array:
+        v = values
+        e = reference * x.reference_step - lag(x.v_t, v["TR"], x.dt)
+        first = lead_lag(e, v["TC1"], v["TB1"], x.dt)
+        return v["KR"] * lag(lead_lag(first, v["TC2"], v["TB2"], x.dt), v["T1"], x.dt)
+
+
+@register
+class IEEEG1(ControlModel):
+    """IEEE type 1 steam turbine-governor (PSS/E IEEEG1), one reheat: the speed deviation through
+    K, the servo 1/(1 + sT_3) to the valve, the steam chest 1/(1 + sT_4) and the reheater
+    1/(1 + sT_5), the high- and low-pressure shares K_1 + K_3 = 1 (the other stages held out)."""
+
+    name = "IEEEG1"
+    kind = "governor"
+    description = "IEEE type 1 steam turbine-governor, one reheat stage (PSS/E IEEEG1)"
+    parameters = (
+        ControlParameter("K", "pu", 20.0, 2.0, 100.0, "governor gain (1/droop)"),
+        ControlParameter("T1", "s", 0.0, 0.0, 0.0, "governor lag (held out)", held=True),
+        ControlParameter("T2", "s", 0.0, 0.0, 0.0, "governor lead (held out)", held=True),
+        ControlParameter("T3", "s", 0.1, 0.02, 2.0, "servo time constant"),
+        ControlParameter("UO", "pu/s", 1.0, 0.01, 5.0, "maximum valve opening rate", limit=True),
+        ControlParameter("UC", "pu/s", -1.0, -5.0, -0.01, "maximum valve closing rate", limit=True),
+        ControlParameter("PMAX", "pu", 1.0, 0.5, 1.5, "maximum valve position", limit=True),
+        ControlParameter("PMIN", "pu", 0.0, -0.5, 0.5, "minimum valve position", limit=True),
+        ControlParameter("T4", "s", 0.3, 0.02, 2.0, "steam chest time constant"),
+        ControlParameter("K1", "", 0.3, 0.02, 0.98, "high-pressure share"),
+        ControlParameter("K2", "", 0.0, 0.0, 0.0, "high-pressure share on a second shaft (held out)", held=True),
+        ControlParameter("T5", "s", 7.0, 0.5, 30.0, "reheater time constant"),
+        ControlParameter("K3", "", 0.7, 0.02, 0.98, "low-pressure share (1 - K1)", held=True),
+        ControlParameter("K4", "", 0.0, 0.0, 0.0, "(held out)", held=True),
+        ControlParameter("T6", "s", 0.0, 0.0, 0.0, "crossover time constant (held out)", held=True),
+        ControlParameter("K5", "", 0.0, 0.0, 0.0, "(held out)", held=True),
+        ControlParameter("K6", "", 0.0, 0.0, 0.0, "(held out)", held=True),
+        ControlParameter("T7", "s", 0.0, 0.0, 0.0, "(held out)", held=True),
+        ControlParameter("K7", "", 0.0, 0.0, 0.0, "(held out)", held=True),
+        ControlParameter("K8", "", 0.0, 0.0, 0.0, "(held out)", held=True),
+    )
+
+    @classmethod
+    def start(cls, earlier: Mapping[str, Mapping[str, float]]) -> dict[str, float]:
+        tgov = earlier.get("TGOV1")
+        if not tgov:
+            return cls.defaults()
+        # TGOV1 is IEEEG1 with a steam chest of no delay: valve lag T1, reheat lead-lag T2/T3
+        return {
+            **cls.defaults(),
+            "K": 1.0 / tgov["R"],
+            "T3": 0.05,
+            "T4": tgov["T1"],
+            "K1": min(max(tgov["T2"] / tgov["T3"], 0.05), 0.95),
+            "T5": tgov["T3"],
+        }
+
+    @classmethod
+    def completed(cls, values: Mapping[str, float]) -> dict[str, float]:
+        # the servo's and the steam chest's lags are in series on one signal: in small signal
+        # they commute, so the data give the pair, not which is which; the servo is given the
+        # shorter (IEEE's typical data: servo 0.1-0.2 s, steam chest 0.2-0.4 s)
+        servo, chest = sorted((values["T3"], values["T4"]))
+        return {**values, "T3": servo, "T4": chest, "K3": 1.0 - values["K1"]}
+
+    @classmethod
+    def response(cls, values: Mapping[str, float], x: ControlInputs, reference: float) -> Array:
+        v = values
+        # the load reference in pu power: the valve moves by it in steady state
+        valve = lag(reference * x.reference_step - v["K"] * x.speed, v["T3"], x.dt)
+        chest = lag(valve, v["T4"], x.dt)
+        return v["K1"] * chest + (1.0 - v["K1"]) * lag(chest, v["T5"], x.dt)
+
+
+@register
+class HYGOV(ControlModel):
+    """Hydro turbine-governor (PSS/E HYGOV), linearised about the scenario's operating point: the
+    speed error less R times the gate command, through 1/(1 + sT_f) and the PI (1 + sT_r)/(r T_r s),
+    the gate servo 1/(1 + sT_g); the water column (q = g sqrt(h), dq/dt = (1 - h)/T_w) and
+    P_m = A_t h (q - q_NL) - D_turb g dw. At rated head the gate g0 = P_m0/A_t + q_NL, so a gate
+    step moves P_m by A_t (1 - (q0 - q_NL) s T_w)/(1 + s g0 T_w/2): the water hammer's
+    non-minimum phase."""
+
+    name = "HYGOV"
+    kind = "governor"
+    description = "hydro turbine-governor (PSS/E HYGOV), linearised at the operating point"
+    parameters = (
+        ControlParameter("R", "pu", 0.05, 0.01, 0.2, "permanent droop"),
+        ControlParameter("r", "pu", 0.5, 0.05, 2.0, "temporary droop"),
+        ControlParameter("Tr", "s", 5.0, 0.5, 30.0, "governor time constant (reset)"),
+        ControlParameter("Tf", "s", 0.05, 0.005, 0.5, "filter time constant"),
+        ControlParameter("Tg", "s", 0.5, 0.05, 2.0, "gate servo time constant"),
+        ControlParameter("VELM", "pu/s", 0.2, 0.01, 1.0, "gate velocity limit", limit=True),
+        ControlParameter("GMAX", "pu", 1.0, 0.5, 1.5, "maximum gate opening", limit=True),
+        ControlParameter("GMIN", "pu", 0.0, 0.0, 0.5, "minimum gate opening", limit=True),
+        ControlParameter("TW", "s", 1.0, 0.2, 5.0, "water inertia time constant"),
+        # the small-signal response is unchanged when A_t, R, r and T_W scale together and q_NL
+        # inversely (g0 = P_m0/A_t + q_NL): A_t is held at its typical value, 1/(g_FL - g_NL)
+        ControlParameter("At", "pu", 1.2, 1.2, 1.2, "turbine gain (held: see the class)", held=True),
+        ControlParameter("Dturb", "pu", 0.0, 0.0, 2.0, "turbine damping", absent=0.0),
+        ControlParameter("qNL", "pu", 0.08, 0.0, 0.3, "no-load flow"),
+    )
+
+    @classmethod
+    def response(cls, values: Mapping[str, float], x: ControlInputs, reference: float) -> Array:
+        v = values
+        if not np.isfinite(x.p_m0):
+            return np.full(len(x.speed), np.nan)  # no operating point: the model does not apply
+        g0 = x.p_m0 / v["At"] + v["qNL"]
+        q0 = g0  # at rated head
+        # the reference in pu power: the gate command moves by R/A_t of it per pu
+        u = reference * v["R"] / v["At"] * x.reference_step - x.speed
+        gate_num = first_order(v["Tr"])
+        gate_den = np.polyadd(np.polymul([v["r"] * v["Tr"], 0.0], first_order(v["Tf"])), v["R"] * first_order(v["Tr"]))
+        num = v["At"] * np.polymul(gate_num, [-(q0 - v["qNL"]) * v["TW"], 1.0])
+        den = np.polymul(np.polymul(gate_den, first_order(v["Tg"])), first_order(g0 * v["TW"] / 2))
+        return transfer(u, num, den, x.dt) - v["Dturb"] * g0 * x.speed

@@ -15,7 +15,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from phid_ros.controls.models import MODELS
+from phid_ros.controls.models import MODELS, ControlParameter
 from phid_ros.errors import PhidError
 
 
@@ -67,6 +67,14 @@ def build_control_records(
         flagged = []
         for p in model.parameters:
             v = params.get(p.name)
+            if p.held:
+                values[p.name] = float(v) if isinstance(v, (int, float)) else p.default
+                sources[p.name] = "held by the model's structure"
+                continue
+            parent = next((q for q in model.parameters if q.name == p.within), None)
+            if parent is not None and parent.absent is not None and _is_absent(params.get(parent.name), parent):
+                values[p.name], sources[p.name] = p.default, f"default: moot ({parent.name} absent)"
+                continue
             if p.limit or v is None:
                 values[p.name], sources[p.name] = p.default, "default (a limit the recordings never reached)"
                 continue
@@ -77,9 +85,9 @@ def build_control_records(
             values[p.name] = float(v)
             if ident.get(p.name):
                 sources[p.name] = "identified"
-            elif p.absent is not None and abs(float(v) - p.absent) <= 1e-6 * max(1.0, abs(p.high)):
+            elif _is_absent(v, p):
                 # the fit pressed onto the value where the term vanishes (D_t 8e-12): absent
-                values[p.name], sources[p.name] = p.absent, "default: absent (the data show no such term)"
+                values[p.name], sources[p.name] = float(p.absent or 0.0), "default: absent (the data show no such term)"
             else:
                 sources[p.name] = "identified, NOT determined"
                 flagged.append(p.name)
@@ -90,3 +98,10 @@ def build_control_records(
             )
         out.append(ControlRecord(name, kind, values, sources, flagged))
     return out
+
+
+def _is_absent(v: Any, p: ControlParameter) -> bool:
+    """The fit pressed onto the value where the constant's term vanishes (D_t 8e-12, K_F 1e-9)."""
+    if p.absent is None or not isinstance(v, (int, float)):
+        return False
+    return abs(float(v) - p.absent) <= 1e-6 * max(1.0, abs(p.high))

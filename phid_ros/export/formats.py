@@ -21,7 +21,7 @@ from __future__ import annotations
 import json
 from collections.abc import Callable
 
-from phid_ros.export.record import MachineRecord
+from phid_ros.export.record import ExportError, MachineRecord
 
 PSSE_ORDER = {
     "GENROU": ("Td10", "Td20", "Tq10", "Tq20", "H", "D", "Xd", "Xq", "Xd1", "Xq1", "Xd2", "Xl", "S10", "S12"),
@@ -64,7 +64,9 @@ ANDES_NAMES = {
 }
 
 
-ANDES_CONTROL_NAMES = {"TA/TB": "TATB"}  # else ANDES's SEXS and TGOV1 use PSS/E's names
+# ANDES's names where they are not PSS/E's (its SEXS, TGOV1, EXST1, IEEET1, IEEEG1, HYGOV)
+ANDES_CONTROL_NAMES = {"TA/TB": "TATB", "SWITCH": "Switch", "TW": "Tw", "Dturb": "Dt"}
+ANDES_CONTROL_MODELS = ("SEXS", "TGOV1", "EXST1", "IEEET1", "IEEEG1", "HYGOV")
 
 
 def _num(v: float) -> str:
@@ -112,7 +114,12 @@ def andes_json(rec: MachineRecord) -> str:
     if rec.flagged:  # ANDES rows have no comment field; the name carries the warning
         row["name"] = f"{row['name']} NOT IDENTIFIED: {', '.join(rec.flagged)}"
     doc: dict[str, list[dict[str, object]]] = {"GENROU": [row]}
-    for c in rec.controls:  # ANDES's SEXS and TGOV1 take PSS/E's constants, wired to the machine by syn
+    for c in rec.controls:  # ANDES's models take PSS/E's constants, wired to the machine by syn
+        if c.model not in ANDES_CONTROL_MODELS:
+            raise ExportError(
+                f"controls.{c.kind}: ANDES has no {c.model} model (it has {', '.join(ANDES_CONTROL_MODELS)}); "
+                "export this unit as psse-dyr"
+            )
         ctl: dict[str, object] = {"idx": f"{c.model}_{rec.bus}_{rec.machine_id}", "u": 1, "syn": row["idx"]}
         ctl["name"] = f"{c.model}_{rec.bus}_{rec.machine_id}" + (
             f" NOT IDENTIFIED: {', '.join(c.flagged)}" if c.flagged else ""

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -47,3 +49,26 @@ def test_tgov1_answers_a_speed_rise_with_minus_one_over_r_and_a_reference_step_f
     valve = 1 - np.exp(-t / t1)
     chain = 1 - (t3 * np.exp(-t / t3) - t1 * np.exp(-t / t1)) / (t3 - t1)
     assert ref[1000 + 2500] == pytest.approx(0.1 * (valve / 3 + 2 / 3 * chain), rel=1e-3)
+
+
+EXCITER_GAIN = {"SEXS": lambda v: v["K"], "EXST1": lambda v: v["KA"], "IEEET1": lambda v: v["KA"] / v["KE"]}
+EXCITER_GAIN["ESST5B"] = lambda v: v["KR"]
+GOVERNOR_GAIN = {"TGOV1": lambda v: 1 / v["R"], "IEEEG1": lambda v: v["K"], "HYGOV": lambda v: v["At"] / v["R"]}
+
+
+@pytest.mark.parametrize("name", sorted(MODELS))
+def test_every_model_settles_at_its_steady_state_gain_and_follows_its_reference_fully(name: str) -> None:
+    """A voltage 0.01 pu below the reference: E_fd settles at the regulator's gain times 0.01; a
+    speed 0.001 pu high: P_m at -gain * 0.001 (1/R, K, A_t/R); a load-reference step of 0.1 pu
+    moves P_m by 0.1 (the closed loops and the hydro turbine's linearisation included)."""
+    model = MODELS[name]
+    v = model.completed(model.defaults())
+    long = dict(n=60_000, dt=0.01)  # 600 s: past a hydro governor's 55 s closed-loop pole
+    if model.kind == "exciter":
+        e = model.response(v, inputs(**long, v_t=-0.01), 0.0)
+        assert e[-1] == pytest.approx(0.01 * EXCITER_GAIN[name](v), rel=1e-3)
+        assert np.allclose(model.response(v, inputs(**long), 0.01), e)
+        return
+    x = replace(inputs(**long, speed=0.001), p_m0=0.8)
+    assert model.response(v, x, 0.0)[-1] == pytest.approx(-0.001 * GOVERNOR_GAIN[name](v), rel=1e-3)
+    assert model.response(v, replace(inputs(**long), p_m0=0.8), 0.1)[-1] == pytest.approx(0.1, rel=1e-3)
