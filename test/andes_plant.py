@@ -94,10 +94,27 @@ def system(record: Mapping[str, object] | None = None, dyr: Path | None = None, 
     return s
 
 
+EXCITERS = ("SEXS", "EXST1", "IEEET1")
+GOVERNORS = ("TGOV1", "IEEEG1", "HYGOV")
+
+
+def _control(s, names: Sequence[str]):
+    return next((getattr(s, n) for n in names if getattr(s, n).n), None)
+
+
 def disturb(s, scenario: Scenario) -> None:
-    """The scenario's disturbance as ANDES events (the ramp back of phid's runner is left out)."""
+    """The scenario's disturbance as ANDES events (the ramp back of phid's runner is left out).
+    Where the unit has an exciter (governor), a field (torque) step is a step of its voltage
+    (load) reference by ``magnitude`` pu, as a staged MOD-026 (MOD-027) test makes it."""
     dev = s.GENROU.idx.v[0]
-    if scenario.kind == "torque_step":
+    exciter, governor = _control(s, EXCITERS), _control(s, GOVERNORS)
+    if scenario.kind == "field_step" and exciter is not None:
+        s.add("Alter", {"t": scenario.t_event, "model": exciter.class_name, "dev": exciter.idx.v[0], "src": "vref0",
+                        "attr": "v", "method": "+", "amount": scenario.magnitude})  # fmt: skip
+    elif scenario.kind == "torque_step" and governor is not None:
+        s.add("Alter", {"t": scenario.t_event, "model": governor.class_name, "dev": governor.idx.v[0], "src": "paux0",
+                        "attr": "v", "method": "+", "amount": scenario.magnitude})  # fmt: skip
+    elif scenario.kind == "torque_step":
         s.add("Alter", {"t": scenario.t_event, "model": "GENROU", "dev": dev, "src": "tm0", "attr": "v",
                         "method": "+", "amount": scenario.magnitude / TO_SYSTEM})  # fmt: skip
     elif scenario.kind == "field_step":

@@ -340,6 +340,14 @@ def cmd_export(args: argparse.Namespace, console: Console) -> int:
     return run(args, console)
 
 
+def cmd_validate(args: argparse.Namespace, console: Console) -> int:
+    from phid_ros.cli.validate import run
+    from phid_ros.io.outputs import refuse_inputs
+
+    refuse_inputs([args.json, args.report], [args.dyr, args.input])
+    return run(args, console)
+
+
 def cmd_history(args: argparse.Namespace, console: Console) -> int:
     from phid_ros.cli.fleet import run_history
 

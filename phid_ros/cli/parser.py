@@ -24,7 +24,9 @@ from phid_ros.cli.commands import (
     cmd_replay,
     cmd_simulate,
     cmd_track,
+    cmd_validate,
 )
+from phid_ros.controls.models import of_kind
 from phid_ros.fleet.history import DRIFT_SIGMAS
 from phid_ros.io.recording import DEFAULT_BLOCK_SIZE
 
@@ -215,6 +217,15 @@ def _add_identify(sub: Subparsers) -> None:
         metavar="NAME=VALUE",
         help="starting value for the searches that take one (--method paper), repeatable",
     )
+    for kind in ("exciter", "governor"):
+        names = [m.name for m in of_kind(kind)]
+        p.add_argument(
+            f"--{kind}",
+            action="append",
+            choices=names,
+            metavar="MODEL",
+            help=f"the unit's {kind} model, if known (repeatable: the candidates; default all: {', '.join(names)})",
+        )
     p.set_defaults(func=cmd_identify)
 
 
@@ -345,6 +356,21 @@ def _add_info(sub: Subparsers) -> None:
     p.set_defaults(func=cmd_info)
 
 
+def _add_validate(sub: Subparsers) -> None:
+    p = sub.add_parser(
+        "validate",
+        help="MOD-026/027: a unit's .dyr (machine, exciter, governor) against a recording's steps and disturbances",
+    )
+    p.add_argument("dyr", help="PSS/E dynamic data: GENROU or GENSAL, and the unit's exciter and governor if any")
+    p.add_argument("input", help="rosbag2 folder, .mcap file, or CSV manifest.json")
+    p.add_argument("--bus", type=POSITIVE_INT, help="the machine's bus in the .dyr (needed where it holds several)")
+    p.add_argument("--id", help="the machine's id at its bus")
+    p.add_argument("--json", metavar="OUT", help="write the checks (per scenario and channel) here")
+    p.add_argument("--report", metavar="OUT.html", help="write the overlays, recorded against simulated, here")
+    add_step_thresholds(p)
+    p.set_defaults(func=cmd_validate)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = Parser(prog="phid", description="Port-Hamiltonian generator identification.")
     parser.add_argument("-V", "--version", action="version", version=f"phid_ros {__version__}")
@@ -361,6 +387,7 @@ def build_parser() -> argparse.ArgumentParser:
         _add_fleet,
         _add_history,
         _add_export,
+        _add_validate,
         _add_info,
     ):
         add(sub)

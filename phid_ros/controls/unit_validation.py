@@ -1,0 +1,254 @@
+"""MOD-026/027 validation: each recorded step or disturbance against the unit model played in.
+
+The unit (machine, exciter, governor) is driven by the recording's network side, as the model
+validation tools that MOD-026/027 reports rely on do it: the terminal voltage's magnitude and
+angle as recorded (so no network model is assumed), the exciter by the recorded terminal
+voltage, the governor by the recorded speed (a frequency play-in). A unit without an exciter
+(governor) takes the recorded E_fd (P_m) instead. The machine is the fourth-order model of
+:func:`phid_ros.ident.validation.play_in`; the control models are their small-signal paths
+(:mod:`phid_ros.controls.models`), limits not simulated; a reference step the recording does not
+size is sized by least squares on the recorded output, as identification does.
+
+Checked per scenario: MOD-026 (excitation) the reactive power Q and the field voltage E_fd;
+MOD-027 (turbine-governor) the active power P and the mechanical power P_m. A channel passes
+where the simulated response stays within its band of the recorded one over the whole window:
+P and Q within 0.05 pu (the tolerance the paper quotes from WECC's guideline, the one
+``phid identify`` checks), E_fd and P_m within 10 % of the recorded response's largest
+deviation from its pre-event value, and never less than 0.01 pu nor than four standard deviations
+of the difference before the event (the recorded input's noise, through a regulator's gain, is
+not the model's error); both compared through the same zero-phase 10 Hz low-pass, which keeps
+the controls' response and drops the sensors' noise.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from phid_ros.controls.identify import (
+    KINDS,
+    ControlCase,
+    control_case,
+    fit_stride,
+    simulate_cases,
+    zero_phase,
+)
+from phid_ros.controls.models import MODELS, ControlModel
+from phid_ros.ident.scenario import ScenarioData
+from phid_ros.ident.terminal import with_channels, with_rotor_angle
+from phid_ros.ident.validation import MOD026_TOLERANCE_PU, play_in, play_in_stride
+from phid_ros.model.parameters import GeneratorParameters
+
+Array = NDArray[np.float64]
+
+STANDARD_OF = {"exciter": "MOD-026", "governor": "MOD-027"}
+RESPONSE_SHARE = 0.10  # an E_fd or P_m band: this share of the recorded response's largest deviation
+RESPONSE_FLOOR_PU = 0.01  # and never narrower than this
+NOISE_PEAKS = 4.0  # nor than this many stds of the pre-event difference (the inputs' noise through the model)
+COMPARE_CUTOFF_HZ = 10.0
+# channel: (standard, what it is, fixed band in pu or None for the response share)
+CHANNELS: dict[str, tuple[str, str, float | None]] = {
+    "q_e": ("MOD-026", "Q", MOD026_TOLERANCE_PU),
+    "v_f": ("MOD-026", "E_fd", None),
+    "p_e": ("MOD-027", "P", MOD026_TOLERANCE_PU),
+    "p_m": ("MOD-027", "P_m", None),
+}
+
+
+@dataclass
+class ChannelCheck:
+    channel: str
+    standard: str
+    max_error: float  # pu, largest |simulated - recorded| over the window
+    band: float  # pu
+    passed: bool
+    simulated_by: str  # the model that made the simulated trace
+
+    def as_json(self) -> dict[str, Any]:
+        return dict(self.__dict__)
+
+
+@dataclass
+class ScenarioCheck:
+    scenario: str
+    kind: str
+    t: Array  # s, the play-in's grid
+    recorded: dict[str, Array]
+    simulated: dict[str, Array]
+    checks: list[ChannelCheck]
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def passed(self) -> bool:
+        return all(c.passed for c in self.checks)
+
+    def as_json(self) -> dict[str, Any]:
+        return {
+            "scenario": self.scenario,
+            "kind": self.kind,
+            "passed": self.passed,
+            "checks": [c.as_json() for c in self.checks],
+            "notes": self.notes,
+        }
+
+
+@dataclass
+class UnitValidation:
+    unit: str  # what was played in, one line
+    scenarios: list[ScenarioCheck]
+    notes: list[str]
+
+    def passed(self, standard: str | None = None) -> bool:
+        checks = [c for s in self.scenarios for c in s.checks if standard is None or c.standard == standard]
+        return bool(checks) and all(c.passed for c in checks)
+
+    def as_json(self) -> dict[str, Any]:
+        return {
+            "unit": self.unit,
+            "mod026_pass": self.passed("MOD-026"),
+            "mod027_pass": self.passed("MOD-027"),
+            "tolerances": {
+                "p_e, q_e": f"within {MOD026_TOLERANCE_PU:g} pu",
+                "v_f, p_m": f"within {RESPONSE_SHARE:.0%} of the recorded response's largest deviation, at least "
+                f"{RESPONSE_FLOOR_PU:g} pu ({COMPARE_CUTOFF_HZ:g} Hz zero-phase low-pass on both)",
+            },
+            "scenarios": [s.as_json() for s in self.scenarios],
+            "notes": self.notes,
+        }
+
+
+@dataclass(frozen=True)
+class Control:
+    """A control model with its constants, as the unit carries it."""
+
+    model: type[ControlModel]
+    values: dict[str, float]
+
+
+def _control_output(s: ScenarioData, kind: str, control: Control) -> tuple[Array, float] | None:
+    """The control's output deviation (pu) on the scenario's samples, and the reference step it
+    was given; None where the recording lacks the input the kind needs."""
+    case: ControlCase | None = control_case(s, kind, output=False)
+    if case is None:
+        return None
+    [pred] = simulate_cases(control.model, control.values, [case])
+    reference = 0.0
+    if case.stepped:
+        free = control.model.response(control.values, case.inputs, 0.0)
+        unit = control.model.response(control.values, case.inputs, 1.0) - free
+        denom = float(unit @ unit)
+        reference = float(unit @ (pred - free)) / denom if denom > 0 else 0.0
+    k = fit_stride(s.dt)
+    coarse = np.arange(0, s.n, k) * s.dt
+    return np.interp(np.arange(s.n) * s.dt, coarse, pred), reference
+
+
+def _band(channel: str, recorded: Array, pre: slice) -> float:
+    fixed = CHANNELS[channel][2]
+    if fixed is not None:
+        return fixed
+    peak = float(np.max(np.abs(recorded - np.mean(recorded[pre])))) if recorded.size else 0.0
+    return max(RESPONSE_FLOOR_PU, RESPONSE_SHARE * peak)
+
+
+def validate_unit(
+    scenarios: Sequence[ScenarioData],
+    params: GeneratorParameters,
+    controls: dict[str, Control],
+    f_nominal_hz: float,
+    describe: str,
+) -> UnitValidation:
+    """Every scenario played in with the unit; the MOD-026/027 checks and the traces for the overlays."""
+    notes: list[str] = []
+    played: list[ScenarioData] = []
+    made: list[dict[str, str]] = []
+    per_notes: list[list[str]] = []
+    skipped: list[set[str]] = []
+    for s in scenarios:
+        mine: list[str] = []
+        unchecked: set[str] = set()
+        if "delta" in s.absent or "i_d" in s.absent:
+            s = with_rotor_angle(s, params.X_q, "the unit's X_q")
+            mine.append("rotor angle reconstructed from V_t, P, Q with the unit's X_q")
+        put: dict[str, Array] = {}
+        by: dict[str, str] = {}
+        for kind, channel in (("exciter", "v_f"), ("governor", "p_m")):
+            control = controls.get(kind)
+            response = _control_output(s, kind, control) if control is not None else None
+            level = _pre_event_level(s, channel, params)
+            if control is not None and response is not None:
+                put[channel], by[channel] = level + response[0], control.model.name
+                if response[1]:
+                    mine.append(f"{kind} reference step {response[1]:+.4g} (sized on the recorded {channel})")
+            elif control is not None:
+                mine.append(f"{kind} {control.model.name} not played in: the recording lacks {KINDS[kind][0][0]}")
+            if control is not None and s.kind in KINDS[kind][2] and not s.has(channel):
+                # a reference step of a size neither the recording nor the scenario gives: the unit
+                # is not played through this test, and none of its channels says anything of the model
+                unchecked.update(STANDARD_OF.values())
+                mine.append(
+                    f"not checked: the {kind}'s reference step is sized on the recorded {channel}, which the "
+                    "recording lacks"
+                )
+            if channel not in put:
+                if not s.has(channel):
+                    put[channel] = np.full(s.n, level)
+                    mine.append(f"{channel} not recorded: held at its pre-event value {level:.4g} pu")
+                by.setdefault(channel, "recorded")
+        if "omega" in s.absent:
+            put["omega"] = np.ones(s.n)
+        played.append(with_channels(s, put, "the unit's control outputs played in") if put else s)
+        made.append(by)
+        per_notes.append(mine)
+        skipped.append(unchecked)
+    trajectories = play_in(played, [params], f_nominal_hz) if played else []
+    out: list[ScenarioCheck] = []
+    for s, p, traj, by, mine, unchecked in zip(scenarios, played, trajectories, made, per_notes, skipped):
+        idx = np.arange(0, s.n, play_in_stride(s.dt))
+        pre = slice(0, max(1, int(np.searchsorted(idx, s.k_event))))
+        simulated = {"p_e": traj.p_e[:, 0], "q_e": traj.q_e[:, 0], "v_f": p["v_f"][idx], "p_m": p["p_m"][idx]}
+        recorded: dict[str, Array] = {}
+        checks: list[ChannelCheck] = []
+        for channel, (standard, _label, _fixed) in CHANNELS.items():
+            if not s.has(channel) or standard in unchecked:
+                continue
+            rec = np.asarray(s[channel], float)
+            if channel in ("v_f", "p_m"):
+                if by.get(channel) == "recorded":
+                    continue  # played in, not simulated: nothing to check
+                rec = zero_phase(rec, s.dt, COMPARE_CUTOFF_HZ)
+                sim = zero_phase(np.asarray(p[channel], float), s.dt, COMPARE_CUTOFF_HZ)[idx]
+                simulated[channel] = sim
+            else:
+                sim = simulated[channel]
+            recorded[channel] = rec[idx]
+            err = float(np.max(np.abs(sim - rec[idx])))
+            band = _band(channel, rec[idx], pre)
+            if CHANNELS[channel][2] is None:  # what the recorded input's noise makes of the output
+                band = max(band, NOISE_PEAKS * float(np.std(sim[pre] - rec[idx][pre])))
+            checks.append(ChannelCheck(channel, standard, err, band, bool(err <= band), by.get(channel, "machine")))
+        t = np.asarray(idx * s.dt, float)
+        out.append(ScenarioCheck(s.name, s.kind, t, recorded, simulated, checks, mine))
+    if not any(sc.checks for sc in out):
+        notes.append("no channel to check: the recordings carry none of P, Q, E_fd, P_m")
+    return UnitValidation(describe, out, notes)
+
+
+def _pre_event_level(s: ScenarioData, channel: str, params: GeneratorParameters) -> float:
+    """A control output's pre-event value: as recorded, else where the machine held it: P_m at
+    the pre-event P_e (no acceleration), E_fd at V_q + X_d I_d (equation (7) at rest)."""
+    pre = s.pre_slice()
+    if s.has(channel):
+        return float(np.mean(s[channel][pre]))
+    if channel == "p_m":
+        return float(np.mean(s["p_e"][pre]))
+    return float(np.mean(s.v_q[pre] + params.X_d * s["i_d"][pre]))
+
+
+def control_of(model_name: str, values: dict[str, float]) -> Control:
+    model = MODELS[model_name]
+    return Control(model, model.completed({**model.defaults(), **values}))

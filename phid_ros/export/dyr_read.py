@@ -1,0 +1,181 @@
+"""A PSS/E dynamic data file (.dyr) read back: the unit's machine, exciter and governor.
+
+A record is ``BUS 'MODEL' ID CON(J) ... /`` over one or more lines; text after the ``/`` and
+lines that begin with ``@!`` are comments (PSS/E's Program Operation Manual, "Dynamics Data
+File Contents"). The constants are in PSS/E's order, the order :mod:`phid_ros.export.formats`
+writes (GENROU, GENSAL) and the control models declare (:mod:`phid_ros.controls.models`).
+
+The machine becomes phid's eight parameters for the fourth-order play-in: GENROU's transient
+constants as they are; GENSAL's q axis, which has no transient circuit, by its damper (X'_q =
+X'', T'_q0 = T''_q0: the inverse of what ``phid export`` does to a salient pole). PSS/E's swing
+equation divides P_m by the speed, so the record's D is phid's D less P_m0
+(:meth:`phid_ros.export.record.MachineRecord.torque_form_damping`): :meth:`Unit.parameters` adds
+the recording's P_m0 back. The subtransient and saturation constants are kept and reported; the
+fourth-order play-in does not simulate them.
+"""
+
+from __future__ import annotations
+
+import re
+import shlex
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from phid_ros.controls.models import MODELS as CONTROL_MODELS
+from phid_ros.errors import PhidError
+from phid_ros.export.formats import PSSE_ORDER
+from phid_ros.model.parameters import GeneratorParameters
+
+
+class DyrError(PhidError):
+    """A .dyr the validation cannot read, or a unit it does not hold."""
+
+
+@dataclass(frozen=True)
+class DyrRecord:
+    bus: int
+    model: str
+    machine_id: str
+    constants: tuple[float, ...]
+    line: int  # where the record starts, for messages
+
+
+@dataclass
+class ControlSettings:
+    model: str
+    kind: str
+    values: dict[str, float]
+
+
+@dataclass
+class Unit:
+    """One machine of a .dyr with the exciter and governor on the same bus and id."""
+
+    source: str
+    bus: int
+    machine_id: str
+    machine: str  # GENROU or GENSAL
+    constants: dict[str, float]  # the machine's, by PSS/E's names
+    controls: dict[str, ControlSettings] = field(default_factory=dict)  # by kind
+    ignored: list[str] = field(default_factory=list)  # records on the unit phid does not model
+
+    def parameters(self, p_m0: float) -> GeneratorParameters:
+        """The fourth-order model's parameters, D in phid's form at the operating point ``p_m0``."""
+        c = self.constants
+        if self.machine == "GENSAL":
+            x_q_prime, t_q0_prime = c["Xd2"], c["Tq20"]  # the salient pole's q axis is its damper
+        else:
+            x_q_prime, t_q0_prime = c["Xq1"], c["Tq10"]
+        return GeneratorParameters(
+            H=c["H"],
+            D=c["D"] + p_m0,
+            X_d=c["Xd"],
+            X_q=c["Xq"],
+            X_d_prime=c["Xd1"],
+            X_q_prime=x_q_prime,
+            T_d0_prime=c["Td10"],
+            T_q0_prime=t_q0_prime,
+        )
+
+    def not_simulated(self) -> list[str]:
+        """What the record carries that the fourth-order play-in leaves out."""
+        out = []
+        c = self.constants
+        # a damper acts in an axis whose transient reactance lies above X'' (GENSAL's q axis is
+        # its damper, simulated as the q transient circuit)
+        if c["Xd2"] < c["Xd1"] - 1e-9:
+            out.append(f"the d-axis damper (X'' = {c['Xd2']:g}, T''_d0 = {c['Td20']:g} s)")
+        if self.machine == "GENROU" and c["Xd2"] < c["Xq1"] - 1e-9:
+            out.append(f"the q-axis damper (X'' = {c['Xd2']:g}, T''_q0 = {c['Tq20']:g} s)")
+        if c["S10"] or c["S12"]:
+            out.append(f"saturation (S(1.0) = {c['S10']:g}, S(1.2) = {c['S12']:g})")
+        return out + [f"{r}: not a model phid validates" for r in self.ignored]
+
+
+_NUMBER = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)([eEdD][-+]?\d+)?$")
+
+
+def read_records(path: str | Path) -> list[DyrRecord]:
+    """Every record of the file, constants as numbers; a malformed one is a one-line error."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8", errors="replace")
+    except OSError as e:
+        raise DyrError(f"{p}: cannot read: {e.strerror or e}") from e
+    records: list[DyrRecord] = []
+    tokens: list[str] = []
+    start = 0
+    for number, raw in enumerate(text.splitlines(), 1):
+        line = raw.split("@!", 1)[0] if raw.lstrip().startswith("@!") else raw
+        body, slash, _comment = line.partition("/")
+        try:
+            words = shlex.split(body.replace(",", " "), posix=True)
+        except ValueError as e:
+            raise DyrError(f"{p}:{number}: {e}") from e
+        if words and not tokens:
+            start = number
+        tokens += words
+        if slash and tokens:
+            records.append(_record(p, start, tokens))
+            tokens = []
+    if tokens:
+        raise DyrError(f"{p}:{start}: record '{' '.join(tokens[:3])} ...' does not end with '/'")
+    return records
+
+
+def _record(p: Path, line: int, tokens: list[str]) -> DyrRecord:
+    if len(tokens) < 3 or not tokens[0].lstrip("-").isdigit():
+        raise DyrError(f"{p}:{line}: a record begins BUS 'MODEL' ID; found '{' '.join(tokens[:3])}'")
+    numbers = []
+    for t in tokens[3:]:
+        if not _NUMBER.match(t):
+            raise DyrError(f"{p}:{line}: {tokens[1]} constant '{t}' is not a number")
+        numbers.append(float(t.replace("d", "e").replace("D", "e")))
+    return DyrRecord(int(tokens[0]), tokens[1].upper(), tokens[2].strip(), tuple(numbers), line)
+
+
+def read_unit(path: str | Path, bus: int | None = None, machine_id: str | None = None) -> Unit:
+    """The unit (GENROU or GENSAL with its exciter and governor) at ``bus``/``machine_id``; the
+    only machine of the file when neither is given."""
+    p = Path(path)
+    records = read_records(p)
+    every = [r for r in records if r.model in PSSE_ORDER]
+    machines = [r for r in every if bus in (None, r.bus) and machine_id in (None, r.machine_id)]
+    if not machines:
+        found = ", ".join(f"bus {r.bus} id '{r.machine_id}'" for r in every)
+        where = f" at the unit asked; the file has {found}" if found else ""
+        raise DyrError(f"{p}: no GENROU or GENSAL record{where}")
+    if len(machines) > 1:
+        which = ", ".join(f"bus {r.bus} id '{r.machine_id}'" for r in machines)
+        raise DyrError(f"{p}: {len(machines)} machines ({which}): name one with --bus and --id")
+    m = machines[0]
+    order = PSSE_ORDER[m.model]
+    if len(m.constants) != len(order):
+        raise DyrError(f"{p}:{m.line}: {m.model} has {len(m.constants)} constants; PSS/E's has {len(order)}")
+    unit = Unit(str(p), m.bus, m.machine_id, m.model, dict(zip(order, m.constants)))
+    for r in records:
+        if (r.bus, r.machine_id) != (m.bus, m.machine_id) or r is m:
+            continue
+        model = CONTROL_MODELS.get(r.model)
+        if model is None:
+            unit.ignored.append(f"{r.model} (line {r.line})")
+            continue
+        names = [q.name for q in model.parameters]
+        if len(r.constants) != len(names):
+            raise DyrError(f"{p}:{r.line}: {r.model} has {len(r.constants)} constants; phid reads {len(names)}")
+        if model.kind in unit.controls:
+            raise DyrError(f"{p}:{r.line}: a second {model.kind} ({r.model}) on bus {m.bus} id '{m.machine_id}'")
+        values = dict(zip(names, r.constants))
+        for q in model.parameters:
+            if not q.limit and not q.held and q.outside(values[q.name]):
+                raise DyrError(
+                    f"{p}:{r.line}: {r.model} {q.name} = {values[q.name]:g} is outside {q.low:g}..{q.high:g} {q.unit}"
+                )
+        unit.controls[model.kind] = ControlSettings(r.model, model.kind, values)
+    return unit
+
+
+def control_values(settings: ControlSettings) -> Mapping[str, float]:
+    """The record's constants as the model's small-signal path takes them (its completion applied)."""
+    return CONTROL_MODELS[settings.model].completed(settings.values)

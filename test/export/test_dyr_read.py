@@ -1,0 +1,107 @@
+"""A .dyr read back: what phid export writes comes back as the same unit (machine, exciter,
+governor), a salient pole's q axis by its damper, and a malformed file is a one-line error."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from phid_ros.export.dyr_read import DyrError, read_records, read_unit
+from phid_ros.export.formats import psse_dyr
+from phid_ros.export.record import build_record
+from phid_ros.model.parameters import PARAMETER_NAMES, TABLE1
+from test.export.test_andes_roundtrip import CONTROLS
+
+P_M0 = 0.8
+
+
+def result(controls: dict | None = None) -> dict:
+    doc = {
+        "parameters": TABLE1.as_dict(),
+        "identifiable": {n: True for n in PARAMETER_NAMES},
+        "operating_point": {"p_m_pu": P_M0},
+    }
+    if controls:
+        doc["controls"] = controls
+    return doc
+
+
+def test_an_exported_unit_reads_back_as_the_same_machine_exciter_and_governor(tmp_path: Path) -> None:
+    rec = build_record(result(CONTROLS), source="r.json", mva=1000.0, bus=7, machine_id="G1")
+    path = tmp_path / "unit.dyr"
+    path.write_text(psse_dyr(rec))
+    unit = read_unit(path)
+    assert (unit.bus, unit.machine_id, unit.machine) == (7, "G1", "GENROU")
+    assert unit.constants["D"] == pytest.approx(0.4 - P_M0 if 0.4 > P_M0 else 0.0)
+    params = unit.parameters(p_m0=P_M0)
+    for name in PARAMETER_NAMES:
+        if name != "D":
+            assert getattr(params, name) == pytest.approx(getattr(TABLE1, name), rel=1e-6), name
+    assert {k: c.model for k, c in unit.controls.items()} == {"exciter": "SEXS", "governor": "TGOV1"}
+    assert unit.controls["exciter"].values["K"] == 100.0 and unit.controls["governor"].values["T3"] == 6.0
+    assert unit.not_simulated() == ["the q-axis damper (X'' = 0.5, T''_q0 = 0.03 s)"]  # X'' = X'_d < X'_q
+
+
+def test_the_damping_comes_back_in_phid_s_form(tmp_path: Path) -> None:
+    """phid's D 1.2 at P_m0 0.8 is PSS/E's 0.4; read at the same operating point it is 1.2 again."""
+    doc = result()
+    doc["parameters"]["D"] = 1.2
+    path = tmp_path / "unit.dyr"
+    path.write_text(psse_dyr(build_record(doc, source="r.json", mva=1000.0)))
+    unit = read_unit(path)
+    assert unit.constants["D"] == pytest.approx(0.4)
+    assert unit.parameters(p_m0=P_M0).D == pytest.approx(1.2)
+
+
+def test_a_salient_pole_s_q_axis_is_its_damper(tmp_path: Path) -> None:
+    path = tmp_path / "unit.dyr"
+    path.write_text(psse_dyr(build_record(result(), source="r.json", mva=1000.0, model="GENSAL")))
+    unit = read_unit(path)
+    params = unit.parameters(p_m0=P_M0)
+    assert unit.machine == "GENSAL"
+    assert params.T_q0_prime == pytest.approx(TABLE1.T_q0_prime)  # exported as T''_q0, read back as the q axis
+    assert params.X_q_prime == pytest.approx(unit.constants["Xd2"])
+
+
+def test_comments_continuations_and_several_units(tmp_path: Path) -> None:
+    path = tmp_path / "two.dyr"
+    path.write_text(
+        "@! two units, a record over three lines\n"
+        "1 'GENROU' 1 1.437 0.03 0.1351 0.03\n"
+        "  3.48 0.0 2.54 2.41 0.5 0.5\n"
+        "  0.5 0.15 0.0 0.0 / machine one\n"
+        "2 'GENROU' '2' 5.0 0.05 0.6 0.05 4.0 0.0 1.8 1.7 0.3 0.55 0.25 0.15 0.1 0.4 /\n"
+        "2 'IEEEST' '2' 1 2 3 / a stabiliser phid does not model\n"
+        "2 'TGOV1' '2' 0.05 0.5 1.0 0.0 2.0 6.0 0.0 /\n"
+    )
+    assert [r.model for r in read_records(path)] == ["GENROU", "GENROU", "IEEEST", "TGOV1"]
+    with pytest.raises(DyrError, match=r"two\.dyr: 2 machines \(bus 1 id '1', bus 2 id '2'\): name one with --bus"):
+        read_unit(path)
+    one = read_unit(path, bus=1)
+    assert one.constants["H"] == 3.48 and one.controls == {}
+    two = read_unit(path, bus=2, machine_id="2")
+    assert list(two.controls) == ["governor"] and two.ignored == ["IEEEST (line 6)"]
+    assert "saturation (S(1.0) = 0.1, S(1.2) = 0.4)" in two.not_simulated()
+    with pytest.raises(DyrError, match=r"no GENROU or GENSAL record at the unit asked; the file has bus 1"):
+        read_unit(path, bus=3)
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("1 'GENROU' 1 1.437 0.03\n", r"bad\.dyr:1: record '1 GENROU 1 \.\.\.' does not end with '/'"),
+        ("1 'GENROU' 1 1.437 x 0.1 /\n", r"bad\.dyr:1: GENROU constant 'x' is not a number"),
+        ("'GENROU' 1 1.0 /\n", r"bad\.dyr:1: a record begins BUS 'MODEL' ID"),
+        ("1 'GENROU' 1 1.0 2.0 /\n", r"bad\.dyr:1: GENROU has 2 constants; PSS/E's has 14"),
+        (
+            "1 'GENSAL' 1 5.0 0.05 0.05 3.0 0.0 1.1 0.7 0.3 0.22 0.15 0.0 0.0 /\n1 'SEXS' 1 0.2 5.0 5000.0 0.05 -5 5 /\n",
+            r"bad\.dyr:2: SEXS K = 5000 is outside 5\.\.1000 pu",
+        ),
+    ],
+)
+def test_a_malformed_file_is_a_one_line_error_naming_file_and_line(tmp_path: Path, text: str, message: str) -> None:
+    path = tmp_path / "bad.dyr"
+    path.write_text(text)
+    with pytest.raises(DyrError, match=message):
+        read_unit(path)
