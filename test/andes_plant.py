@@ -177,3 +177,47 @@ def write_set(
         seed=seed,
         noise=noise,
     )
+
+
+# A unit in closed loop for the MOD-026/027 tests: TABLE 1 with X'_q = X'_d = X'' (GENROU is then the
+# fourth-order model), PSS/E's D 0 (phid's 0.8 at P_m0 0.8), SEXS and TGOV1. No comment line in the
+# file: ANDES's .dyr reader does not take PSS/E's '@!' comments.
+STAGED_UNIT = """1 'GENROU' 1  1.437 0.03 0.1351 0.03 3.48 0.0
+   2.54 2.41 0.5 0.5 0.5 0.15 0.0 0.0 /
+1 'SEXS' 1 0.2 5.0 100.0 0.05 -5.0 5.0 /
+1 'TGOV1' 1 0.05 0.5 1.0 0.0 2.0 6.0 0.0 /
+"""
+# the staged tests: a grid voltage step, V_ref +0.02 pu, ANDES's TGOV1 auxiliary input +0.004
+# (times 1/R: a valve step of 0.08 pu, short of V_MAX, which small-signal paths do not model)
+STAGED_TESTS = [
+    Scenario("grid_voltage_-5%", "voltage_step", 0.95, duration=8.0),
+    Scenario("vref_step", "field_step", 0.02, duration=8.0),
+    Scenario("load_ref_step", "torque_step", 0.004, duration=8.0),
+]
+
+
+def staged_config() -> SimulationConfig:
+    from phid_ros.model.parameters import TABLE1
+
+    return SimulationConfig(params=TABLE1.replace(X_q_prime=TABLE1.X_d_prime))
+
+
+def run_unit(dyr: Path, scenario: Scenario) -> dict[str, np.ndarray]:
+    """One staged test of the unit in ``dyr`` (2 ms steps)."""
+    return run(system(dyr=dyr, cfg=staged_config()), scenario, dt=0.002)
+
+
+def write_staged_unit(folder: Path) -> tuple[Path, Path]:
+    """The unit's .dyr and its staged tests recorded with the simulator's sensor noise (a CSV set)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    dyr = folder / "unit.dyr"
+    dyr.write_text(STAGED_UNIT)
+    manifest = noisy_set(
+        folder / "tests",
+        STAGED_TESTS,
+        lambda sc: run_unit(dyr, sc),
+        mva=MACHINE_MVA,
+        source="andes",
+        description="GENROU + SEXS + TGOV1, staged tests",
+    )
+    return dyr, manifest

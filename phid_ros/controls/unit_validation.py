@@ -216,26 +216,48 @@ def validate_unit(
         for channel, (standard, _label, _fixed) in CHANNELS.items():
             if not s.has(channel) or standard in unchecked:
                 continue
-            rec = np.asarray(s[channel], float)
-            if channel in ("v_f", "p_m"):
-                if by.get(channel) == "recorded":
-                    continue  # played in, not simulated: nothing to check
-                rec = zero_phase(rec, s.dt, COMPARE_CUTOFF_HZ)
-                sim = zero_phase(np.asarray(p[channel], float), s.dt, COMPARE_CUTOFF_HZ)[idx]
-                simulated[channel] = sim
-            else:
-                sim = simulated[channel]
-            recorded[channel] = rec[idx]
-            err = float(np.max(np.abs(sim - rec[idx])))
-            band = _band(channel, rec[idx], pre)
-            if CHANNELS[channel][2] is None:  # what the recorded input's noise makes of the output
-                band = max(band, NOISE_PEAKS * float(np.std(sim[pre] - rec[idx][pre])))
-            checks.append(ChannelCheck(channel, standard, err, band, bool(err <= band), by.get(channel, "machine")))
+            if channel in ("v_f", "p_m") and by.get(channel) == "recorded":
+                continue  # played in, not simulated: nothing to check
+            full = np.asarray(p[channel], float) if channel in ("v_f", "p_m") else None
+            sim_at = simulated[channel] if full is None else None
+            check, rec_at, sim_at = channel_check(channel, np.asarray(s[channel], float), s.dt, idx, pre, full, sim_at)
+            check.simulated_by = by.get(channel, "machine")
+            recorded[channel], simulated[channel] = rec_at, sim_at
+            checks.append(check)
         t = np.asarray(idx * s.dt, float)
         out.append(ScenarioCheck(s.name, s.kind, t, recorded, simulated, checks, mine))
     if not any(sc.checks for sc in out):
         notes.append("no channel to check: the recordings carry none of P, Q, E_fd, P_m")
     return UnitValidation(describe, out, notes)
+
+
+def channel_check(
+    channel: str,
+    recorded: Array,
+    dt: float,
+    idx: NDArray[np.int64],
+    pre: slice,
+    simulated_full: Array | None = None,
+    simulated_at: Array | None = None,
+) -> tuple[ChannelCheck, Array, Array]:
+    """One channel's check: the recorded samples against the simulated ones at ``idx`` (given
+    there, or on every sample for the controls' outputs, which go through the comparison's
+    low-pass as the recording does); ``pre`` the pre-event part of ``idx``. Returns the check and
+    the two traces compared."""
+    standard, _label, fixed = CHANNELS[channel]
+    rec = recorded
+    if simulated_full is not None:
+        rec = zero_phase(recorded, dt, COMPARE_CUTOFF_HZ)
+        sim = zero_phase(simulated_full, dt, COMPARE_CUTOFF_HZ)[idx]
+    else:
+        assert simulated_at is not None
+        sim = simulated_at
+    rec = rec[idx]
+    err = float(np.max(np.abs(sim - rec)))
+    band = _band(channel, rec, pre)
+    if fixed is None:  # what the recorded input's noise makes of the output
+        band = max(band, NOISE_PEAKS * float(np.std(sim[pre] - rec[pre])))
+    return ChannelCheck(channel, standard, err, band, bool(err <= band), "machine"), rec, sim
 
 
 def _pre_event_level(s: ScenarioData, channel: str, params: GeneratorParameters) -> float:

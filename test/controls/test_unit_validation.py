@@ -11,45 +11,16 @@ from pathlib import Path
 import pytest
 
 from phid_ros.cli.main import main
-from phid_ros.model.parameters import TABLE1
-from phid_ros.sim.runner import SimulationConfig
-from phid_ros.sim.scenarios import Scenario
-
-# TABLE 1 with X'_q = X'_d = X'' (GENROU is then the fourth-order model); D 0.4 - P_m0 0.8 -> 0.
-# No comment line in the file: ANDES's .dyr reader does not take PSS/E's '@!' comments
-UNIT = """1 'GENROU' 1  1.437 0.03 0.1351 0.03 3.48 0.0
-   2.54 2.41 0.5 0.5 0.5 0.15 0.0 0.0 /
-1 'SEXS' 1 0.2 5.0 100.0 0.05 -5.0 5.0 /
-1 'TGOV1' 1 0.05 0.5 1.0 0.0 2.0 6.0 0.0 /
-"""
-# the staged tests: V_ref +0.02 pu, ANDES's TGOV1 auxiliary input +0.004 (times 1/R: a valve step
-# of 0.08 pu, short of V_MAX, which the play-in's small-signal paths do not model)
-TESTS = [
-    Scenario("grid_voltage_-5%", "voltage_step", 0.95, duration=8.0),
-    Scenario("vref_step", "field_step", 0.02, duration=8.0),
-    Scenario("load_ref_step", "torque_step", 0.004, duration=8.0),
-]
+from test.andes_plant import STAGED_TESTS as TESTS
+from test.andes_plant import STAGED_UNIT as UNIT
 
 
 @pytest.fixture(scope="module")
 def staged(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     pytest.importorskip("andes")
-    from test.andes_plant import MACHINE_MVA, run, system
-    from test.plants import noisy_set
+    from test.andes_plant import write_staged_unit
 
-    folder = tmp_path_factory.mktemp("unit")
-    dyr = folder / "unit.dyr"
-    dyr.write_text(UNIT)
-    cfg = SimulationConfig(params=TABLE1.replace(X_q_prime=TABLE1.X_d_prime))
-    manifest = noisy_set(
-        folder / "tests",
-        TESTS,
-        lambda sc: run(system(dyr=dyr, cfg=cfg), sc, dt=0.002),
-        mva=MACHINE_MVA,
-        source="andes",
-        description="GENROU + SEXS + TGOV1, staged tests",
-    )
-    return dyr, manifest
+    return write_staged_unit(tmp_path_factory.mktemp("unit"))
 
 
 def validate(tmp_path: Path, dyr_text: str, manifest: Path, *extra: str) -> tuple[int, dict]:
@@ -97,14 +68,13 @@ def test_a_pmu_recording_without_e_fd_p_m_or_rotor_angle_is_validated_on_p_and_q
     governor (on the PMU's frequency) are played in, E_fd and P_m anchored where the machine held
     them, and P and Q are checked; nothing is said of E_fd or P_m. A load-reference step whose
     size only the unrecorded P_m would give is not checked, and says so."""
-    from test.andes_plant import MACHINE_MVA, run, system
+    from test.andes_plant import MACHINE_MVA, run, staged_config, system
     from test.io.field_sets import PMU_MAP, phasor_columns, pmu_lines
 
     dyr, _manifest = staged
-    cfg = SimulationConfig(params=TABLE1.replace(X_q_prime=TABLE1.X_d_prime))
     paths, entries = [], []
     for sc in (TESTS[0], TESTS[2]):
-        ch = run(system(dyr=dyr, cfg=cfg), sc, dt=0.01)
+        ch = run(system(dyr=dyr, cfg=staged_config()), sc, dt=0.01)
         path = tmp_path / f"{sc.name}.csv"
         path.write_text("\n".join(pmu_lines(phasor_columns(ch, 10, "GEN"))) + "\n")
         paths.append(str(path))

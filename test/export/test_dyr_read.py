@@ -95,7 +95,8 @@ def test_comments_continuations_and_several_units(tmp_path: Path) -> None:
         ("'GENROU' 1 1.0 /\n", r"bad\.dyr:1: a record begins BUS 'MODEL' ID"),
         ("1 'GENROU' 1 1.0 2.0 /\n", r"bad\.dyr:1: GENROU has 2 constants; PSS/E's has 14"),
         (
-            "1 'GENSAL' 1 5.0 0.05 0.05 3.0 0.0 1.1 0.7 0.3 0.22 0.15 0.0 0.0 /\n1 'SEXS' 1 0.2 5.0 5000.0 0.05 -5 5 /\n",
+            "1 'GENSAL' 1 5.0 0.05 0.05 3.0 0.0 1.1 0.7 0.3 0.22 0.15 0.0 0.0 /\n"
+            "1 'SEXS' 1 0.2 5.0 5000.0 0.05 -5 5 /\n",
             r"bad\.dyr:2: SEXS K = 5000 is outside 5\.\.1000 pu",
         ),
     ],
