@@ -207,14 +207,16 @@ def run_unit(dyr: Path, scenario: Scenario) -> dict[str, np.ndarray]:
     return run(system(dyr=dyr, cfg=staged_config()), scenario, dt=0.002)
 
 
-def write_staged_unit(folder: Path) -> tuple[Path, Path]:
+def write_staged_unit(
+    folder: Path, unit: str = STAGED_UNIT, tests: Sequence[Scenario] = STAGED_TESTS
+) -> tuple[Path, Path]:
     """The unit's .dyr and its staged tests recorded with the simulator's sensor noise (a CSV set)."""
     folder.mkdir(parents=True, exist_ok=True)
     dyr = folder / "unit.dyr"
-    dyr.write_text(STAGED_UNIT)
+    dyr.write_text(unit)
     manifest = noisy_set(
         folder / "tests",
-        STAGED_TESTS,
+        tests,
         lambda sc: run_unit(dyr, sc),
         mva=MACHINE_MVA,
         source="andes",

@@ -404,7 +404,8 @@ def identify_controls(
         err = _judged(best)
         best.none_heldout_rmse = none
         best.named = bool(err < NAMED_BELOW * none)
-        best.why = f"{best.model}: held-out error {err:.4g} pu against {none:.4g} pu without control action" + (
+        judged_on = "held-out" if best.heldout_rmse is not None else "fit (no validation scenarios)"
+        best.why = f"{best.model}: {judged_on} error {err:.4g} pu against {none:.4g} pu without control action" + (
             "" if best.named else f" (named below {NAMED_BELOW:g} of it: the recordings do not show the {kind})"
         )
         if best.named and alike:

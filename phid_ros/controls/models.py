@@ -117,6 +117,8 @@ class ControlModel(ABC):
     kind: ClassVar[str]  # "exciter" (output E_fd) or "governor" (output P_m)
     description: ClassVar[str]
     parameters: ClassVar[tuple[ControlParameter, ...]]
+    # integers a .dyr record carries before the constants (PSS/E's ICONs), with the values phid writes
+    icons: ClassVar[tuple[tuple[str, int], ...]] = ()
 
     @classmethod
     def fitted(cls) -> tuple[ControlParameter, ...]:
@@ -348,6 +350,7 @@ class IEEEG1(ControlModel):
 
     name = "IEEEG1"
     kind = "governor"
+    icons = (("JBUS", 0), ("M", 0))  # the low-pressure shaft's machine: none (a tandem compound)
     description = "IEEE type 1 steam turbine-governor, one reheat stage (PSS/E IEEEG1)"
     parameters = (
         ControlParameter("K", "pu", 20.0, 2.0, 100.0, "governor gain (1/droop)"),

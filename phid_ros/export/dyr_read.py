@@ -162,11 +162,14 @@ def read_unit(path: str | Path, bus: int | None = None, machine_id: str | None =
             unit.ignored.append(f"{r.model} (line {r.line})")
             continue
         names = [q.name for q in model.parameters]
-        if len(r.constants) != len(names):
-            raise DyrError(f"{p}:{r.line}: {r.model} has {len(r.constants)} constants; phid reads {len(names)}")
+        skip = len(model.icons)  # PSS/E's integers before the constants (IEEEG1's second shaft)
+        if len(r.constants) != skip + len(names):
+            raise DyrError(
+                f"{p}:{r.line}: {r.model} has {len(r.constants)} numbers; phid reads {skip} + {len(names)} constants"
+            )
         if model.kind in unit.controls:
             raise DyrError(f"{p}:{r.line}: a second {model.kind} ({r.model}) on bus {m.bus} id '{m.machine_id}'")
-        values = dict(zip(names, r.constants))
+        values = dict(zip(names, r.constants[skip:]))
         for q in model.parameters:
             if not q.limit and not q.held and q.outside(values[q.name]):
                 raise DyrError(

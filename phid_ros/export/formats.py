@@ -21,6 +21,7 @@ from __future__ import annotations
 import json
 from collections.abc import Callable
 
+from phid_ros.controls.models import MODELS
 from phid_ros.export.record import ExportError, MachineRecord
 
 PSSE_ORDER = {
@@ -81,7 +82,8 @@ def psse_dyr(rec: MachineRecord) -> str:
         lines.append("    " + " ".join(values[i : i + 6]))
     lines[-1] += f" /  {rec.comment()}"
     for c in rec.controls:  # the exciter and the governor beside the machine, their CONs in PSS/E's order
-        lines.append(f"{rec.bus} '{c.model}' '{rec.machine_id}' " + " ".join(_num(v) for v in c.values.values()))
+        icons = [str(v) for _name, v in MODELS[c.model].icons]
+        lines.append(f"{rec.bus} '{c.model}' '{rec.machine_id}' " + " ".join([*icons, *map(_num, c.values.values())]))
         lines[-1] += f" /  {c.comment()}"
     return "\n".join(lines) + "\n"
 
