@@ -137,3 +137,26 @@ def test_without_candidates_the_model_in_force_is_named_or_said_to_answer_as_wel
         for p, ok in f.identifiable.items():  # whatever is named, nothing wrong is given as determined
             if ok and f.model == name:
                 assert f.parameters[p] == pytest.approx(TRUTH[name][p], rel=0.10), (name, p)
+
+
+def test_a_field_test_with_only_v_t_p_q_and_e_fd_gives_the_exciter(tmp_path) -> None:
+    """An excitation controller's trend logs of commissioning tests (V_t, P, Q, I_t, E_fd in volts
+    on the controller's base, ~208 reports/s; no speed, no P_m, no rotor angle) with an SEXS in the
+    loop: the field base calibrated at no load, the exciter named with its constants; the
+    governor said to be not identifiable from these channels."""
+    from phid_ros.io.channel_map import load_channel_map
+    from phid_ros.io.pmu_csv import import_pmu_csv
+    from phid_ros.model.parameters import TABLE1
+    from phid_ros.stream.scenarios import scenarios_from_recording
+    from test.io.field_sets import trend_log_set
+
+    paths, cmap = trend_log_set(tmp_path, TABLE1, exciter=EXCITER)
+    scenarios, _ = scenarios_from_recording(import_pmu_csv(paths, load_channel_map(cmap)), "trend logs")
+    found = identify_controls(scenarios)
+    exciter = found["exciter"]
+    assert isinstance(exciter, ControlFit) and exciter.named and exciter.model == "SEXS", exciter
+    assert exciter.identifiable["K"] and exciter.parameters["K"] == pytest.approx(100.0, rel=0.05)
+    for name, truth in (("TE", 0.05), ("TB", 5.0), ("TA/TB", 0.2)):
+        if exciter.identifiable[name]:
+            assert exciter.parameters[name] == pytest.approx(truth, rel=0.10), name
+    assert found["governor"] == "not identified: no scenario with omega and p_m to fit"

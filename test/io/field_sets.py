@@ -11,6 +11,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -88,8 +89,15 @@ def _trend_rows(run: ScenarioRun, rng: np.random.Generator, day: str, t0: float)
     return rows
 
 
-def trend_log_set(folder: Path, params: GeneratorParameters, seed: int = 0) -> tuple[list[Path], Path]:
-    """A no-load field step, four on-line field steps and two grid voltage steps as trend logs, and their map."""
+def trend_log_set(
+    folder: Path, params: GeneratorParameters, seed: int = 0, exciter: Mapping[str, float] | None = None
+) -> tuple[list[Path], Path]:
+    """A no-load field step, four on-line field steps and two grid voltage steps as trend logs, and their map.
+
+    ``exciter`` (SEXS constants): on line, E_fd is that SEXS's answer to the true V_t and to a
+    V_ref step of 0.01 pu per field step's 5 % (the simulator's own E_fd is held but for its
+    steps), the sensor noise added as before; the no-load test keeps the simulator's, so the
+    field base is still calibrated on the air-gap line."""
     rng = np.random.default_rng(seed)
     no_load = simulate_scenarios([Scenario("noload", "field_step", 1.1, duration=15.0)], _cfg(NO_LOAD, params))
     online = simulate_scenarios(
@@ -98,6 +106,8 @@ def trend_log_set(folder: Path, params: GeneratorParameters, seed: int = 0) -> t
         _cfg(SimulationConfig(), params),
         seed_offset=1 + 10 * seed,
     )
+    if exciter is not None:
+        online = [_with_exciter(run, exciter) for run in online]
     paths = []
     entries = []
     for run, day, t0 in [(no_load[0], "20.09.2015", 12 * 3600 + 52 * 60 + 35.236463)] + [
@@ -154,6 +164,22 @@ def pmu_lines(cols: dict[str, object]) -> list[str]:
         ",".join(v if isinstance(v, str) else repr(float(v)) for v in row)
         for row in zip(*cols.values())  # type: ignore[call-overload]
     ]
+
+
+def _with_exciter(run: ScenarioRun, values: Mapping[str, float]) -> ScenarioRun:
+    from dataclasses import replace
+
+    from phid_ros.controls.models import SEXS, ControlInputs
+
+    n = len(run.t)
+    k = int(np.searchsorted(run.t, run.scenario.t_event))
+    v_t = run.truth["v_t"] - np.mean(run.truth["v_t"][:k])
+    step = (np.arange(n) >= k).astype(float)
+    reference = 0.2 * (run.scenario.magnitude - 1.0) if run.scenario.kind == "field_step" else 0.0
+    inputs = ControlInputs(float(run.t[1] - run.t[0]), v_t, 0 * v_t, step)
+    e_fd = float(np.mean(run.truth["v_f"][:k])) + SEXS.response(values, inputs, reference)
+    noise = run.measured["v_f"] - run.truth["v_f"]
+    return replace(run, truth={**run.truth, "v_f": e_fd}, measured={**run.measured, "v_f": e_fd + noise})
 
 
 def _cfg(cfg: SimulationConfig, params: GeneratorParameters) -> SimulationConfig:
