@@ -162,10 +162,29 @@ def print_validation(console: Console, res: IdentificationResult) -> None:
     )
 
 
+def start_from_dyr(args: Any) -> dict[str, dict[str, float]]:
+    """``--start-from UNIT.dyr``: the user's existing model as the starts of the searches that
+    take one (the machine's, as --start does; the controls' fits), and its control models as the
+    candidates unless --exciter/--governor name others. Returns the controls' starts by kind."""
+    from phid_ros.export.dyr_read import read_unit
+
+    unit = read_unit(args.start_from)
+    given = {item.partition("=")[0] for item in (*args.start, *args.fix)}
+    machine = unit.parameters(p_m0=0.0)
+    for name in ("H", "X_d", "X_q", "X_d_prime", "X_q_prime", "T_d0_prime", "T_q0_prime"):
+        if name not in given:  # D leaves out: the .dyr's is PSS/E's form, and stage 1 takes no start
+            args.start.append(f"{name}={getattr(machine, name)!r}")
+    for kind, settings in unit.controls.items():
+        if not getattr(args, kind, None):
+            setattr(args, kind, [settings.model])
+    return {kind: dict(settings.values) for kind, settings in unit.controls.items()}
+
+
 def run(args: Any, console: Console) -> int:
     from phid_ros.io.outputs import refuse_inputs
 
-    refuse_inputs([args.json, args.report], [*args.input, args.truth])
+    refuse_inputs([args.json, args.report], [*args.input, args.truth, getattr(args, "start_from", None)])
+    control_starts = start_from_dyr(args) if getattr(args, "start_from", None) else {}
     t_start = time.perf_counter()
     with ProgressLine(f"reading {' + '.join(args.input)}") as progress:
         # read part by part where the recording allows: only the scenarios' windows are kept
@@ -198,7 +217,7 @@ def run(args: Any, console: Console) -> int:
     doc = res.to_json(truth)
     with ProgressLine("identifying the exciter and the governor"):
         candidates = {k: names for k in ("exciter", "governor") if (names := getattr(args, k, None))}
-        controls = identify_controls(scenarios, candidates)
+        controls = identify_controls(scenarios, candidates, control_starts)
     doc["controls"] = controls_json(controls)
     doc.update(provenance(*args.input))
     doc["f_nominal_hz"] = rec.f_nominal_hz  # what phid export needs to write a planning model

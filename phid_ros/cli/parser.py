@@ -217,6 +217,12 @@ def _add_identify(sub: Subparsers) -> None:
         metavar="NAME=VALUE",
         help="starting value for the searches that take one (--method paper), repeatable",
     )
+    p.add_argument(
+        "--start-from",
+        metavar="UNIT.dyr",
+        help="the unit's existing PSS/E record: its machine constants start the searches (as --start), "
+        "its exciter and governor models are the candidates and their constants start the fits",
+    )
     for kind in ("exciter", "governor"):
         names = [m.name for m in of_kind(kind)]
         p.add_argument(

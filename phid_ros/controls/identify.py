@@ -377,12 +377,16 @@ def controls_json(found: dict[str, ControlFit | str]) -> dict[str, Any]:
 
 
 def identify_controls(
-    scenarios: Sequence[ScenarioData], candidates: Mapping[str, Sequence[str]] | None = None
+    scenarios: Sequence[ScenarioData],
+    candidates: Mapping[str, Sequence[str]] | None = None,
+    starts: Mapping[str, Mapping[str, float]] | None = None,
 ) -> dict[str, ControlFit | str]:
     """For each kind (exciter, governor): the named model's fit, or why none is named.
 
     ``candidates`` restricts a kind to the models named (a plant engineer who knows the unit's
-    exciter is static says EXST1); the default is every registered model of the kind."""
+    exciter is static says EXST1); the default is every registered model of the kind.
+    ``starts``: per kind, constants of a model the user has (an existing .dyr's), where the fit
+    of the model they belong to starts."""
     out: dict[str, ControlFit | str] = {}
     for kind in KINDS:
         fit, held = _cases(scenarios, kind, "identify"), _cases(scenarios, kind, "validate")
@@ -396,7 +400,9 @@ def identify_controls(
         fits: list[ControlFit] = []
         for m in models:  # in registration order: a model may start where a simpler one ended
             earlier = {f.model: {k: v for k, v in f.parameters.items() if v is not None} for f in fits}
-            fits.append(fit_model(m, fit, held, earlier, checked=False))
+            given = (starts or {}).get(kind)
+            own = dict(given) if given and set(given) >= {p.name for p in m.fitted()} else None
+            fits.append(fit_model(m, fit, held, earlier, checked=False, start_at=own))
         chosen, alike = _simplest_best(fits)
         model = _without_unseen_terms(MODELS[chosen.model], chosen, fit, held)
         best = fit_model(model, fit, held, checked=True, start_at=_known(chosen))

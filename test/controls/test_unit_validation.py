@@ -135,3 +135,16 @@ def test_the_other_models_exported_simulated_by_andes_pass_phid_s_own_play_in(
     found = checks(doc)
     assert code == 0 and len(found) == 12, [(k, c["max_error"], c["band"]) for k, c in found.items() if not c["passed"]]
     assert {c["simulated_by"] for c in found.values()} == {"machine", exciter, governor}
+
+
+def test_calibration_starts_from_the_unit_s_existing_record(staged, tmp_path) -> None:
+    """``phid identify --start-from UNIT.dyr``: the record's exciter and governor models are the
+    candidates (none listed as fitting as well), their fits start from its constants."""
+    dyr, manifest = staged
+    out = tmp_path / "unit.json"
+    assert main(["identify", str(manifest), "--start-from", str(dyr), "--json", str(out)]) == 0
+    controls = json.loads(out.read_text())["controls"]
+    assert (controls["exciter"]["model"], controls["governor"]["model"]) == ("SEXS", "TGOV1")
+    assert controls["exciter"]["fit_as_well"] == {} and controls["governor"]["fit_as_well"] == {}
+    assert controls["exciter"]["parameters"]["K"] == pytest.approx(100.0, rel=0.05)
+    assert controls["governor"]["parameters"]["R"] == pytest.approx(0.05, rel=0.05)
