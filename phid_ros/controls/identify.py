@@ -177,6 +177,14 @@ def _no_control(cases: Sequence[ControlCase]) -> list[Array]:
     return out
 
 
+def _output_noise(cases: Sequence[ControlCase]) -> float:
+    """The output's noise (pu rms) before the events: its sample-to-sample differences over sqrt(2),
+    which a slow drift does not reach."""
+    diffs = [np.diff(c.output[c.inputs.reference_step == 0]) for c in cases]
+    d = np.concatenate([x for x in diffs if x.size]) if any(x.size for x in diffs) else np.zeros(0)
+    return float(np.sqrt(np.mean(d**2) / 2.0)) if d.size else 0.0
+
+
 def _rmse(cases: Sequence[ControlCase], predicted: Sequence[Array]) -> float:
     err = np.concatenate([c.output - p for c, p in zip(cases, predicted)]) if cases else np.zeros(0)
     return float(np.sqrt(np.mean(err**2))) if err.size else math.nan
@@ -395,6 +403,14 @@ def identify_controls(
             continue
         judge = held or fit  # without validation scenarios the fit's own error decides
         none = _rmse(judge, _no_control(judge))
+        noise = _output_noise(judge)
+        if NAMED_BELOW * none <= noise:
+            # no model errs less than the output's own noise: none can be named, none is fitted
+            out[kind] = (
+                f"not named: beyond its reference steps the {KINDS[kind][1]} moves {none:.4g} pu rms, within "
+                f"{1 / NAMED_BELOW:.3g} x its noise ({noise:.4g} pu): the recordings do not show the {kind}"
+            )
+            continue
         allowed = (candidates or {}).get(kind)
         models = [m for m in of_kind(kind) if allowed is None or m.name in allowed]
         fits: list[ControlFit] = []
@@ -404,8 +420,12 @@ def identify_controls(
             own = dict(given) if given and set(given) >= {p.name for p in m.fitted()} else None
             fits.append(fit_model(m, fit, held, earlier, checked=False, start_at=own))
         chosen, alike = _simplest_best(fits)
-        model = _without_unseen_terms(MODELS[chosen.model], chosen, fit, held)
-        best = fit_model(model, fit, held, checked=True, start_at=_known(chosen))
+        if _judged(chosen) < NAMED_BELOW * none:
+            model = _without_unseen_terms(MODELS[chosen.model], chosen, fit, held)
+            best = fit_model(model, fit, held, checked=True, start_at=_known(chosen))
+        else:  # no model is named: none of its constants is given as determined, and none is checked
+            best = chosen
+            best.identifiable = dict.fromkeys(best.identifiable, False)
         best.alternatives = {f.model: _judged(f) for f in alike}
         err = _judged(best)
         best.none_heldout_rmse = none
