@@ -159,6 +159,10 @@ def of_kind(kind: str) -> list[type[ControlModel]]:
     return [m for m in MODELS.values() if m.kind == kind]
 
 
+# the terminal-voltage transducer's lag, where an exciter model has one (absent at 0)
+TRANSDUCER = ControlParameter("TR", "s", 0.0, 0.0, 0.5, "voltage transducer time constant", absent=0.0)
+
+
 @register
 class SEXS(ControlModel):
     """Simplified excitation system: (V_ref - V_t) through (1 + sT_A)/(1 + sT_B), K/(1 + sT_E)."""
@@ -214,7 +218,7 @@ class EXST1(ControlModel):
     kind = "exciter"
     description = "static excitation system, IEEE ST1A-like (PSS/E EXST1)"
     parameters = (
-        ControlParameter("TR", "s", 0.0, 0.0, 0.5, "voltage transducer time constant", absent=0.0),
+        TRANSDUCER,
         ControlParameter("VIMAX", "pu", 0.2, 0.0, 1.0, "maximum error signal", limit=True),
         ControlParameter("VIMIN", "pu", -0.2, -1.0, 0.0, "minimum error signal", limit=True),
         ControlParameter("TC", "s", 1.0, 0.01, 20.0, "lead time constant T_C"),
@@ -265,14 +269,14 @@ class IEEET1(ControlModel):
     kind = "exciter"
     description = "DC commutator exciter, IEEE type 1 (PSS/E IEEET1)"
     parameters = (
-        ControlParameter("TR", "s", 0.0, 0.0, 0.5, "voltage transducer time constant", absent=0.0),
+        TRANSDUCER,
         ControlParameter("KA", "pu", 50.0, 5.0, 1000.0, "regulator gain"),
         ControlParameter("TA", "s", 0.05, 0.002, 1.0, "regulator time constant"),
         ControlParameter("VRMAX", "pu", 5.0, 0.5, 20.0, "maximum regulator output", limit=True),
         ControlParameter("VRMIN", "pu", -5.0, -20.0, 0.0, "minimum regulator output", limit=True),
-        # small-signal, the saturation's slope at the operating point adds to K_E: given as K_E
-        # the small-signal response is unchanged when K_A, K_E and T_E scale together: K_E is held
-        # at 1 (a separately excited exciter's, PSS/E's usual), K_A and T_E are then K_A/K_E, T_E/K_E
+        # the small-signal response is unchanged when K_A, K_E and T_E scale together (and the
+        # saturation's slope at the operating point adds to K_E): K_E is held at 1 (a separately
+        # excited exciter's, PSS/E's usual); K_A and T_E are then K_A/K_E and T_E/K_E
         ControlParameter("KE", "pu", 1.0, 1.0, 1.0, "exciter constant (held at 1: see the class)", held=True),
         ControlParameter("TE", "s", 0.5, 0.02, 5.0, "exciter time constant"),
         ControlParameter("KF", "pu", 0.05, 0.0, 0.5, "rate feedback gain", absent=0.0),
@@ -309,7 +313,7 @@ class ESST5B(ControlModel):
     kind = "exciter"
     description = "static exciter with two lead-lags, IEEE ST5B (ESST5B)"
     parameters = (
-        ControlParameter("TR", "s", 0.0, 0.0, 0.5, "voltage transducer time constant", absent=0.0),
+        TRANSDUCER,
         ControlParameter("KR", "pu", 200.0, 5.0, 1000.0, "regulator gain"),
         ControlParameter("T1", "s", 0.004, 0.001, 1.0, "firing circuit time constant"),
         ControlParameter("KC", "pu", 0.0, 0.0, 1.0, "rectifier loading factor (enters the limits only)", limit=True),
