@@ -43,6 +43,7 @@ def run(args: Any, console: Console) -> int:
         progress.update(f"cutting the scenarios of {source}")
         scenarios, problems = scenarios_from_recording(rec, source, step_thresholds(args))
         f_hz = rec.f_nominal_hz
+        base = rec.metadata.get("base_mva")
         del rec
         if not scenarios:
             raise PhidError(f"{source}: no step or disturbance to validate against")
@@ -55,7 +56,11 @@ def run(args: Any, console: Console) -> int:
         controls = {k: control_of(c.model, c.values) for k, c in unit.controls.items()}
         progress.update("playing the unit in")
         result = validate_unit(scenarios, params, controls, f_hz, describe(unit))
-    result.notes[:0] = problems + [f"not simulated: {n}" for n in unit.not_simulated()]
+    on_base = f"{float(base):g} MVA" if base is not None else "not stated in the recording"
+    result.notes[:0] = problems + [
+        f"the record's constants taken on the recording's machine base ({on_base}): PSS/E keeps MBASE in the .raw",
+        *(f"not simulated: {n}" for n in unit.not_simulated()),
+    ]
     doc = {"validation": result.as_json(), "parameters": params.as_dict(), "p_m0": p_m0, **provenance(args.input)}
     if args.json:
         write_json(args.json, doc)
