@@ -49,6 +49,14 @@ def migrate(
     for version in range(found, latest):
         step = steps[version]
         db.execute("BEGIN IMMEDIATE")
+        # another process may have taken the file past this step since its version was read (a
+        # poller opening the store while a replay creates it): read again under the write lock.
+        # A stale read ran step 1 again and stamped the file back to version 1 while it had step
+        # 2's column, and every later open failed ("duplicate column name: digest", the ROS tier's
+        # kill -9 test): a store no node could open, its events out of reach
+        if user_version(db) > version:
+            db.execute("COMMIT")
+            continue
         try:
             if callable(step):
                 step(db)

@@ -134,3 +134,26 @@ def test_a_damaged_event_store_is_one_line_with_a_way_out(tmp_path):
     msg = str(err.value)
     assert "\n" not in msg and msg.startswith(f"{path}: ")
     assert len(msg) < 600  # the first problem and a count, not every damaged page
+
+
+def test_a_file_another_process_migrated_meanwhile_is_not_migrated_twice(tmp_path, monkeypatch):
+    """Two openers read version 0 of a new file; one migrates it; the other, taking the write lock
+    after, must see that: before, it ran step 1 again (stamping the file back to version 1 with
+    step 2's column in it) and failed on ALTER TABLE, and so did every later open."""
+    import phid_ros.io.sqlite_schema as schema
+
+    path = tmp_path / "s.sqlite"
+    first, second = _db(path), _db(path)
+    assert migrate(first, STORE_STEPS, what="s", error=_Err) == 0
+    reads = iter([0])  # the second opener's first read, taken before the first opener migrated
+    real = schema.user_version
+    monkeypatch.setattr(schema, "user_version", lambda db: _stale(reads, real, db))
+    assert migrate(second, STORE_STEPS, what="s", error=_Err) == 0
+    assert user_version(second) == len(STORE_STEPS) and table_columns(second, "events").count("digest") == 1
+    EventStore(path).close()  # and the next opener finds a usable store
+
+
+def _stale(reads, real, db) -> int:
+    """The stale reads first, then the file's own version."""
+    value = next(reads, None)
+    return real(db) if value is None else value
