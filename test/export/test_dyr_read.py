@@ -99,6 +99,11 @@ def test_comments_continuations_and_several_units(tmp_path: Path) -> None:
             "1 'SEXS' 1 0.2 5.0 5000.0 0.05 -5 5 /\n",
             r"bad\.dyr:2: SEXS K = 5000 is outside 5\.\.1000 pu",
         ),
+        (
+            "1 'GENSAL' 1 5.0 0.05 0.05 3.0 0.0 1.1 0.7 0.3 0.22 0.15 0.0 0.0 /\n"
+            "1 'IEEET1' 1 0.02 50 0.05 5 -5 0.0 0.5 0.05 1.0 0 0 0 0 0 /\n",
+            r"bad\.dyr:2: IEEET1 KE = 0 \(PSS/E computes it at initialisation",
+        ),
     ],
 )
 def test_a_malformed_file_is_a_one_line_error_naming_file_and_line(tmp_path: Path, text: str, message: str) -> None:
