@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from phid_ros.controls.models import MODELS as CONTROL_MODELS
-from phid_ros.errors import PhidError
+from phid_ros.errors import ParameterError, PhidError
 from phid_ros.export.formats import PSSE_ORDER
 from phid_ros.model.parameters import GeneratorParameters
 
@@ -67,16 +67,19 @@ class Unit:
             x_q_prime, t_q0_prime = c["Xd2"], c["Tq20"]  # the salient pole's q axis is its damper
         else:
             x_q_prime, t_q0_prime = c["Xq1"], c["Tq10"]
-        return GeneratorParameters(
-            H=c["H"],
-            D=c["D"] + p_m0,
-            X_d=c["Xd"],
-            X_q=c["Xq"],
-            X_d_prime=c["Xd1"],
-            X_q_prime=x_q_prime,
-            T_d0_prime=c["Td10"],
-            T_q0_prime=t_q0_prime,
-        )
+        try:
+            return GeneratorParameters(
+                H=c["H"],
+                D=c["D"] + p_m0,
+                X_d=c["Xd"],
+                X_q=c["Xq"],
+                X_d_prime=c["Xd1"],
+                X_q_prime=x_q_prime,
+                T_d0_prime=c["Td10"],
+                T_q0_prime=t_q0_prime,
+            )
+        except ParameterError as exc:  # the file and the record, not only the values
+            raise DyrError(f"{self.source}: {self.machine} at bus {self.bus} id '{self.machine_id}': {exc}") from None
 
     def not_simulated(self) -> list[str]:
         """What the record carries that the fourth-order play-in leaves out."""

@@ -111,3 +111,17 @@ def test_a_malformed_file_is_a_one_line_error_naming_file_and_line(tmp_path: Pat
     path.write_text(text)
     with pytest.raises(DyrError, match=message):
         read_unit(path)
+
+
+def test_a_start_from_record_outside_the_physical_range_names_the_dyr(tmp_path: Path, capsys) -> None:
+    """``phid identify --start-from UNIT.dyr`` with an inertia of 348 s (a misplaced decimal):
+    refused before anything is read, one line naming the .dyr and its record."""
+    from phid_ros.cli.main import main
+
+    path = tmp_path / "unit.dyr"
+    path.write_text("1 'GENROU' 1 1.437 0.03 0.1351 0.03 348.0 0.0 2.54 2.41 0.5 0.5 0.5 0.15 0.0 0.0 /\n")
+    bags = Path(__file__).resolve().parents[2] / "bags" / "catalogue"
+    assert main(["identify", str(bags), "--start-from", str(path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"phid: error: {path}: GENROU at bus 1 id '1': invalid generator parameters: H=348 s"), err
+    assert "\n" not in err
