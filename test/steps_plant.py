@@ -19,7 +19,8 @@ STEPS's habits, found by checking its data as the ANDES sets were checked:
   through the GENCLS's internal voltage (STEPS has no slack-voltage event);
 * the fault is a shunt admittance in pu on the system base;
 * a governor's "mechanical power reference" is what its summing point takes: TGOV1's is R P_m
-  (0.04 at P_m = 0.8, R = 0.05), so a load-reference step scales it;
+  (0.04 at P_m = 0.8, R = 0.05), IEEEG1's the valve position P_m/(K_1 + K_3 + K_5 + K_7), so a
+  load-reference step scales it;
 * its GENSAL saturates on |psi''| in both axes, GENROU's form (``gensal.cpp``: the d-axis input
   less S psi''_d, the q axis's plus S psi''_q (X_q - X_l)/(X_d - X_l)), not PSS/E's GENSAL form (on
   E'_q, d axis only): on ``gensal-sat`` the diagnosis rightly names the GENROU form;
@@ -72,11 +73,19 @@ GENSAL_BASE = {"Td0p": 5.0, "Td0pp": 0.05, "Tq0pp": 0.08, "H": 3.48, "D": 0.4, "
 GENSAL_BASE.update({"Xdp": 0.32, "Xpp": 0.22, "Xl": 0.15, "S1": 0.0, "S12": 0.0})
 SEXS = "'SEXS' 1 0.2 5.0 100.0 0.05 -5.0 5.0"
 TGOV1 = "'TGOV1' 1 0.05 0.5 1.05 0.0 2.0 6.0 0.0"
+# a DC exciter and a reheat steam governor, the two of phid's other control models STEPS has (its
+# governors are TGOV1, IEEEG1-3, IEESGO, GAST2A, URCSCT: no HYGOV). IEEET1: TR, KA, TA, VRMAX,
+# VRMIN, KE, TE, KF, TF, switch, E1, SE(E1), E2, SE(E2) (zero saturation: STEPS then leaves it
+# out). IEEEG1: JBUS, M, K, T1, T2, T3, UO, UC, PMAX, PMIN, T4, K1, K2, T5, K3, ... K8, the rate
+# limits wide (phid's paths are small-signal; the limits are not what this set checks)
+IEEET1 = "'IEEET1' 1 0.0 50.0 0.05 5.0 -5.0 1.0 0.5 0.05 1.0 0 0.0 0.0 0.0 0.0"
+IEEEG1 = "'IEEEG1' 1 0 0 20.0 0.0 0.0 0.1 5.0 -5.0 1.1 0.0 0.3 0.3 0.0 7.0 0.7 0.0 0.0 0.0 0.0 0.0 0.0 0.0"
 MACHINES: dict[str, Machine] = {
     "gensal": Machine(GENSAL_BASE),
     "gensal-sat": Machine({**GENSAL_BASE, "S1": 0.1, "S12": 0.4}),
     "gensal-controls": Machine(GENSAL_BASE, SEXS, TGOV1),
     "gensal-sat-controls": Machine({**GENSAL_BASE, "S1": 0.1, "S12": 0.4}, SEXS, TGOV1),
+    "gensal-ieeet1-ieeeg1": Machine(GENSAL_BASE, IEEET1, IEEEG1),
 }
 P_M0 = 0.8  # the case's P_m (SimulationConfig's operating point)
 TRUTH = {
@@ -218,7 +227,7 @@ class Case:
     def _disturb(self, scenario: Scenario) -> None:
         s = self.s
         if scenario.kind == "torque_step":
-            if self.machine.governor:  # the reference is TGOV1's R P_m (0.04 at 0.8 pu): scaled, not added to
+            if self.machine.governor:  # the reference is in proportion to P_m (see above): scaled, not added to
                 p_ref, p_m = (
                     s.get_generator_mechanical_power_reference_in_pu(GEN),
                     s.get_generator_mechanical_power_in_pu(GEN),

@@ -108,3 +108,47 @@ def test_steps_s_sexs_and_tgov1_are_identified_from_the_recordings(machine, tmp_
     for fit, truth in ((exciter, {"TA/TB": 0.2, "TB": 5.0, "TE": 0.05}), (governor, {"T1": 0.5, "T2": 2.0, "T3": 6.0})):
         for name, value in truth.items():
             assert fit.parameters[name] == pytest.approx(value, rel=0.10), (name, fit.parameters[name])
+
+
+def test_steps_s_ieeet1_and_ieeeg1_are_identified_from_the_recordings(tmp_path):
+    """STEPS's own IEEET1 (K_A 50, T_A 0.05 s, K_E 1, T_E 0.5 s, K_F 0.05, T_F 1 s) and IEEEG1
+    (K 20, servo 0.1 s, steam chest 0.3 s, K_1 0.3, reheater 7 s) in the loop: implementations
+    phid did not write. With the unit's models named (``--exciter IEEET1 --governor IEEEG1``)
+    the gains within 5 % and every time constant the fit determines within 10 %; left to choose,
+    each is named or listed as fitting as well as the one named (IEEET1's rate feedback answers
+    like EXST1's lead-lag, IEEEG1's reheat like TGOV1's). STEPS has no HYGOV: phid's HYGOV is
+    checked against ANDES's (test/controls/test_unit_validation.py). Measured (seed 0): all ten
+    determined, K_A +0.4 %, T_A -0.6 %, T_E +0.4 %, K_F +0.2 %, T_F +0.1 %; K +0.7 %, T_3 +0.8 %,
+    T_4 -1.1 %, K_1 -0.5 %, T_5 -0.4 %; unrestricted, IEEET1 named with EXST1 and ESST5B listed
+    as fitting as well, IEEEG1 named alone."""
+    pytest.importorskip("stepspy")
+    from phid_ros.controls.identify import ControlFit, identify_controls
+    from test.steps_plant import MACHINES, write_set
+
+    manifest = write_set(
+        tmp_path, MACHINES["gensal-ieeet1-ieeeg1"], [with_duration(s, 12.0) for s in paper_catalogue()], seed=0
+    )
+    scenarios, _ = scenarios_from_recording(load_recording(manifest), str(manifest))
+    named = identify_controls(scenarios, {"exciter": ["IEEET1"], "governor": ["IEEEG1"]})
+    exciter, governor = named["exciter"], named["governor"]
+    assert isinstance(exciter, ControlFit) and isinstance(governor, ControlFit)
+    assert (exciter.named, governor.named) == (True, True), (exciter.why, governor.why)
+    gains = {"KA": 50.0, "K": 20.0, "K1": 0.3}
+    lags = {"TA": 0.05, "TE": 0.5, "KF": 0.05, "TF": 1.0, "T3": 0.1, "T4": 0.3, "T5": 7.0}
+    determined = 0
+    for fit in (exciter, governor):
+        for name, value in fit.parameters.items():
+            truth = gains.get(name, lags.get(name))
+            if truth is None or not fit.identifiable.get(name):
+                continue
+            determined += 1
+            rel = 0.05 if name in gains else 0.10
+            assert value == pytest.approx(truth, rel=rel), (fit.model, name, value, truth)
+    assert exciter.identifiable["KA"] and governor.identifiable["K"]
+    assert determined >= 8, (exciter.identifiable, governor.identifiable)  # measured: all ten
+
+    chosen = identify_controls(scenarios)
+    for kind, truth in (("exciter", "IEEET1"), ("governor", "IEEEG1")):
+        fit = chosen[kind]
+        assert isinstance(fit, ControlFit) and fit.named, fit
+        assert truth == fit.model or truth in fit.alternatives, (kind, fit.model, fit.alternatives)
