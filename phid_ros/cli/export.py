@@ -9,7 +9,7 @@ from rich.console import Console
 
 from phid_ros.cli.common import warn
 from phid_ros.cli.tables import Col, print_table
-from phid_ros.export.formats import WRITERS
+from phid_ros.export.formats import PSLF_CONTROLS, WRITERS, pslf_left_out
 from phid_ros.export.record import FIELDS, ExportError, build_record
 from phid_ros.io.outputs import refuse_inputs, write_text
 from phid_ros.io.results import read_json
@@ -54,10 +54,11 @@ def run(args: argparse.Namespace, console: Console) -> int:
             )
         else:
             sources["D"] += f", minus P_m0 = {rec.p_m0:.3g} (PSS/E's torque form)"
-    if rec.controls and args.format == "pslf-dyd":
+    left_out = pslf_left_out(rec) if args.format == "pslf-dyd" else []
+    if left_out:
         warn(
-            f"{args.result}: the {', '.join(c.model for c in rec.controls)} record(s) are not written to a .dyd "
-            "(PSLF's names for their constants are not checked here); the .dyr and ANDES formats carry them"
+            f"{args.result}: the {', '.join(left_out)} record(s) are not written to a .dyd (PSLF's layout for "
+            f"them is not checked here; it is for {', '.join(PSLF_CONTROLS)}); the .dyr and ANDES formats carry them"
         )
     write_text(out, WRITERS[args.format](rec))
     rows = [[f, FIELDS[f].split(",")[0].split(" (")[0], f"{written[f]:.6g}", sources[f]] for f in rec.fields]
@@ -68,6 +69,6 @@ def run(args: argparse.Namespace, console: Console) -> int:
         Col("source", justify="left", keep=8, text=True),
     ]
     print_table(console, f"{rec.model} record, bus {rec.bus} id {rec.machine_id}, {rec.mva:g} MVA base", cols, rows)
-    beside = [c.model for c in rec.controls] if args.format != "pslf-dyd" else []
+    beside = [c.model for c in rec.controls if c.model not in left_out]
     console.print(f"wrote {out} ({args.format}{''.join(', with ' + m for m in beside)})", highlight=False)
     return 0

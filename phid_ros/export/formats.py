@@ -48,6 +48,16 @@ PSLF_NAMES = {
 }
 PSLF_FIXED = {"rcomp": 0.0, "xcomp": 0.0, "accel": 0.0}
 
+# PSLF's governor records are positional after the turbine's capability ``mwcap=``, in PSS/E's
+# constant order, as .dyd files run in PSLF write them (the validation cases of PSLTDSim,
+# github.com/thadhaines/PSLTDSim: ``tgov1 ... : #1 mwcap=800.0 0.05 0.4 1.0 0.0 3.0 10.0 0.0``;
+# ``ieeeg1 ... : #9 mwcap=1000.0`` K T1 T2 T3 UO UC PMAX PMIN T4 K1 K2 T5 K3 K4 T6 K5 K6 T7 K7 K8,
+# then fifteen zeros: its deadbands and valve table, unused). Only the models whose PSLF layout
+# such files show are written, with the count of trailing zeros PSLF takes; the others are left
+# out of a .dyd and said so: a PSLF keyword or position guessed is a wrong number in a planner's
+# file. mwcap is written as the machine's MVA base, so the per-unit constants keep their base.
+PSLF_CONTROLS = {"TGOV1": 0, "IEEEG1": 15}
+
 ANDES_NAMES = {
     "Td10": "Td10",
     "Td20": "Td20",
@@ -93,7 +103,22 @@ def pslf_dyd(rec: MachineRecord) -> str:
     pairs += [f'"{k}" {_num(v)}' for k, v in PSLF_FIXED.items()]
     head = f'{rec.model.lower()} {rec.bus} "BUS{rec.bus}" {rec.kv:.2f} "{rec.machine_id}" : #9 mva={rec.mva:g}'
     body = [head] + ["    " + " ".join(pairs[i : i + 5]) for i in range(0, len(pairs), 5)]
-    return f"# {rec.comment()}\n" + " /\n".join(body) + "\n"
+    lines = [f"# {rec.comment()}", " /\n".join(body)]
+    for c in rec.controls:
+        if c.model not in PSLF_CONTROLS:
+            continue
+        values = [*map(_num, c.values.values()), *["0"] * PSLF_CONTROLS[c.model]]
+        lines.append(f"# {c.comment()}")
+        lines.append(
+            f'{c.model.lower()} {rec.bus} "BUS{rec.bus}" {rec.kv:.2f} "{rec.machine_id}" : #9 mwcap={rec.mva:g} '
+            + " ".join(values)
+        )
+    return "\n".join(lines) + "\n"
+
+
+def pslf_left_out(rec: MachineRecord) -> list[str]:
+    """The unit's control models a .dyd does not carry (see PSLF_CONTROLS)."""
+    return [c.model for c in rec.controls if c.model not in PSLF_CONTROLS]
 
 
 def andes_json(rec: MachineRecord) -> str:

@@ -47,3 +47,16 @@ def test_export_refuses_flagged_parameters_and_a_missing_base(tmp_path, capsys) 
     assert "give it with --mva" in capsys.readouterr().err
     assert main(["export", str(result), "--format", "andes", "--mva", "250"]) == 0
     assert json.loads((tmp_path / "unit.andes.json").read_text())["GENROU"][0]["Sn"] == 250.0
+
+
+def test_a_dyd_with_controls_says_which_records_it_leaves_out(tmp_path, capsys) -> None:
+    from test.export.test_andes_roundtrip import CONTROLS
+
+    result = tmp_path / "unit.json"
+    write_result(result)
+    result.write_text(json.dumps(json.loads(result.read_text()) | {"controls": CONTROLS}))
+    assert main(["export", str(result), "--format", "pslf-dyd"]) == 0
+    out = capsys.readouterr()
+    assert "the SEXS record(s) are not written to a .dyd" in out.err and "TGOV1" not in out.err.split("(")[0]
+    assert "wrote" in out.out and "with TGOV1" in out.out and "with SEXS" not in out.out
+    assert 'tgov1 1 "BUS1" 20.00 "1" : #9 mwcap=1000 0.05 0.5' in (tmp_path / "unit.dyd").read_text()

@@ -7,11 +7,11 @@ import copy
 import pytest
 
 from phid_ros.export.controls import ControlExportError, build_control_records
-from phid_ros.export.formats import psse_dyr
+from phid_ros.export.formats import pslf_dyd, pslf_left_out, psse_dyr
 from phid_ros.export.record import build_record
 from phid_ros.model.parameters import PARAMETER_NAMES, TABLE1
 from test.export.test_andes_roundtrip import CONTROLS
-from test.export.test_formats import read_dyr
+from test.export.test_formats import read_dyd, read_dyr
 
 
 def result(controls: dict) -> dict:
@@ -49,3 +49,30 @@ def test_nothing_named_nothing_written_and_bad_controls_are_one_line_errors() ->
         build_control_records(result(loose), "r.json")
     [_, gov] = build_control_records(result(loose), "r.json", allow_flagged=True)
     assert gov.flagged == ["T3"] and "NOT IDENTIFIED: T3" in gov.comment()
+
+
+def test_a_pslf_dyd_carries_the_governors_whose_layout_pslf_files_show_and_says_which_it_leaves_out() -> None:
+    """TGOV1 and IEEEG1 follow the machine by position after mwcap= (the machine's MVA, so the per
+    unit keeps its base), in PSS/E's order; IEEEG1 with PSLF's fifteen trailing values (deadbands,
+    valve table) at zero. SEXS is left out of the .dyd and named as left out."""
+    rec = build_record(result(CONTROLS), source="r.json", mva=1000.0, bus=7, machine_id="G1")
+    records = read_dyd(pslf_dyd(rec))
+    assert [r[0] for r in records] == ["genrou", "tgov1"] and records[1][1:6] == (7, "BUS7", 20.0, "G1", 1000.0)
+    assert list(records[1][6].values()) == [0.05, 0.5, 1.0, 0.0, 2.0, 6.0, 0.0]  # R T1 VMAX VMIN T2 T3 Dt
+    assert pslf_left_out(rec) == ["SEXS"]
+
+    steam = copy.deepcopy(CONTROLS)
+    names = ("K", "T1", "T2", "T3", "UO", "UC", "PMAX", "PMIN", "T4", "K1", "K2", "T5", "K3", "K4", "T6")
+    names += ("K5", "K6", "T7", "K7", "K8")
+    values = {"K": 20.0, "T3": 0.1, "T4": 0.3, "K1": 0.3, "T5": 7.0, "K3": 0.7}
+    steam["governor"] = {
+        "model": "IEEEG1",
+        "parameters": {n: values.get(n, 0.0) for n in names} | {"UO": None, "UC": None, "PMAX": None, "PMIN": None},
+        "identifiable": {n: n in values and n != "K3" for n in names},
+    }
+    rec = build_record(result(steam), source="r.json", mva=1000.0, bus=7, machine_id="G1")
+    [_, ieeeg1] = read_dyd(pslf_dyd(rec))
+    written = list(ieeeg1[6].values())
+    assert ieeeg1[0] == "ieeeg1" and len(written) == 35 and written[20:] == [0.0] * 15
+    assert written[:4] == [20.0, 0.0, 0.0, 0.1] and written[8:13] == [0.3, 0.3, 0.0, 7.0, 0.7]
+    assert written[4:8] == [1.0, -1.0, 1.0, 0.0]  # the valve's rate and position limits: stated defaults

@@ -38,7 +38,9 @@ def read_dyr(text: str) -> list[tuple[int, str, str, list[float], str]]:
 
 
 def read_dyd(text: str) -> list[tuple[str, int, str, float, str, float, dict[str, float]]]:
-    """PSLF .dyd: '#' comment lines; a line ending in '/' continues; model bus "name" kV "id" : #9 mva=..."""
+    """PSLF .dyd: '#' comment lines; a line ending in '/' continues; model bus "name" kV "id" : #9 mva=...
+    then "name" value pairs (a machine), or : #9 mwcap=... then values by position (a governor, keyed
+    "1", "2", ... here)."""
     records, pending = [], ""
     for line in text.splitlines():
         if line.startswith("#") or not line.strip():
@@ -48,12 +50,16 @@ def read_dyd(text: str) -> list[tuple[str, int, str, float, str, float, dict[str
             continue
         full = pending + line
         pending = ""
-        head = r'\s*([a-z0-9]+)\s+(\d+)\s+"([^"]*)"\s+([\d.]+)\s+"([^"]*)"\s*:\s*#9\s+mva=([\d.eE+-]+)'
+        head = r'\s*([a-z0-9]+)\s+(\d+)\s+"([^"]*)"\s+([\d.]+)\s+"([^"]*)"\s*:\s*#9\s+(mva|mwcap)=([\d.eE+-]+)'
         m = re.fullmatch(head + r"\s+(.*)", full)
         assert m, f"not a .dyd record: {full!r}"
-        pairs = re.findall(r'"([a-z0-9]+)"\s+([-\d.eE+]+)', m[7])
-        assert len(pairs) * 2 == len(m[7].split()), 'parameters are not all "name" value pairs'
-        records.append((m[1], int(m[2]), m[3], float(m[4]), m[5], float(m[6]), {k: float(v) for k, v in pairs}))
+        if m[6] == "mwcap":
+            params = {str(i): float(v) for i, v in enumerate(m[8].split(), start=1)}
+        else:
+            pairs = re.findall(r'"([a-z0-9]+)"\s+([-\d.eE+]+)', m[8])
+            assert len(pairs) * 2 == len(m[8].split()), 'parameters are not all "name" value pairs'
+            params = {k: float(v) for k, v in pairs}
+        records.append((m[1], int(m[2]), m[3], float(m[4]), m[5], float(m[7]), params))
     assert not pending, "the last line continues with '/'"
     return records
 
