@@ -209,8 +209,12 @@ def screen(
     """
     grid = cand.screen(runs)
     ok = cand.admissible(grid, current.base)
-    grid = {k: v[ok] for k, v in grid.items()}
     best: tuple[dict[str, Any], float] = ({}, math.inf)
+    if not ok.any():
+        # no trial describes a machine with the current base (seen on noise-free STEPS data, two
+        # loadings: numpy's "argmin of an empty sequence" ended the diagnosis): not a candidate now
+        return best
+    grid = {k: v[ok] for k, v in grid.items()}
 
     def trial(grid: dict[str, Array], setting: dict[str, str]) -> tuple[dict[str, Any], float]:
         m = len(next(iter(grid.values())))
@@ -328,7 +332,7 @@ def _round_trials(
     runs = play_in(fit_w, current.model.base, current.model.plant_effects(), f_nominal_hz=f_hz)
     found = jobs.map(screen, [(c, current.model, fit_w, sigma, f_hz, runs) for c in pool])
     screened = sorted(((chi2, c, v) for c, (v, chi2) in zip(pool, found)), key=lambda t: t[0])
-    shortlist = screened[: opt.shortlist]
+    shortlist = [t for t in screened[: opt.shortlist] if math.isfinite(t[0])]  # inf: no admissible trial
     say(f"fitting {len(shortlist)} candidates with the base parameters: {_names(c for _, c, _ in shortlist)}")
     longest_first = sorted(shortlist, key=lambda t: -_fit_cost(t[1]))
     trials = jobs.map(
@@ -336,7 +340,7 @@ def _round_trials(
         [(c, v, chi2, current, current_score, fit_w, held_w, sigma, opt) for chi2, c, v in longest_first],
     )
     trials.sort(key=lambda t: t.screened_chi2)
-    return trials + [Trial(c.name(), {}, None, chi2) for chi2, c, _ in screened[opt.shortlist :]]
+    return trials + [Trial(c.name(), {}, None, chi2) for chi2, c, _ in screened[len(shortlist) :]]
 
 
 def _converged(

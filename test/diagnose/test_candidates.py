@@ -173,3 +173,16 @@ def test_a_delay_the_play_in_step_can_mimic_is_never_named():
     assert _unresolved([trial(1.0)]) == [
         "sensor_delay not named: a 1 ms delay is not beyond the play-in step of 2 ms, whose error mimics it"
     ]
+
+
+def test_a_candidate_with_no_admissible_trial_is_set_aside_not_a_crash():
+    """A base below every damper trial (X'_d, X'_q at 0.12, the floor of X''): the damper's screen
+    has no point that describes a machine. Its screen says so with an infinite chi-square (seen
+    on noise-free STEPS data at two loadings: numpy's "argmin of an empty sequence" ended the
+    diagnosis), and no play-in is run for it."""
+    from phid_ros.diagnose.workflow import screen
+
+    base = replace(TABLE1, X_d_prime=0.12, X_q_prime=0.12).as_dict()
+    cand = candidate("subtransient_dynamics")
+    assert not cand.admissible(cand.screen(), base).any()
+    assert screen(cand, ModelSpec(base), [], {}, 50.0) == ({}, float("inf"))
