@@ -37,3 +37,9 @@ def test_the_changelog_names_this_version_first():
     text = (ROOT / "CHANGELOG.md").read_text()
     first = re.search(r"^## \[?(\d+\.\d+\.\d+)", text, re.M)
     assert first is not None and first.group(1) == phid_ros.__version__
+
+
+def test_the_readme_states_this_version():
+    """The README's front page said 0.4.0 after the release of 0.4.1: it is held here too."""
+    found = re.search(r"^Version (\d+\.\d+\.\d+) ", (ROOT / "README.md").read_text(), re.M)
+    assert found is not None and found.group(1) == phid_ros.__version__
