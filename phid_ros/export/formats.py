@@ -98,21 +98,21 @@ def psse_dyr(rec: MachineRecord) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _pslf_head(model: str, rec: MachineRecord, base: str) -> str:
+    """A .dyd record's identification: model, bus, bus name, kV, id, then ``: #9`` and its base."""
+    return f'{model.lower()} {rec.bus} "BUS{rec.bus}" {rec.kv:.2f} "{rec.machine_id}" : #9 {base}={rec.mva:g}'
+
+
 def pslf_dyd(rec: MachineRecord) -> str:
     pairs = [f'"{PSLF_NAMES[f]}" {_num(rec.values[f])}' for f in rec.fields]
     pairs += [f'"{k}" {_num(v)}' for k, v in PSLF_FIXED.items()]
-    head = f'{rec.model.lower()} {rec.bus} "BUS{rec.bus}" {rec.kv:.2f} "{rec.machine_id}" : #9 mva={rec.mva:g}'
-    body = [head] + ["    " + " ".join(pairs[i : i + 5]) for i in range(0, len(pairs), 5)]
+    body = [_pslf_head(rec.model, rec, "mva")] + ["    " + " ".join(pairs[i : i + 5]) for i in range(0, len(pairs), 5)]
     lines = [f"# {rec.comment()}", " /\n".join(body)]
     for c in rec.controls:
         if c.model not in PSLF_CONTROLS:
             continue
         values = [*map(_num, c.values.values()), *["0"] * PSLF_CONTROLS[c.model]]
-        lines.append(f"# {c.comment()}")
-        lines.append(
-            f'{c.model.lower()} {rec.bus} "BUS{rec.bus}" {rec.kv:.2f} "{rec.machine_id}" : #9 mwcap={rec.mva:g} '
-            + " ".join(values)
-        )
+        lines += [f"# {c.comment()}", _pslf_head(c.model, rec, "mwcap") + " " + " ".join(values)]
     return "\n".join(lines) + "\n"
 
 
