@@ -95,6 +95,7 @@ def _setup(
     m: int,
     f_nominal_hz: float,
     step: float,
+    smooth: bool = False,
 ) -> _Setup:
     n_s = len(scenarios)
     cols = n_s * m
@@ -121,9 +122,9 @@ def _setup(
         if name not in cache:
             lag = advance.get(name)
             if lag is None:
-                cache[name] = _shared_staged(scenarios, name, steps, half)
+                cache[name] = _shared_staged(scenarios, name, steps, half, smooth)
             else:
-                cache[name] = staged_samples(scenarios, name, m, steps, half, lag)
+                cache[name] = staged_samples(scenarios, name, m, steps, half, lag, smooth)
         return cache[name]
 
     v_t, theta, p_m, v_f = (staged(n) for n in INPUTS)
@@ -147,9 +148,11 @@ def play_in(
     m: int = 1,
     f_nominal_hz: float = DEFAULT_F_NOMINAL_HZ,
     step: float = STEP_SECONDS,
+    smooth: bool = False,
 ) -> list[PlayIn]:
-    """Simulate ``m`` models (base values and effect values scalars or length-``m`` arrays)."""
-    return _trajectories(_setup(scenarios, base, effects, m, f_nominal_hz, step), scenarios, m)
+    """Simulate ``m`` models (base values and effect values scalars or length-``m`` arrays);
+    ``smooth``: driven by V_t and theta_t with their noise taken out, as a fit is."""
+    return _trajectories(_setup(scenarios, base, effects, m, f_nominal_hz, step, smooth), scenarios, m)
 
 
 def _trajectories(st: _Setup, scenarios: Sequence[ScenarioData], m: int) -> list[PlayIn]:
@@ -186,7 +189,7 @@ def residual_matrix(
     step: float = STEP_SECONDS,
     order: str = "C",
 ) -> Array:
-    """``fit.residuals(play_in(...), sigma, out)``: the noise-normalised residuals (rows, m),
+    """``fit.residuals(play_in(..., smooth=True), sigma, out)``: the noise-normalised residuals (rows, m),
     into a new array laid out in ``order`` when ``out`` is None.
 
     Compiled, the play-in writes each residual into ``out`` as it computes the output
@@ -195,7 +198,9 @@ def residual_matrix(
     """
     from phid_ros.diagnose.fit import residuals  # the layout's one definition, and the reference
 
-    st = _setup(scenarios, base, effects, m, f_nominal_hz, step)
+    # the fit's inputs have their noise taken out (errors in variables: phid_ros.ident.played_inputs);
+    # a score (play_in) reads them as measured, whose noise it removes as white
+    st = _setup(scenarios, base, effects, m, f_nominal_hz, step, smooth=True)
     n_keep = np.array([len(i) for i in st.idx], dtype=np.int64)
     if out is None:
         out = np.empty((len(OUTPUTS) * int(n_keep.sum()), m), order="F" if order == "F" else "C")
@@ -223,20 +228,20 @@ _STAGED_LOCK = threading.Lock()
 _STAGED_ENTRIES = 24  # a diagnosis plays two window sets (fit, held out) of ten channels
 
 
-def _shared_staged(scenarios: Sequence[ScenarioData], name: str, steps: int, half: int) -> Array:
+def _shared_staged(scenarios: Sequence[ScenarioData], name: str, steps: int, half: int, smooth: bool) -> Array:
     """staged_samples of a channel no effect re-times, kept for the next play-in of the same windows.
 
     A fit plays the same windows hundreds of times; staging the measurements anew each time cost
     as much as a fifth of the compiled integration. The entry holds its scenarios, so their ids
     (the key) stay theirs, and the array is read-only, so no caller can change what the next reads.
     """
-    key = (tuple(id(s) for s in scenarios), name, steps, half)
+    key = (tuple(id(s) for s in scenarios), name, steps, half, smooth)
     with _STAGED_LOCK:
         hit = _STAGED.get(key)
         if hit is not None:
             _STAGED.move_to_end(key)
             return hit[1]
-    a = staged_samples(scenarios, name, 1, steps, half)
+    a = staged_samples(scenarios, name, 1, steps, half, smooth=smooth)
     a.setflags(write=False)
     with _STAGED_LOCK:
         _STAGED[key] = (tuple(scenarios), a)

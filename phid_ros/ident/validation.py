@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from phid_ros.ident.played_inputs import played_input
 from phid_ros.ident.scenario import ScenarioData
 from phid_ros.model.conventions import DEFAULT_F_NOMINAL_HZ, electrical_power, terminal_to_dq
 from phid_ros.model.equations import Coefficients, currents, derivatives
@@ -55,19 +56,26 @@ MOD026_TOLERANCE_PU = 0.05
 
 
 def staged_samples(
-    scenarios: Sequence[ScenarioData], name: str, m: int, steps: int, half: int, advance: Array | None = None
+    scenarios: Sequence[ScenarioData],
+    name: str,
+    m: int,
+    steps: int,
+    half: int,
+    advance: Array | None = None,
+    smooth: bool = False,
 ) -> Array:
     """A channel at every half play-in step (2 * steps - 1 rows), one column per (scenario, model) pair.
 
     Each scenario holds its last sample after its end. ``advance`` (seconds, one per
     column) reads the channel that much later, undoing a sensor's latency; it is
-    linear between samples, so a fitted latency need not be whole samples.
+    linear between samples, so a fitted latency need not be whole samples. ``smooth``
+    reads V_t and theta_t with their noise taken out (:mod:`phid_ros.ident.played_inputs`).
     """
     rows = 2 * steps - 1
     out = np.empty((rows, len(scenarios) * m))
     for j, s in enumerate(scenarios):
         pos = np.minimum(np.arange(rows) * half, s.n - 1)
-        x = s[name]
+        x = played_input(s, name) if smooth else s[name]
         if advance is None:
             out[:, j * m : (j + 1) * m] = x[pos][:, None]
             continue

@@ -127,3 +127,20 @@ def test_a_start_the_play_in_rejects_is_moved_back_not_a_crash() -> None:
     # residuals each finite whose square sum is not (STEPS's saturated GENSAL: 1e160 and more)
     huge = finite_start(lambda x: np.where(x < 2.0, x - 1.0, 1e200) * np.ones(3), np.array([9.0]), np.array([1.0]))
     assert 1.0 < huge[0] < 2.0
+
+
+def test_a_predicted_start_the_data_like_less_than_the_model_s_own_is_not_taken() -> None:
+    """A profile point's first-order start moved a saturated GENSAL's flat directions far enough
+    that the refit lost itself (H, 0.03 % from the machine's, then reported not determined); a
+    start is kept only where its square sum is no worse than at the model's own values."""
+    from phid_ros.diagnose.fit import chosen_start
+
+    def residual(x: np.ndarray) -> np.ndarray:  # best at x = 1, diverging beyond 4
+        return np.where(x < 4.0, (x - 1.0) * np.ones(3), np.nan)
+
+    own = np.array([2.0])
+    assert np.array_equal(chosen_start(residual, np.array([1.2]), own), [1.2])  # better: taken
+    assert np.array_equal(chosen_start(residual, np.array([-3.0]), own), [2.0])  # worse: the own values
+    # beyond the divergence it steps back (9 -> 5.5 -> 3.75) and then compares: 3.75 is worse than 2
+    assert np.array_equal(chosen_start(residual, np.array([9.0]), own), [2.0])
+    assert np.array_equal(chosen_start(residual, None, own), [2.0])

@@ -179,7 +179,7 @@ def test_residuals_written_by_the_kernel_equal_the_trajectories_subtracted(windo
     base = {k: spread(v, 0.1) for k, v in TABLE1.as_dict().items()}
     effects = [(REGISTRY[ALIASES.get(n, n)], VALUES[n]()) for n in names]
     sigma = {c: 0.01 * (i + 1) for i, c in enumerate(OUTPUTS)}
-    want = residuals(play_in(wins, base, effects, m=M), sigma)
+    want = residuals(play_in(wins, base, effects, m=M, smooth=True), sigma)  # a fit's inputs: smoothed
     for threads in (1, 3):
         monkeypatch.setattr(playin, "spare_threads", lambda t=threads: t)
         wide = np.full((want.shape[0], M + 1), -7.0)
