@@ -4,7 +4,8 @@
 
 Machines (``test/steps_plant.py``, machine base 1000 MVA on a 100 MVA system base): ``gensal``
 (a hydro unit's salient-pole data, X'' 0.22, T''_d0 0.05 s, T''_q0 0.08 s), ``gensal-sat`` (the
-same with S(1.0) 0.1, S(1.2) 0.4, PSS/E's GENSAL saturation: on E'_q, d axis only),
+same with S(1.0) 0.1, S(1.2) 0.4; STEPS's GENSAL saturates GENROU's way, on |psi''| in both
+axes, not PSS/E's GENSAL way on E'_q: see test/steps_plant.py),
 ``gensal-controls`` and ``gensal-sat-controls`` (with SEXS and TGOV1 in the loop: a field step is a
 voltage-reference step, a torque step a load-reference step). Scenarios: the paper's catalogue
 (15 for identification, 3 validation) with the simulator's sensor noise; ``phid identify`` and

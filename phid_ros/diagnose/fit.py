@@ -284,7 +284,7 @@ def fit(problem: Problem, max_nfev: int = 12, x0: Array | None = None) -> FitRes
     def residual(x: Array) -> Array:
         r = evaluate(x, False)[0]
         out = np.zeros(len(x) + 1)
-        out[0] = math.sqrt(float(r @ r))
+        out[0] = math.sqrt(_square_sum(r))  # inf where the play-in diverged, without a warning
         return out
 
     x0 = chosen_start(lambda x: evaluate(x, False)[0], None if x0 is None else problem.inside(x0), problem.x0())

@@ -34,10 +34,11 @@ pytestmark = pytest.mark.slow
 Q_AXIS = {"X_q_prime", "T_q0_prime"}
 STUDIES = [  # machine, effects named, form of the saturation, base parameters expected within 2 %
     ("gensal", ["subtransient_dynamics"], None, 6),  # measured: -93 %, six of six within 2 % (D +1.8 %)
-    # T'_d0 +3 % and not determined: the saturated steady states and T'_d0 trade off
-    ("gensal-sat", ["magnetic_saturation", "subtransient_dynamics"], "genrou", 6),  # measured -93 %
-    ("gensal-controls", ["subtransient_dynamics"], None, 6),  # SEXS and TGOV1 in the loop: -93 %
-    ("gensal-sat-controls", ["magnetic_saturation", "subtransient_dynamics"], "genrou", 6),  # -94 %
+    # with the fit's V_t, theta_t played in raw (0.4.1) T'_d0 +3.1 %, not determined, X_d +1.6 %;
+    # smoothed: T'_d0 +1.25 %, X_d +0.64 %, both determined
+    ("gensal-sat", ["magnetic_saturation", "subtransient_dynamics"], "genrou", 6),  # measured -96 %
+    ("gensal-controls", ["subtransient_dynamics"], None, 6),  # SEXS and TGOV1 in the loop: -94 %
+    ("gensal-sat-controls", ["magnetic_saturation", "subtransient_dynamics"], "genrou", 6),  # -95 %
 ]
 
 
@@ -86,6 +87,47 @@ def test_the_right_effects_are_named_on_steps_gensal(machine, named, form, withi
     assert abs(p_m0 - 0.8) < 0.01
     close.append(True)
     assert sum(close) >= within, (after, undetermined)
+
+
+def test_two_loadings_of_the_saturated_machine_give_its_constants_not_a_biased_x_d(tmp_path):
+    """The catalogue's identification scenarios repeated at a second loading (P 0.5, V_t 1.05,
+    Q 0.45) cover more of the saturation curve. With V_t and theta_t played in raw, the fit gave
+    X_d +3.8 % with a 0.2 % std, marked determined: a wrong number published as identified.
+    Measured with the fit's inputs smoothed (seed 0): H -0.19 %, X_d +0.47 %, X_q -0.22 %,
+    X'_d +0.11 %, T'_d0 +1.45 %, each determined; held-out 14.4 -> 0.77 sigma."""
+    pytest.importorskip("stepspy")
+    from dataclasses import replace
+
+    from phid_ros.sim.plant import OperatingPoint
+    from phid_ros.sim.runner import SimulationConfig
+    from test.plants import noisy_set
+    from test.steps_plant import MACHINE_MVA, MACHINES, TRUTH, Case
+
+    second = SimulationConfig(operating_point=OperatingPoint(p_e=0.5, v_t=1.05, q_e=0.45))
+    base = [with_duration(s, 12.0) for s in paper_catalogue()]
+    extra = [replace(s, name=s.name + "_b") for s in base if s.role == "identify"]
+    at = {s.name: second for s in extra}
+    machine = MACHINES["gensal-sat"]
+    manifest = noisy_set(
+        tmp_path,
+        base + extra,
+        lambda sc: Case(machine, at.get(sc.name, SimulationConfig())).run(sc),
+        mva=MACHINE_MVA,
+        source="steps",
+        description="STEPS GENSAL with saturation at two loadings",
+        seed=0,
+    )
+    scenarios, problems = scenarios_from_recording(load_recording(manifest), str(manifest))
+    assert not problems
+    res = identify(scenarios, IdentifyOptions(baseline=False, validate=False))
+    doc = to_json(diagnose(scenarios, res.parameters, DiagnoseOptions.after(res, workers=0)))
+    assert sorted(e["name"] for e in doc["effects"]) == ["magnetic_saturation", "subtransient_dynamics"]
+    assert doc["rmse_after"] <= 0.10 * doc["rmse_before"]
+    truth = TRUTH["gensal-sat"]
+    for n in ("H", "X_d", "X_q", "X_d_prime", "T_d0_prime"):
+        error = doc["parameters"][n] / truth[n] - 1.0
+        # determined and within 2 %: a parameter further off must at least be marked
+        assert doc["identifiable"][n] and abs(error) < 0.02, (n, doc["parameters"][n], truth[n])
 
 
 @pytest.mark.parametrize("machine", ["gensal-controls", "gensal-sat-controls"])
