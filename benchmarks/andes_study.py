@@ -56,8 +56,13 @@ def run(folder: Path) -> dict:
     return doc
 
 
-def _values(p: dict) -> str:
-    return ", ".join(f"{k} {v:.3g}" if isinstance(v, float) else f"{k} {v}" for k, v in p.items())
+def _values(effect: dict) -> str:
+    """An effect's parameters, those the diagnosis could not determine marked n.d."""
+    flags = effect.get("identifiable", {})
+    return ", ".join(
+        (f"{k} {v:.3g}" if isinstance(v, float) else f"{k} {v}") + ("" if flags.get(k, True) else " n.d.")
+        for k, v in effect["parameters"].items()
+    )
 
 
 def main() -> None:
@@ -71,7 +76,7 @@ def main() -> None:
     docs = {}
     for folder in args.sets:
         doc = docs[folder.name] = run(folder)
-        named = "; ".join(f"{e['name']} {_values(e['parameters'])}" for e in doc["effects"]) or "none"
+        named = "; ".join(f"{e['name']} {_values(e)}" for e in doc["effects"]) or "none"
         err = doc["errors_pct"]["after"]
         base = ", ".join(
             f"{n} {err[n]:+.2f} %" + ("" if doc["identifiable"].get(n, True) else " n.d.") for n in PARAMETER_NAMES
