@@ -15,6 +15,10 @@ cut-off, 60 Hz, sits well above what the model's fastest circuit (a damper, T'' 
 more: a corner below 8 Hz) puts into V_t, and leaves a third of a 1 kHz recorder's white noise.
 Measured on STEPS's GENSAL without noise: the played-in V_t moves by at most 1.5e-4 pu, theta_t
 by 3e-4 rad, both at a fault's first samples; with its noise, X_d +0.6 % and T'_d0 +1.3 %.
+
+Only a fit reads them (:func:`phid_ros.diagnose.playin.residual_matrix`). A score plays the
+measurements in and removes their white noise from the residual; the noise smoothing leaves is
+correlated over a few rows, and a score would count it as unexplained.
 """
 
 from __future__ import annotations
@@ -41,9 +45,20 @@ def played_input(scenario: ScenarioData, name: str) -> Array:
     """Channel ``name`` of ``scenario`` as a fit's play-in reads it (kept with the scenario)."""
     if name not in SMOOTHED:
         return scenario[name]
+    smooth = smoothed_angle if name == "theta_t" else smoothed
     return scenario.derived(
-        ("played_input", name), lambda: smoothed(scenario[name], scenario.dt, scenario.switching, CUTOFF_HZ)
+        ("played_input", name), lambda: smooth(scenario[name], scenario.dt, scenario.switching, CUTOFF_HZ)
     )
+
+
+def smoothed_angle(x: Array, dt: float, switching: list[int], cutoff_hz: float) -> Array:
+    """An angle :func:`smoothed` across its wraps: a recorder's angle may jump by 2 pi inside a
+    segment, which a low-pass would spread over a dozen samples of nonsense. Each sample keeps the
+    branch it was recorded on (the play-in reads it through sine and cosine either way)."""
+    if not np.all(np.isfinite(x)):
+        return smoothed(x, dt, switching, cutoff_hz)
+    unwrapped = np.unwrap(x)
+    return smoothed(unwrapped, dt, switching, cutoff_hz) - (unwrapped - x)
 
 
 def smoothed(x: Array, dt: float, switching: list[int], cutoff_hz: float) -> Array:
@@ -57,14 +72,12 @@ def smoothed(x: Array, dt: float, switching: list[int], cutoff_hz: float) -> Arr
         return x
     sos = signal.butter(ORDER, cutoff_hz / nyquist, output="sos")
     out = np.array(x, dtype=np.float64)
-    bounds = [*switching, len(x)]
-    edges = sorted(
-        {0, *(_snapped(x, k, nxt, round(SNAP_AFTER_S / dt)) for k, nxt in zip(switching, bounds[1:])), len(x)}
-    )
+    after = round(SNAP_AFTER_S / dt)
+    starts = {_snapped(x, k, nxt, after) for k, nxt in zip(switching, [*switching[1:], len(x)], strict=True)}
+    edges = sorted({0, *starts, len(x)})
+    pad = 3 * (2 * len(sos) + 1)  # sosfiltfilt's own pad (3 x the filter's length): a segment must be longer
     for a, b in zip(edges[:-1], edges[1:], strict=True):
         seg = x[a:b]
-        # sosfiltfilt's own pad (3 x the filter's length) needs a segment longer than it
-        pad = 3 * (2 * len(sos) + 1)
         if b - a <= 2 * pad or not np.all(np.isfinite(seg)):
             continue
         out[a:b] = signal.sosfiltfilt(sos, seg, padtype="odd", padlen=pad)

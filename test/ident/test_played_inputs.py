@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from phid_ros.ident.played_inputs import CUTOFF_HZ
+from phid_ros.ident.played_inputs import CUTOFF_HZ, smoothed_angle
 from phid_ros.ident.played_inputs import smoothed as smoothed_at
 
 DT = 1e-3  # a 1 kHz recorder
@@ -60,3 +60,17 @@ def test_a_slow_recorder_a_short_segment_and_an_absent_channel_are_played_in_as_
     assert np.array_equal(smoothed(short, DT, [10]), short)
     absent = np.full(4000, np.nan)
     assert np.array_equal(smoothed(absent, DT, [1000]), absent, equal_nan=True)
+
+
+def test_an_angle_that_wraps_inside_a_segment_is_smoothed_across_the_wrap() -> None:
+    """A recorder's angle jumping by 2 pi in mid-segment: without unwrapping, a dozen samples
+    around the jump came out anywhere between -pi and pi. Each sample keeps its recorded branch."""
+    t = np.arange(0, 4.0, DT)
+    theta = 3.0 + 0.4 * t  # passes pi at 0.35 s
+    wrapped = np.angle(np.exp(1j * theta))
+    rng = np.random.default_rng(5)
+    noise = 0.001 * rng.standard_normal(t.size)
+    out = smoothed_angle(wrapped + noise, DT, [1000], CUTOFF_HZ)
+    reference = smoothed(theta + noise, DT, [1000])
+    assert np.max(np.abs(np.angle(np.exp(1j * (out - reference))))) < 1e-9
+    assert np.max(np.abs(out - (wrapped + noise))) < 0.01  # the branch of each sample kept
