@@ -15,6 +15,7 @@ import difflib
 import gzip
 import io
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TextIO
@@ -35,6 +36,9 @@ ROLES = ("identify", "validate")
 DEFAULT_START_NS = 1_767_225_600 * NS  # 2026-01-01T00:00:00Z
 GAP_BETWEEN_SCENARIOS_S = 5.0
 MAX_PERIOD_JITTER = 0.01  # relative
+# one scenario's CSV as text: 30 s at 1 kHz is 3 MB; a gzip that inflates past this is refused
+# rather than held (a 650 KB .csv.gz can inflate to tens of GB)
+MAX_SCENARIO_CSV_BYTES = 1 << 30
 
 
 @dataclass
@@ -59,6 +63,43 @@ def _open_text(path: Path) -> TextIO:
     return path.open("r", encoding="utf-8-sig", newline="")  # -sig: a spreadsheet's byte-order mark is not part of 't'
 
 
+def _read_bounded(path: Path, fh: TextIO) -> str:
+    body = fh.read(MAX_SCENARIO_CSV_BYTES + 1)
+    if len(body) > MAX_SCENARIO_CSV_BYTES:
+        raise CsvImportError(
+            f"{path}: more than {MAX_SCENARIO_CSV_BYTES >> 20} MB of text in one scenario "
+            "(a compressed file that inflates without bound?); split the recording into scenarios"
+        )
+    return body
+
+
+# a number in a decimal-comma locale: '.' groups thousands (802.637 is 802637), ',' is the point
+_GROUPED = re.compile(r"[+-]?\d{1,3}(?:\.\d{3})+(?:,\d*)?(?:[eE][+-]?\d+)?")
+
+
+def from_decimal_comma(text: str) -> str:
+    """A decimal-comma locale's number as Python reads it: thousands points dropped, the comma a
+    point. A point that does not group thousands (``1.5`` beside ``0,5``) is ambiguous: ValueError."""
+    if "." in text:
+        if not _GROUPED.fullmatch(text.strip()):
+            raise ValueError(f"{text!r} has a point that does not group thousands in a decimal-comma file")
+        text = text.replace(".", "")
+    return text.replace(",", ".")
+
+
+def decimal_comma_fields(fields: list[str]) -> tuple[list[str], int | None]:
+    """:func:`from_decimal_comma` over a column's fields; the index of the first ambiguous one, or None."""
+    if not any("." in f for f in fields):
+        return [f.replace(",", ".") for f in fields], None
+    out = []
+    for k, f in enumerate(fields):
+        try:
+            out.append(from_decimal_comma(f))
+        except ValueError:
+            return out, k
+    return out, None
+
+
 def read_scenario_csv(path: Path, *, strict: bool = False) -> tuple[dict[str, NDArray[np.float64]], list[str]]:
     """Columns of one CSV as float arrays, checked; returns (columns, ignored extra columns)."""
     if not path.is_file():
@@ -66,10 +107,11 @@ def read_scenario_csv(path: Path, *, strict: bool = False) -> tuple[dict[str, ND
     try:
         with _open_text(path) as fh:
             first = fh.readline()
-            body = fh.read()
+            body = _read_bounded(path, fh)
         if first.count(";") > first.count(","):
-            # a spreadsheet in a decimal-comma locale: fields split by ';', 0,5 for 0.5
-            first, body = first.replace(";", ","), body.replace(",", ".").replace(";", ",")
+            # a spreadsheet in a decimal-comma locale: fields split by ';', 0,5 for 0.5, and a point
+            # groups thousands (802.637 kW is 802637 kW: read as 802.637 it put P 1000x small)
+            first, body = first.replace(";", ","), _decimal_comma_body(path, body)
         header = [h.strip() for h in next(csv.reader([first]), [])]
     except (OSError, EOFError, UnicodeDecodeError, gzip.BadGzipFile) as exc:
         raise CsvImportError(f"{path}: cannot read: {exc}") from exc
@@ -105,6 +147,9 @@ def read_scenario_csv(path: Path, *, strict: bool = False) -> tuple[dict[str, ND
     if data.shape[0] < 2:
         raise CsvImportError(f"{path}: needs at least two data rows, found {data.shape[0]}")
     finite = np.isfinite(data)
+    # a channel NaN in every row was not recorded (phid writes a partial-channel import so: a trend
+    # log has no i_d); the time and a channel with some values must be numbers throughout
+    finite[:, 1:] |= np.isnan(data[:, 1:]).all(axis=0)
     if not finite.all():
         r, j = np.argwhere(~finite)[0]
         count = int((~finite.all(axis=1)).sum())
@@ -125,6 +170,22 @@ def read_scenario_csv(path: Path, *, strict: bool = False) -> tuple[dict[str, ND
             "resample to a uniform grid first"
         )
     return {c: data[:, j] for j, c in enumerate(CSV_COLUMNS)}, extra
+
+
+def _decimal_comma_body(path: Path, body: str) -> str:
+    """A decimal-comma body as a plain CSV's: the fields re-joined by ',' with their points as Python's."""
+    if "." not in body:
+        return body.replace(",", ".").replace(";", ",")
+    lines = []
+    for r, line in enumerate(body.splitlines()):
+        fields, bad = decimal_comma_fields(line.split(";"))
+        if bad is not None:
+            raise CsvImportError(
+                f"{path}: line {r + 2}, field {bad + 1}: {line.split(';')[bad]!r} has a point that does not group "
+                "thousands in a decimal-comma file (';' between fields); write numbers as 802.637,5 or 802637,5"
+            )
+        lines.append(",".join(fields))
+    return "\n".join(lines) + "\n"
 
 
 def _raise_parse_error(path: Path, header: list[str], idx: list[int], body: str) -> None:

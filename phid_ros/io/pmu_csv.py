@@ -21,7 +21,7 @@ import numpy as np
 
 from phid_ros.errors import PhidError
 from phid_ros.io.channel_map import WAVEFORMS, ChannelMap, check_recording
-from phid_ros.io.csv_import import is_number
+from phid_ros.io.csv_import import decimal_comma_fields, is_number
 from phid_ros.io.field_channels import field_recording, identification_channels, scenario_table
 from phid_ros.io.recording import Recording
 from phid_ros.model.conventions import NS
@@ -41,6 +41,7 @@ UNIX_SECONDS = 1e9  # seconds this large are UNIX time (2001 on), not seconds fr
 # whole, 3 GB and more; now only the mapped columns, as numbers
 CHUNK_ROWS = 65_536
 
+_ONE_DIGIT_HOUR = re.compile(r"([T ])(\d):")  # 2026-11-26 9:00:00: numpy wants 09
 _TIME_OF_DAY = re.compile(r"(\d{1,2}):(\d{2}):(\d{2}(?:\.\d+)?)")
 _DATE = (
     (re.compile(r"(\d{4})-(\d{2})-(\d{2})"), (1, 2, 3)),  # ISO
@@ -54,6 +55,12 @@ def _iso_date(text: str, path: Path) -> str:
         if found:
             return f"{found[y]}-{int(found[m]):02d}-{int(found[d]):02d}"
     raise PmuImportError(f"{path}: date {text!r} is neither YYYY-MM-DD nor DD.MM.YYYY")
+
+
+def _padded_time(text: str) -> str:
+    """A time of day as ISO 8601 writes it (9:00:00.0000000 -> 09:00:00.0000000), else as given."""
+    found = _TIME_OF_DAY.fullmatch(text.strip())
+    return f"{int(found[1]):02d}:{found[2]}:{found[3]}" if found else text.strip()
 
 
 def _ns_digits(text: str) -> str:
@@ -107,8 +114,11 @@ class _Clock:
                 secs[k] = int(found[1]) * 3600 + int(found[2]) * 60 + float(found[3])
             return secs
         if dates is not None:
-            values = [f"{_iso_date(d, self.path)}T{v.strip()}" for d, v in zip(dates, values)]
-        return np.array([np.datetime64(_ns_digits(v.strip().replace("Z", ""))) for v in values], dtype="datetime64[ns]")
+            values = [f"{_iso_date(d, self.path)}T{_padded_time(v)}" for d, v in zip(dates, values)]
+        return np.array(
+            [np.datetime64(_ns_digits(_ONE_DIGIT_HOUR.sub(r"\g<1>0\2:", v.strip().replace("Z", "")))) for v in values],
+            dtype="datetime64[ns]",
+        )
 
     def seconds(self) -> tuple[np.ndarray, int | None]:
         """Report times in s (from the first, or UNIX seconds as written), and when the first was
@@ -175,9 +185,19 @@ def _read_columns(
 
         def field(name: str) -> list[str]:
             i = columns[name]
-            return [r[i].replace(",", ".") for r in chunk] if euro else [r[i] for r in chunk]
+            values = [r[i] for r in chunk]
+            if not euro:
+                return values
+            # a point groups thousands here (802.637 kW is 802637 kW; read as 802.637 it put P 1000x small)
+            values, bad = decimal_comma_fields(values)
+            if bad is not None:
+                raise PmuImportError(
+                    f"{path}: line {line + bad}, column {name!r}: {chunk[bad][i]!r} has a point that does not group "
+                    "thousands in a decimal-comma export (';' between fields)"
+                )
+            return values
 
-        times = field(clock_col)
+        times = [r[columns[clock_col]].replace(",", ".") for r in chunk] if euro else field(clock_col)
         dates = [r[columns[date_col]] for r in chunk] if date_col is not None else None
         if clock is None:
             clock = _Clock(path, clock_col, times, dated=dates is not None)
