@@ -82,6 +82,9 @@ def _pairs(items: Sequence[str], option: str) -> list[tuple[str, str]]:
             raise ParameterError(f"{option} {item!r}: expected NAME=...")
         if name not in SPECS_BY_NAME:
             raise ParameterError(f"{option} {item!r}: unknown parameter {name!r}; one of {', '.join(PARAMETER_NAMES)}")
+        if (twice := next((v for n, v in out if n == name), None)) is not None:
+            # the last would win silently, and the user meant one of them
+            raise ParameterError(f"{option} {name} is given twice ({name}={twice}, {item.strip()}); give it once")
         out.append((name, value.strip()))
     return out
 

@@ -211,6 +211,12 @@ def _apply_constraints(res: IdentificationResult, c: Constraints) -> None:
         est, b = res.estimates.get(name), c.bounds.get(name)
         if est is None or b is None or est.at_bound or not math.isfinite(est.value):
             continue
+        if c.outside(name, est.value):  # a route that does not search within the bounds (a recorder's channels)
+            est.disqualify(
+                f"{name} = {est.value:.4g} lies outside the bounds {b[0]:g}:{b[1]:g} (--bounds): the data and "
+                "the bounds disagree, not identified"
+            )
+            continue
         for bound in b:
             if abs(est.value - bound) <= 1e-3 * abs(bound):
                 at_user_bound(est, name, math.nan, bound)
