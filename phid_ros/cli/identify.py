@@ -18,11 +18,22 @@ from phid_ros.errors import PhidError
 from phid_ros.ident.constraints import parse_constraints
 from phid_ros.ident.pipeline import IdentificationResult, IdentifyOptions
 from phid_ros.ident.scenario import StepThresholds
+from phid_ros.io.digest import distinct_recordings
 from phid_ros.io.recording import Recording
 from phid_ros.io.results import read_json, write_json
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, SYMBOLS, GeneratorParameters
 
 # imported here, with the command, so that their import is start-up and not "reading"
+
+
+def same_base(paths: list[str], recordings: list[Recording]) -> None:
+    """Recordings joined into one set must be per unit on one base: the same per-unit figure means
+    another current or power on another base, and nothing identified from both would be true."""
+    bases = {p: r.metadata.get("base_mva") for p, r in zip(paths, recordings)}
+    given = {p: float(b) for p, b in bases.items() if b is not None}
+    if len({round(b, 9) for b in given.values()}) > 1:
+        named = ", ".join(f"{p} {b:g} MVA" for p, b in given.items())
+        raise PhidError(f"the recordings are per unit on different bases ({named}); import them on one base_mva")
 
 
 def step_thresholds(args: Any) -> StepThresholds:
@@ -184,6 +195,9 @@ def run(args: Any, console: Console) -> int:
     from phid_ros.io.outputs import refuse_inputs
 
     refuse_inputs([args.json, args.report], [*args.input, args.truth, getattr(args, "start_from", None)])
+    args.input, repeated = distinct_recordings(list(args.input))
+    for note in repeated:
+        warn(note)
     control_starts = start_from_dyr(args) if getattr(args, "start_from", None) else {}
     t_start = time.perf_counter()
     with ProgressLine(f"reading {' + '.join(args.input)}") as progress:
@@ -200,6 +214,7 @@ def run(args: Any, console: Console) -> int:
         rec = recordings[0]
         if any(r.f_nominal_hz != rec.f_nominal_hz for r in recordings):
             raise PhidError(f"{' + '.join(args.input)}: the recordings' nominal frequencies differ: not one unit")
+        same_base(args.input, recordings)
         t_read = time.perf_counter() - t_start
         truth = load_truth(args.truth, rec) if args.truth else None
         options = IdentifyOptions(
