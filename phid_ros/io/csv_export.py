@@ -33,6 +33,18 @@ def write_csv_set(folder: str | Path, rec: Recording) -> Path:
     out = Path(folder)
     if not rec.scenarios:
         raise PhidError(f"{out}: the recording has no scenarios to write as a CSV set")
+    names = [f"{sc.name}.csv" for sc in rec.scenarios] + [MANIFEST]
+    # the set goes into a folder that may hold the recorder's own files (STEM.csv beside STEM's
+    # export): a file already there is never replaced, whoever wrote it
+    taken = [n for n in names if (out / n).exists() or (out / n).is_symlink()]
+    if taken:
+        raise PhidError(
+            f"{out / taken[0]}: already exists; a CSV set is never written over a file "
+            f"({len(taken)} of its {len(names)} files are taken): choose another folder"
+        )
+    if len(set(names)) != len(names):
+        twice = sorted({n for n in names if names.count(n) > 1})
+        raise PhidError(f"{out}: two scenarios would be written to {twice[0]}; rename the recordings")
     t_ns, values = _common_samples(rec)
     out.mkdir(parents=True, exist_ok=True)
     entries = []
