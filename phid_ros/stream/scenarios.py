@@ -22,7 +22,7 @@ from phid_ros.ident.scenario import (
     make_scenario,
 )
 from phid_ros.io.parts import RecordingParts
-from phid_ros.io.recording import MEASUREMENT_WINDOW_KEY, Recording
+from phid_ros.io.recording import MEASUREMENT_WINDOW_KEY, Recording, ScenarioInfo
 from phid_ros.model.channels import Frame
 from phid_ros.model.conventions import NS
 from phid_ros.stream.align import StreamHealth
@@ -298,24 +298,15 @@ def scenarios_from_parts(
 def _marked_parts(
     parts: RecordingParts, source: str, thresholds: StepThresholds
 ) -> tuple[list[ScenarioData], list[str]]:
-    """Each marker's window cut out of the parts as they pass (a marker is logged at its window's
-    start, before its samples), then aligned and prepared window by window."""
-    from phid_ros.io.recording import ScenarioInfo, StreamSamples
+    """Each marker's window cut out of the parts as they pass, then aligned and prepared window by
+    window. A marker is usually logged at its window's start, before its samples; any order is
+    valid MCAP, so a marker whose window reaches into parts already passed has the recording
+    walked a second time, every marker known (before, its scenario was dropped)."""
+    from phid_ros.io.recording import StreamSamples
 
-    pieces: dict[int, dict[str, list[tuple[np.ndarray, dict[str, np.ndarray]]]]] = {}
-    markers: list[ScenarioInfo] = []
-    period: dict[str, int] = {}
-    for part in parts:
-        check_part(part, source)
-        markers += part.scenarios
-        for name, stream in part.streams.items():
-            period.setdefault(name, stream.period_ns)
-            for k, m in enumerate(markers):
-                # by mask, in file order: a duplicate or a clock that went back is the aligner's to judge
-                at = np.flatnonzero((stream.t_ns >= m.start_ns) & (stream.t_ns <= m.end_ns))
-                if at.size:
-                    chans = {c: x[at] for c, x in stream.channels.items()}
-                    pieces.setdefault(k, {}).setdefault(name, []).append((stream.t_ns[at], chans))
+    markers, pieces, period, late = _cut_marked(parts, source, None)
+    if late:
+        _, pieces, period, _ = _cut_marked(RecordingParts(parts.path, parts.part_messages), source, markers)
     out: list[ScenarioData] = []
     problems: list[str] = []
     seen: dict[bytes, list[tuple[str, np.ndarray]]] = {}
@@ -338,6 +329,38 @@ def _marked_parts(
     problems[:0] = dropped_notes(health, source)  # in the scenarios' windows, where it matters
     problems += parts.warnings
     return out, problems
+
+
+Pieces = dict[int, dict[str, list[tuple[np.ndarray, dict[str, np.ndarray]]]]]
+
+
+def _cut_marked(
+    parts: RecordingParts, source: str, known: list[ScenarioInfo] | None
+) -> tuple[list[ScenarioInfo], Pieces, dict[str, int], bool]:
+    """One walk: the markers (``known``, or as they come), each one's samples, the streams'
+    periods, and whether a marker came after parts that held samples of its window."""
+    pieces: Pieces = {}
+    markers: list[ScenarioInfo] = list(known) if known is not None else []
+    period: dict[str, int] = {}
+    passed: list[tuple[int, int]] = []  # the stamp span of each part walked
+    late = False
+    for part in parts:
+        check_part(part, source)
+        if known is None:
+            late = late or any(lo <= m.end_ns and m.start_ns <= hi for m in part.scenarios for lo, hi in passed)
+            markers += part.scenarios
+        spans = [(int(st.t_ns.min()), int(st.t_ns.max())) for st in part.streams.values() if st.t_ns.size]
+        if spans:
+            passed.append((min(a for a, _ in spans), max(b for _, b in spans)))
+        for name, stream in part.streams.items():
+            period.setdefault(name, stream.period_ns)
+            for k, m in enumerate(markers):
+                # by mask, in file order: a duplicate or a clock that went back is the aligner's to judge
+                at = np.flatnonzero((stream.t_ns >= m.start_ns) & (stream.t_ns <= m.end_ns))
+                if at.size:
+                    chans = {c: x[at] for c, x in stream.channels.items()}
+                    pieces.setdefault(k, {}).setdefault(name, []).append((stream.t_ns[at], chans))
+    return markers, pieces, period, late
 
 
 def _detected_parts(
