@@ -95,11 +95,14 @@ class ClusterInfo:
     dashboard: str | None  # None: not served (bokeh missing, or a remote cluster without one)
 
 
+LOOPBACK = "127.0.0.1"
+
+
 @contextmanager
 def cluster(scheduler: str | None = None, workers: int = 0, *, dashboard: bool = False) -> Iterator[Client]:
     """A Dask client: on the scheduler at ``scheduler``, or on a new local cluster of ``workers`` processes.
 
-    ``workers`` 0 means one per core. The local cluster's dashboard is served on a free
+    ``workers`` 0 means one per core. The local cluster's dashboard is served on a free loopback
     port when ``dashboard`` is set and bokeh is installed. The client and a local
     cluster are closed on leaving.
     """
@@ -125,7 +128,10 @@ def cluster(scheduler: str | None = None, workers: int = 0, *, dashboard: bool =
                     n_workers=n,
                     threads_per_worker=1,
                     processes=True,
-                    dashboard_address=":0" if serve else None,
+                    # loopback only, scheduler and dashboard: ":0" bound every interface and answered
+                    # on the LAN address while the log printed a loopback URL
+                    host=LOOPBACK,
+                    dashboard_address=f"{LOOPBACK}:0" if serve else None,
                     silence_logs=logging.ERROR,
                 )
             stack.callback(local.close)
