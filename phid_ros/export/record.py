@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -156,6 +157,9 @@ def _undetermined_effect_parameters(diagnosis: Mapping[str, Any] | None) -> set[
     return out
 
 
+MACHINE_ID = re.compile(r"[A-Za-z0-9]{1,2}")
+
+
 def build_record(
     result: Mapping[str, Any],
     *,
@@ -175,6 +179,10 @@ def build_record(
         raise ExportError(f"model must be one of {MODELS}, got {model!r}")
     if not mva > 0:
         raise ExportError(f"the machine base must be positive, got {mva} MVA")
+    if not MACHINE_ID.fullmatch(machine_id):
+        # written between quotes into every record: a newline or a quote would end it early or
+        # inject another (PSS/E and PSLF name a machine at its bus with one or two characters)
+        raise ExportError(f"--id {machine_id!r}: a machine id is one or two letters or digits (PSS/E's, PSLF's)")
     params = result.get("parameters")
     flags = result.get("identifiable")
     if not isinstance(params, Mapping) or not isinstance(flags, Mapping):
