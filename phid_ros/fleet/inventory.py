@@ -147,12 +147,12 @@ def _from_list(path: Path) -> tuple[list[Item], list[str]]:
 
 
 def _read_yaml_list(path: Path) -> list[tuple[str, str]]:
-    import yaml
+    from phid_ros.io.yaml_doc import YamlDocError, load_yaml
 
     try:
-        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except (OSError, yaml.YAMLError) as exc:
-        raise InventoryError(f"{path}: not readable YAML ({str(exc).splitlines()[0]})") from None
+        doc = load_yaml(path, all_text=True)  # unit 0412 and recording 0412.mcap as written
+    except YamlDocError as exc:
+        raise InventoryError(str(exc)) from None
     if isinstance(doc, dict):  # unit: [recordings]
         pairs = []
         for unit, recs in doc.items():

@@ -178,16 +178,17 @@ def _channel(quantity: str, entry: Any, side: str, where: str) -> ChannelSpec:
 
 
 def load_channel_map(path: str | Path) -> ChannelMap:
-    import yaml
+    from phid_ros.io.yaml_doc import YamlDocError, load_yaml
 
     p = Path(path)
     if not p.is_file():
         raise ChannelMapError(f"{p}: no such channel map")
     try:
-        text = p.read_text(encoding="utf-8")
-        doc = json.loads(text) if p.suffix == ".json" else yaml.safe_load(text)
-    except (json.JSONDecodeError, yaml.YAMLError) as exc:
-        raise ChannelMapError(f"{p}: not valid {'JSON' if p.suffix == '.json' else 'YAML'} ({exc})".replace("\n", " "))
+        doc = json.loads(p.read_text(encoding="utf-8")) if p.suffix == ".json" else load_yaml(p)
+    except json.JSONDecodeError as exc:
+        raise ChannelMapError(f"{p}: not valid JSON ({exc})") from None
+    except YamlDocError as exc:
+        raise ChannelMapError(str(exc)) from None
     where = str(p)
     if not isinstance(doc, Mapping) or not isinstance(doc.get("machine"), Mapping):
         raise ChannelMapError(f"{where}: needs a 'machine' section with mva, kv and f_nominal_hz")
