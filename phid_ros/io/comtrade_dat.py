@@ -80,8 +80,27 @@ class Samples:
         return out
 
 
+def _check_channel_count(lines: str, path: Path) -> None:
+    """The .cfg's second line (``TT,##A,##D``) against the channel lines that follow it: a 6-line
+    file declaring two billion channels had the parser build them until memory ran out."""
+    rows = lines.splitlines()
+    if len(rows) < 2:
+        return  # the parser names what is missing
+    counts = rows[1].split(",")
+    try:
+        total = int(counts[0].strip())
+    except ValueError:
+        return
+    if total < 0 or total > len(rows) - 2:
+        raise ComtradeImportError(
+            f"{path}: declares {total} channels on its second line but has {len(rows) - 2} lines after it, "
+            "one per channel: not a readable COMTRADE configuration"
+        )
+
+
 def _cfg_from(lines: str, path: Path) -> Any:  # -> comtrade.Cfg
     comtrade = require("comtrade", "field", f"{path}: reading COMTRADE")
+    _check_channel_count(lines, path)
     cfg = comtrade.Cfg(ignore_warnings=True)
     try:
         with warnings.catch_warnings(), contextlib.redirect_stdout(io.StringIO()):
@@ -145,7 +164,7 @@ def read_samples(cfg: Any, section: DataSection, wanted: Sequence[int], chunk_ro
     return Samples(section.path, stamps, stored, a_b, BINARY_TYPES[ft][1])
 
 
-def _declared_rows(cfg: Any) -> int:
+def declared_rows(cfg: Any) -> int:
     """The last sample number the .cfg's rate lines state (0 when they state none)."""
     rates = cfg.sample_rates
     return int(rates[-1][1]) if rates else 0
@@ -171,7 +190,7 @@ def _read_binary(
                     f"{n_a} analog and {n_s} status channels {section.config.name} declares"
                 )
         rows = size // row.itemsize
-        declared = _declared_rows(cfg)
+        declared = declared_rows(cfg)
         if declared:
             rows = min(rows, declared)  # what the .cfg says the recording holds, as the package reads it
         stamps = np.empty(rows, dtype=np.float64)
@@ -218,7 +237,7 @@ def _read_ascii(
             parts.append(_parse_rows(chunk, columns, section.path, sum(len(x) for x in parts)))
     table = np.concatenate(parts) if parts else np.empty((0, len(columns)))
     del parts
-    declared = _declared_rows(cfg)
+    declared = declared_rows(cfg)
     if declared:
         table = table[:declared]
     stamps = np.ascontiguousarray(table[:, 0])

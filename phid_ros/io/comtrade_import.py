@@ -20,7 +20,7 @@ from scipy.interpolate import CubicSpline
 
 from phid_ros.io import comtrade_dat
 from phid_ros.io.channel_map import WAVEFORMS, ChannelMap, ChannelMapError, check_recording
-from phid_ros.io.comtrade_dat import ComtradeImportError, Samples, open_recording, read_samples
+from phid_ros.io.comtrade_dat import ComtradeImportError, Samples, declared_rows, open_recording, read_samples
 from phid_ros.io.csv_import import ScenarioTable
 from phid_ros.io.field_channels import field_recording, identification_channels, scenario_table
 from phid_ros.io.recording import Recording
@@ -145,6 +145,12 @@ def read_comtrade(path: str | Path, cmap: ChannelMap) -> ScenarioTable:
     if not len(samples):
         raise ComtradeImportError(f"{section.path}: no samples")
     notes = _stamp_notes(p, cfg, samples.stamps)
+    declared = declared_rows(cfg)
+    if declared > len(samples):  # a .dat cut short (a copy interrupted, a disk full on the recorder)
+        notes.append(
+            f"{section.path.name}: holds {len(samples)} of the {declared} samples {p.name} declares "
+            f"({100 * len(samples) / declared:.0f} %): the recording is cut short, imported up to the cut"
+        )
     t_rec, fs = _sample_times(p, cfg, samples)
     waveforms = cmap.has(*WAVEFORMS[:3])
     regrid = _on_cycle_grid(t_rec, len(samples), fs, cmap.f_nominal_hz, notes, p.name) if waveforms else None
