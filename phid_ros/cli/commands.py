@@ -11,7 +11,6 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from rich.console import Console
-from rich.markup import escape
 from rich.table import Table
 
 from phid_ros.cli.common import warn, write_output
@@ -225,7 +224,7 @@ def cmd_info(args: argparse.Namespace, console: Console) -> int:
             warn(w)
     if not any(expected_type(t) for t, _, _ in topics):
         # an output bag (phid replay) or foreign data: the topic table is all there is to show
-        table = Table(title=escape(f"{path} (no sensor streams)"), title_justify="left")
+        table = Table(title=f"{path} (no sensor streams)", title_justify="left")
         for col in ("topic", "type", "messages"):
             table.add_column(col, justify="right" if col == "messages" else "left")
         for topic, msgtype, count in topics:
@@ -240,7 +239,7 @@ def cmd_info(args: argparse.Namespace, console: Console) -> int:
         tally.add(part)
         scenarios += part.scenarios
     metadata = parts.metadata  # the reader's own warnings were said above, with the topic table
-    table = Table(title=escape(f"{path}"), title_justify="left")
+    table = Table(title=f"{path}", title_justify="left")
     for col in ("topic", "type", "messages"):
         table.add_column(col, justify="right" if col == "messages" else "left")
     for topic, msgtype, count in topics:
@@ -269,9 +268,9 @@ def cmd_info(args: argparse.Namespace, console: Console) -> int:
         for sc in scenarios:
             ev = f"{(sc.event_ns - t0) / NS:.3f}" if sc.event_ns else "?"
             sc_table.add_row(
-                escape(sc.name),
-                escape(sc.kind),
-                escape(sc.role),
+                sc.name,
+                sc.kind,
+                sc.role,
                 "yes" if sc.generator_damping else "no",
                 ev,
                 f"{(sc.end_ns - sc.start_ns) / NS:.1f}",
@@ -279,9 +278,7 @@ def cmd_info(args: argparse.Namespace, console: Console) -> int:
         console.print(sc_table)
     _print_determinable(console, tally)
     if metadata:
-        console.print(
-            escape("metadata: " + ", ".join(f"{k}={v}" for k, v in sorted(metadata.items()))), highlight=False
-        )
+        console.print("metadata: " + ", ".join(f"{k}={v}" for k, v in sorted(metadata.items())), highlight=False)
     return 0
 
 

@@ -71,3 +71,13 @@ def finish(
             write_report(report)
         console.print(f"wrote {report}", highlight=False)
     return 0
+
+
+def figure_backend() -> None:
+    """Matplotlib as the reports draw with it: off-screen (Agg), and every text as written. The
+    figures carry the user's names (scenarios, units, files); with mathtext on, ``$_$`` in a
+    scenario's name stopped the report with a parse error. phid's own labels use Unicode, not TeX."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    matplotlib.rcParams["text.parse_math"] = False

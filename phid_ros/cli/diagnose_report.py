@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from phid_ros.cli.common import figure_backend
 from phid_ros.cli.report import STYLE, html_table, png_data_uri
 from phid_ros.cli.tables import CHANNEL_LABELS, axis_label, effect_values_text, fmt, pct, signed_int
 from phid_ros.diagnose.fit import evaluate
@@ -174,9 +175,7 @@ def _gap_section(doc: dict[str, Any]) -> str:
 
 
 def write_report(path: str | Path, d: Diagnosis, doc: dict[str, Any], source: str) -> Path:
-    import matplotlib
-
-    matplotlib.use("Agg")
+    figure_backend()
     before, after = _runs(d)
     worst = _worst(before, d.sigma)
     problems = "".join(f"<li>{html.escape(p)}</li>" for p in doc["problems"]) or "<li>none</li>"

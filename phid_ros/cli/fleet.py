@@ -8,7 +8,6 @@ from pathlib import Path
 from typing import Any
 
 from rich.console import Console
-from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from phid_ros.cli.common import warn
@@ -54,7 +53,7 @@ def run(args: Any, console: Console) -> int:
     def on_row(row: Row, done: int, total: int) -> None:
         what = "ok" if row.status == "ok" else f"FAILED: {row.error}"
         console.print(
-            escape(f"[{done}/{total}] {row.unit} {Path(row.recording).name}: {what} ({row.wall_s:.1f} s)"),
+            f"[{done}/{total}] {row.unit} {Path(row.recording).name}: {what} ({row.wall_s:.1f} s)",
             highlight=False,
             soft_wrap=True,
         )

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from phid_ros.cli.common import figure_backend
 from phid_ros.cli.report import STYLE, html_table, png_data_uri
 from phid_ros.cli.tables import CONCISE_LEGEND, estimate_text
 from phid_ros.fleet.history import Change, Row
@@ -59,9 +60,7 @@ def _figure(rows: list[Row], flagged: list[Change]) -> str:
 
 
 def write_report(path: str | Path, unit: str, rows: list[Row], flagged: list[Change]) -> Path:
-    import matplotlib
-
-    matplotlib.use("Agg")
+    figure_backend()
     head = ["recorded (UTC)"] + [f"{SYMBOLS[n]} ({SPECS_BY_NAME[n].unit})" for n in PARAMETER_NAMES]
     head += ["recording", "note"]
     body = []

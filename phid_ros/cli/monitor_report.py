@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from phid_ros.cli.common import figure_backend
 from phid_ros.cli.report import STYLE, html_table, png_data_uri
 from phid_ros.cli.tables import CONCISE_LEGEND, estimate_text
 from phid_ros.fleet.history import DRIFT_SIGMAS
@@ -217,9 +218,7 @@ def replay_alarms(points: list[ParameterPoint], sigmas: float = DRIFT_SIGMAS) ->
 def write_replay_report(
     path: str | Path, overview: Overview, outputs: Outputs, collector: OutputCollector, source: str
 ) -> Path:
-    import matplotlib
-
-    matplotlib.use("Agg")
+    figure_backend()
     start = overview.span_ns()[0]
     usable = {w.event.event_id: w.usable for w in outputs.windows}
     events = [(e.kind, (e.inception_ns - start) / NS, usable.get(e.event_id, False)) for e in outputs.events]
@@ -288,11 +287,9 @@ def write_track_report(
     notes: Sequence[str],
     settings: str,
 ) -> Path:
-    import matplotlib
-
     from phid_ros.stream.tracker import TRACKED
 
-    matplotlib.use("Agg")
+    figure_backend()
     start = overview.span_ns()[0]
     seen: dict[int, str] = {}
     for p in track:

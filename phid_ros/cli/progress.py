@@ -99,9 +99,13 @@ class ProgressLine:
         from rich.console import Console
         from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
-        console = Console(file=self.stream)
+        console = Console(file=self.stream, markup=False)  # the step names the user's files
         self._rich = Progress(
-            SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(), console=console, transient=True
+            SpinnerColumn(),
+            TextColumn("{task.description}", markup=False),
+            TimeElapsedColumn(),
+            console=console,
+            transient=True,
         )
         self._rich.start()
         self._task = self._rich.add_task(self._step, total=None)

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from phid_ros.cli.common import figure_backend
 from phid_ros.cli.tables import pct
 from phid_ros.ident.pipeline import IdentificationResult
 from phid_ros.ident.scenario import KINDS as KIND_ORDER
@@ -255,9 +256,7 @@ def _validation_table(res: IdentificationResult) -> str:
 
 
 def write_report(path: str | Path, res: IdentificationResult, truth: GeneratorParameters | None, source: str) -> Path:
-    import matplotlib
-
-    matplotlib.use("Agg")
+    figure_backend()
     figs = []
     f1 = _scenario_figure(res)
     if f1:

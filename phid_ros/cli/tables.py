@@ -16,23 +16,25 @@ from typing import Any
 from rich import box
 from rich.cells import cell_len
 from rich.console import Console
-from rich.markup import escape
 from rich.table import Table
-from rich.text import Text
 
 LOG_WIDTH = 80  # a console that is not a terminal (a log, a pipe) is this wide
 WIDE_WIDTH = 400  # --wide: room for every column
 
 
 def make_console(*, wide: bool = False) -> Console:
-    """The command's console: the terminal's width, 80 columns in a file, unlimited with --wide."""
+    """The command's console: the terminal's width, 80 columns in a file, unlimited with --wide.
+
+    Markup is off: what phid prints holds the user's names (paths, units, scenarios), and rich
+    read ``x [/old]/u.json`` as a closing tag (MarkupError after the output was written) and
+    ``[unit3]`` as a style (gone from the line). phid's own text uses styles, not markup."""
     import sys
 
     if wide:
-        return Console(width=WIDE_WIDTH, soft_wrap=True)
+        return Console(width=WIDE_WIDTH, soft_wrap=True, markup=False)
     if sys.stdout.isatty():
-        return Console()
-    return Console(width=LOG_WIDTH, soft_wrap=True)
+        return Console(markup=False)
+    return Console(width=LOG_WIDTH, soft_wrap=True, markup=False)
 
 
 @dataclass(frozen=True)
@@ -57,7 +59,7 @@ def _build(title: str, cols: Sequence[Col], rows: Sequence[Sequence[str]], shown
             min_width=_longest_word(cols, rows, i) if c.text and not c.breakable else None,
         )
     for r in rows:
-        table.add_row(*(escape(r[i]) for i in shown))
+        table.add_row(*(r[i] for i in shown))
     return table
 
 
@@ -77,7 +79,7 @@ def _unwrapped_width(cols: Sequence[Col], rows: Sequence[Sequence[str]], shown: 
     """What rich measures for :func:`_build`'s table of columns that never wrap: each column its widest
     cell plus one space either side, one separator between columns (a test holds the two equal).
     Why not rich's own measure: fitting and folding a table measured it a dozen times, 3 ms each."""
-    widths = [max([Text.from_markup(cols[i].header).cell_len] + [cell_len(r[i]) for r in rows]) for i in shown]
+    widths = [max([cell_len(cols[i].header)] + [cell_len(r[i]) for r in rows]) for i in shown]
     return sum(w + 2 for w in widths) + len(widths) - 1
 
 
@@ -104,12 +106,12 @@ def print_table(
     parts = _fold(console, cols, rows, shown)
     for k, part in enumerate(parts, start=1):
         suffix = f" (part {k} of {len(parts)})" if len(parts) > 1 else ""
-        console.print(_build(escape(title) + suffix, cols, rows, part))
+        console.print(_build(title + suffix, cols, rows, part))
     notes = [legend] if legend else []
     if dropped:
         notes.append(f"not shown at {console.width} columns: {', '.join(dropped)} (--wide shows them)")
     for n in notes:
-        console.print(escape(n), highlight=False, style="dim")
+        console.print(n, highlight=False, style="dim")
     return dropped
 
 

@@ -8,8 +8,6 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from rich.markup import escape
-
 from phid_ros.cli.common import warn
 from phid_ros.cli.identify import load_parameters
 from phid_ros.cli.monitor_report import HealthLog
@@ -148,7 +146,7 @@ def run(args: Any, console: Any) -> int:
         first = next(part_iter)
     start = min(int(s.t_ns[0]) for s in first.streams.values() if len(s))
     console.print(f"sliding-window tracking ({args.window:g} s window, {args.hop:g} s hop)", highlight=False)
-    console.print(escape(CONCISE_LEGEND), style="dim", highlight=False)
+    console.print(CONCISE_LEGEND, style="dim", highlight=False)
     console.print(f"{'t s':>7} " + " ".join(f"{SYMBOLS[n]:>11}" for n in TRACKED), highlight=False)
     overview, health = Overview(), HealthTally(args.hop)
 

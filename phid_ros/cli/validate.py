@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 from rich.console import Console
 
-from phid_ros.cli.common import provenance
+from phid_ros.cli.common import figure_backend, provenance
 from phid_ros.cli.identify import load_input, step_thresholds
 from phid_ros.cli.progress import ProgressLine
 from phid_ros.cli.report import STYLE, html_table, png_data_uri
@@ -126,9 +126,7 @@ def _overlay(s: ScenarioCheck) -> str:
 
 
 def write_report(path: str | Path, result: UnitValidation, source: str) -> Path:
-    import matplotlib
-
-    matplotlib.use("Agg")
+    figure_backend()
     rows = [[s.scenario, s.kind] + [_verdict(c) for c in s.checks] for s in result.scenarios]
     width = max((len(r) for r in rows), default=2)
     rows = [r + [""] * (width - len(r)) for r in rows]
