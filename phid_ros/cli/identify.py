@@ -134,7 +134,7 @@ def print_controls(console: Console, found: dict[str, ControlFit | str]) -> None
 
 
 def print_validation(console: Console, res: IdentificationResult) -> None:
-    if res.validation is None:
+    if res.validation is None or not res.validation.scenarios:
         return
     v = res.validation
     cols = [

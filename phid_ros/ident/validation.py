@@ -236,6 +236,9 @@ def _metrics(name: str, against: str, t: Trajectories, col: int, ref: dict[str, 
     )
 
 
+PLAY_IN_CHANNELS = frozenset(("v_t", "theta_t", "p_m", "v_f", "delta", "omega", "p_e", "q_e"))
+
+
 def validate(
     scenarios: Sequence[ScenarioData],
     params: GeneratorParameters,
@@ -254,9 +257,20 @@ def validate(
     if not chosen:
         chosen = list(scenarios)
         problems.append("no validation scenarios in the input: validated on the identification scenarios")
+    # the play-in is driven by V_t, theta_t, P_m, E_fd and scored on delta, omega, P, Q: a scenario
+    # without one of them is not validated (on NaN channels it counted as a MOD-026 failure, and a
+    # model held from a datasheet beside a trend log was withdrawn for it)
+    lacking = {s.name: sorted(PLAY_IN_CHANNELS & s.absent) for s in chosen}
+    if any(lacking.values()):
+        chosen = [s for s in chosen if not lacking[s.name]]
+        absent = sorted({c for cs in lacking.values() for c in cs})
+        problems.append(
+            f"validation: {sum(map(bool, lacking.values()))} scenario(s) not played in: not recorded: "
+            f"{', '.join(absent)} (the play-in needs {', '.join(sorted(PLAY_IN_CHANNELS))})"
+        )
     sets = [params] + ([reference] if reference is not None else [])
     vs_ref, vs_meas = [], []
-    for s, traj in zip(chosen, play_in(chosen, sets, f_nominal_hz)):
+    for s, traj in zip(chosen, play_in(chosen, sets, f_nominal_hz) if chosen else []):
         idx = np.arange(0, s.n, play_in_stride(s.dt))
         meas = {"delta": s["delta"][idx], "omega": s["omega"][idx], "p_e": s["p_e"][idx], "q_e": s["q_e"][idx]}
         vs_meas.append(_metrics(s.name, "measurement", traj, 0, meas))

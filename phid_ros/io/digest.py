@@ -45,6 +45,21 @@ def content_hash(path: Path) -> str:
     return h.hexdigest()
 
 
+def bytes_hash(path: Path) -> str:
+    """SHA-256 over the recording's bytes alone: a single file copied under another name hashes
+    alike (:func:`content_hash` names the file, so a copy's differs)."""
+    h = hashlib.sha256()
+    for f in recording_files(path):
+        try:
+            with f.open("rb") as fh:
+                while chunk := fh.read(_CHUNK):
+                    h.update(chunk)
+        except OSError:
+            h.update(f"<missing {f.name}>".encode())
+        h.update(b"\0")
+    return h.hexdigest()
+
+
 def stat_key(path: Path) -> str:
     """Size and modification time of every file: a rehash is needed only when this changes."""
     parts = []
@@ -64,7 +79,7 @@ def distinct_recordings(paths: list[str]) -> tuple[list[str], list[str]]:
     first: dict[str, str] = {}
     kept, notes = [], []
     for p in paths:
-        digest = content_hash(Path(p))
+        digest = bytes_hash(Path(p))
         if digest in first:
             notes.append(f"{p}: the same recording as {first[digest]} (same content); counted once")
             continue

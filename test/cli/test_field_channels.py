@@ -60,3 +60,82 @@ def test_two_days_two_imports_one_identification(folder, capsys) -> None:
     assert doc["input"] == f"{day1} + {day2}" and len(doc["input_sha256"]) == 64
     assert [e["name"] for e in doc["events"]][:2] == ["day1/noload", "day2/step_0"]
     assert doc["parameters"]["X_d_prime"] == pytest.approx(TABLE1.X_d_prime, rel=0.03)
+
+
+@pytest.fixture(scope="module")
+def trend_bag(folder):
+    d, paths, cmap, _ = folder
+    bag = d / "hostile.mcap"
+    assert main(["import-pmu", *map(str, paths), "--map", str(cmap), "--out", str(bag)]) == 0
+    return bag
+
+
+def test_a_recording_given_twice_counts_once(folder, trend_bag, capsys) -> None:
+    """``phid identify A A`` (or a copy under another name) counted as twice the data: D went from
+    withheld to identified and every std shrank by √2. Now the second is left out, by name."""
+    d = folder[0]
+    copy = d / "copy.mcap"
+    copy.write_bytes(trend_bag.read_bytes())
+    once, twice = d / "once.json", d / "twice.json"
+    assert main(["identify", str(trend_bag), "--fix", f"X_q={TABLE1.X_q}", "--json", str(once)]) == 0
+    capsys.readouterr()
+    assert main(["identify", str(trend_bag), str(copy), "--fix", f"X_q={TABLE1.X_q}", "--json", str(twice)]) == 0
+    assert f"{copy}: the same recording as {trend_bag} (same content); counted once" in capsys.readouterr().err
+    a, b = json.loads(once.read_text()), json.loads(twice.read_text())
+    assert b["uncertainty"] == a["uncertainty"] and b["identifiable"] == a["identifiable"]
+
+
+def test_an_estimate_outside_the_users_bounds_is_not_published_as_identified(folder, trend_bag) -> None:
+    d = folder[0]
+    out = d / "bounded.json"
+    args = ["identify", str(trend_bag), "--fix", f"X_q={TABLE1.X_q}", "--bounds", "X_d=2.6:3.0", "--json", str(out)]
+    assert main(args) == 0
+    doc = json.loads(out.read_text())
+    assert doc["parameters"]["X_d"] == pytest.approx(TABLE1.X_d, rel=0.01)  # what the data say, below 2.6
+    assert doc["identifiable"]["X_d"] is False
+    assert "lies outside the bounds 2.6:3 (--bounds)" in " ".join(doc["problems"])
+    assert main(["identify", str(trend_bag), "--fix", "X_q=2.41", "--fix", "X_q=1.0"]) == 2
+
+
+def test_datasheet_values_held_beside_a_trend_log_keep_what_it_determines(folder, trend_bag, capsys) -> None:
+    """Holding H, D and the q axis from a datasheet made the internal validation play in NaN
+    channels (no rotor angle, speed or P_m), count that as a MOD-026 failure on every event and
+    withdraw X_d, X'_d, T'_d0 that were determined. Now those events are not played in, said so."""
+    d = folder[0]
+    out = d / "held.json"
+    t = TABLE1
+    held = [f"--fix={n}={getattr(t, n)}" for n in ("X_q", "H", "D", "X_q_prime", "T_q0_prime")]
+    assert main(["identify", str(trend_bag), *held, "--json", str(out)]) == 0
+    doc = json.loads(out.read_text())
+    assert all(doc["identifiable"].values()), doc["identifiable"]
+    assert doc["parameters"]["X_d"] == pytest.approx(t.X_d, rel=0.01)
+    assert "not played in: not recorded: delta, omega, p_m" in capsys.readouterr().err
+
+
+def test_a_csv_set_import_reads_back_and_never_replaces_a_recorders_file(folder, capsys) -> None:
+    """``import-pmu --out DIR/manifest.json`` into the recordings' own folder overwrote the raw
+    STEM.csv with phid's converted one (exit 0); and phid's own CSV set of a trend log was refused
+    by identify ("column 'i_d' is nan"). Now the first is refused before anything is written and
+    the second reads back."""
+    d, paths, cmap, _ = folder
+    raw = {p: p.read_bytes() for p in paths}
+    assert main(["import-pmu", *map(str, paths), "--map", str(cmap), "--out", str(d / "manifest.json")]) == 2
+    assert "already exists; a CSV set is never written over a file" in capsys.readouterr().err
+    assert all(p.read_bytes() == b for p, b in raw.items()) and not (d / "manifest.json").exists()
+    manifest = d / "set" / "manifest.json"
+    assert main(["import-pmu", *map(str, paths), "--map", str(cmap), "--out", str(manifest)]) == 0
+    out = d / "from_csv.json"
+    assert main(["identify", str(manifest), "--fix", f"X_q={TABLE1.X_q}", "--json", str(out)]) == 0
+    assert json.loads(out.read_text())["parameters"]["T_d0_prime"] == pytest.approx(TABLE1.T_d0_prime, rel=0.01)
+
+
+def test_recordings_on_different_bases_are_refused_by_name(folder, trend_bag, capsys) -> None:
+    d, paths, _, stated = folder
+    other = d / "other_base.yaml"
+    other.write_text(stated.read_text().replace("mva: 1000", "mva: 500"))
+    half = d / "half.mcap"
+    assert main(["import-pmu", str(paths[1]), "--map", str(other), "--out", str(half)]) == 0
+    capsys.readouterr()
+    assert main(["identify", str(trend_bag), str(half), "--fix", f"X_q={TABLE1.X_q}"]) == 2
+    err = capsys.readouterr().err
+    assert "per unit on different bases" in err and "1000 MVA" in err and "500 MVA" in err

@@ -176,3 +176,62 @@ def test_a_spreadsheet_export_reads_as_the_plain_one(tmp_path):
     for path in (bom, euro):
         got, extra = read_scenario_csv(path)
         assert extra == [] and all(np.array_equal(got[c], want[c]) for c in CSV_COLUMNS), path
+
+
+def test_a_decimal_comma_export_with_thousands_points_reads_whole_numbers(tmp_path):
+    """A decimal-comma locale writes 802.637,5 for 802637.5: every ',' became '.' and the '.'
+    stayed, so P was read 1000x small (X_d +81 % published as identified). Now the point groups
+    thousands, and a point that cannot (1.5 beside 0,5) is refused by line and field."""
+    from phid_ros.io.csv_import import CSV_COLUMNS, read_scenario_csv
+
+    t = np.arange(5) * 1e-3
+    rows = [[ti] + [802637.5 + k if k % 2 else 802637 + k for k in range(len(CSV_COLUMNS) - 1)] for ti in t]
+
+    def grouped(v: float) -> str:  # 802.637,5 and 802.637 (a whole kW: no comma at all)
+        return f"{v:,.{1 if v % 1 else 0}f}".replace(",", " ").replace(".", ",").replace(" ", ".")
+
+    euro = tmp_path / "euro.csv"
+    body = "\n".join(";".join([f"{r[0]:.6g}".replace(".", ","), *map(grouped, r[1:])]) for r in rows)
+    euro.write_text(";".join(CSV_COLUMNS) + "\n" + body + "\n")
+    got, _ = read_scenario_csv(euro)
+    for k, c in enumerate(CSV_COLUMNS[1:]):
+        assert got[c][0] == (802637.5 + k if k % 2 else 802637 + k), c
+    assert got["t"][3] == pytest.approx(3e-3)
+    lines = euro.read_text().splitlines()
+    lines[3] = lines[3].replace("802.638,5", "1.5", 1)
+    euro.write_text("\n".join(lines) + "\n")
+    with pytest.raises(CsvImportError, match=r"euro\.csv: line 4, field \d+: '1\.5' has a point that does not group"):
+        read_scenario_csv(euro)
+
+
+def test_a_channel_nan_throughout_is_not_recorded_and_a_gap_in_one_is_refused(tmp_path):
+    """phid writes a partial-channel import's CSV set with NaN for what the recorder lacked
+    (a trend log has no i_d): its own output was refused ("column 'i_d' is nan"). A channel NaN in
+    every row is read as not recorded; a channel with values and a NaN is refused as before."""
+    from phid_ros.io.csv_import import CSV_COLUMNS, read_scenario_csv
+
+    rows = [[k * 1e-3] + [0.5] * (len(CSV_COLUMNS) - 1) for k in range(5)]
+    i_d = CSV_COLUMNS.index("i_d")
+    for r in rows:
+        r[i_d] = float("nan")
+    path = tmp_path / "partial.csv"
+    path.write_text(",".join(CSV_COLUMNS) + "\n" + "\n".join(",".join(f"{v:g}" for v in r) for r in rows) + "\n")
+    got, _ = read_scenario_csv(path)
+    assert np.isnan(got["i_d"]).all() and (got["v_t"] == 0.5).all()
+    rows[2][i_d] = 0.1
+    path.write_text(",".join(CSV_COLUMNS) + "\n" + "\n".join(",".join(f"{v:g}" for v in r) for r in rows) + "\n")
+    with pytest.raises(CsvImportError, match=r"line 2, column 'i_d' is nan"):
+        read_scenario_csv(path)
+
+
+def test_a_compressed_csv_that_inflates_past_the_bound_is_refused(tmp_path, monkeypatch):
+    """A 650 KB .csv.gz inflated without bound; now one line, before it is held."""
+    from phid_ros.io import csv_import
+
+    monkeypatch.setattr(csv_import, "MAX_SCENARIO_CSV_BYTES", 1000)
+    path = tmp_path / "bomb.csv.gz"
+    with gzip.open(path, "wt") as fh:
+        fh.write(",".join(CSV_COLUMNS) + "\n" + "0,0,0,0,0,0,0,0,0,0,0\n" * 200)
+    assert path.stat().st_size < 200
+    with pytest.raises(CsvImportError, match=r"bomb\.csv\.gz: more than 0 MB of text in one scenario"):
+        csv_import.read_scenario_csv(path)

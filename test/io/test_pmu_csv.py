@@ -154,3 +154,35 @@ def test_an_export_without_two_reports_is_refused(export, tmp_path, reports) -> 
     (tmp_path / "S09.csv").write_text("\n".join(path.read_text().splitlines()[: 1 + reports]) + "\n")
     with pytest.raises(PmuImportError, match=r"S09\.csv: needs a header row and at least two reports"):
         import_pmu_csv([tmp_path / "S09.csv"], cmap)
+
+
+def test_a_trend_log_with_thousands_points_and_a_one_digit_hour_reads_as_the_plain_export(export, tmp_path) -> None:
+    """A decimal-comma trend log writes P in kW as 802.637 (802 637 kW) and its times of day as
+    9:00:00.0000000. Before: every ',' became '.', the '.' stayed, P_m was read 1000x small
+    without a word (X_d +81 % published as identified), and the one-digit hour was "not a time"."""
+    path, cmap, _ = export
+    plain = import_pmu_csv([path], cmap)
+    rows = path.read_text().splitlines()
+    head = rows[0].split(",")
+    k_pm = head.index("PMECH")
+    out = [";".join(["Date", "Time", *head[1:]])]
+    for k, row in enumerate(rows[1:]):
+        secs = 9 * 3600 + 0.01 * k
+        clock = f"{int(secs // 3600)}:{int(secs % 3600 // 60):02d}:{secs % 60:010.7f}"  # 9:00:00.0000000
+        fields = row.split(",")
+        fields[k_pm] = f"{float(fields[k_pm]) * 1e3:,.3f}".replace(",", " ").replace(".", ",").replace(" ", ".")
+        cells = [f.replace(".", ",") if j != k_pm else f for j, f in enumerate(fields)]
+        out.append(";".join(["20.09.2015", clock, *cells[1:]]))
+    assert "9:00:00.0000000" in out[1] and "." in out[1].split(";")[k_pm + 1]
+    log = tmp_path / "S09.csv"
+    log.write_text("\n".join(out) + "\n")
+    (tmp_path / "map.yaml").write_text(
+        MAP.replace("time: Timestamp", "time: Time\ndate: Date").replace("{name: PMECH, unit: MW}", "{name: PMECH, unit: kW}")
+    )
+    rec = import_pmu_csv([log], load_channel_map(tmp_path / "map.yaml"))
+    p_m = rec.streams["encoder"].channels["p_m"]
+    assert np.allclose(p_m, plain.streams["encoder"].channels["p_m"], rtol=1e-6), float(np.nanmax(p_m))
+    out[5] = out[5].replace(out[5].split(";")[k_pm + 1], "802.63", 1)  # a point that groups nothing
+    log.write_text("\n".join(out) + "\n")
+    with pytest.raises(PmuImportError, match=r"line 6, column 'PMECH': '802\.63' has a point that does not group"):
+        import_pmu_csv([log], load_channel_map(tmp_path / "map.yaml"))
