@@ -137,6 +137,12 @@ class ControlModel(ABC):
         return dict(values)
 
     @classmethod
+    def recorded(cls, values: Mapping[str, float]) -> dict[str, float]:
+        """A record's constants as the simulation takes them: as written (a model whose record
+        can carry what phid does not simulate refuses it here, naming the constants)."""
+        return dict(values)
+
+    @classmethod
     def defaults(cls) -> dict[str, float]:
         return {p.name: p.default for p in cls.parameters}
 
@@ -348,9 +354,12 @@ class ESST5B(ControlModel):
 
 @register
 class IEEEG1(ControlModel):
-    """IEEE type 1 steam turbine-governor (PSS/E IEEEG1), one reheat: the speed deviation through
-    K, the servo 1/(1 + sT_3) to the valve, the steam chest 1/(1 + sT_4) and the reheater
-    1/(1 + sT_5), the high- and low-pressure shares K_1 + K_3 = 1 (the other stages held out)."""
+    """IEEE type 1 steam turbine-governor (PSS/E IEEEG1): the speed deviation through
+    K (1 + sT_2)/(1 + sT_1), the servo 1/(1 + sT_3) to the valve, then the steam chest 1/(1 + sT_4),
+    the reheater 1/(1 + sT_5), the crossover 1/(1 + sT_6) and 1/(1 + sT_7) in series, each stage's
+    share K_1, K_3, K_5, K_7 of this shaft's power. A fit has one reheat stage (K_1 + K_3 = 1, the
+    stages marked "held out" at 0: short tests do not separate them); a record's are all simulated,
+    and the second shaft's shares (K_2, K_4, K_6, K_8), which drive another machine, are refused."""
 
     name = "IEEEG1"
     kind = "governor"
@@ -358,8 +367,8 @@ class IEEEG1(ControlModel):
     description = "IEEE type 1 steam turbine-governor, one reheat stage (PSS/E IEEEG1)"
     parameters = (
         ControlParameter("K", "pu", 20.0, 2.0, 100.0, "governor gain (1/droop)"),
-        ControlParameter("T1", "s", 0.0, 0.0, 0.0, "governor lag (held out)", held=True),
-        ControlParameter("T2", "s", 0.0, 0.0, 0.0, "governor lead (held out)", held=True),
+        ControlParameter("T1", "s", 0.0, 0.0, 0.0, "governor lag (held out of a fit)", held=True),
+        ControlParameter("T2", "s", 0.0, 0.0, 0.0, "governor lead (held out of a fit)", held=True),
         ControlParameter("T3", "s", 0.1, 0.02, 2.0, "servo time constant"),
         ControlParameter("UO", "pu/s", 1.0, 0.01, 5.0, "maximum valve opening rate", limit=True),
         ControlParameter("UC", "pu/s", -1.0, -5.0, -0.01, "maximum valve closing rate", limit=True),
@@ -371,7 +380,7 @@ class IEEEG1(ControlModel):
         ControlParameter("T5", "s", 7.0, 0.5, 30.0, "reheater time constant"),
         ControlParameter("K3", "", 0.7, 0.02, 0.98, "low-pressure share (1 - K1)", held=True),
         ControlParameter("K4", "", 0.0, 0.0, 0.0, "(held out)", held=True),
-        ControlParameter("T6", "s", 0.0, 0.0, 0.0, "crossover time constant (held out)", held=True),
+        ControlParameter("T6", "s", 0.0, 0.0, 0.0, "crossover time constant (held out of a fit)", held=True),
         ControlParameter("K5", "", 0.0, 0.0, 0.0, "(held out)", held=True),
         ControlParameter("K6", "", 0.0, 0.0, 0.0, "(held out)", held=True),
         ControlParameter("T7", "s", 0.0, 0.0, 0.0, "(held out)", held=True),
@@ -403,12 +412,37 @@ class IEEEG1(ControlModel):
         return {**values, "T3": servo, "T4": chest, "K3": 1.0 - values["K1"]}
 
     @classmethod
+    def recorded(cls, values: Mapping[str, float]) -> dict[str, float]:
+        # every stage a record gives is simulated; the shares of a second (low-pressure) shaft
+        # drive another machine, which a single unit's validation does not have
+        second = {k: values[k] for k in ("K2", "K4", "K6", "K8") if values[k] != 0.0}
+        if second:
+            named = ", ".join(f"{k} = {v:g}" for k, v in second.items())
+            raise ValueError(
+                f"a second shaft's shares ({named}) drive another machine, which phid does not simulate: "
+                "a cross-compound unit is not validated here"
+            )
+        negative = [k for k in ("T1", "T2", "T6", "T7") if values[k] < 0.0]
+        if negative:
+            raise ValueError(f"{', '.join(negative)} negative: a time constant is 0 (no lag) or positive")
+        if values["T2"] > 0.0 and values["T1"] <= 0.0:
+            raise ValueError(f"T2 = {values['T2']:g} s with T1 = 0: the governor's lead needs a lag")
+        return dict(values)
+
+    @classmethod
     def response(cls, values: Mapping[str, float], x: ControlInputs, reference: float) -> Array:
         v = values
-        # the load reference in pu power: the valve moves by it in steady state
-        valve = lag(reference * x.reference_step - v["K"] * x.speed, v["T3"], x.dt)
-        chest = lag(valve, v["T4"], x.dt)
-        return v["K1"] * chest + (1.0 - v["K1"]) * lag(chest, v["T5"], x.dt)
+        # the load reference in pu power: the valve moves by it in steady state; the speed through
+        # the governor's K (1 + sT_2)/(1 + sT_1), the servo, then the steam chest, the reheater, the
+        # crossover and the last stage in series, each stage's share of the shaft's power
+        speed = lead_lag(v["K"] * x.speed, v["T2"], v["T1"], x.dt)
+        valve = lag(reference * x.reference_step - speed, v["T3"], x.dt)
+        out = np.zeros_like(valve)
+        stage = valve
+        for t_stage, share in (("T4", "K1"), ("T5", "K3"), ("T6", "K5"), ("T7", "K7")):
+            stage = lag(stage, v[t_stage], x.dt)
+            out += v[share] * stage
+        return out
 
 
 @register

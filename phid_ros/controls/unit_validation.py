@@ -273,4 +273,4 @@ def _pre_event_level(s: ScenarioData, channel: str, params: GeneratorParameters)
 
 def control_of(model_name: str, values: dict[str, float]) -> Control:
     model = MODELS[model_name]
-    return Control(model, model.completed({**model.defaults(), **values}))
+    return Control(model, model.recorded({**model.defaults(), **values}))

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import re
 import shlex
-from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -185,10 +184,9 @@ def read_unit(path: str | Path, bus: int | None = None, machine_id: str | None =
                 raise DyrError(
                     f"{p}:{r.line}: {r.model} {q.name} = {values[q.name]:g} is outside {q.low:g}..{q.high:g} {q.unit}"
                 )
+        try:
+            model.recorded(values)  # what the simulation cannot take of the record, refused by name
+        except ValueError as exc:
+            raise DyrError(f"{p}:{r.line}: {r.model}: {exc}") from None
         unit.controls[model.kind] = ControlSettings(r.model, model.kind, values)
     return unit
-
-
-def control_values(settings: ControlSettings) -> Mapping[str, float]:
-    """The record's constants as the model's small-signal path takes them (its completion applied)."""
-    return CONTROL_MODELS[settings.model].completed(settings.values)

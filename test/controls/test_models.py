@@ -72,3 +72,56 @@ def test_every_model_settles_at_its_steady_state_gain_and_follows_its_reference_
     x = replace(inputs(**long, speed=0.001), p_m0=0.8)
     assert model.response(v, x, 0.0)[-1] == pytest.approx(-0.001 * GOVERNOR_GAIN[name](v), rel=1e-3)
     assert model.response(v, replace(inputs(**long), p_m0=0.8), 0.1)[-1] == pytest.approx(0.1, rel=1e-3)
+
+
+def test_ieeeg1_simulates_every_stage_a_record_gives() -> None:
+    """``phid validate`` of an IEEEG1 record dropped T1, T2, T6, T7, K5, K7 and reset K3 to 1 - K1,
+    and so checked another governor. Every stage of this shaft is now simulated: the response to a
+    speed step is the record's whole transfer function (scipy's, not ours), and the shares as written."""
+    from scipy.signal import lsim
+
+    from phid_ros.controls.models import IEEEG1
+    from phid_ros.controls.unit_validation import control_of
+
+    v = {**IEEEG1.defaults(), "K": 20.0, "T1": 0.2, "T2": 1.0, "T3": 0.1, "T4": 0.3, "T5": 5.0, "T6": 0.5, "T7": 2.0}
+    v.update({"K1": 0.3, "K3": 0.4, "K5": 0.2, "K7": 0.1})
+    assert control_of("IEEEG1", v).values["K3"] == 0.4  # as written, not 1 - K1
+    x = inputs(n=30_000, speed=0.001)
+    p = IEEEG1.response(v, x, 0.0)
+    t = np.arange(len(x.speed)) * x.dt
+    s = np.polynomial.Polynomial([0.0, 1.0])
+    lag = {k: 1 + v[k] * s for k in ("T3", "T4", "T5", "T6", "T7")}
+    den = (1 + v["T1"] * s) * lag["T3"] * lag["T4"] * lag["T5"] * lag["T6"] * lag["T7"]
+    stages = (
+        v["K1"] * lag["T5"] * lag["T6"] * lag["T7"]
+        + v["K3"] * lag["T6"] * lag["T7"]
+        + v["K5"] * lag["T7"]
+        + v["K7"] * 1
+    )
+    num = -v["K"] * (1 + v["T2"] * s) * stages
+    _, want, _ = lsim((num.coef[::-1], den.coef[::-1]), x.speed, t)
+    assert np.max(np.abs(p - want)) < 1e-3 * np.max(np.abs(want)), float(np.max(np.abs(p - want)))
+    assert p[-1] == pytest.approx(-v["K"] * 0.001, rel=5e-3)  # all four shares, after 29 s (T5 5 s)
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        ({"K2": 0.2}, r"a second shaft's shares \(K2 = 0\.2\) drive another machine"),
+        ({"T1": 0.0, "T2": 1.0}, r"T2 = 1 s with T1 = 0"),
+        ({"T6": -0.5}, r"T6 negative"),
+    ],
+)
+def test_an_ieeeg1_record_phid_cannot_simulate_is_refused_by_name(tmp_path, edit, message) -> None:
+    from phid_ros.export.dyr_read import DyrError, read_unit
+
+    values = {"K": 20.0, "T1": 0.2, "T2": 0.0, "T3": 0.1, "UO": 1.0, "UC": -1.0, "PMAX": 1.0, "PMIN": 0.0}
+    values.update({"T4": 0.3, "K1": 0.3, "K2": 0.0, "T5": 7.0, "K3": 0.7, "K4": 0.0, "T6": 0.0, "K5": 0.0})
+    values.update({"K6": 0.0, "T7": 0.0, "K7": 0.0, "K8": 0.0, **edit})
+    path = tmp_path / "unit.dyr"
+    path.write_text(
+        "1 'GENSAL' 1 5.0 0.05 0.05 3.0 0.0 1.1 0.7 0.3 0.22 0.15 0.0 0.0 /\n"
+        "1 'IEEEG1' 1 0 0 " + " ".join(f"{x:g}" for x in values.values()) + " /\n"
+    )
+    with pytest.raises(DyrError, match=rf"unit\.dyr:2: IEEEG1: {message}"):
+        read_unit(path)
