@@ -26,6 +26,7 @@ from phid_ros.io.phasors import (
     moving_average,
     phasor_piece,
     samples_per_cycle,
+    sequence_problem,
     system_frequency,
 )
 from phid_ros.io.recording import MEASUREMENT_WINDOW_KEY, Recording
@@ -163,6 +164,9 @@ def _three_phase(
     piece = slice(lo, hi + n - 1)
     try:
         xa, xb, xc = (_pu(cmap, recorded, q, piece) for q in phases)
+        if lo == 0 and (problem := sequence_problem(xa, xb, xc, n)) is not None:
+            names = ", ".join(f"{q}: {cmap.channels[q].name}" for q in phases)
+            raise ChannelMapError(f"{source}: {names}: {problem}")
         p, f = phasor_piece(xa, xb, xc, fs, cmap.f_nominal_hz, n, lo)
     except PhasorError as exc:
         raise ChannelMapError(f"{source}: {exc}") from None

@@ -67,6 +67,36 @@ def positive_sequence(xa: Array, xb: Array, xc: Array, n: int, first: int = 0) -
     return (sliding_dft(xa, n, first) + A_OP * sliding_dft(xb, n, first) + A_OP**2 * sliding_dft(xc, n, first)) / 3.0
 
 
+SEQUENCE_JUDGED_PU = 0.05  # phases smaller than this (per unit) are not judged
+
+
+def sequence_problem(xa: Array, xb: Array, xc: Array, n: int) -> str | None:
+    """What the first cycle of three phases says of how they were mapped, or None: a negative
+    sequence above the positive one is B and C swapped (the positive sequence then reads the
+    voltage as a small, unbalanced remainder), and a zero sequence the size of the phases is one
+    waveform on several phases. Both made X_d -3.6e4 with no word before."""
+    if min(len(xa), len(xb), len(xc)) < n:
+        return None
+    a, b, c = (complex(sliding_dft(np.asarray(x[:n], float), n)[0]) for x in (xa, xb, xc))
+    size = max(abs(a), abs(b), abs(c))
+    if not np.isfinite(size) or size < SEQUENCE_JUDGED_PU:
+        return None  # a current at no load is noise: its sequences say nothing of the map
+    zero = abs(a + b + c) / 3.0
+    positive = abs(a + A_OP * b + A_OP**2 * c) / 3.0
+    negative = abs(a + A_OP**2 * b + A_OP * c) / 3.0
+    if zero > 0.8 * size:
+        return (
+            f"the three phases carry one waveform (zero sequence {zero / size:.2f} of a phase): "
+            "one channel mapped to several phases?"
+        )
+    if negative > positive:
+        return (
+            f"negative sequence {negative / size:.2f} of a phase, positive {positive / size:.2f}: "
+            "phases B and C swapped in the map (or the recorder's rotation is A-C-B)"
+        )
+    return None
+
+
 def moving_average(x: Array, n: int) -> Array:
     """The one-cycle window the phasors see, for the channels recorded as values (same delay)."""
     c = np.concatenate(([0.0], np.cumsum(np.asarray(x, float))))

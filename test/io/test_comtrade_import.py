@@ -296,3 +296,42 @@ def test_a_recording_converted_in_blocks_is_the_one_converted_whole(tmp_path, ft
         for c, x in st.channels.items():
             assert np.allclose(pieces[name].channels[c], x, rtol=0, atol=1e-9, equal_nan=True), (name, c)
     assert len(whole["pt_ct"].t_ns) == (1200 - 40 + 1 + 1) // 2  # 2 kHz decimated to 1 kHz
+
+
+@pytest.mark.parametrize(
+    ("swap", "message"),
+    [
+        ({"v_b": "VC", "v_c": "VB"}, r"v_a: VA, v_b: VC, v_c: VB: negative sequence 1\.00 of a phase, positive 0\.00"),
+        ({"i_b": "IA", "i_c": "IA"}, r"i_a: IA, i_b: IA, i_c: IA: the three phases carry one waveform"),
+    ],
+)
+def test_phases_swapped_or_one_channel_on_three_are_named(tmp_path, swap, message) -> None:
+    """B and C swapped in the map, or one channel mapped to all three phases: exit 0 with X_d
+    -3.6e4 (withheld) and no word before. Now the first cycle's sequences name the mapping."""
+    path, _ = small_recording(tmp_path)
+    text = MAP.replace("  p_e: {name: P, unit: MW}\n  q_e: {name: Q, unit: Mvar}\n", "")
+    for q, name in swap.items():
+        text = text.replace(f"  {q}: {q[0].upper()}{q[2].upper()}\n", f"  {q}: {name}\n")
+    (tmp_path / "swapped.yaml").write_text(text)
+    with pytest.raises(ComtradeImportError, match=message):
+        import_comtrade([path], load_channel_map(tmp_path / "swapped.yaml"))
+
+
+def test_a_dat_shorter_than_its_cfg_declares_is_said(tmp_path) -> None:
+    """A .cfg declaring 1200 samples beside a .dat of 600 imported as a shorter recording, no word."""
+    path, cmap = small_recording(tmp_path, ft="BINARY")
+    cfg = path.read_text().splitlines()
+    k = next(i for i, line in enumerate(cfg) if line.strip().endswith(",600"))
+    cfg[k] = cfg[k].replace(",600", ",1200")
+    path.write_text("\n".join(cfg) + "\n")
+    rec = import_comtrade([path], cmap)
+    assert any("rec.dat: holds 600 of the 1200 samples rec.cfg declares (50 %)" in w for w in rec.warnings)
+
+
+def test_a_cfg_declaring_more_channels_than_it_has_lines_is_refused_before_parsing(tmp_path) -> None:
+    path, cmap = small_recording(tmp_path)
+    cfg = path.read_text().splitlines()
+    cfg[1] = "2000000003,2000000000A,3D"
+    path.write_text("\n".join(cfg[:6]) + "\n")
+    with pytest.raises(ComtradeImportError, match=r"rec\.cfg: declares 2000000003 channels on its second line but"):
+        import_comtrade([path], cmap)
