@@ -79,3 +79,49 @@ def test_a_memory_store_keeps_what_a_recalibration_reads() -> None:
     assert len(full) == len(windows) > len(kept)
     assert [w.event.event_id for w in kept.latest(n=2)] == [w.event.event_id for w in full.latest(n=2)]
     assert all(n <= 2 for n in kept.counts().values())
+
+
+def _markers_last(src: Path, out: Path) -> Path:
+    """``src`` rewritten with its scenario markers after every sample (any order is valid MCAP)."""
+    from mcap.reader import make_reader
+    from mcap.writer import Writer
+
+    from phid_ros.io.topics import SCENARIO_TOPIC
+
+    with src.open("rb") as fh:
+        reader = make_reader(fh)
+        messages = list(reader.iter_messages(log_time_order=False))
+        metadata = [(m.name, dict(m.metadata)) for m in reader.iter_metadata()]
+    with out.open("wb") as fh:
+        writer = Writer(fh)
+        writer.start()
+        schemas: dict[int, int] = {}
+        channels: dict[int, int] = {}
+        for schema, channel, _ in messages:
+            if schema.id not in schemas:
+                schemas[schema.id] = writer.register_schema(schema.name, schema.encoding, schema.data)
+            if channel.id not in channels:
+                channels[channel.id] = writer.register_channel(
+                    channel.topic, channel.message_encoding, schemas[schema.id], dict(channel.metadata)
+                )
+        for name, data in metadata:
+            writer.add_metadata(name, data)
+        ordered = sorted(messages, key=lambda m: m[1].topic == SCENARIO_TOPIC)  # stable: markers last
+        for _, channel, m in ordered:
+            writer.add_message(channels[channel.id], m.log_time, m.data, m.publish_time, m.sequence)
+        writer.finish()
+    return out
+
+
+def test_scenario_markers_written_after_their_samples_give_every_scenario(tmp_path) -> None:
+    """Read in parts, a marker logged after its window's samples found nothing left of them:
+    its scenario was dropped ("no disturbance found") though phid info listed it."""
+    from phid_ros.stream.scenarios import scenarios_from_parts
+
+    late = _markers_last(BAGS / "validation.mcap", tmp_path / "late.mcap")
+    want, _ = scenarios_from_parts(recording_parts(BAGS / "validation.mcap", 50), "on time")
+    got, problems = scenarios_from_parts(recording_parts(late, 50), "late")
+    assert [s.name for s in got] == [s.name for s in want] == ["V1_power_step", "V2_voltage_dip", "V3_fault_150ms"]
+    for a, b in zip(got, want):
+        assert a.n == b.n and np.array_equal(a["v_t"], b["v_t"]) and a.kind == b.kind, a.name
+    assert not any("skipped" in p for p in problems)
