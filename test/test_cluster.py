@@ -121,3 +121,20 @@ def test_the_cli_process_tunes_glibc_malloc():
     from phid_ros.cluster import tune_malloc
 
     assert tune_malloc() is (sys.platform.startswith("linux") and platform.libc_ver()[0] == "glibc")
+
+
+def test_the_local_cluster_and_its_dashboard_listen_on_loopback_only():
+    """``dashboard_address=":0"`` bound every interface and answered on the LAN address while the
+    log printed a loopback URL. Every socket the local cluster opens is now on 127.0.0.1."""
+    import socket
+
+    pytest.importorskip("bokeh")
+    from phid_ros.cluster import describe
+
+    with cluster(workers=1, dashboard=True) as client:
+        info = describe(client)
+        assert info.dashboard is not None and "127.0.0.1" in info.dashboard
+        scheduler = client.cluster.scheduler
+        bound = [s.getsockname()[0] for s in scheduler.http_server._sockets.values()]
+        bound += [socket.getaddrinfo(scheduler.address.split("//")[1].rsplit(":", 1)[0], None)[0][4][0]]
+        assert bound and all(a in ("127.0.0.1", "::1") for a in bound), bound

@@ -202,3 +202,38 @@ def test_table_width_without_rich_s_measure_equals_rich_s():
         assert (
             _unwrapped_width(cols, rows, shown) == Measurement.get(console, wide, _build("", cols, rows, shown)).maximum
         )
+
+
+def test_names_in_brackets_are_printed_as_written(tmp_path, capsys):
+    """Rich read ``x [/old]/u.dyr`` as a closing tag (MarkupError after the output was written) and
+    ``[unit3]`` as a style (gone from the printed path). Printed as written now."""
+    import json
+
+    from phid_ros.model.parameters import PARAMETER_NAMES, TABLE1
+
+    folder = tmp_path / "x [/old]" / "[unit3]"
+    folder.mkdir(parents=True)
+    result = folder / "u.json"
+    doc = {"parameters": TABLE1.as_dict(), "identifiable": {n: True for n in PARAMETER_NAMES}, "base_mva": 1000.0}
+    result.write_text(json.dumps({**doc, "f_nominal_hz": 50.0, "operating_point": {"p_m_pu": 0.8}}))
+    assert main(["export", str(result), "--format", "psse-dyr", "--out", str(folder / "u.dyr")]) == 0
+    out = capsys.readouterr().out
+    assert "x [/old]/[unit3]/u.dyr" in out.replace("\n", "")
+    bag = tmp_path / "[unit3].mcap"
+    bag.write_bytes((Path(__file__).resolve().parents[2] / "bags" / "validation.mcap").read_bytes())
+    assert main(["info", str(bag)]) == 0
+    assert "[unit3].mcap" in capsys.readouterr().out
+
+
+def test_figures_draw_names_as_written(tmp_path):
+    """A ``$_$`` in a scenario's name stopped a report in matplotlib's mathtext."""
+    from phid_ros.cli.common import figure_backend
+
+    figure_backend()
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots()
+    ax.set_title("scenario $_$ and $\\alpha$")
+    fig.savefig(tmp_path / "f.png")
+    plt.close(fig)
+    assert (tmp_path / "f.png").stat().st_size > 1000

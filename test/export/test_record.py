@@ -164,3 +164,12 @@ def test_a_diagnosis_of_another_recording_is_refused() -> None:
         build_record(
             old_doc, source="r.json", mva=1000.0, diagnosis=diagnosis() | {"input": "bags/y"}, diagnosis_source="d.json"
         )
+
+
+@pytest.mark.parametrize("machine_id", ["1\n1 'GENCLS' 1 0 0 /", "1'", '1"', "", "ABC", "1 "])
+def test_a_machine_id_that_would_break_or_inject_a_record_is_refused(machine_id: str) -> None:
+    """``--id`` was written between quotes unchecked: a newline injected a second PSS/E record, a
+    quote ended the record early, a '"' broke a .dyd."""
+    with pytest.raises(ExportError, match=r"--id .*: a machine id is one or two letters or digits"):
+        build_record(result(), source="r.json", mva=1000.0, machine_id=machine_id)
+    assert build_record(result(), source="r.json", mva=1000.0, machine_id="G1").machine_id == "G1"
