@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from phid_ros.errors import PhidError
 
@@ -122,14 +122,18 @@ def identify_cut(
 ) -> tuple[list[ScenarioData], IdentificationResult]:
     """The identification of scenarios already cut, (scenarios, notes, source) per recording."""
     from phid_ros.ident.scenario import on_one_grid
+    from phid_ros.stream.scenarios import seen_before
 
     scenarios: list[ScenarioData] = []
     problems: list[str] = []
+    seen: dict[bytes, list[tuple[str, Any]]] = {}
     for got, skipped, source in cut:
         if len(cut) > 1:
             for sc in got:
                 sc.name = f"{Path(source).stem}/{sc.name}"
-        scenarios += got
+        # the same window from two recordings (a copy, a bag folder and its own .mcap) is one
+        # measurement: counted twice it turned a withheld D into an identified one
+        scenarios += [sc for sc in got if not seen_before(sc.name, sc.frame.values, seen, source, problems)]
         problems += skipped
     source = " + ".join(src for _, _, src in cut)
     if not any(sc.role == "identify" for sc in scenarios):

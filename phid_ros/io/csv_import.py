@@ -173,7 +173,10 @@ def read_scenario_csv(path: Path, *, strict: bool = False) -> tuple[dict[str, ND
 
 
 def _decimal_comma_body(path: Path, body: str) -> str:
-    """A decimal-comma body as a plain CSV's: the fields re-joined by ',' with their points as Python's."""
+    """A ';'-separated body as a plain CSV's: where a field holds a comma the comma is the decimal
+    mark and a point groups thousands; with no comma at all the points are decimal points."""
+    if "," not in body:
+        return body.replace(";", ",")
     if "." not in body:
         return body.replace(",", ".").replace(";", ",")
     lines = []

@@ -176,17 +176,28 @@ def _read_columns(
     clock: _Clock | None = None
     out = {name: _Column() for name in wanted}
     line = 2  # the file's line of the chunk's first report
+    comma: bool | None = None  # ';' fields: is the comma the decimal mark? (the first reports say)
     while chunk := list(itertools.islice(reader, CHUNK_ROWS)):
         ragged = next((k for k, r in enumerate(chunk) if len(r) != len(header)), None)
         if ragged is not None:
             raise PmuImportError(
                 f"{path}: line {line + ragged} has {len(chunk[ragged])} fields, the header {len(header)}"
             )
+        if euro:
+            has_comma = next(((k, n) for n in wanted for k, r in enumerate(chunk) if "," in r[columns[n]]), None)
+            if comma is None:
+                comma = has_comma is not None
+            elif not comma and has_comma is not None:
+                k, n = has_comma
+                raise PmuImportError(
+                    f"{path}: line {line + k}, column {n!r}: {chunk[k][columns[n]]!r} has a decimal comma where "
+                    "the reports before it have none: one decimal mark per export"
+                )
 
         def field(name: str) -> list[str]:
             i = columns[name]
             values = [r[i] for r in chunk]
-            if not euro:
+            if not comma:  # ',' fields, or ';' fields with decimal points
                 return values
             # a point groups thousands here (802.637 kW is 802637 kW; read as 802.637 it put P 1000x small)
             values, bad = decimal_comma_fields(values)

@@ -188,7 +188,7 @@ def _marked_scenarios(
     for m in rec.scenarios:
         a = int(np.searchsorted(t, m.start_ns))
         b = int(np.searchsorted(t, m.end_ns, side="right"))
-        if _seen_before(m.name, frame.values[a:b], seen, source, problems):
+        if seen_before(m.name, frame.values[a:b], seen, source, problems):
             continue
         try:
             out.append(
@@ -243,7 +243,7 @@ def _window_scenarios(
             continue
         if w.reason:
             problems.append(f"{source}: {name}: {w.reason}; used as it is")
-        if _seen_before(name, w.values, seen, source, problems):
+        if seen_before(name, w.values, seen, source, problems):
             continue
         try:
             out.append(scenario_from_window(w, thresholds=thresholds, measurement_window_s=window_s))
@@ -252,10 +252,11 @@ def _window_scenarios(
     return out, problems
 
 
-def _seen_before(
+def seen_before(
     name: str, values: np.ndarray, seen: dict[bytes, list[tuple[str, np.ndarray]]], source: str, problems: list[str]
 ) -> bool:
-    """The same measurement listed twice would count twice and shrink every std by about sqrt(2).
+    """The same measurement listed twice would count twice and shrink every std by about sqrt(2)
+    (within a recording, and across the recordings of one identification).
 
     Windows are told apart by a digest of every 64th row, and only windows with the same digest
     are compared in full: hashing every byte of the windows (40 MB on the catalogue) cost 30 ms.

@@ -139,3 +139,18 @@ def test_recordings_on_different_bases_are_refused_by_name(folder, trend_bag, ca
     assert main(["identify", str(trend_bag), str(half), "--fix", f"X_q={TABLE1.X_q}"]) == 2
     err = capsys.readouterr().err
     assert "per unit on different bases" in err and "1000 MVA" in err and "500 MVA" in err
+
+
+def test_a_bag_folder_and_its_own_mcap_count_once(folder, trend_bag, capsys) -> None:
+    """Not the same bytes (the folder has its metadata.yaml), the same windows: each counted once."""
+    d, paths, cmap, _ = folder
+    bag = d / "bagdir"
+    assert main(["import-pmu", *map(str, paths), "--map", str(cmap), "--out", str(bag)]) == 0
+    [inner] = list(bag.glob("*.mcap"))
+    once, both = d / "dir_once.json", d / "dir_both.json"
+    assert main(["identify", str(bag), "--fix", f"X_q={TABLE1.X_q}", "--json", str(once)]) == 0
+    capsys.readouterr()
+    assert main(["identify", str(bag), str(inner), "--fix", f"X_q={TABLE1.X_q}", "--json", str(both)]) == 0
+    a, b = json.loads(once.read_text()), json.loads(both.read_text())
+    assert b["uncertainty"] == a["uncertainty"] and b["identifiable"] == a["identifiable"]
+    assert f"{inner}: skipped scenario bagdir/noload: the same data as scenario bagdir/noload" in b["problems"]

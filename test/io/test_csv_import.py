@@ -235,3 +235,15 @@ def test_a_compressed_csv_that_inflates_past_the_bound_is_refused(tmp_path, monk
     assert path.stat().st_size < 200
     with pytest.raises(CsvImportError, match=r"bomb\.csv\.gz: more than 0 MB of text in one scenario"):
         csv_import.read_scenario_csv(path)
+
+
+def test_semicolon_fields_with_decimal_points_still_read(tmp_path):
+    """';' between fields does not make the point a thousands mark: without a comma anywhere the
+    points are decimal points (0.5;1.25 is 0.5 and 1.25, as before)."""
+    from phid_ros.io.csv_import import CSV_COLUMNS, read_scenario_csv
+
+    rows = [[k * 1e-3] + [0.5 + 0.25 * j for j in range(len(CSV_COLUMNS) - 1)] for k in range(5)]
+    path = tmp_path / "points.csv"
+    path.write_text(";".join(CSV_COLUMNS) + "\n" + "\n".join(";".join(f"{v:g}" for v in r) for r in rows) + "\n")
+    got, _ = read_scenario_csv(path)
+    assert got["v_t"][0] == 0.5 and got["q_e"][4] == 0.5 + 0.25 * (len(CSV_COLUMNS) - 2)

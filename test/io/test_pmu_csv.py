@@ -186,3 +186,22 @@ def test_a_trend_log_with_thousands_points_and_a_one_digit_hour_reads_as_the_pla
     log.write_text("\n".join(out) + "\n")
     with pytest.raises(PmuImportError, match=r"line 6, column 'PMECH': '802\.63' has a point that does not group"):
         import_pmu_csv([log], load_channel_map(tmp_path / "map.yaml"))
+
+
+def test_an_export_whose_decimal_mark_changes_midway_is_refused(export, tmp_path, monkeypatch) -> None:
+    from phid_ros.io import pmu_csv
+
+    path, cmap, _ = export
+    rows = path.read_text().splitlines()
+    out = [rows[0].replace(",", ";")] + [r.replace(",", ";") for r in rows[1:]]  # ';' with decimal points
+    out[300] = out[300].replace(".", ",")
+    log = tmp_path / "S09.csv"
+    log.write_text("\n".join(out) + "\n")
+    monkeypatch.setattr(pmu_csv, "CHUNK_ROWS", 100)
+    with pytest.raises(PmuImportError, match=r"line 301, column '.*' has a decimal comma where the reports before"):
+        import_pmu_csv([log], cmap)
+    out[300] = out[300].replace(",", ".")
+    log.write_text("\n".join(out) + "\n")
+    plain = import_pmu_csv([path], cmap)
+    got = import_pmu_csv([log], cmap)
+    assert np.array_equal(got.streams["pt_ct"].channels["v_t"], plain.streams["pt_ct"].channels["v_t"])
