@@ -96,6 +96,15 @@ def _check_channel_count(lines: str, path: Path) -> None:
             f"{path}: declares {total} channels on its second line but has {len(rows) - 2} lines after it, "
             "one per channel: not a readable COMTRADE configuration"
         )
+    try:
+        analog, digital = (int(c.strip().rstrip("AaDd")) for c in counts[1:3])
+    except ValueError:
+        return
+    if analog < 0 or digital < 0 or analog + digital != total:
+        raise ComtradeImportError(
+            f"{path}: its second line declares {analog} analog and {digital} status channels, "
+            f"which is not the {total} channels it names first"
+        )
 
 
 def _cfg_from(lines: str, path: Path) -> Any:  # -> comtrade.Cfg

@@ -57,9 +57,18 @@ def _string(buf: Buffer | memoryview, pos: int) -> tuple[str, int]:
     return bytes(buf[pos : pos + n]).decode("utf-8"), pos + n
 
 
+# a chunk's declared uncompressed size beyond this is refused, not allocated: our bags' chunks are
+# about 1 MB, and a few bytes of zstd can declare (and inflate to) gigabytes
+MAX_CHUNK_BYTES = 1 << 30
+
+
 def _decompress(kind: str, data: bytes, size: int) -> bytes:
     if kind == "":
         return data
+    if size > MAX_CHUNK_BYTES:
+        raise McapFormatError(
+            f"a chunk declares {size} bytes uncompressed, more than the {MAX_CHUNK_BYTES >> 20} MB read"
+        )
     if kind == "zstd":
         import zstandard
 
@@ -67,7 +76,10 @@ def _decompress(kind: str, data: bytes, size: int) -> bytes:
     if kind == "lz4":
         import lz4.frame
 
-        return lz4.frame.decompress(data)
+        out = lz4.frame.LZ4FrameDecompressor().decompress(data, max_length=size + 1)
+        if len(out) > size:
+            raise McapFormatError(f"a chunk inflates beyond the {size} bytes it declares")
+        return out
     raise McapFormatError(f"unsupported chunk compression {kind!r}")
 
 

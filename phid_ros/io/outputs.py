@@ -46,8 +46,11 @@ def _same(a: Path, b: Path) -> bool:
 
 
 def refuse_inputs(outputs: Iterable[str | Path | None], inputs: Iterable[str | Path | None]) -> None:
-    """An output that is an input, or lies inside an input folder, is refused (before any work)."""
-    ins = [Path(i) for i in inputs if i]
+    """An output that is an input, lies inside an input folder, or is a file an input manifest
+    names (a CSV of the set), is refused (before any work)."""
+    from phid_ros.io.digest import recording_files
+
+    ins = [f for i in inputs if i for f in (recording_files(Path(i)) if str(i).endswith(".json") else [Path(i)])]
     for o in outputs:
         if not o:
             continue

@@ -40,6 +40,8 @@ def read_json(path: str | Path) -> dict[str, Any]:
         data = json.loads(p.read_text(encoding="utf-8"))
     except json.JSONDecodeError as exc:
         raise ResultsError(f"{p}: not valid JSON (line {exc.lineno}: {exc.msg})") from exc
+    except RecursionError:  # a few KB of [[[[...]]]]: no result nests so deep
+        raise ResultsError(f"{p}: nested too deeply to be a phid result or manifest") from None
     if not isinstance(data, dict):
         raise ResultsError(f"{p}: expected a JSON object at the top level")
     return data

@@ -118,6 +118,9 @@ def _iter_raw(reader: Reader, source: str) -> Iterator[tuple[str, str, bytes]]:
         yield conn.topic, conn.msgtype, raw
 
 
+MAX_METADATA_BYTES = 1 << 20  # a bag's metadata.yaml: a few KB
+
+
 def bag_metadata(path: Path) -> dict:
     """``rosbag2_bagfile_information`` of a bag folder's metadata.yaml, every scalar as its text.
 
@@ -130,7 +133,13 @@ def bag_metadata(path: Path) -> dict:
 
     loader = getattr(yaml, "CBaseLoader", yaml.BaseLoader)
     with open(path / "metadata.yaml", "rb") as f:
-        return yaml.load(f, Loader=loader)["rosbag2_bagfile_information"]
+        text = f.read(MAX_METADATA_BYTES + 1)
+    if len(text) > MAX_METADATA_BYTES:
+        raise BagError(f"{path / 'metadata.yaml'}: more than {MAX_METADATA_BYTES >> 20} MB: not a bag's metadata")
+    # rosbag2 writes no aliases; a few hundred bytes of nested ones expand to gigabytes when walked
+    if any(isinstance(e, yaml.AliasEvent) for e in yaml.parse(text, Loader=loader)):
+        raise BagError(f"{path / 'metadata.yaml'}: holds YAML aliases, which rosbag2 never writes")
+    return yaml.load(text, Loader=loader)["rosbag2_bagfile_information"]
 
 
 def mcap_storage(path: Path) -> tuple[list[Path], dict[str, str]] | None:

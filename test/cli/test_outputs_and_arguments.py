@@ -39,6 +39,16 @@ def test_diagnose_refuses_a_report_over_the_manifest(tmp_path, capsys):
     assert "is an input of this command" in capsys.readouterr().err and manifest.read_text() == "{}"
 
 
+def test_an_output_over_a_csv_the_manifest_names_is_refused(tmp_path, capsys):
+    """The manifest's own files are inputs too: ``--json set/s1.csv`` replaced a scenario."""
+    (tmp_path / "s1.csv").write_text("t,v_t\n")
+    manifest = tmp_path / "manifest.json"
+    manifest.write_text(json.dumps({"scenarios": [{"file": "s1.csv"}]}))
+    assert main(["identify", str(manifest), "--json", str(tmp_path / "s1.csv")]) == 2
+    assert "s1.csv: is an input of this command" in capsys.readouterr().err
+    assert (tmp_path / "s1.csv").read_text() == "t,v_t\n"
+
+
 def test_the_readme_main_job_runs_twice(tmp_path, small_bag, capsys):
     out = tmp_path / "replay_out.mcap"
     assert main(["replay", str(small_bag), "--out", str(out)]) == 0

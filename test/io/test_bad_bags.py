@@ -262,3 +262,40 @@ def test_a_pt_ct_or_encoder_clock_seconds_off_is_found_by_the_swing_equation(sho
             "(cross-correlated): a clock offset of the encoder; correct it"
         ]
     assert pt_ct_lag_s(short_recording) == pytest.approx(0.0, abs=0.011)
+
+
+def test_a_chunk_declaring_gigabytes_is_refused_not_allocated():
+    """A few bytes of zstd can declare, and inflate to, gigabytes: refused by the declared size."""
+    import zstandard
+
+    from phid_ros.io.mcap_raw import MAX_CHUNK_BYTES, McapFormatError, _decompress
+
+    packed = zstandard.ZstdCompressor().compress(b"\0" * 4096)
+    assert _decompress("zstd", packed, 4096) == b"\0" * 4096
+    with pytest.raises(McapFormatError, match=r"a chunk declares \d+ bytes uncompressed, more than the 1024 MB"):
+        _decompress("zstd", packed, MAX_CHUNK_BYTES + 1)
+    import lz4.frame
+
+    with pytest.raises(McapFormatError, match=r"a chunk inflates beyond the 100 bytes it declares"):
+        _decompress("lz4", lz4.frame.compress(b"\0" * 4096), 100)
+
+
+def test_a_bag_metadata_with_yaml_aliases_is_refused(tmp_path, short_recording):
+    from phid_ros.io.rosbag2 import bag_metadata
+
+    bag = tmp_path / "bag"
+    write_recording(bag, short_recording)
+    meta = bag / "metadata.yaml"
+    meta.write_text(meta.read_text() + "\nx: &a [1, 2]\ny: [*a, *a]\n")
+    with pytest.raises(BagError, match=r"metadata\.yaml: holds YAML aliases, which rosbag2 never writes"):
+        bag_metadata(bag)
+
+
+def test_a_json_nested_too_deeply_is_one_line(tmp_path):
+    from phid_ros.errors import ResultsError
+    from phid_ros.io.results import read_json
+
+    deep = tmp_path / "r.json"
+    deep.write_text('{"a": ' + "[" * 100_000 + "]" * 100_000 + "}")
+    with pytest.raises(ResultsError, match=r"r\.json: nested too deeply"):
+        read_json(deep)

@@ -335,3 +335,13 @@ def test_a_cfg_declaring_more_channels_than_it_has_lines_is_refused_before_parsi
     path.write_text("\n".join(cfg[:6]) + "\n")
     with pytest.raises(ComtradeImportError, match=r"rec\.cfg: declares 2000000003 channels on its second line but"):
         import_comtrade([path], cmap)
+
+
+def test_a_cfg_whose_channel_counts_disagree_is_refused(tmp_path) -> None:
+    path, cmap = small_recording(tmp_path)
+    cfg = path.read_text().splitlines()
+    total = int(cfg[1].split(",")[0])
+    cfg[1] = f"{total},2000000000A,0D"
+    path.write_text("\n".join(cfg) + "\n")
+    with pytest.raises(ComtradeImportError, match=r"declares 2000000000 analog and 0 status channels, which is not"):
+        import_comtrade([path], cmap)

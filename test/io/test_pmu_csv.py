@@ -176,9 +176,8 @@ def test_a_trend_log_with_thousands_points_and_a_one_digit_hour_reads_as_the_pla
     assert "9:00:00.0000000" in out[1] and "." in out[1].split(";")[k_pm + 1]
     log = tmp_path / "S09.csv"
     log.write_text("\n".join(out) + "\n")
-    (tmp_path / "map.yaml").write_text(
-        MAP.replace("time: Timestamp", "time: Time\ndate: Date").replace("{name: PMECH, unit: MW}", "{name: PMECH, unit: kW}")
-    )
+    in_kw = MAP.replace("{name: PMECH, unit: MW}", "{name: PMECH, unit: kW}")
+    (tmp_path / "map.yaml").write_text(in_kw.replace("time: Timestamp", "time: Time\ndate: Date"))
     rec = import_pmu_csv([log], load_channel_map(tmp_path / "map.yaml"))
     p_m = rec.streams["encoder"].channels["p_m"]
     assert np.allclose(p_m, plain.streams["encoder"].channels["p_m"], rtol=1e-6), float(np.nanmax(p_m))
