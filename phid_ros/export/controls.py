@@ -11,6 +11,7 @@ comment; a constant fitted but not determined is refused, as a machine parameter
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -36,12 +37,21 @@ class ControlRecord:
         return [n for n, s in self.sources.items() if s.startswith("default")]
 
     def comment(self) -> str:
+        return comment_text(self._comment_parts())
+
+    def _comment_parts(self) -> list[str]:
         parts = [f"phid_ros export: {self.kind} identified from the recordings"]
         if self.flagged:
             parts.append("NOT IDENTIFIED: " + ", ".join(self.flagged))
         if self.defaults:
             parts.append("defaults (not reached in the recordings): " + ", ".join(self.defaults))
-        return "; ".join(parts)
+        return parts
+
+
+def comment_text(parts: list[str]) -> str:
+    """A record's comment on one line: a control character in a name (a result file's path) would
+    end the comment, and the next line of a .dyr or .dyd would be read as a record."""
+    return re.sub(r"[\x00-\x1f\x7f]", "?", "; ".join(parts))
 
 
 def build_control_records(

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from phid_ros.errors import PhidError
-from phid_ros.export.controls import ControlRecord, build_control_records
+from phid_ros.export.controls import ControlRecord, build_control_records, comment_text
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME
 from phid_ros.sim.effects import leakage_default
 
@@ -114,7 +114,7 @@ class MachineRecord:
             parts.append("NOT IDENTIFIED: " + ", ".join(self.flagged))
         if self.defaults:
             parts.append("defaults: " + ", ".join(self.defaults))
-        return "; ".join(parts)
+        return comment_text(parts)
 
 
 def _number(doc: Mapping[str, Any], key: str, source: str) -> float:

@@ -173,3 +173,15 @@ def test_a_machine_id_that_would_break_or_inject_a_record_is_refused(machine_id:
     with pytest.raises(ExportError, match=r"--id .*: a machine id is one or two letters or digits"):
         build_record(result(), source="r.json", mva=1000.0, machine_id=machine_id)
     assert build_record(result(), source="r.json", mva=1000.0, machine_id="G1").machine_id == "G1"
+
+
+def test_a_result_path_with_a_newline_stays_in_the_records_comment() -> None:
+    """The result's path is written into the record's comment: a newline in it began a new line
+    that PSS/E and PSLF read as a record."""
+    from phid_ros.export.formats import pslf_dyd, psse_dyr
+
+    rec = build_record(result(), source="x\n1 'GENCLS' 1 0 0 /\n.json", mva=1000.0)
+    dyr = psse_dyr(rec)
+    assert "GENCLS" in dyr and not any(line.startswith("1 'GENCLS'") for line in dyr.splitlines())
+    assert len(dyr.splitlines()) == len(psse_dyr(build_record(result(), source="r.json", mva=1000.0)).splitlines())
+    assert not any(line.startswith("1 'GENCLS'") for line in pslf_dyd(rec).splitlines())
