@@ -119,6 +119,8 @@ class ControlModel(ABC):
     parameters: ClassVar[tuple[ControlParameter, ...]]
     # integers a .dyr record carries before the constants (PSS/E's ICONs), with the values phid writes
     icons: ClassVar[tuple[tuple[str, int], ...]] = ()
+    # constants of branches the small-signal path does not pass through (said in a validation)
+    outside_path: ClassVar[tuple[str, ...]] = ()
 
     @classmethod
     def fitted(cls) -> tuple[ControlParameter, ...]:
@@ -141,6 +143,24 @@ class ControlModel(ABC):
         """A record's constants as the simulation takes them: as written (a model whose record
         can carry what phid does not simulate refuses it here, naming the constants)."""
         return dict(values)
+
+    @classmethod
+    def not_simulated(cls, values: Mapping[str, float]) -> list[str]:
+        """What a record of this model carries that the small-signal play-in leaves out, with the
+        record's values: its limits (and the exciter saturation, the rectifier loading, which act
+        only at large signals) and the branches outside its path."""
+        out = []
+        limits = [p for p in cls.parameters if p.limit]
+        if limits:
+            named = ", ".join(f"{p.name} = {values[p.name]:g}" for p in limits)
+            out.append(
+                f"{cls.name} {named} (the play-in is small-signal: a recording that reaches them is not followed)"
+            )
+        idle = [p for p in cls.parameters if p.name in cls.outside_path]
+        if idle:
+            named = ", ".join(f"{p.name} = {values[p.name]:g}" for p in idle)
+            out.append(f"{cls.name} {named} ({idle[0].meaning})")
+        return out
 
     @classmethod
     def defaults(cls) -> dict[str, float]:
@@ -314,6 +334,8 @@ class ESST5B(ControlModel):
     The record's order is the one PNNL's power plant model validation tool and InterPSS read an
     ESST5B in (T_R, K_R, T_1, K_C, V_RMAX, V_RMIN, T_C1, T_B1, T_C2, T_B2, then the limiters' T_OC1,
     T_OB1, T_OC2, T_OB2, T_UC1, T_UB1, T_UC2, T_UB2)."""
+
+    outside_path = ("TOC1", "TOB1", "TOC2", "TOB2", "TUC1", "TUB1", "TUC2", "TUB2")
 
     name = "ESST5B"
     kind = "exciter"

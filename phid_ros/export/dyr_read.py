@@ -92,6 +92,8 @@ class Unit:
             out.append(f"the q-axis damper (X'' = {c['Xd2']:g}, T''_q0 = {c['Tq20']:g} s)")
         if c["S10"] or c["S12"]:
             out.append(f"saturation (S(1.0) = {c['S10']:g}, S(1.2) = {c['S12']:g})")
+        for settings in self.controls.values():
+            out += CONTROL_MODELS[settings.model].not_simulated(settings.values)
         return out + [f"{r}: not a model phid validates" for r in self.ignored]
 
 
