@@ -137,4 +137,7 @@ def test_the_local_cluster_and_its_dashboard_listen_on_loopback_only():
         scheduler = client.cluster.scheduler
         bound = [s.getsockname()[0] for s in scheduler.http_server._sockets.values()]
         bound += [socket.getaddrinfo(scheduler.address.split("//")[1].rsplit(":", 1)[0], None)[0][4][0]]
+        workers = client.scheduler_info()["workers"]
+        bound += [a for w, d in workers.items() for a in (w, d.get("nanny") or w)]
+        bound = [a.removeprefix("tcp://").rsplit(":", 1)[0] for a in bound]
         assert bound and all(a in ("127.0.0.1", "::1") for a in bound), bound
