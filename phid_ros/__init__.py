@@ -1,3 +1,3 @@
 """phid_ros: Port-Hamiltonian identification of synchronous generators from sensor streams."""
 
-__version__ = "0.4.2"
+__version__ = "0.4.3"

@@ -74,7 +74,7 @@ def at_user_bound(est: Estimate, name: str, wanted: float, bound: float) -> Esti
 
 
 def _pairs(items: Sequence[str], option: str) -> list[tuple[str, str]]:
-    out = []
+    out: list[tuple[str, str]] = []
     for item in items:
         name, sep, value = item.partition("=")
         name = name.strip()
