@@ -206,6 +206,17 @@ def cmd_info(args: argparse.Namespace, console: Console) -> int:
     from phid_ros.io.recording import expected_type
 
     path = Path(args.bag)
+    if path.suffix == ".json":  # a CSV scenario set: no topics, the same streams and scenarios
+        from phid_ros.api import load_recording
+
+        rec = load_recording(path)
+        for w in rec.warnings:
+            warn(w)
+        tally = StreamTally()
+        tally.add(rec)
+        console.print(f"{path} (a CSV scenario set, {len(rec.scenarios)} scenarios)", highlight=False)
+        _print_recording(console, tally, rec.scenarios, rec.metadata)
+        return 0
     try:
         topics = topic_table(path)
     except PhidError as index_error:
@@ -245,6 +256,12 @@ def cmd_info(args: argparse.Namespace, console: Console) -> int:
     for topic, msgtype, count in topics:
         table.add_row(topic, msgtype, str(count))
     console.print(table)
+    _print_recording(console, tally, scenarios, metadata)
+    return 0
+
+
+def _print_recording(console: Console, tally: StreamTally, scenarios: list, metadata: dict[str, str]) -> None:
+    """The streams, the scenarios, what the channels determine and the metadata of a recording."""
     streams = Table(title="sensor streams", title_justify="left")
     for col in ("stream", "samples", "rate Hz", "start (UTC)", "span s", "gaps", "gap s", "backwards"):
         streams.add_column(col, justify="left" if col in ("stream", "start (UTC)") else "right")
@@ -279,7 +296,6 @@ def cmd_info(args: argparse.Namespace, console: Console) -> int:
     _print_determinable(console, tally)
     if metadata:
         console.print("metadata: " + ", ".join(f"{k}={v}" for k, v in sorted(metadata.items())), highlight=False)
-    return 0
 
 
 def _print_determinable(console: Console, tally: StreamTally) -> None:

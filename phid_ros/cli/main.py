@@ -22,7 +22,9 @@ __all__ = ["EXIT_USER_ERROR", "build_parser", "entry", "main"]
 def main(argv: Sequence[str] | None = None) -> int:
     tune_malloc()  # before any thread allocates (see its docstring: the diagnosis's memory, page faults)
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args, extra = parser.parse_known_args(argv)
+    if extra:  # said by the command's own parser: its name and its --help, not the top level's
+        parser.commands[args.command].error(f"unrecognized arguments: {' '.join(extra)}")
     console = make_console(wide=args.wide)
     try:
         return int(args.func(args, console))

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import argparse
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 
 from phid_ros import __version__
 from phid_ros.cli.commands import (
@@ -36,8 +36,12 @@ EXIT_USER_ERROR = 2
 class Parser(argparse.ArgumentParser):
     """argparse with the one error format of the tool: ``phid: error: ...`` on one line, exit 2."""
 
+    commands: Mapping[str, argparse.ArgumentParser]  # the top level's: each command's own parser
+
     def error(self, message: str) -> None:  # type: ignore[override]
-        print(f"phid: error: {self.prog.removeprefix('phid ')}: {message} (see {self.prog} --help)", file=sys.stderr)
+        command = self.prog.removeprefix("phid").strip()  # the top-level parser's is "phid" alone
+        where = f"{command}: " if command else ""
+        print(f"phid: error: {where}{message} (see {self.prog} --help)", file=sys.stderr)
         raise SystemExit(EXIT_USER_ERROR)
 
 
@@ -358,7 +362,9 @@ def _add_export(sub: Subparsers) -> None:
 
 def _add_info(sub: Subparsers) -> None:
     p = sub.add_parser("info", help="topics, message counts, rates, time span and gaps of a bag")
-    p.add_argument("bag", help="rosbag2 folder or .mcap file (a bag cut short is read as far as it goes)")
+    p.add_argument(
+        "bag", help="rosbag2 folder, .mcap file (a bag cut short is read as far as it goes), or CSV manifest.json"
+    )
     p.set_defaults(func=cmd_info)
 
 
@@ -377,10 +383,11 @@ def _add_validate(sub: Subparsers) -> None:
     p.set_defaults(func=cmd_validate)
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser() -> Parser:
     parser = Parser(prog="phid", description="Port-Hamiltonian generator identification.")
     parser.add_argument("-V", "--version", action="version", version=f"phid_ros {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
+    parser.commands = sub.choices
 
     for add in (
         _add_simulate,

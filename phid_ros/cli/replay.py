@@ -129,7 +129,9 @@ def check_output(out: Path, force: bool) -> None:
     from phid_ros.io.bags import recording_source
 
     if out.exists() and not force and not (recording_source(out) or "").startswith("phid replay"):
-        raise PhidError(f"{out}: already exists and was not written by phid replay; not overwriting (--force to)")
+        raise PhidError(
+            f"{out}: already exists and was not written by phid replay; not overwriting (--force to replace it)"
+        )
 
 
 def severity_text(kind: str, severity: float) -> str:

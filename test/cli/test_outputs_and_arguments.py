@@ -167,3 +167,24 @@ def test_a_bag_folder_output_names_its_storage_after_the_folder(tmp_path):
     assert "partial" not in (out / "metadata.yaml").read_text()
     rec = read_recording(out)
     assert len(rec.scenarios) == 1 and not rec.warnings
+
+
+def test_an_unknown_option_names_its_command_once(capsys):
+    """``phid simulate --format csv`` said "phid: error: phid: unrecognized arguments" and pointed
+    to the top level's help."""
+    with pytest.raises(SystemExit) as stop:
+        main(["simulate", "--format", "csv", "--out", "x.mcap"])
+    assert stop.value.code == 2
+    err = capsys.readouterr().err.strip()
+    assert err == "phid: error: simulate: unrecognized arguments: --format csv (see phid simulate --help)"
+
+
+def test_info_reads_a_csv_scenario_set(tmp_path, short_recording, capsys):
+    """``phid info`` on a CSV set's manifest raised "InvalidMagic: not a valid MCAP file"."""
+    from phid_ros.io.csv_export import write_csv_set
+
+    manifest = write_csv_set(tmp_path / "set", short_recording)
+    assert main(["info", str(manifest)]) == 0
+    out = capsys.readouterr().out
+    assert f"(a CSV scenario set, {len(short_recording.scenarios)} scenarios)" in out
+    assert all(sc.name in out for sc in short_recording.scenarios) and "pt_ct" in out
