@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import sys
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -81,3 +81,23 @@ def figure_backend() -> None:
 
     matplotlib.use("Agg")
     matplotlib.rcParams["text.parse_math"] = False
+
+
+WITHHELD_LABEL = "withheld (not identifiable): no value drawn"
+
+
+def mark_withheld(ax: Any, t: Sequence[Any]) -> None:
+    """Where a parameter was withheld, a tick on the time axis and no value: a number drawn where
+    the report's table says "withheld" reads as identified (track drew D from -0.95 to +0.53)."""
+    if len(t):
+        ax.plot(
+            list(t),
+            [0.0] * len(t),
+            "|",
+            color="0.4",
+            ms=12,
+            mew=1.5,
+            transform=ax.get_xaxis_transform(),  # x in data, y at the axis
+            clip_on=False,
+            label=WITHHELD_LABEL,
+        )

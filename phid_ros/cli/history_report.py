@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from phid_ros.cli.common import figure_backend
+from phid_ros.cli.common import figure_backend, mark_withheld
 from phid_ros.cli.report import STYLE, html_table, png_data_uri
 from phid_ros.cli.tables import CONCISE_LEGEND, estimate_text
 from phid_ros.fleet.history import Change, Row
@@ -36,8 +36,7 @@ def _figure(rows: list[Row], flagged: list[Change]) -> str:
             tg = [x for x, g in zip(t, good) if g]
             ax.fill_between(tg, v[good] - 2 * s[good], v[good] + 2 * s[good], color="C0", alpha=0.25, label="±2σ")
             ax.plot(tg, v[good], "o-", color="C0", label="identified")
-        if (~good).any():
-            ax.plot([x for x, g in zip(t, good) if not g], v[~good], "x", color="0.4", label="not well identified")
+        mark_withheld(ax, [x for x, g in zip(t, good) if not g])
         for c in flagged:
             if c.parameter == name:
                 ax.plot([_when(c.after.start_ns)], [c.after.values[name]], "o", ms=12, mfc="none", mec="red", mew=2)

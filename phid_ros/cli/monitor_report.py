@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from phid_ros.cli.common import figure_backend
+from phid_ros.cli.common import figure_backend, mark_withheld
 from phid_ros.cli.report import STYLE, html_table, png_data_uri
 from phid_ros.cli.tables import CONCISE_LEGEND, estimate_text
 from phid_ros.fleet.history import DRIFT_SIGMAS
@@ -88,7 +88,7 @@ def _events_figure(
 
 
 def _parameters_figure(points: Sequence[ParameterPoint], names: Sequence[str], title: str) -> str | None:
-    """Each parameter over time: the estimate, a ±2σ band, hollow where not identifiable, alarms ringed."""
+    """Each parameter over time: the estimate, a ±2σ band, a tick on the axis where withheld, alarms ringed."""
     import matplotlib.pyplot as plt
 
     if not points:
@@ -100,12 +100,12 @@ def _parameters_figure(points: Sequence[ParameterPoint], names: Sequence[str], t
         v = np.array([p.estimates[name].value if name in p.estimates else math.nan for p in points])
         sd = np.array([p.estimates[name].std if name in p.estimates else math.nan for p in points])
         ok = np.array([name in p.estimates and p.estimates[name].identifiable for p in points])
-        ax.errorbar(
-            t[ok], v[ok], yerr=2 * sd[ok], fmt="o-", color="#1f5fbf", ms=3, lw=1.0, capsize=3, label="estimate ±2σ"
-        )
-        if (~ok).any():
-            ax.plot(t[~ok], v[~ok], "o", mfc="none", color="0.5", ms=4, label="not identifiable")
-        alarm = np.array([name in p.alarmed for p in points])
+        if ok.any():
+            ax.errorbar(
+                t[ok], v[ok], yerr=2 * sd[ok], fmt="o-", color="#1f5fbf", ms=3, lw=1.0, capsize=3, label="estimate ±2σ"
+            )
+        mark_withheld(ax, t[~ok])
+        alarm = np.array([name in p.alarmed for p in points]) & ok
         if alarm.any():
             ax.plot(t[alarm], v[alarm], "o", mfc="none", mec="#c0392b", ms=11, mew=1.8, label="alarm")
         unit = SPECS_BY_NAME[name].unit

@@ -148,7 +148,8 @@ def test_help_texts_name_their_arguments_and_the_effects():
     sim = " ".join(helptext("simulate").split())
     assert all(name in sim for name in REGISTRY)
     assert "manifest.json" in helptext("import-csv").split("positional arguments:")[1]
-    assert "rosbag2 folder or .mcap" in helptext("info").split("positional arguments:")[1]
+    info = " ".join(helptext("info").split("positional arguments:")[1].split())
+    assert "rosbag2 folder, .mcap file" in info and "CSV manifest.json" in info
 
 
 def test_track_health_over_time_marks_the_bin_with_a_gap(short_recording):
@@ -237,3 +238,29 @@ def test_figures_draw_names_as_written(tmp_path):
     fig.savefig(tmp_path / "f.png")
     plt.close(fig)
     assert (tmp_path / "f.png").stat().st_size > 1000
+
+
+def test_a_withheld_value_is_not_drawn(monkeypatch):
+    """The replay and track reports drew the values their own tables call withheld (D from -0.95 to
+    +0.53). Now a withheld point is a tick on the time axis, labelled, and its value is drawn nowhere."""
+    import matplotlib.pyplot as plt
+
+    from phid_ros.cli import monitor_report
+    from phid_ros.cli.common import WITHHELD_LABEL, figure_backend
+    from phid_ros.ident.results import Estimate
+
+    figure_backend()
+    drawn = []
+    monkeypatch.setattr(monitor_report, "png_data_uri", lambda fig: drawn.append(fig) or "data:")
+    points = [
+        monitor_report.ParameterPoint(10.0, {"H": Estimate(3.5, 0.01), "D": Estimate(-0.95, 0.5, identifiable=False)}),
+        monitor_report.ParameterPoint(20.0, {"H": Estimate(3.49, 0.01), "D": Estimate(0.53, 0.4, identifiable=False)}),
+    ]
+    monitor_report._parameters_figure(points, ["H", "D"], "parameters")
+    [fig] = drawn
+    ax_h, ax_d = fig.axes[:2]
+    values = [y for line in ax_d.get_lines() for y in line.get_ydata()]
+    assert -0.95 not in values and 0.53 not in values
+    assert [line.get_label() for line in ax_d.get_lines()] == [WITHHELD_LABEL]
+    assert any(3.49 in line.get_ydata() for line in ax_h.get_lines())
+    plt.close(fig)
