@@ -199,6 +199,7 @@ def run(args: Any, console: Console) -> int:
     for note in repeated:
         warn(note)
     control_starts = start_from_dyr(args) if getattr(args, "start_from", None) else {}
+    constraints = parse_constraints(args.fix, args.bounds, args.start)  # a typo said before the reading
     t_start = time.perf_counter()
     with ProgressLine(f"reading {' + '.join(args.input)}") as progress:
         # read part by part where the recording allows: only the scenarios' windows are kept
@@ -224,7 +225,7 @@ def run(args: Any, console: Console) -> int:
             baseline=not args.no_baseline,
             paper_maxiter=args.paper_maxiter,
             step_thresholds=step_thresholds(args),
-            constraints=parse_constraints(args.fix, args.bounds, args.start),
+            constraints=constraints,
         )
         scenarios, res = identify_cut(cut, options, truth, progress.update)
     source = " + ".join(args.input)

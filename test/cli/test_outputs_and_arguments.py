@@ -188,3 +188,13 @@ def test_info_reads_a_csv_scenario_set(tmp_path, short_recording, capsys):
     out = capsys.readouterr().out
     assert f"(a CSV scenario set, {len(short_recording.scenarios)} scenarios)" in out
     assert all(sc.name in out for sc in short_recording.scenarios) and "pt_ct" in out
+
+
+def test_a_bad_fix_is_said_before_the_recording_is_read(tmp_path, capsys, monkeypatch):
+    """A typo in --fix was said only after the whole recording had been read and cut (2-3 s)."""
+    from phid_ros.cli import identify
+
+    read = []
+    monkeypatch.setattr(identify, "cut_scenarios", lambda *a, **k: read.append(a) or ([], [], None))
+    assert main(["identify", str(BAGS / "catalogue"), "--fix", "X_d=abc"]) == 2
+    assert "--fix X_d: 'abc' is not a number" in capsys.readouterr().err and not read
