@@ -4,7 +4,8 @@
 
 For each length an ambient recording (``phid simulate --ambient``: load and voltage noise with
 small steps, 1 kHz) is made once, then ``phid replay``, ``phid identify``, ``phid track`` and
-``phid info`` run on it, each in its own process under ``/usr/bin/time`` (peak resident memory,
+``phid info`` (and ``phid validate`` of the simulated machine's record) run on it, each in its
+own process under ``/usr/bin/time`` (peak resident memory,
 wall time), with this tree and, where ``--baseline`` names a revision, with that revision
 checked out beside it (a git worktree) in the same run: the ratios are measured on the same
 machine at the same time. ``read`` is the limit a replay can reach: walking and decoding the
@@ -41,8 +42,9 @@ BASELINE_GB_PER_HOUR = {
     "read": 0.75,
     "import": 0.15,
     "import-comtrade": 1.5,  # the comtrade package's reader: Python floats of every channel
+    "validate": 1.0,  # a455582 read the recording whole (load_recording), then cut it
 }
-COMMANDS = ("read", "replay", "identify", "track", "info", "import", "import-comtrade")
+COMMANDS = ("read", "replay", "identify", "track", "info", "import", "import-comtrade", "validate")
 
 
 def measured(cmd: list[str], cwd: Path) -> tuple[float, float, int]:
@@ -180,6 +182,17 @@ def comtrade_export(bag: Path, out: Path) -> Path:
     return out
 
 
+def unit_record(out: Path) -> Path:
+    """The simulated machine (TABLE 1, the ambient recording's) as a .dyr for ``phid validate``."""
+    from phid_ros.export.formats import psse_dyr
+    from phid_ros.export.record import build_record
+    from phid_ros.model.parameters import PARAMETER_NAMES, TABLE1
+
+    doc = {"parameters": TABLE1.as_dict(), "identifiable": dict.fromkeys(PARAMETER_NAMES, True)}
+    out.write_text(psse_dyr(build_record(doc, source="TABLE 1", mva=1000.0)))
+    return out
+
+
 def commands(bag: Path, work: Path, tag: str) -> dict[str, list[str]]:
     """Each command on ``bag`` as ``python -m phid_ros.cli.main``, run in the tree it is measured in."""
     phid = [sys.executable, "-m", "phid_ros.cli.main"]
@@ -206,6 +219,7 @@ def commands(bag: Path, work: Path, tag: str) -> dict[str, list[str]]:
         ],
         "replay": [*phid, "replay", str(bag), "--out", str(work / f"replay_{tag}_{bag.stem}.mcap"), "--force"],
         "identify": [*phid, "identify", str(bag)],
+        "validate": [*phid, "validate", str(bag.parent / "unit.dyr"), str(bag)],
         "track": [*phid, "track", str(bag)],
         "info": [*phid, "info", str(bag)],
     }
@@ -239,6 +253,8 @@ def main() -> None:
                 pmu_export(bag, bag.with_suffix(".pmu.csv"))
             if not bag.with_suffix(".cfg").exists():
                 comtrade_export(bag, bag.with_suffix(".cfg"))
+            if not (bag.parent / "unit.dyr").exists():
+                unit_record(bag.parent / "unit.dyr")
             for name in args.commands:
                 for tag, tree in trees.items():
                     if tag == "base" and BASELINE_GB_PER_HOUR[name] * hours > args.baseline_max_gb:

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -26,6 +27,7 @@ if TYPE_CHECKING:  # imported where used: reading a recording does not need the 
     from phid_ros.model.parameters import GeneratorParameters
 
 __all__ = [
+    "Cut",
     "cut_scenarios",
     "identify_cut",
     "identify_recording",
@@ -88,15 +90,28 @@ def identify_recordings(
     return identify_cut(cut, options, truth, progress)
 
 
-def cut_scenarios(
-    path: str | Path, thresholds: StepThresholds | None = None
-) -> tuple[list[ScenarioData], list[str], Recording]:
-    """A recording's scenarios as ``phid identify`` cuts them, and the recording's metadata.
+@dataclass
+class Cut:
+    """A recording's scenarios as every command cuts them, and what the commands need of the rest:
+    its metadata and reader's warnings (``recording``, which holds no samples), and its span."""
+
+    scenarios: list[ScenarioData]
+    problems: list[str]  # scenarios skipped and why, what the aligner dropped
+    recording: Recording  # metadata and warnings only: the samples are let go once cut
+    span_ns: tuple[int, int]  # the first and the last sample's stamp
+
+    @property
+    def f_nominal_hz(self) -> float:
+        return self.recording.f_nominal_hz
+
+
+def cut_scenarios(path: str | Path, thresholds: StepThresholds | None = None) -> Cut:
+    """A recording's scenarios, the one way ``identify``, ``validate``, ``diagnose`` and the fleet
+    cut them.
 
     A bag or .mcap with a summary is read part by part and only the scenarios' windows are
-    kept, so the memory follows the events, not the hours (:func:`phid_ros.stream.scenarios.scenarios_from_parts`;
-    the Recording returned then holds no samples, only the metadata and the reader's warnings);
-    anything else is read whole (:func:`load_recording`).
+    kept, so the memory follows the events, not the hours (:func:`phid_ros.stream.scenarios.scenarios_from_parts`);
+    anything else is read whole (:func:`load_recording`) and let go once cut.
     """
     from phid_ros.ident.scenario import DEFAULT_THRESHOLDS
     from phid_ros.io.parts import recording_parts
@@ -108,10 +123,10 @@ def cut_scenarios(
         parts = recording_parts(p)
         got = scenarios_from_parts(parts, str(path), th)
         if got is not None:
-            return got[0], got[1], Recording({}, [], dict(parts.metadata), list(parts.warnings))
+            return Cut(got[0], got[1], Recording({}, [], dict(parts.metadata), list(parts.warnings)), parts.span_ns)
     rec = load_recording(p)
     scenarios, problems = scenarios_from_recording(rec, str(path), th)
-    return scenarios, problems, rec
+    return Cut(scenarios, problems, Recording({}, [], dict(rec.metadata), list(rec.warnings)), rec.span_ns())
 
 
 def identify_cut(

@@ -7,9 +7,9 @@ from typing import Any
 
 from rich.console import Console
 
-from phid_ros.api import identify_scenarios
-from phid_ros.cli.common import finish, provenance
-from phid_ros.cli.identify import load_input, load_truth, step_thresholds
+from phid_ros.api import cut_scenarios, identify_scenarios
+from phid_ros.cli.common import finish, provenance, warn
+from phid_ros.cli.identify import load_truth, step_thresholds
 from phid_ros.cli.progress import ProgressLine
 from phid_ros.cli.tables import CHANNEL_LABELS, Col, effect_values_text, fmt, pct, print_table, signed_int
 from phid_ros.diagnose.localise import localise
@@ -20,7 +20,6 @@ from phid_ros.errors import PhidError
 from phid_ros.ident.pipeline import IdentifyOptions
 from phid_ros.io.results import read_json, write_json
 from phid_ros.model.parameters import PARAMETER_NAMES, SYMBOLS
-from phid_ros.stream.scenarios import scenarios_from_recording
 
 
 def print_before_after(console: Console, doc: dict[str, Any]) -> None:
@@ -90,14 +89,16 @@ def run(args: Any, console: Console) -> int:
     from phid_ros.io.outputs import refuse_inputs
 
     refuse_inputs([args.json, args.report], [args.input, args.truth])
-    with ProgressLine(f"reading {args.input}") as progress:
-        rec, source = load_input(args.input)
-        truth = load_truth(args.truth, rec) if args.truth else None
+    with ProgressLine(f"reading {args.input} and cutting its scenarios") as progress:
+        source = str(args.input)
+        # part by part: only the windows are held through minutes of fitting, not the recording
+        cut = cut_scenarios(args.input, step_thresholds(args))
+        for w in cut.recording.warnings:
+            warn(w)
+        truth = load_truth(args.truth, cut.recording) if args.truth else None
         truth_effects = read_json(args.truth).get("effects") if args.truth else None
-        progress.update(f"cutting the scenarios of {source}")
-        scenarios, problems = scenarios_from_recording(rec, source, step_thresholds(args))
-        f_hz = rec.f_nominal_hz
-        del rec  # the windows are cut: the whole recording need not stay in memory for minutes of fitting
+        scenarios, problems = cut.scenarios, cut.problems
+        f_hz = cut.f_nominal_hz
         if not any(s.role == "identify" for s in scenarios):
             raise PhidError(f"{source}: no identification scenarios; the diagnosis needs them to fit candidate models")
         missing = sorted({c for s in scenarios for c in s.absent})

@@ -10,7 +10,7 @@ from typing import Any
 from rich.console import Console
 
 from phid_ros.api import cut_scenarios, identify_cut
-from phid_ros.cli.common import finish, provenance, read_input, warn
+from phid_ros.cli.common import finish, provenance, warn
 from phid_ros.cli.progress import ProgressLine
 from phid_ros.cli.tables import Col, fmt, pct, print_table
 from phid_ros.controls.identify import ControlFit, controls_json, identify_controls
@@ -38,11 +38,6 @@ def same_base(paths: list[str], recordings: list[Recording]) -> None:
 
 def step_thresholds(args: Any) -> StepThresholds:
     return StepThresholds(args.min_torque_step, args.min_voltage_step, args.min_field_step)
-
-
-def load_input(path: str | Path) -> tuple[Recording, str]:
-    """A rosbag2 folder, a single .mcap, or a CSV manifest.json (warnings on stderr)."""
-    return read_input(path)
 
 
 def load_parameters(path: str | Path) -> GeneratorParameters:
@@ -207,11 +202,11 @@ def run(args: Any, console: Console) -> int:
         recordings = []
         for path in args.input:
             progress.update(f"reading {path} and cutting its scenarios")
-            scenarios, notes, rec_of = cut_scenarios(path, step_thresholds(args))
-            for w in rec_of.warnings:
+            got = cut_scenarios(path, step_thresholds(args))
+            for w in got.recording.warnings:
                 warn(w)
-            cut.append((scenarios, notes, str(path)))
-            recordings.append(rec_of)
+            cut.append((got.scenarios, got.problems, str(path)))
+            recordings.append(got.recording)
         rec = recordings[0]
         if any(r.f_nominal_hz != rec.f_nominal_hz for r in recordings):
             raise PhidError(f"{' + '.join(args.input)}: the recordings' nominal frequencies differ: not one unit")

@@ -10,8 +10,9 @@ from typing import Any
 import numpy as np
 from rich.console import Console
 
-from phid_ros.cli.common import figure_backend, provenance
-from phid_ros.cli.identify import load_input, step_thresholds
+from phid_ros.api import cut_scenarios
+from phid_ros.cli.common import figure_backend, provenance, warn
+from phid_ros.cli.identify import step_thresholds
 from phid_ros.cli.progress import ProgressLine
 from phid_ros.cli.report import STYLE, html_table, png_data_uri
 from phid_ros.cli.tables import Col, print_table
@@ -27,7 +28,6 @@ from phid_ros.errors import PhidError
 from phid_ros.export.dyr_read import Unit, read_unit
 from phid_ros.io.outputs import write_text
 from phid_ros.io.results import write_json
-from phid_ros.stream.scenarios import scenarios_from_recording
 
 
 def describe(unit: Unit) -> str:
@@ -38,13 +38,14 @@ def describe(unit: Unit) -> str:
 
 def run(args: Any, console: Console) -> int:
     unit = read_unit(args.dyr, args.bus, args.id)
-    with ProgressLine(f"reading {args.input}") as progress:
-        rec, source = load_input(args.input)
-        progress.update(f"cutting the scenarios of {source}")
-        scenarios, problems = scenarios_from_recording(rec, source, step_thresholds(args))
-        f_hz = rec.f_nominal_hz
-        base = rec.metadata.get("base_mva")
-        del rec
+    with ProgressLine(f"reading {args.input} and cutting its scenarios") as progress:
+        source = str(args.input)
+        cut = cut_scenarios(args.input, step_thresholds(args))  # part by part: the windows, not the hours
+        for w in cut.recording.warnings:
+            warn(w)
+        scenarios, problems = cut.scenarios, cut.problems
+        f_hz = cut.f_nominal_hz
+        base = cut.recording.metadata.get("base_mva")
         if not scenarios:
             raise PhidError(f"{source}: no step or disturbance to validate against")
         missing = [c for c in ("v_t", "p_e", "q_e") if any(c in s.absent for s in scenarios)]

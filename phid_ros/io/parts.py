@@ -51,6 +51,7 @@ class RecordingParts:
         self._statuses: dict[Path, WalkStatus] = {}
         self._whole: Recording | None = None
         self.seen: set[str] = set()
+        self._span: tuple[int, int] | None = None
         self._plan()
 
     def _plan(self) -> None:
@@ -106,6 +107,16 @@ class RecordingParts:
         counts = summary.statistics.channel_message_counts
         return sum(counts.get(i, 0) for i, c in summary.channels.items() if c.topic == SCENARIO_TOPIC)
 
+    @property
+    def span_ns(self) -> tuple[int, int]:
+        """The first and the last sample's stamp of the parts walked so far ((0, 0) before any)."""
+        return self._span or (0, 0)
+
+    def _spanned(self, rec: Recording) -> None:
+        if any(len(s) for s in rec.streams.values()):
+            lo, hi = rec.span_ns()
+            self._span = (lo, hi) if self._span is None else (min(lo, self._span[0]), max(hi, self._span[1]))
+
     def _walked(self) -> int:
         return sum(st.read_to for st in self._statuses.values())
 
@@ -119,6 +130,7 @@ class RecordingParts:
     def __iter__(self) -> Iterator[Recording]:
         if self._whole is not None:
             self.seen.update(self._whole.streams)
+            self._spanned(self._whole)
             yield self._whole
             return
         from phid_ros.io.mcap_raw import McapFormatError, iter_message_runs
@@ -167,6 +179,7 @@ class RecordingParts:
             raise BagError(f"{self.source}: none of the phid sensor topics found")
         rec = recording_from_raw(group, source=self.source, metadata=self.metadata, required=())
         self.seen.update(rec.streams)
+        self._spanned(rec)
         return rec
 
 
