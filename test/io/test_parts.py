@@ -125,3 +125,20 @@ def test_scenario_markers_written_after_their_samples_give_every_scenario(tmp_pa
     for a, b in zip(got, want):
         assert a.n == b.n and np.array_equal(a["v_t"], b["v_t"]) and a.kind == b.kind, a.name
     assert not any("skipped" in p for p in problems)
+
+
+@pytest.mark.parametrize("bag", ["catalogue", "validation.mcap"])
+def test_every_command_cuts_a_recording_as_identify_does(bag) -> None:
+    """identify, validate, diagnose and the fleet share one path (api.cut_scenarios): part by part,
+    the same windows as the whole recording gives, no samples kept beyond them, and its span."""
+    from phid_ros.api import cut_scenarios, load_recording
+    from phid_ros.stream.scenarios import scenarios_from_recording
+
+    whole = load_recording(BAGS / bag)
+    want, _ = scenarios_from_recording(whole, str(BAGS / bag))
+    cut = cut_scenarios(BAGS / bag)
+    assert [s.name for s in cut.scenarios] == [s.name for s in want]
+    for a, b in zip(cut.scenarios, want):
+        assert np.array_equal(a.frame.values, b.frame.values, equal_nan=True), a.name
+    assert cut.recording.streams == {} and cut.recording.metadata == whole.metadata
+    assert cut.span_ns == whole.span_ns() and cut.f_nominal_hz == whole.f_nominal_hz
