@@ -13,7 +13,7 @@ these; none of them needs the command line's parser or its terminal output.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -29,6 +29,10 @@ if TYPE_CHECKING:  # imported where used: reading a recording does not need the 
 __all__ = [
     "Cut",
     "cut_scenarios",
+    "cut_unit",
+    "identify_unit",
+    "UnitCut",
+    "UnitIdentification",
     "identify_cut",
     "identify_recording",
     "identify_recordings",
@@ -127,6 +131,96 @@ def cut_scenarios(path: str | Path, thresholds: StepThresholds | None = None) ->
     rec = load_recording(p)
     scenarios, problems = scenarios_from_recording(rec, str(path), th)
     return Cut(scenarios, problems, Recording({}, [], dict(rec.metadata), list(rec.warnings)), rec.span_ns())
+
+
+@dataclass
+class UnitCut:
+    """The recordings of one unit, cut: what :func:`identify_unit` identifies."""
+
+    paths: list[str]  # each recording once (the same bytes given twice are left out)
+    cuts: list[Cut]
+    notes: list[str]  # what was left out and why, for the user
+
+    @property
+    def recording(self) -> Recording:
+        """The first recording's metadata (all share the nominal frequency and the base)."""
+        return self.cuts[0].recording
+
+    @property
+    def source(self) -> str:
+        return " + ".join(self.paths)
+
+
+def cut_unit(
+    paths: Sequence[str | Path],
+    thresholds: StepThresholds | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> UnitCut:
+    """Several recordings of one unit cut as :func:`cut_scenarios` cuts one: the same recording
+    given twice counted once, and refused when the recordings are not of one unit's per unit
+    (another nominal frequency, another MVA base)."""
+    from phid_ros.io.digest import distinct_recordings
+
+    kept, notes = distinct_recordings([str(p) for p in paths])
+    cuts = []
+    for path in kept:
+        if progress:
+            progress(f"reading {path} and cutting its scenarios")
+        cuts.append(cut_scenarios(path, thresholds))
+    unit = UnitCut(kept, cuts, notes)
+    if any(c.f_nominal_hz != unit.recording.f_nominal_hz for c in cuts):
+        raise PhidError(f"{unit.source}: the recordings' nominal frequencies differ: not one unit")
+    bases = {
+        p: float(c.recording.metadata["base_mva"]) for p, c in zip(kept, cuts) if "base_mva" in c.recording.metadata
+    }
+    if len({round(b, 9) for b in bases.values()}) > 1:
+        # the same per-unit figure is another current or power on another base: nothing from both is true
+        named = ", ".join(f"{p} {b:g} MVA" for p, b in bases.items())
+        raise PhidError(f"the recordings are per unit on different bases ({named}); import them on one base_mva")
+    return unit
+
+
+@dataclass
+class UnitIdentification:
+    """What ``phid identify`` finds: the machine's parameters, its exciter and governor, and the
+    results document ``--json`` writes (the contract in the README)."""
+
+    scenarios: list[ScenarioData]
+    result: IdentificationResult
+    controls: dict[str, Any]  # by kind: a ControlFit, or why none (str)
+    document: dict[str, Any]
+
+
+def identify_unit(
+    unit: UnitCut,
+    options: IdentifyOptions,
+    truth: GeneratorParameters | None = None,
+    *,
+    candidates: Mapping[str, Sequence[str]] | None = None,
+    control_starts: Mapping[str, Mapping[str, float]] | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> UnitIdentification:
+    """The three stages on a unit's scenarios, then its exciter and governor (``candidates`` by
+    kind, default every model; ``control_starts`` an existing record's constants), as ``phid
+    identify`` and ``phid fleet`` both do. ``options.f_nominal_hz`` is taken from the recordings."""
+    from dataclasses import replace
+
+    from phid_ros.controls.identify import controls_json, identify_controls
+    from phid_ros.provenance import result_provenance
+
+    options = replace(options, f_nominal_hz=unit.recording.f_nominal_hz)
+    cut = [(c.scenarios, c.problems, p) for p, c in zip(unit.paths, unit.cuts)]
+    scenarios, res = identify_cut(cut, options, truth, progress)
+    doc = res.to_json(truth)
+    if progress:
+        progress("identifying the exciter and the governor")
+    controls = identify_controls(scenarios, dict(candidates or {}), dict(control_starts or {}))
+    doc["controls"] = controls_json(controls)
+    doc.update(result_provenance(*unit.paths))
+    doc["f_nominal_hz"] = options.f_nominal_hz  # what phid export needs to write a planning model
+    if unit.recording.metadata.get("base_mva") is not None:
+        doc["base_mva"] = float(unit.recording.metadata["base_mva"])
+    return UnitIdentification(scenarios, res, controls, doc)
 
 
 def identify_cut(

@@ -24,20 +24,6 @@ def read_input(path: str | Path) -> tuple[Recording, str]:
     return rec, str(path)
 
 
-def provenance(*paths: str | Path) -> dict[str, str]:
-    """Which recording a result came from: its path and its content's SHA-256 (``phid export``
-    compares the identification's and the diagnosis's before merging them); several recordings
-    are named joined by " + ", their digest the SHA-256 of theirs."""
-    import hashlib
-
-    from phid_ros.io.digest import content_hash
-    from phid_ros.provenance import method_version
-
-    digests = [content_hash(Path(p)) for p in paths]
-    digest = digests[0] if len(digests) == 1 else hashlib.sha256("".join(digests).encode()).hexdigest()
-    return {"input": " + ".join(map(str, paths)), "input_sha256": digest, "method_version": method_version()}
-
-
 def write_output(out: Path, rec: Recording, block_size: int) -> None:
     """A recording to a bag folder, a single .mcap, or a CSV set (``DIR/manifest.json``), whole or not at all."""
     from phid_ros.io.bags import write_recording

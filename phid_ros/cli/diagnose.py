@@ -8,7 +8,7 @@ from typing import Any
 from rich.console import Console
 
 from phid_ros.api import cut_scenarios, identify_scenarios
-from phid_ros.cli.common import finish, provenance, warn
+from phid_ros.cli.common import finish, warn
 from phid_ros.cli.identify import load_truth, step_thresholds
 from phid_ros.cli.progress import ProgressLine
 from phid_ros.cli.tables import CHANNEL_LABELS, Col, effect_values_text, fmt, pct, print_table, signed_int
@@ -20,6 +20,7 @@ from phid_ros.errors import PhidError
 from phid_ros.ident.pipeline import IdentifyOptions
 from phid_ros.io.results import read_json, write_json
 from phid_ros.model.parameters import PARAMETER_NAMES, SYMBOLS
+from phid_ros.provenance import result_provenance
 
 
 def print_before_after(console: Console, doc: dict[str, Any]) -> None:
@@ -121,7 +122,7 @@ def run(args: Any, console: Console) -> int:
         )
     d.problems[:0] = problems + [p for p in res.problems if "kept the label" not in p]
     doc = to_json(d, truth, truth_effects)
-    doc.update(provenance(args.input))
+    doc.update(result_provenance(args.input))
     if gap is not None:
         doc["gap_before"] = gap.as_dict()
     doc["seconds"] = time.perf_counter() - t_start

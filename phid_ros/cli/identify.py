@@ -9,31 +9,20 @@ from typing import Any
 
 from rich.console import Console
 
-from phid_ros.api import cut_scenarios, identify_cut
-from phid_ros.cli.common import finish, provenance, warn
+from phid_ros.api import cut_unit, identify_unit
+from phid_ros.cli.common import finish, warn
 from phid_ros.cli.progress import ProgressLine
 from phid_ros.cli.tables import Col, fmt, pct, print_table
-from phid_ros.controls.identify import ControlFit, controls_json, identify_controls
+from phid_ros.controls.identify import ControlFit
 from phid_ros.errors import PhidError
 from phid_ros.ident.constraints import parse_constraints
 from phid_ros.ident.pipeline import IdentificationResult, IdentifyOptions
 from phid_ros.ident.scenario import StepThresholds
-from phid_ros.io.digest import distinct_recordings
 from phid_ros.io.recording import Recording
 from phid_ros.io.results import read_json, write_json
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, SYMBOLS, GeneratorParameters
 
 # imported here, with the command, so that their import is start-up and not "reading"
-
-
-def same_base(paths: list[str], recordings: list[Recording]) -> None:
-    """Recordings joined into one set must be per unit on one base: the same per-unit figure means
-    another current or power on another base, and nothing identified from both would be true."""
-    bases = {p: r.metadata.get("base_mva") for p, r in zip(paths, recordings)}
-    given = {p: float(b) for p, b in bases.items() if b is not None}
-    if len({round(b, 9) for b in given.values()}) > 1:
-        named = ", ".join(f"{p} {b:g} MVA" for p, b in given.items())
-        raise PhidError(f"the recordings are per unit on different bases ({named}); import them on one base_mva")
 
 
 def step_thresholds(args: Any) -> StepThresholds:
@@ -190,50 +179,32 @@ def run(args: Any, console: Console) -> int:
     from phid_ros.io.outputs import refuse_inputs
 
     refuse_inputs([args.json, args.report], [*args.input, args.truth, getattr(args, "start_from", None)])
-    args.input, repeated = distinct_recordings(list(args.input))
-    for note in repeated:
-        warn(note)
     control_starts = start_from_dyr(args) if getattr(args, "start_from", None) else {}
     constraints = parse_constraints(args.fix, args.bounds, args.start)  # a typo said before the reading
     t_start = time.perf_counter()
     with ProgressLine(f"reading {' + '.join(args.input)}") as progress:
         # read part by part where the recording allows: only the scenarios' windows are kept
-        cut = []
-        recordings = []
-        for path in args.input:
-            progress.update(f"reading {path} and cutting its scenarios")
-            got = cut_scenarios(path, step_thresholds(args))
-            for w in got.recording.warnings:
-                warn(w)
-            cut.append((got.scenarios, got.problems, str(path)))
-            recordings.append(got.recording)
-        rec = recordings[0]
-        if any(r.f_nominal_hz != rec.f_nominal_hz for r in recordings):
-            raise PhidError(f"{' + '.join(args.input)}: the recordings' nominal frequencies differ: not one unit")
-        same_base(args.input, recordings)
+        unit = cut_unit(args.input, step_thresholds(args), progress.update)
+        for w in [*unit.notes, *(w for c in unit.cuts for w in c.recording.warnings)]:
+            warn(w)
         t_read = time.perf_counter() - t_start
-        truth = load_truth(args.truth, rec) if args.truth else None
+        truth = load_truth(args.truth, unit.recording) if args.truth else None
         options = IdentifyOptions(
             method=args.method,
-            f_nominal_hz=rec.f_nominal_hz,
             seed=args.seed,
             baseline=not args.no_baseline,
             paper_maxiter=args.paper_maxiter,
             step_thresholds=step_thresholds(args),
             constraints=constraints,
         )
-        scenarios, res = identify_cut(cut, options, truth, progress.update)
-    source = " + ".join(args.input)
-    res.timing = {"read": round(t_read, 6), **res.timing}
-    doc = res.to_json(truth)
-    with ProgressLine("identifying the exciter and the governor"):
         candidates = {k: names for k in ("exciter", "governor") if (names := getattr(args, k, None))}
-        controls = identify_controls(scenarios, candidates, control_starts)
-    doc["controls"] = controls_json(controls)
-    doc.update(provenance(*args.input))
-    doc["f_nominal_hz"] = rec.f_nominal_hz  # what phid export needs to write a planning model
-    if rec.metadata.get("base_mva") is not None:
-        doc["base_mva"] = float(rec.metadata["base_mva"])
+        found = identify_unit(
+            unit, options, truth, candidates=candidates, control_starts=control_starts, progress=progress.update
+        )
+    scenarios, res, controls, doc = found.scenarios, found.result, found.controls, found.document
+    source = unit.source
+    res.timing = {"read": round(t_read, 6), **res.timing}
+    doc["timing_s"] = res.timing
     if args.json:
         t0 = time.perf_counter()
         write_json(args.json, doc)
@@ -246,7 +217,7 @@ def run(args: Any, console: Console) -> int:
         from phid_ros.cli.tables import print_determinable
         from phid_ros.ident.determinable import plan
 
-        planned = plan(scenarios, options.constraints.fixed)
+        planned = plan(scenarios, constraints.fixed)
         print_determinable(console, "what these channels determine", planned, res.determined_by)
     print_parameters(console, res, truth)
     print_validation(console, res)

@@ -11,7 +11,7 @@ import numpy as np
 from rich.console import Console
 
 from phid_ros.api import cut_scenarios
-from phid_ros.cli.common import figure_backend, provenance, warn
+from phid_ros.cli.common import figure_backend, warn
 from phid_ros.cli.identify import step_thresholds
 from phid_ros.cli.progress import ProgressLine
 from phid_ros.cli.report import STYLE, html_table, png_data_uri
@@ -28,6 +28,7 @@ from phid_ros.errors import PhidError
 from phid_ros.export.dyr_read import Unit, read_unit
 from phid_ros.io.outputs import write_text
 from phid_ros.io.results import write_json
+from phid_ros.provenance import result_provenance
 
 
 def describe(unit: Unit) -> str:
@@ -62,7 +63,8 @@ def run(args: Any, console: Console) -> int:
         f"the record's constants taken on the recording's machine base ({on_base}): PSS/E keeps MBASE in the .raw",
         *(f"not simulated: {n}" for n in unit.not_simulated()),
     ]
-    doc = {"validation": result.as_json(), "parameters": params.as_dict(), "p_m0": p_m0, **provenance(args.input)}
+    doc = {"validation": result.as_json(), "parameters": params.as_dict(), "p_m0": p_m0}
+    doc.update(result_provenance(args.input))
     if args.json:
         write_json(args.json, doc)
     if args.report:

@@ -44,6 +44,7 @@ class Row:
     identifiable: dict[str, bool] = field(default_factory=dict)
     flags: list[str] = field(default_factory=list)  # notes of the identification (e.g. one steady state)
     effects: list[dict[str, Any]] = field(default_factory=list)  # named by the diagnosis, with parameters
+    controls: dict[str, Any] = field(default_factory=dict)  # the exciter and governor, as identify's JSON
     method: str = ""
     wall_s: float = math.nan
     error: str = ""
@@ -63,9 +64,10 @@ class Row:
 
 
 ADDED_COLUMNS = ("method_version",)  # by schema steps after the first
-_SCALARS = [f.name for f in fields(Row) if f.name not in ("values", "stds", "identifiable", "flags", "effects")]
+_DOCUMENTS = ("flags", "effects", "controls")  # JSON columns
+_SCALARS = [f.name for f in fields(Row) if f.name not in ("values", "stds", "identifiable", *_DOCUMENTS)]
 _PARAM_COLUMNS = [c for n in PARAMETER_NAMES for c in (n, f"{n}_std", f"{n}_identifiable")]
-_COLUMNS = _SCALARS + _PARAM_COLUMNS + ["flags", "effects"]
+_COLUMNS = _SCALARS + _PARAM_COLUMNS + list(_DOCUMENTS)
 
 
 def _create_sql() -> str:
@@ -88,6 +90,8 @@ SCHEMA_STEPS = (
     + "; CREATE TABLE IF NOT EXISTS hash_cache (path TEXT PRIMARY KEY, stat_key TEXT, sha256 TEXT)",
     # 2: the method version, so that a rerun redoes what an older method identified
     "ALTER TABLE runs ADD COLUMN method_version TEXT NOT NULL DEFAULT ''",
+    # 3: the exciter and governor identify names (a fleet identified units without their controls)
+    "ALTER TABLE runs ADD COLUMN controls TEXT NOT NULL DEFAULT '{}'",
 )
 
 
@@ -164,7 +168,7 @@ class History:
         values: list[Any] = [getattr(row, c) for c in _SCALARS]
         for n in PARAMETER_NAMES:
             values += [_real(row.values.get(n)), _real(row.stds.get(n)), int(bool(row.identifiable.get(n)))]
-        values += [json.dumps(row.flags), json.dumps(row.effects)]
+        values += [json.dumps(row.flags), json.dumps(row.effects), json.dumps(row.controls)]
         marks = ", ".join("?" * len(_COLUMNS))
         try:
             self.db.execute(f"INSERT OR REPLACE INTO runs ({', '.join(_COLUMNS)}) VALUES ({marks})", values)
@@ -198,6 +202,7 @@ def _row(r: dict[str, Any]) -> Row:
         row.identifiable[n] = bool(r[f"{n}_identifiable"])
     row.flags = json.loads(r["flags"] or "[]")
     row.effects = json.loads(r["effects"] or "[]")
+    row.controls = json.loads(r["controls"] or "{}")
     return row
 
 

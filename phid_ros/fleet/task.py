@@ -44,15 +44,17 @@ def process_recording(unit: str, path: str, content_hash: str, diagnose: bool = 
 
 
 def _identify_into(row: Row, path: str, diagnose: bool) -> None:
-    from phid_ros.api import cut_scenarios, identify_cut
+    from phid_ros.api import cut_unit, identify_unit
     from phid_ros.ident.pipeline import IdentifyOptions
 
-    cut = cut_scenarios(path)  # part by part, as phid identify: a long recording's windows, not its hours
-    row.start_ns, row.end_ns = cut.span_ns
-    options = IdentifyOptions(f_nominal_hz=cut.f_nominal_hz, baseline=False, validate=not diagnose)
-    scenarios, res = identify_cut([(cut.scenarios, cut.problems, path)], options)
+    unit = cut_unit([path])  # part by part, as phid identify: a long recording's windows, not its hours
+    row.start_ns, row.end_ns = unit.cuts[0].span_ns
+    options = IdentifyOptions(baseline=False, validate=not diagnose)
+    found = identify_unit(unit, options)  # the machine, its exciter and governor, as phid identify
+    scenarios, res = found.scenarios, found.result
+    row.controls = found.document["controls"]
     row.method = f"three-stage ({res.method})"
-    row.flags = [f"read: {w}" for w in cut.recording.warnings]
+    row.flags = [f"read: {w}" for w in unit.recording.warnings]
     for name in PARAMETER_NAMES:
         est = res.estimates.get(name)
         if est is None:
@@ -62,7 +64,7 @@ def _identify_into(row: Row, path: str, diagnose: bool) -> None:
             row.flags.append(f"{name}: {est.note}")
     row.flags += [p for p in res.problems if "kept the label" not in p]
     if diagnose:
-        _diagnose_into(row, scenarios, res, cut.f_nominal_hz)
+        _diagnose_into(row, scenarios, res, unit.recording.f_nominal_hz)
 
 
 def _diagnose_into(row: Row, scenarios: list, res: IdentificationResult, f_hz: float) -> None:

@@ -195,6 +195,6 @@ def test_a_bad_fix_is_said_before_the_recording_is_read(tmp_path, capsys, monkey
     from phid_ros.cli import identify
 
     read = []
-    monkeypatch.setattr(identify, "cut_scenarios", lambda *a, **k: read.append(a))
+    monkeypatch.setattr(identify, "cut_unit", lambda *a, **k: read.append(a))
     assert main(["identify", str(BAGS / "catalogue"), "--fix", "X_d=abc"]) == 2
     assert "--fix X_d: 'abc' is not a number" in capsys.readouterr().err and not read

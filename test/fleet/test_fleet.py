@@ -102,6 +102,16 @@ def test_six_recordings_five_rows_one_failure_drift_flagged_rerun_does_nothing_k
             assert r.values[name] == pytest.approx(truth[name], rel=tol), (r.unit, name)
         assert r.start_ns is not None and r.end_ns > r.start_ns and r.wall_s > 0
 
+    # a fleet row carries what phid identify finds of the recording: the exciter and governor too
+    import json
+
+    from phid_ros.cli.main import main
+
+    assert main(["identify", ok[0].recording, "--no-baseline", "--json", str(out / "one.json")]) == 0
+    cli = json.loads((out / "one.json").read_text())
+    assert set(ok[0].controls) == {"exciter", "governor"}
+    assert json.dumps(ok[0].controls, sort_keys=True) == json.dumps(cli["controls"], sort_keys=True)
+
     flagged = changes(rows)
     assert [(c.unit, c.parameter) for c in flagged] == [("U2", "T_d0_prime")]
     assert flagged[0].relative == pytest.approx(DRIFT - 1, abs=0.01)
