@@ -38,7 +38,22 @@ __all__ = [
     "identify_recordings",
     "identify_scenarios",
     "load_recording",
+    "result_provenance",
 ]
+
+
+def result_provenance(*paths: str | Path) -> dict[str, str]:
+    """Which recording a result came from: its path and its content's SHA-256 (``phid export``
+    compares the identification's and the diagnosis's before merging them); several recordings
+    are named joined by " + ", their digest the SHA-256 of theirs."""
+    import hashlib
+
+    from phid_ros.io.digest import content_hash
+    from phid_ros.provenance import method_version
+
+    digests = [content_hash(Path(p)) for p in paths]
+    digest = digests[0] if len(digests) == 1 else hashlib.sha256("".join(digests).encode()).hexdigest()
+    return {"input": " + ".join(map(str, paths)), "input_sha256": digest, "method_version": method_version()}
 
 
 def load_recording(path: str | Path) -> Recording:
@@ -206,7 +221,6 @@ def identify_unit(
     from dataclasses import replace
 
     from phid_ros.controls.identify import controls_json, identify_controls
-    from phid_ros.provenance import result_provenance
 
     options = replace(options, f_nominal_hz=unit.recording.f_nominal_hz)
     cut = [(c.scenarios, c.problems, p) for p, c in zip(unit.paths, unit.cuts)]

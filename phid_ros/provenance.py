@@ -32,14 +32,3 @@ def method_version() -> str:
     for path in sources:
         digest.update(str(path.relative_to(root)).encode() + b"\0" + path.read_bytes() + b"\0")
     return f"{__version__}+{digest.hexdigest()[:12]}"
-
-
-def result_provenance(*paths: str | Path) -> dict[str, str]:
-    """Which recording a result came from: its path and its content's SHA-256 (``phid export``
-    compares the identification's and the diagnosis's before merging them); several recordings
-    are named joined by " + ", their digest the SHA-256 of theirs."""
-    from phid_ros.io.digest import content_hash
-
-    digests = [content_hash(Path(p)) for p in paths]
-    digest = digests[0] if len(digests) == 1 else hashlib.sha256("".join(digests).encode()).hexdigest()
-    return {"input": " + ".join(map(str, paths)), "input_sha256": digest, "method_version": method_version()}

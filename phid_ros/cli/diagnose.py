@@ -7,9 +7,8 @@ from typing import Any
 
 from rich.console import Console
 
-from phid_ros.api import cut_scenarios, identify_scenarios
-from phid_ros.cli.common import finish, warn
-from phid_ros.cli.identify import load_truth, step_thresholds
+from phid_ros.api import cut_scenarios, identify_scenarios, result_provenance
+from phid_ros.cli.common import finish, load_truth, step_thresholds, warn
 from phid_ros.cli.progress import ProgressLine
 from phid_ros.cli.tables import CHANNEL_LABELS, Col, effect_values_text, fmt, pct, print_table, signed_int
 from phid_ros.diagnose.localise import localise
@@ -20,7 +19,6 @@ from phid_ros.errors import PhidError
 from phid_ros.ident.pipeline import IdentifyOptions
 from phid_ros.io.results import read_json, write_json
 from phid_ros.model.parameters import PARAMETER_NAMES, SYMBOLS
-from phid_ros.provenance import result_provenance
 
 
 def print_before_after(console: Console, doc: dict[str, Any]) -> None:

@@ -4,53 +4,21 @@ from __future__ import annotations
 
 import math
 import time
-from pathlib import Path
 from typing import Any
 
 from rich.console import Console
 
 from phid_ros.api import cut_unit, identify_unit
-from phid_ros.cli.common import finish, warn
+from phid_ros.cli.common import finish, load_truth, step_thresholds, warn
 from phid_ros.cli.progress import ProgressLine
 from phid_ros.cli.tables import Col, fmt, pct, print_table
 from phid_ros.controls.identify import ControlFit
-from phid_ros.errors import PhidError
 from phid_ros.ident.constraints import parse_constraints
 from phid_ros.ident.pipeline import IdentificationResult, IdentifyOptions
-from phid_ros.ident.scenario import StepThresholds
-from phid_ros.io.recording import Recording
-from phid_ros.io.results import read_json, write_json
+from phid_ros.io.results import write_json
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, SYMBOLS, GeneratorParameters
 
 # imported here, with the command, so that their import is start-up and not "reading"
-
-
-def step_thresholds(args: Any) -> StepThresholds:
-    return StepThresholds(args.min_torque_step, args.min_voltage_step, args.min_field_step)
-
-
-def load_parameters(path: str | Path) -> GeneratorParameters:
-    """The eight parameters of a results or truth file; other keys ignored with a note on stderr."""
-    params, notes = GeneratorParameters.from_document(read_json(path), source=str(path))
-    for n in notes:
-        warn(n)
-    return params
-
-
-def load_truth(path: str | Path, rec: Recording) -> GeneratorParameters:
-    doc = read_json(path)
-    truth = load_parameters(path)
-    f_truth = doc.get("f_nominal_hz")
-    if f_truth is not None and "f_nominal_hz" in rec.metadata and abs(float(f_truth) - rec.f_nominal_hz) > 1e-9:
-        raise PhidError(f"{path}: nominal frequency {f_truth} Hz differs from the recording's {rec.f_nominal_hz} Hz")
-    base_truth = doc.get("base_mva")
-    base_rec = rec.metadata.get("base_mva")
-    if base_truth is not None and base_rec is not None and abs(float(base_truth) - float(base_rec)) > 1e-9:
-        raise PhidError(
-            f"{path}: base {base_truth} MVA differs from the recording's {base_rec} MVA; "
-            "per-unit parameters on different bases do not compare"
-        )
-    return truth
 
 
 def _err(v: float, t: float | None) -> str:

@@ -8,8 +8,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from phid_ros.cli.common import warn
-from phid_ros.cli.identify import load_parameters
+from phid_ros.cli.common import load_parameters, warn
 from phid_ros.cli.monitor_report import HealthLog
 from phid_ros.cli.progress import ProgressLine
 from phid_ros.cli.tables import CONCISE_LEGEND, estimate_text

@@ -10,9 +10,8 @@ from typing import Any
 import numpy as np
 from rich.console import Console
 
-from phid_ros.api import cut_scenarios
-from phid_ros.cli.common import figure_backend, warn
-from phid_ros.cli.identify import step_thresholds
+from phid_ros.api import cut_scenarios, result_provenance
+from phid_ros.cli.common import figure_backend, step_thresholds, warn
 from phid_ros.cli.progress import ProgressLine
 from phid_ros.cli.report import STYLE, html_table, png_data_uri
 from phid_ros.cli.tables import Col, print_table
@@ -28,7 +27,6 @@ from phid_ros.errors import PhidError
 from phid_ros.export.dyr_read import Unit, read_unit
 from phid_ros.io.outputs import write_text
 from phid_ros.io.results import write_json
-from phid_ros.provenance import result_provenance
 
 
 def describe(unit: Unit) -> str:

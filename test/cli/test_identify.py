@@ -114,7 +114,7 @@ def test_truth_file_with_a_wrong_name(tmp_path):
 @pytest.mark.parametrize("nested", [True, False])
 def test_truth_file_with_metadata_beside_the_parameters(tmp_path, capsys, nested):
     """A plant's truth file carries more than the eight: unit, date, source. Ignored, with a note."""
-    from phid_ros.cli.identify import load_parameters
+    from phid_ros.cli.common import load_parameters
 
     meta = {"unit": "G1", "date": "2026-11-01", "source": "OEM datasheet"}
     doc = {**meta, "parameters": TABLE1.as_dict()} if nested else {**meta, **TABLE1.as_dict()}
