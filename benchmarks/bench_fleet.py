@@ -42,8 +42,8 @@ from phid_ros.io.digest import content_hash, recording_files  # noqa: E402
 
 
 def make_inventory(root: Path, n: int) -> None:
-    from phid_ros.cli.simulate import DEFAULT_START_NS, recording_from_runs
     from phid_ros.io.bags import write_recording
+    from phid_ros.sim.recording import DEFAULT_START_NS, recording_from_runs
     from phid_ros.sim.runner import SimulationConfig, simulate_scenarios
     from phid_ros.sim.scenarios import paper_catalogue
     from phid_ros.sim.sensors import SensorModel

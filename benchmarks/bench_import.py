@@ -25,12 +25,12 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from phid_ros.cli.simulate import recording_from_runs  # noqa: E402
 from phid_ros.io.channel_map import load_channel_map  # noqa: E402
 from phid_ros.io.comtrade_import import import_comtrade  # noqa: E402
 from phid_ros.io.csv_export import write_csv_set  # noqa: E402
 from phid_ros.io.csv_import import import_csv_set  # noqa: E402
 from phid_ros.io.phasors import positive_sequence  # noqa: E402
+from phid_ros.sim.recording import recording_from_runs  # noqa: E402
 from phid_ros.sim.runner import SimulationConfig, simulate_scenarios  # noqa: E402
 from phid_ros.sim.scenarios import paper_catalogue, with_duration  # noqa: E402
 from test.io.comtrade_writer import write_comtrade  # noqa: E402

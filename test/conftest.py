@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from phid_ros.cli.simulate import recording_from_runs
 from phid_ros.io.recording import Recording
+from phid_ros.sim.recording import recording_from_runs
 from phid_ros.sim.runner import ScenarioRun, SimulationConfig, simulate_scenarios
 from phid_ros.sim.scenarios import Scenario, paper_catalogue
 

@@ -4,10 +4,10 @@ from pathlib import Path
 
 import numpy as np
 
-from phid_ros.cli.simulate import recording_from_runs
 from phid_ros.io.bags import read_recording
 from phid_ros.io.results import read_json
 from phid_ros.model.parameters import TABLE1
+from phid_ros.sim.recording import recording_from_runs
 from phid_ros.sim.runner import SimulationConfig, simulate_scenarios
 from phid_ros.sim.scenarios import validation_scenarios
 from phid_ros.sim.sensors import DEFAULT_CHANNEL_SENSORS, SensorModel

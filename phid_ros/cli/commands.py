@@ -30,8 +30,8 @@ def _parse_effects(items: Sequence[str]) -> tuple:
 
 
 def cmd_simulate(args: argparse.Namespace, console: Console) -> int:
-    from phid_ros.cli.simulate import recording_from_runs, truth_document
     from phid_ros.io.results import truth_path_for, write_json
+    from phid_ros.sim.recording import recording_from_runs, truth_document
     from phid_ros.sim.runner import SimulationConfig, simulate_scenarios
     from phid_ros.sim.scenarios import find_scenario, paper_catalogue, validation_scenarios
     from phid_ros.sim.sensors import SensorModel
@@ -97,13 +97,13 @@ def _parse_drift(text: str) -> object:
 def _simulate_ambient(args: argparse.Namespace, console: Console) -> int:
     import numpy as np
 
-    from phid_ros.cli.simulate import DEFAULT_START_NS, recording_metadata, truth_document
     from phid_ros.io.bags import open_message_writer
     from phid_ros.io.recording import Recording, StreamSamples, iter_recording_messages
     from phid_ros.io.results import truth_path_for, write_json
     from phid_ros.io.topics import STREAMS
     from phid_ros.model.conventions import NS
     from phid_ros.sim.ambient import AmbientSettings, ambient_chunks
+    from phid_ros.sim.recording import DEFAULT_START_NS, recording_metadata, truth_document
     from phid_ros.sim.runner import SimulationConfig
     from phid_ros.sim.sensors import SensorModel
 

@@ -30,8 +30,8 @@ DRIFT = 1.08  # U2's T'_d0 on its second day
 
 @pytest.fixture(scope="module")
 def inventory(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    from phid_ros.cli.simulate import DEFAULT_START_NS, recording_from_runs
     from phid_ros.io.bags import write_recording
+    from phid_ros.sim.recording import DEFAULT_START_NS, recording_from_runs
     from phid_ros.sim.runner import SimulationConfig, simulate_scenarios
     from phid_ros.sim.scenarios import paper_catalogue
     from phid_ros.sim.sensors import SensorModel

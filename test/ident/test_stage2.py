@@ -45,9 +45,9 @@ def test_unsettled_final_windows_are_left_out_and_named(clean_scenarios):
 def test_steady_states_off_the_origin_flag_x_d(tmp_path) -> None:
     """Saturation bends the steady states off the line through the origin: X_d is then not identified
     (it came out +12 % 'identified' on the saturation bag, +14 % on ANDES's saturated GENROU)."""
-    from phid_ros.cli.simulate import simulate_recording
     from phid_ros.ident.pipeline import IdentifyOptions, identify
     from phid_ros.sim.effects import MagneticSaturation
+    from phid_ros.sim.recording import simulate_recording
     from phid_ros.sim.runner import SimulationConfig
     from phid_ros.sim.scenarios import paper_catalogue, with_duration
     from phid_ros.stream.scenarios import scenarios_from_recording

@@ -14,12 +14,12 @@ import math
 import numpy as np
 import pytest
 
-from phid_ros.cli.simulate import recording_from_runs
 from phid_ros.ident.pipeline import IdentifyOptions, identify
 from phid_ros.io.channel_map import ChannelMapError, load_channel_map
 from phid_ros.io.comtrade_import import ComtradeImportError, import_comtrade
 from phid_ros.model.conventions import dq_to_terminal
 from phid_ros.model.parameters import PARAMETER_NAMES
+from phid_ros.sim.recording import recording_from_runs
 from phid_ros.sim.runner import SimulationConfig, simulate_scenarios
 from phid_ros.sim.scenarios import paper_catalogue, with_duration
 from phid_ros.stream.scenarios import scenarios_from_recording
