@@ -39,6 +39,8 @@ __all__ = [
     "identify_scenarios",
     "load_recording",
     "result_provenance",
+    "validate_record",
+    "RecordValidation",
 ]
 
 
@@ -235,6 +237,65 @@ def identify_unit(
     if unit.recording.metadata.get("base_mva") is not None:
         doc["base_mva"] = float(unit.recording.metadata["base_mva"])
     return UnitIdentification(scenarios, res, controls, doc)
+
+
+@dataclass
+class RecordValidation:
+    """What ``phid validate`` finds: every check of the record against the recording's events,
+    the machine as the record gives it at the recording's operating point, and the document
+    ``--json`` writes."""
+
+    result: Any  # controls.unit_validation.UnitValidation
+    parameters: GeneratorParameters
+    p_m0: float
+    document: dict[str, Any]
+    warnings: list[str]  # the reader's
+
+
+def validate_record(
+    dyr: str | Path,
+    path: str | Path,
+    *,
+    bus: int | None = None,
+    machine_id: str | None = None,
+    thresholds: StepThresholds | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> RecordValidation:
+    """A unit's PSS/E record (machine, exciter, governor) played in against each event of the
+    recording at ``path``, as MOD-026/027 ask; the record's constants on the recording's base."""
+    import numpy as np
+
+    from phid_ros.controls.unit_validation import control_of, validate_unit
+    from phid_ros.export.dyr_read import read_unit
+
+    unit = read_unit(dyr, bus, machine_id)
+    source = str(path)
+    if progress:
+        progress(f"reading {source} and cutting its scenarios")
+    cut = cut_scenarios(path, thresholds)  # part by part: the windows, not the hours
+    scenarios = cut.scenarios
+    if not scenarios:
+        raise PhidError(f"{source}: no step or disturbance to validate against")
+    missing = [c for c in ("v_t", "p_e", "q_e") if any(c in s.absent for s in scenarios)]
+    if missing:
+        raise PhidError(f"{source}: not recorded: {', '.join(missing)}; the play-in needs V_t and checks P and Q")
+    # PSS/E's D is phid's less P_m0 (the record's swing equation divides P_m by the speed)
+    p_m0 = float(np.median([np.mean(s["p_e"][s.pre_slice()]) for s in scenarios]))
+    params = unit.parameters(p_m0)
+    controls = {k: control_of(c.model, c.values) for k, c in unit.controls.items()}
+    if progress:
+        progress("playing the unit in")
+    models = [c.model for c in unit.controls.values()]
+    described = " + ".join([f"{unit.machine} at bus {unit.bus} id '{unit.machine_id}'", *models])
+    result = validate_unit(scenarios, params, controls, cut.f_nominal_hz, f"{described} ({unit.source})")
+    base = cut.recording.metadata.get("base_mva")
+    on_base = f"{float(base):g} MVA" if base is not None else "not stated in the recording"
+    result.notes[:0] = cut.problems + [
+        f"the record's constants taken on the recording's machine base ({on_base}): PSS/E keeps MBASE in the .raw",
+        *(f"not simulated: {n}" for n in unit.not_simulated()),
+    ]
+    doc = {"validation": result.as_json(), "parameters": params.as_dict(), "p_m0": p_m0, **result_provenance(path)}
+    return RecordValidation(result, params, p_m0, doc, list(cut.recording.warnings))
 
 
 def identify_cut(

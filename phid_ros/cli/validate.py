@@ -7,10 +7,9 @@ import html
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 from rich.console import Console
 
-from phid_ros.api import cut_scenarios, result_provenance
+from phid_ros.api import validate_record
 from phid_ros.cli.common import figure_backend, step_thresholds, warn
 from phid_ros.cli.progress import ProgressLine
 from phid_ros.cli.report import STYLE, html_table, png_data_uri
@@ -20,55 +19,29 @@ from phid_ros.controls.unit_validation import (
     ChannelCheck,
     ScenarioCheck,
     UnitValidation,
-    control_of,
-    validate_unit,
 )
-from phid_ros.errors import PhidError
-from phid_ros.export.dyr_read import Unit, read_unit
 from phid_ros.io.outputs import write_text
 from phid_ros.io.results import write_json
 
 
-def describe(unit: Unit) -> str:
-    parts = [f"{unit.machine} at bus {unit.bus} id '{unit.machine_id}'"]
-    parts += [f"{c.model}" for c in unit.controls.values()]
-    return " + ".join(parts) + f" ({unit.source})"
-
-
 def run(args: Any, console: Console) -> int:
-    unit = read_unit(args.dyr, args.bus, args.id)
     with ProgressLine(f"reading {args.input} and cutting its scenarios") as progress:
-        source = str(args.input)
-        cut = cut_scenarios(args.input, step_thresholds(args))  # part by part: the windows, not the hours
-        for w in cut.recording.warnings:
-            warn(w)
-        scenarios, problems = cut.scenarios, cut.problems
-        f_hz = cut.f_nominal_hz
-        base = cut.recording.metadata.get("base_mva")
-        if not scenarios:
-            raise PhidError(f"{source}: no step or disturbance to validate against")
-        missing = [c for c in ("v_t", "p_e", "q_e") if any(c in s.absent for s in scenarios)]
-        if missing:
-            raise PhidError(f"{source}: not recorded: {', '.join(missing)}; the play-in needs V_t and checks P and Q")
-        # PSS/E's D is phid's less P_m0 (the record's swing equation divides P_m by the speed)
-        p_m0 = float(np.median([np.mean(s["p_e"][s.pre_slice()]) for s in scenarios]))
-        params = unit.parameters(p_m0)
-        controls = {k: control_of(c.model, c.values) for k, c in unit.controls.items()}
-        progress.update("playing the unit in")
-        result = validate_unit(scenarios, params, controls, f_hz, describe(unit))
-    on_base = f"{float(base):g} MVA" if base is not None else "not stated in the recording"
-    result.notes[:0] = problems + [
-        f"the record's constants taken on the recording's machine base ({on_base}): PSS/E keeps MBASE in the .raw",
-        *(f"not simulated: {n}" for n in unit.not_simulated()),
-    ]
-    doc = {"validation": result.as_json(), "parameters": params.as_dict(), "p_m0": p_m0}
-    doc.update(result_provenance(args.input))
+        found = validate_record(
+            args.dyr,
+            args.input,
+            bus=args.bus,
+            machine_id=args.id,
+            thresholds=step_thresholds(args),
+            progress=progress.update,
+        )
+    for w in found.warnings:
+        warn(w)
     if args.json:
-        write_json(args.json, doc)
+        write_json(args.json, found.document)
     if args.report:
-        write_report(args.report, result, source)
-    print_result(console, result)
-    return 0 if result.passed() else 1
+        write_report(args.report, found.result, str(args.input))
+    print_result(console, found.result)
+    return 0 if found.result.passed() else 1
 
 
 def print_result(console: Console, result: UnitValidation) -> None:
