@@ -13,6 +13,7 @@ these; none of them needs the command line's parser or its terminal output.
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -230,7 +231,9 @@ def identify_unit(
     doc = res.to_json(truth)
     if progress:
         progress("identifying the exciter and the governor")
+    t0 = time.perf_counter()
     controls = identify_controls(scenarios, dict(candidates or {}), dict(control_starts or {}))
+    res.timing["controls"] = round(time.perf_counter() - t0, 6)
     doc["controls"] = controls_json(controls)
     doc.update(result_provenance(*unit.paths))
     doc["f_nominal_hz"] = options.f_nominal_hz  # what phid export needs to write a planning model
