@@ -182,11 +182,15 @@ def _import_field(args: argparse.Namespace, console: Console, read: Callable[...
     out = Path(args.out)
     if out.name == "manifest.json":  # a CSV scenario set: its folder is the output
         out.parent.mkdir(parents=True, exist_ok=True)
-    refuse_inputs([out], [*args.recordings, args.map])
+    refuse_inputs([out], [*args.recordings, *args.map])
     if out.exists():
         raise PhidError(f"{out}: already exists, not overwriting")
+    dup = sorted({m for m in args.map if args.map.count(m) > 1})
+    if dup:
+        raise PhidError(f"--map {dup[0]} given twice")
+    maps = [load_channel_map(m) for m in args.map]
     with ProgressLine(f"importing {len(args.recordings)} recording(s)") as progress:
-        rec = read(args.recordings, load_channel_map(args.map))
+        rec = read(args.recordings, maps)
         progress.update(f"writing {out}")
         write_output(out, rec, args.block_size)
     for w in rec.warnings:  # what the import did: resampled clocks, the field base it calibrated

@@ -172,7 +172,14 @@ def _add_field_imports(sub: Subparsers) -> None:
     ):
         p = sub.add_parser(name, help=helptext)
         p.add_argument("recordings", nargs="+", metavar=what, help="the recordings (several make one scenario set)")
-        p.add_argument("--map", required=True, metavar="MAP.yaml", help="channel map (YAML or JSON; README)")
+        p.add_argument(
+            "--map",
+            required=True,
+            action="append",
+            metavar="MAP.yaml",
+            help="channel map (YAML or JSON; README); repeat for a unit's no-load and on-line maps: each "
+            "recording is read through the fullest map it fits",
+        )
         _add_recording_output(p)
         _add_block_size(p)
         p.set_defaults(func=cmd_import_comtrade if name == "import-comtrade" else cmd_import_pmu)

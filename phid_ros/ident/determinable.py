@@ -272,8 +272,16 @@ def identify_by_channels(
                 or not current.identifiable
                 or o.T_d0_prime.std / o.T_d0_prime.value < current.std / current.value
             )
-            if better and o.T_d0_prime.identifiable:
-                put({"T_d0_prime": o.T_d0_prime}, oc)
+            if (better and o.T_d0_prime.identifiable) or (
+                not o.T_d0_prime.identifiable and (current is None or not current.identifiable)
+            ):
+                put({"T_d0_prime": o.T_d0_prime}, oc)  # withheld, with why: the user sees the route's figures
+            off = field_base_off(o.field_gain)
+            if off is not None:
+                for name in ("X_d", "X_d_prime", "T_d0_prime"):
+                    e = res.estimates.get(name)
+                    if e is not None and not (name == "T_d0_prime" and e is o.T_d0_prime):
+                        e.disqualify(off)
         except StageError as exc:
             res.problems.append(f"open circuit (T'_d0) did not run: {exc}")
     # -- the q axis's transient ----------------------------------------------------------------
@@ -286,6 +294,22 @@ def identify_by_channels(
             needs = p.needs or f"what {p.route.how if p.route else 'its route'} needs, which did not run"
             res.estimates[p.parameter] = not_determined(p.parameter, needs)
     return how
+
+
+# V_t per unit of E_fd at a no-load plateau is 1 on the air-gap line and 1/(1 + S) above it (S(1.0)
+# of a hydro unit up to about 0.2): beyond this band the recorded E_fd is not on the machine's base
+FIELD_GAIN_BAND = (0.75, 1.1)
+
+
+def field_base_off(gain: float) -> str | None:
+    """The note that withholds what E_fd's steady level carries (X_d from the steady states, the
+    d axis it drives) when the no-load tests show E_fd on another base (an excitation controller's own)."""
+    if FIELD_GAIN_BAND[0] <= gain <= FIELD_GAIN_BAND[1]:
+        return None
+    return (
+        f"E_fd is not on the machine's base: at no load V_t settles at {gain:.3f} x the recorded E_fd (1 on the "
+        "air-gap line, a little less when saturated); state the field's base in the map (v_f: {base: ...})"
+    )
 
 
 def _one_axis(

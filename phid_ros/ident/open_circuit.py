@@ -112,6 +112,16 @@ def open_circuit(scenarios: Sequence[ScenarioData]) -> OpenCircuitResult:
     if not T_D0_BOUNDS[0] * 1.001 < tau < T_D0_BOUNDS[1] * 0.999:
         est.at_bound = True
         est.disqualify(f"T_d0_prime = {tau:.4g} s is at its search bound {T_D0_BOUNDS}")
+    spread = _between_tests(scs, tau)
+    if spread is not None and spread[0] > sd_tau:
+        est.std = spread[0]
+        est.add_note(f"std from the spread between the tests' own T'_d0 ({spread[1]})")
+    curvature = saturation_seen(scs)
+    if curvature is not None:
+        est.disqualify(
+            f"the no-load tests reach the saturated part of the open-circuit curve ({curvature}): a field "
+            "step's time constant there is T'_d0 over the curve's incremental slope, not T'_d0"
+        )
     gain = float(coef[0])
     if abs(gain - 1.0) > 0.05:
         problems.append(
@@ -119,3 +129,54 @@ def open_circuit(scenarios: Sequence[ScenarioData]) -> OpenCircuitResult:
             f"{100 * (gain - 1):+.1f} % (or the machine is saturated at this voltage)"
         )
     return OpenCircuitResult(est, gain, [s.name for s in scs], math.sqrt(float(r0 @ r0) / len(r0)), problems)
+
+
+SATURATION_GAP = 0.03  # the field per volt differing by more than this between no-load plateaus
+
+
+def no_load_plateaus(scs: Sequence[ScenarioData]) -> list[tuple[float, float, str]]:
+    """(V_t, E_fd as recorded, scenario) over each no-load test's steady parts, before and after."""
+    out = []
+    for s in scs:
+        for sl in (s.pre_slice(), s.steady_slice()):
+            v, e = s["v_t"][sl], s["v_f"][sl]
+            if len(v) < 10 or float(np.median(v)) < 0.2:  # a de-excited machine's remanence is no point
+                continue
+            out.append((float(np.mean(v)), float(np.mean(e)), s.name))
+    return out
+
+
+def saturation_seen(scs: Sequence[ScenarioData]) -> str | None:
+    """The figures that show the tests on a curved open-circuit characteristic, or None: the field
+    per volt (E_fd / V_t) at the no-load plateaus differs by more than SATURATION_GAP. On the
+    air-gap line it is one number whatever the field's base."""
+    pts = no_load_plateaus(scs)
+    if len(pts) < 2:
+        return None
+    ratio = np.array([e / v for v, e, _ in pts])
+    lo, hi = int(np.argmin(ratio)), int(np.argmax(ratio))
+    if ratio[hi] / ratio[lo] - 1.0 <= SATURATION_GAP:
+        return None
+    return (
+        f"E_fd/V_t {ratio[lo]:.4g} at V_t {pts[lo][0]:.3f} pu, {ratio[hi]:.4g} at V_t {pts[hi][0]:.3f} pu: "
+        f"{100 * (ratio[hi] / ratio[lo] - 1):+.1f} %"
+    )
+
+
+def _between_tests(scs: Sequence[ScenarioData], tau: float) -> tuple[float, str] | None:
+    """(the std of the mean of the tests' own T'_d0, their values): what the choice of test moves
+    the answer by, which the pooled fit's residuals do not see."""
+    if len(scs) < 2:
+        return None
+    own = []
+    for s in scs:
+
+        def sse(log_tau: float, s: ScenarioData = s) -> float:
+            y, x, _ = _design([s], math.exp(log_tau))
+            r = y - x @ np.linalg.lstsq(x, y, rcond=None)[0]
+            return float(r @ r)
+
+        lo, hi = (math.log(b) for b in T_D0_BOUNDS)
+        own.append(math.exp(float(minimize_scalar(sse, bounds=(lo, hi), method="bounded").x)))
+    values = ", ".join(f"{v:.3g} s" for v in own)
+    return float(np.std(own, ddof=1) / math.sqrt(len(own))), values

@@ -73,6 +73,10 @@ class ScenarioData:
     # channels the recording did not carry (NaN throughout): the stages that need one leave it
     # out and say so (phid_ros.ident.determinable)
     absent: frozenset[str] = frozenset()
+    # where the post-event steady state begins, when the window's own span says (an event cut out of
+    # a test file that holds several: its plateau ends where the next event's window starts); None:
+    # the paper's final fifth
+    steady_start: int | None = None
     # what the stages derive from this scenario alone, kept for the next identification that reads
     # it (a recalibration every few minutes re-reads the same stored windows); not an init field,
     # so a scenario made from this one (dataclasses.replace, with_frame) starts without it
@@ -127,6 +131,8 @@ class ScenarioData:
         return sorted(set(out + [k for k in self.extra_switching if 0 < k < self.n]))
 
     def steady_slice(self) -> slice:
+        if self.steady_start is not None:
+            return slice(self.steady_start, self.n)
         return slice(int(round(self.n * (1.0 - STEADY_FRACTION))), self.n)
 
     def pre_slice(self) -> slice:
@@ -153,6 +159,7 @@ class ScenarioData:
             list(self.extra_switching),
             self.measurement_window_s,
             self.absent,
+            self.steady_start,
         )
 
     def rows(self, a: int, b: int) -> ScenarioData:
@@ -169,6 +176,7 @@ class ScenarioData:
             [k - a for k in self.extra_switching if a < k < b],
             self.measurement_window_s,
             self.absent,
+            None if self.steady_start is None else min(max(self.steady_start - a, 0), b - a - 1),
         )
 
 
@@ -466,6 +474,7 @@ def resampled(s: ScenarioData, period_ns: int) -> ScenarioData:
         [at(k) for k in s.extra_switching],
         s.measurement_window_s,
         s.absent,
+        None if s.steady_start is None else at(s.steady_start),
     )
     return out
 

@@ -31,13 +31,12 @@ from scipy.optimize import minimize_scalar
 from phid_ros.errors import StageError
 from phid_ros.ident.constraints import held
 from phid_ros.ident.results import Estimate, flag
-from phid_ros.ident.scenario import STEADY_FRACTION, ScenarioData
-from phid_ros.model.channels import CHANNEL_INDEX, Frame
+from phid_ros.ident.scenario import ScenarioData
+from phid_ros.model.channels import CHANNEL_INDEX, NO_LOAD_CURRENT, Frame, current_of
 from phid_ros.model.conventions import omega_s, terminal_to_dq
 
 Array = NDArray[np.float64]
 X_Q_SEARCH = (0.2, 4.0)  # pu: the joint fit's search for X_q
-NO_LOAD_CURRENT = 0.02  # pu: a window with less stator current than this is at no load
 MIN_POINTS = 3
 
 
@@ -57,7 +56,7 @@ def _theta(s: ScenarioData) -> Array:
 
 
 def current_magnitude(s: ScenarioData) -> Array:
-    return np.hypot(s["p_e"], s["q_e"]) / np.maximum(s["v_t"], 1e-6)
+    return current_of({c: s[c] for c in ("p_e", "q_e", "v_t")})
 
 
 def at_no_load(s: ScenarioData) -> bool:
@@ -171,10 +170,9 @@ def steady_terminal_points(scenarios: Sequence[ScenarioData]) -> list[SteadyTerm
     for s in scenarios:
         if s.role != "identify" or not s.has("v_f") or at_no_load(s):
             continue
-        n = s.n
-        parts = [slice(0, s.k_event)] if s.k_event >= 10 else []
+        parts = [s.pre_slice()] if s.k_event >= 10 else []
         if s.kind in ("torque_step", "voltage_step", "field_step"):
-            parts.append(slice(int(round(n * (1.0 - STEADY_FRACTION))), n))
+            parts.append(s.steady_slice())
         for sl in parts:
             m = {c: float(np.mean(s[c][sl])) for c in ("v_t", "p_e", "q_e", "v_f")}
             out.append(SteadyTerminalPoint(s.name, **m))

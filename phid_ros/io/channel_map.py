@@ -25,7 +25,10 @@ quantities (E_fd in V, I_fd in A) take their base from the map (``base``: the va
 1 pu, IEEE 115's air-gap-line base) or, without one, from a no-load test in the same set
 (:func:`phid_ros.io.field_channels.calibrate_field`).
 
-Only the terminal voltage and the stator current (or P and Q) are required: a channel the
+A no-load test (breaker open) maps the terminal voltage and the field alone (``v_t`` with
+``v_f`` and/or ``i_fd``, no stator quantity): it is imported as an open circuit, P = Q = I = 0,
+and the import says so. Otherwise the terminal voltage and the stator current (or P and Q) are
+required: a channel the
 recorder did not carry (rotor angle, speed, P_m, E_fd) is left out of the map, and the
 identification determines what the others allow (:mod:`phid_ros.ident.determinable`).
 """
@@ -34,7 +37,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -102,6 +105,17 @@ class ChannelMap:
 
     def has(self, *quantities: str) -> bool:
         return all(q in self.channels for q in quantities)
+
+    @property
+    def has_stator_current(self) -> bool:
+        return self.has("i_a", "i_b", "i_c") or self.has("i_t", "phi_i") or self.has("p_e", "q_e")
+
+    @property
+    def open_circuit(self) -> bool:
+        """A no-load test's map: the terminal voltage and the field, no stator quantity at all (the
+        breaker is open: no recorder writes a stator current, and P = Q = I = 0)."""
+        stator = ("i_a", "i_b", "i_c", "i_t", "phi_i", "p_e", "q_e")
+        return self.has("v_t") and not any(self.has(q) for q in stator) and any(self.has(q) for q in FIELD_QUANTITIES)
 
     def ratio(self, spec: ChannelSpec) -> float:
         """What turns the recorded value into a primary one (1 for primary values)."""
@@ -241,6 +255,44 @@ def check_recording(cmap: ChannelMap, source: str, available: list[str]) -> None
             )
 
 
+def choose_map(cmaps: Sequence[ChannelMap], source: str, available: list[str]) -> ChannelMap:
+    """The map among ``cmaps`` that fits a recording (:func:`check_recording`), the one naming the
+    most channels where several do: a unit's folder has a no-load map (V_t and the field) and an
+    on-line one, and an on-line test fits both. Where none fits, the fullest map's complaint."""
+    ranked = sorted(cmaps, key=lambda m: -len(m.channels))
+    first: ChannelMapError | None = None
+    for cmap in ranked:
+        try:
+            check_recording(cmap, source, available)
+        except ChannelMapError as exc:
+            first = first or exc
+            continue
+        return cmap
+    assert first is not None
+    raise first
+
+
+def one_machine(cmaps: Sequence[ChannelMap]) -> ChannelMap:
+    """The first of several maps of one unit, after checking that they describe one machine and
+    map each field quantity alike (the field's base is calibrated once for the whole set)."""
+    if not cmaps:
+        raise ChannelMapError("no channel map given")
+    head = cmaps[0]
+    for m in cmaps[1:]:
+        if (m.mva, m.kv, m.f_nominal_hz) != (head.mva, head.kv, head.f_nominal_hz):
+            raise ChannelMapError(
+                f"{m.path}: machine {m.mva:g} MVA, {m.kv:g} kV, {m.f_nominal_hz:g} Hz, but {head.path} says "
+                f"{head.mva:g} MVA, {head.kv:g} kV, {head.f_nominal_hz:g} Hz: the maps of one set describe one unit"
+            )
+        for q in FIELD_QUANTITIES:
+            a, b = head.channels.get(q), m.channels.get(q)
+            if a is not None and b is not None and a != b:
+                raise ChannelMapError(
+                    f"{m.path}: {q} is mapped as {b.name} ({b.unit}) here, {a.name} ({a.unit}) in {head.path}"
+                )
+    return head
+
+
 def require_complete(cmap: ChannelMap, source: str, available: list[str]) -> None:
     """The terminal voltage and the stator current can be formed from what is mapped (every
     identification needs them; the rotor angle, speed, P_m and E_fd widen what it determines);
@@ -248,8 +300,11 @@ def require_complete(cmap: ChannelMap, source: str, available: list[str]) -> Non
     needs = []
     if not (cmap.has("v_a", "v_b", "v_c") or cmap.has("v_t")):
         needs.append("the terminal voltage (v_a, v_b, v_c waveforms, or v_t)")
-    if not (cmap.has("i_a", "i_b", "i_c") or cmap.has("i_t", "phi_i") or cmap.has("p_e", "q_e")):
-        needs.append("the stator current (i_a, i_b, i_c waveforms, or i_t and phi_i, or p_e and q_e)")
+    if not (cmap.has_stator_current or cmap.open_circuit):
+        needs.append(
+            "the stator current (i_a, i_b, i_c waveforms, or i_t and phi_i, or p_e and q_e; "
+            "a no-load test maps v_t and the field, v_f or i_fd, alone)"
+        )
     if cmap.has("i_t", "phi_i") and not cmap.has("theta_t"):
         needs.append("theta_t (phi_i is an angle against the same reference)")
     if cmap.has("delta") and not (cmap.has("theta_t") or cmap.has("v_a", "v_b", "v_c")):

@@ -19,7 +19,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from phid_ros.io import comtrade_dat
-from phid_ros.io.channel_map import WAVEFORMS, ChannelMap, ChannelMapError, check_recording
+from phid_ros.io.channel_map import WAVEFORMS, ChannelMap, ChannelMapError, choose_map
 from phid_ros.io.comtrade_dat import ComtradeImportError, Samples, declared_rows, open_recording, read_samples
 from phid_ros.io.csv_import import ScenarioTable
 from phid_ros.io.field_channels import field_recording, identification_channels, scenario_table
@@ -134,12 +134,13 @@ def _on_cycle_grid(
     return grid, fs_new
 
 
-def read_comtrade(path: str | Path, cmap: ChannelMap) -> ScenarioTable:
-    """One recording -> one scenario table (per unit, synchronous frame)."""
+def read_comtrade(path: str | Path, cmaps: ChannelMap | Sequence[ChannelMap]) -> ScenarioTable:
+    """One recording -> one scenario table (per unit, synchronous frame); of several maps of one
+    unit, through the one it fits (:func:`choose_map`)."""
     p = Path(path)
     cfg, section = open_recording(p)
     names = [str(ch.name).strip() for ch in cfg.analog_channels]
-    check_recording(cmap, p.name, names)
+    cmap = choose_map([cmaps] if isinstance(cmaps, ChannelMap) else list(cmaps), p.name, names)
     columns = {n: i for i, n in enumerate(names)}
     samples = read_samples(cfg, section, sorted({columns[spec.name] for spec in cmap.channels.values()}))
     if not len(samples):
@@ -176,7 +177,7 @@ def read_comtrade(path: str | Path, cmap: ChannelMap) -> ScenarioTable:
     except ChannelMapError as exc:
         raise ComtradeImportError(str(exc)) from None
     table = scenario_table(p, cmap, t, channels)
-    table.notes = notes
+    table.notes[:0] = notes
     table.start_ns = _start_ns(cfg.start_timestamp)
     return table
 
@@ -187,11 +188,12 @@ def _start_ns(when) -> int | None:  # when: datetime.datetime of the .cfg (naive
     return calendar.timegm(when.timetuple()) * NS + when.microsecond * 1000
 
 
-def import_comtrade(paths: Sequence[str | Path], cmap: ChannelMap) -> Recording:
+def import_comtrade(paths: Sequence[str | Path], cmaps: ChannelMap | Sequence[ChannelMap]) -> Recording:
     """Several recordings -> one scenario set, one scenario per recording (as ``import-csv`` makes)."""
     if not paths:
         raise ComtradeImportError("no COMTRADE recordings given")
-    tables = [read_comtrade(p, cmap) for p in paths]
+    maps = [cmaps] if isinstance(cmaps, ChannelMap) else list(cmaps)
+    tables = [read_comtrade(p, maps) for p in paths]
     # phasors of a one-cycle DFT when the voltage came as waveforms
-    window = 1.0 / cmap.f_nominal_hz if cmap.has(*WAVEFORMS[:3]) else 0.0
-    return field_recording(tables, cmap, f"import-comtrade {cmap.path}", window)
+    window = 1.0 / maps[0].f_nominal_hz if any(m.has(*WAVEFORMS[:3]) for m in maps) else 0.0
+    return field_recording(tables, maps, f"import-comtrade {', '.join(m.path for m in maps)}", window)

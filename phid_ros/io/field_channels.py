@@ -11,14 +11,21 @@ delay and one bandwidth and are stamped at the window's centre.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
 from phid_ros.io import phasors
-from phid_ros.io.channel_map import FIELD_QUANTITIES, QUANTITIES, WAVEFORMS, ChannelMap, ChannelMapError
+from phid_ros.io.channel_map import (
+    FIELD_QUANTITIES,
+    QUANTITIES,
+    WAVEFORMS,
+    ChannelMap,
+    ChannelMapError,
+    one_machine,
+)
 from phid_ros.io.csv_import import KINDS, ROLES, ScenarioTable, recording_from_tables
 from phid_ros.io.phasors import (
     PhasorError,
@@ -30,6 +37,7 @@ from phid_ros.io.phasors import (
     system_frequency,
 )
 from phid_ros.io.recording import MEASUREMENT_WINDOW_KEY, Recording
+from phid_ros.model.channels import NO_LOAD_CURRENT, current_of
 from phid_ros.model.conventions import terminal_to_dq
 
 Array = NDArray[np.float64]
@@ -88,6 +96,8 @@ def identification_channels(
             del i1
         elif cmap.has("i_t", "phi_i"):
             i = value("i_t") * np.exp(1j * value("phi_i")) * frame
+        elif cmap.open_circuit:
+            i = np.zeros_like(v)
         else:
             i = np.conj((value("p_e") + 1j * value("q_e")) / v)
         del frame
@@ -111,6 +121,8 @@ def identification_channels(
             block["p_e"], block["q_e"] = power.real, power.imag
         if delta is not None:
             block["i_d"], block["i_q"] = terminal_to_dq(np.abs(i), delta, np.angle(i))
+        elif cmap.open_circuit:  # no current: both axes' components are zero whatever the rotor's angle
+            block["i_d"], block["i_q"] = np.zeros(len(k)), np.zeros(len(k))
         if cmap.has("i_t") and not cmap.has("phi_i") and cmap.has("p_e", "q_e"):
             currents.append((np.abs(i), value("i_t")))
         for c, x in block.items():
@@ -240,16 +252,26 @@ def scenario_table(path: Path, cmap: ChannelMap, t: Array, channels: dict[str, A
     if not isinstance(damping, bool):
         raise ChannelMapError(f"{cmap.path}: scenarios.{path.stem}: generator_damping must be true or false")
     ev = None if event is None else float(event)
-    return ScenarioTable(path.stem, kind, role, damping, t, channels, ev, str(path))
+    table = ScenarioTable(path.stem, kind, role, damping, t, channels, ev, str(path))
+    if cmap.open_circuit:
+        table.notes.append(
+            f"{path.name}: no stator quantity mapped ({cmap.path}): imported as a no-load test, breaker open, "
+            "P = Q = I = 0"
+        )
+    return table
 
 
-def field_recording(tables: list[ScenarioTable], cmap: ChannelMap, source: str, window_s: float) -> Recording:
-    """The scenario set of several field recordings, with the window their phasors were measured over."""
+def field_recording(
+    tables: list[ScenarioTable], cmaps: Sequence[ChannelMap], source: str, window_s: float
+) -> Recording:
+    """The scenario set of several field recordings (each read through one of ``cmaps``, maps of
+    one unit), with the window their phasors were measured over."""
+    cmap = one_machine(cmaps)
     names = [t.name for t in tables]
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
         raise ChannelMapError(f"recordings with the same name {dup}: scenario names must differ")
-    field_notes = calibrate_field(tables, cmap)
+    field_notes = calibrate_field(tables, cmaps)
     starts = [t.start_ns for t in tables if t.start_ns is not None]
     # the recording begins when its first file says it did (the import's own date before)
     kwargs = {"start_ns": min(starts)} if starts else {}
@@ -261,7 +283,6 @@ def field_recording(tables: list[ScenarioTable], cmap: ChannelMap, source: str, 
     return rec
 
 
-NO_LOAD_CURRENT = 0.02  # pu: a steady state with less stator current than this is at no load
 STEADY_SHARE = 0.2  # the final fifth of a recording (and the part before its event) as steady states
 
 
@@ -283,14 +304,14 @@ def no_load_points(tables: list[ScenarioTable], quantity: str) -> list[tuple[flo
         if quantity not in tab.columns:
             continue
         c = tab.columns
-        current = np.hypot(c["p_e"], c["q_e"]) / np.maximum(c["v_t"], 1e-6)
+        current = current_of(c)
         for sl in _steady_slices(tab):
             if float(np.median(current[sl])) < NO_LOAD_CURRENT:
                 out.append((float(np.median(c[quantity][sl])), float(np.median(c["v_t"][sl])), tab.name))
     return out
 
 
-def calibrate_field(tables: list[ScenarioTable], cmap: ChannelMap) -> list[str]:
+def calibrate_field(tables: list[ScenarioTable], cmaps: Sequence[ChannelMap]) -> list[str]:
     """Field quantities recorded in V or A without a stated base get it from the set's no-load tests.
 
     At no load in steady state the fourth-order model has V_t = E'_q = E_fd (and = I_fd, both in
@@ -300,6 +321,7 @@ def calibrate_field(tables: list[ScenarioTable], cmap: ChannelMap) -> list[str]:
     """
     notes = []
     for q in FIELD_QUANTITIES:
+        cmap = next((m for m in cmaps if q in m.channels), cmaps[0])
         spec = cmap.channels.get(q)
         if spec is None or spec.unit == "pu" or spec.base is not None:
             continue

@@ -20,7 +20,7 @@ from typing import TextIO
 import numpy as np
 
 from phid_ros.errors import PhidError
-from phid_ros.io.channel_map import WAVEFORMS, ChannelMap, check_recording
+from phid_ros.io.channel_map import WAVEFORMS, ChannelMap, check_recording, choose_map
 from phid_ros.io.csv_import import decimal_comma_fields, is_number
 from phid_ros.io.field_channels import field_recording, identification_channels, scenario_table
 from phid_ros.io.recording import Recording
@@ -222,11 +222,14 @@ def _read_columns(
 
 
 def read_pmu_csv(
-    path: str | Path, cmap: ChannelMap, notes: list[str] | None = None
-) -> tuple[np.ndarray, dict[str, np.ndarray], float, int | None]:
+    path: str | Path, cmaps: ChannelMap | Sequence[ChannelMap], notes: list[str] | None = None
+) -> tuple[np.ndarray, dict[str, np.ndarray], float, int | None, ChannelMap]:
     """(t from the first report, per-unit channels, the reporting rate, when the first report
-    was taken if the file says: UTC ns); what was done to the reports (a jittered clock
-    resampled) is added to ``notes``. The file is read a chunk of reports at a time."""
+    was taken if the file says: UTC ns, the map it was read through: of several maps of one
+    unit, :func:`choose_map`'s); what was done to the reports (a jittered clock resampled) is
+    added to ``notes``. The file is read a chunk of reports at a time."""
+    maps = [cmaps] if isinstance(cmaps, ChannelMap) else list(cmaps)
+    cmap = maps[0]
     notes = notes if notes is not None else []
     p = Path(path)
     if not p.is_file():
@@ -242,6 +245,8 @@ def read_pmu_csv(
         fh.seek(0)
         fh.readline()
         columns = {h: i for i, h in enumerate(header)}
+        if len(maps) > 1:
+            cmap = choose_map(maps, p.name, header)
         if any(cmap.has(w) for w in WAVEFORMS):
             raise PmuImportError(f"{cmap.path}: a PMU export carries phasors, not waveforms ({', '.join(WAVEFORMS)})")
         time_col = cmap.time_column
@@ -291,20 +296,23 @@ def read_pmu_csv(
 
     length = len(grid) if grid is not None else len(t)
     t_out, channels = identification_channels(cmap, recorded, length, 1.0 / period, str(p))
-    return t[0] + t_out, channels, 1.0 / period, start_ns
+    return t[0] + t_out, channels, 1.0 / period, start_ns, cmap
 
 
-def import_pmu_csv(paths: Sequence[str | Path], cmap: ChannelMap) -> Recording:
-    """Several exports -> one scenario set, one scenario per export (as ``import-csv`` makes)."""
+def import_pmu_csv(paths: Sequence[str | Path], cmaps: ChannelMap | Sequence[ChannelMap]) -> Recording:
+    """Several exports -> one scenario set, one scenario per export (as ``import-csv`` makes);
+    with several maps of one unit (no-load, on-line), each export through the one it fits."""
     if not paths:
         raise PmuImportError("no PMU exports given")
+    maps = [cmaps] if isinstance(cmaps, ChannelMap) else list(cmaps)
     tables = []
     for path in paths:
         notes: list[str] = []
-        t, channels, _, start_ns = read_pmu_csv(path, cmap, notes)
+        t, channels, _, start_ns, cmap = read_pmu_csv(path, maps, notes)
         table = scenario_table(Path(path), cmap, t - t[0], channels)
-        table.notes = notes
+        table.notes[:0] = notes
         table.start_ns = start_ns
         tables.append(table)
-    window = cmap.phasor_window_cycles / cmap.f_nominal_hz
-    return field_recording(tables, cmap, f"import-pmu {cmap.path}", window)
+    head = maps[0]
+    window = head.phasor_window_cycles / head.f_nominal_hz
+    return field_recording(tables, maps, f"import-pmu {', '.join(m.path for m in maps)}", window)

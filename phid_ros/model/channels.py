@@ -129,3 +129,13 @@ def unit_problem(channel: str, values: object, *, share: float = 0.5) -> str | N
         f"channel {channel}: {100 * outside:.0f} % of samples outside the per-unit range {lo:g} to {hi:g} "
         f"(typical magnitude {typical:.4g}): {what}"
     )
+
+
+# pu: a machine with less stator current than this is at no load (an open-circuit test); one
+# threshold for the importer's field calibration and the identification's no-load routes
+NO_LOAD_CURRENT = 0.02
+
+
+def current_of(signals: Mapping[str, Any]) -> NDArray[np.float64]:
+    """|I| = |P + jQ| / V_t, sample by sample."""
+    return np.asarray(np.hypot(signals["p_e"], signals["q_e"]) / np.maximum(signals["v_t"], 1e-6), dtype=np.float64)

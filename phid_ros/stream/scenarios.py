@@ -1,7 +1,9 @@
 """From a recording (bag, MCAP, CSV set) to the identification's scenarios.
 
 A recording with scenario markers (a catalogue bag, a CSV set's manifest, a field import) is cut
-where its markers say. One without markers is played through the online pipeline
+where its markers say; a marked window without an event stamp (a test file imported whole) that
+holds several events (a step and its return) is cut into one scenario per event
+(:mod:`phid_ros.ident.file_events`). One without markers is played through the online pipeline
 (:func:`phid_ros.stream.replay.event_windows`), and its windows become scenarios by the very
 conversion the recalibration worker uses: ``phid identify`` on a plant's recording sees the
 windows a node would have cut, to the sample.
@@ -14,6 +16,7 @@ import hashlib
 import numpy as np
 
 from phid_ros.errors import PhidError
+from phid_ros.ident.file_events import FileEvent, events_of_file
 from phid_ros.ident.scenario import (
     DEFAULT_THRESHOLDS,
     ScenarioData,
@@ -190,22 +193,87 @@ def _marked_scenarios(
         b = int(np.searchsorted(t, m.end_ns, side="right"))
         if seen_before(m.name, frame.values[a:b], seen, source, problems):
             continue
+        pieces: list[FileEvent] = []
+        whole_kind: str | None = m.kind
+        if not m.event_ns:
+            pieces, whole_kind = _file_events(m, frame.rows(a, b), thresholds, source, problems)
+        if whole_kind is None:  # the file's one event is a lost measurement
+            continue
         try:
-            out.append(
-                make_scenario(
-                    m.name,
-                    frame.rows(a, b),
-                    kind=m.kind,
+            if not pieces:
+                out.append(
+                    make_scenario(
+                        m.name,
+                        frame.rows(a, b),
+                        kind=whole_kind,
+                        role=m.role,
+                        generator_damping=m.generator_damping,
+                        k_event=int(np.searchsorted(t, m.event_ns)) - a if m.event_ns else None,
+                        k_clear=int(np.searchsorted(t, m.clearing_ns)) - a if m.clearing_ns else None,
+                        thresholds=thresholds,
+                        measurement_window_s=window_s,
+                    )
+                )
+        except ScenarioError as exc:
+            problems.append(f"{source}: skipped {exc}")
+        for e in pieces:
+            name = event_name(m.name, e, frame.period_ns)
+            try:
+                made = make_scenario(
+                    name,
+                    frame.rows(a + e.start, a + e.end),
+                    kind=m.kind if m.kind != "unknown" else e.kind,
                     role=m.role,
                     generator_damping=m.generator_damping,
-                    k_event=int(np.searchsorted(t, m.event_ns)) - a if m.event_ns else None,
-                    k_clear=int(np.searchsorted(t, m.clearing_ns)) - a if m.clearing_ns else None,
+                    k_event=e.event - e.start,
                     thresholds=thresholds,
                     measurement_window_s=window_s,
                 )
-            )
-        except ScenarioError as exc:
-            problems.append(f"{source}: skipped {exc}")
+            except ScenarioError as exc:
+                problems.append(f"{source}: skipped {exc}")
+                continue
+            made.steady_start = e.steady_start - e.start
+            made.notes.append(f"event {e.describe(frame.period_ns / NS)} of {m.name}")
+            out.append(made)
+
+
+def event_name(recording: str, e: FileEvent, period_ns: int) -> str:
+    """A file's event as a scenario's name: the file's and the event's time in it."""
+    return f"{recording}@{e.event * period_ns / NS:.1f}s"
+
+
+def _file_events(
+    m: ScenarioInfo, frame: Frame, thresholds: StepThresholds, source: str, problems: list[str]
+) -> tuple[list[FileEvent], str | None]:
+    """A marked window without an event stamp (a test file imported whole) cut into its events,
+    when it holds more than one; ([], the kind to prepare it whole with) when it holds one or
+    none (None: its one event is a lost measurement, left out)."""
+    if len(frame) < 2:
+        return [], m.kind
+    dt = frame.period_ns / NS
+    events = events_of_file(frame.columns(), dt, thresholds=thresholds)
+    if len(events) == 1 and events[0].lost_measurement:
+        problems.append(f"{source}: skipped scenario {m.name}: {LOST_NOTE}")
+        return [], None
+    if len(events) < 2:
+        # at no load a fall of V_t is the field's (a de-excitation), never a fault
+        return [], (events[0].kind if events and m.kind == "unknown" else m.kind)
+    kept = []
+    for e in events:
+        if e.lost_measurement:
+            problems.append(f"{source}: skipped {event_name(m.name, e, frame.period_ns)}: {LOST_NOTE}")
+        else:
+            kept.append(e)
+    problems.append(
+        f"{source}: {m.name} holds {len(events)} events, each its own scenario: "
+        + "; ".join(e.describe(dt) for e in events)
+    )
+    return kept, m.kind
+
+
+LOST_NOTE = (
+    "V_t fell at once at no load (or had not come back): a terminal-voltage measurement lost (VT), not the machine"
+)
 
 
 def _detected_scenarios(

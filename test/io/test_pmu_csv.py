@@ -204,3 +204,53 @@ def test_an_export_whose_decimal_mark_changes_midway_is_refused(export, tmp_path
     plain = import_pmu_csv([path], cmap)
     got = import_pmu_csv([log], cmap)
     assert np.array_equal(got.streams["pt_ct"].channels["v_t"], plain.streams["pt_ct"].channels["v_t"])
+
+
+NO_LOAD_MAP = """
+machine: {mva: 30, kv: 10.5, f_nominal_hz: 50}
+time: Timestamp
+channels:
+  v_t: {name: UG, unit: pu}
+  v_f: {name: UF, unit: pu}
+"""
+ON_LINE_MAP = (
+    NO_LOAD_MAP
+    + """  p_e: {name: P, unit: pu}
+  q_e: {name: Q, unit: pu}
+"""
+)
+
+
+def _trend_log(path, columns: dict) -> None:
+    n = len(next(iter(columns.values())))
+    rows = ["Timestamp," + ",".join(columns)]
+    rows += [f"{k * 0.005:.4f}," + ",".join(f"{columns[c][k]:.6f}" for c in columns) for k in range(n)]
+    path.write_text("\n".join(rows) + "\n")
+
+
+def test_a_no_load_test_imports_as_an_open_circuit_and_each_file_takes_the_map_it_fits(tmp_path) -> None:
+    n = 800
+    _trend_log(tmp_path / "noload.csv", {"UG": np.full(n, 1.0), "UF": np.full(n, 0.37)})
+    _trend_log(
+        tmp_path / "online.csv",
+        {"UG": np.full(n, 1.0), "UF": np.full(n, 0.6), "P": np.full(n, 0.5), "Q": np.full(n, 0.2)},
+    )
+    (tmp_path / "noload.yaml").write_text(NO_LOAD_MAP)
+    (tmp_path / "online.yaml").write_text(ON_LINE_MAP)
+    maps = [load_channel_map(tmp_path / "noload.yaml"), load_channel_map(tmp_path / "online.yaml")]
+    rec = import_pmu_csv([tmp_path / "noload.csv", tmp_path / "online.csv"], maps)
+    pt = rec.streams["pt_ct"]
+    first = pt.t_ns <= rec.scenarios[0].end_ns
+    # open circuit: P = Q = I = 0, said so; the on-line file through the fuller map keeps its P and Q
+    for c in ("p_e", "q_e", "i_d", "i_q"):
+        assert np.all(pt.channels[c][first] == 0.0)
+    assert np.allclose(pt.channels["p_e"][~first], 0.5) and np.allclose(pt.channels["q_e"][~first], 0.2)
+    assert sum("no stator quantity mapped" in w for w in rec.warnings) == 1
+    # a map of V_t alone is no open circuit: it carries nothing to identify
+    (tmp_path / "v_only.yaml").write_text(NO_LOAD_MAP.replace("  v_f: {name: UF, unit: pu}\n", ""))
+    with pytest.raises(ChannelMapError, match="no channel mapped for the stator current"):
+        import_pmu_csv([tmp_path / "noload.csv"], load_channel_map(tmp_path / "v_only.yaml"))
+    # maps of two machines are not one set
+    (tmp_path / "other.yaml").write_text(ON_LINE_MAP.replace("mva: 30", "mva: 40"))
+    with pytest.raises(ChannelMapError, match="the maps of one set describe one unit"):
+        import_pmu_csv([tmp_path / "noload.csv"], [maps[0], load_channel_map(tmp_path / "other.yaml")])

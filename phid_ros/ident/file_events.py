@@ -1,0 +1,120 @@
+"""Every event of a test file: a commissioning test's recording, cut into one window per event.
+
+A real test file holds several events: an AVR reference step and its return 6-10 s later, a
+ramp and then a step, a de-excitation. The paper's scenario has one event and takes its
+post-event steady state from the final fifth of the window; over a step-and-return file that
+mixes both plateaus (and the return's transient), so each event is cut into its own window:
+from the midpoint of the plateau before it to the midpoint of the plateau after it, its
+steady state the second half of the span after the event (the windows do not overlap, so no
+plateau counts twice).
+
+A terminal voltage that falls at no load within a few samples is a lost voltage measurement
+(a VT fuse, a breaker in the VT circuit), not the machine: an open-circuit machine's voltage
+follows its field flux, which cannot fall that fast. Such an event's window is left out, by
+name.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from phid_ros.ident.scenario import DEFAULT_THRESHOLDS, STEP_NOISE_SIGMAS, StepThresholds, find_events
+from phid_ros.model.channels import NO_LOAD_CURRENT, current_of
+
+Array = NDArray[np.float64]
+QUIET_S = 2.0  # two detections closer than this are one event seen in two signals
+MIN_WINDOW_S = 2.0  # an event with less than this between its neighbours is not cut on its own
+# a no-load V_t that loses half its value within this is a measurement lost, not flux decaying
+# (the fastest open-circuit decay is the subtransient one, T''_d0 of tens of ms, and only with
+# the field short-circuited)
+LOST_MEASUREMENT_S = 0.02
+MIN_TERMINAL_MOVE = 0.002  # pu: an event moves V_t, Q or P by at least this (a 1 % field step moves V_t 1.4 %)
+
+
+@dataclass(frozen=True)
+class FileEvent:
+    kind: str
+    start: int  # the window's first sample in the file
+    event: int  # the event's sample in the file
+    end: int  # one past the window's last sample
+    steady_start: int  # where its post-event steady state begins, in the file
+    lost_measurement: bool = False
+
+    def describe(self, dt: float) -> str:
+        return f"{self.kind} at {self.event * dt:.2f} s (window {self.start * dt:.2f}-{self.end * dt:.2f} s)"
+
+
+def events_of_file(
+    signals: Mapping[str, Array], dt: float, *, thresholds: StepThresholds = DEFAULT_THRESHOLDS
+) -> list[FileEvent]:
+    """The file's events, each with its own window (empty when the signals show none). At no
+    load a fall of V_t is a de-excitation (a field step) or a lost measurement, never a fault."""
+    n = len(signals["v_t"])
+    no_load = bool(np.median(current_of(signals)) < NO_LOAD_CURRENT)
+    found = find_events(signals, dt, quiet_s=QUIET_S, thresholds=thresholds)
+    # a fault and a step found on its recovery are one event: keep the first of each quiet span
+    events: list[tuple[str, int, int | None]] = []
+    quiet = int(round(QUIET_S / dt))
+    for e in found:
+        last = events[-1] if events else None
+        end_of_last = None if last is None else (last[2] if last[2] is not None else last[1])
+        if end_of_last is not None and e[1] - end_of_last < quiet:
+            continue
+        events.append(e)
+    events = [e for e in events if _moves_terminal(signals, e[1], dt)]
+    out: list[FileEvent] = []
+    v = np.asarray(signals["v_t"], float)
+    lost_until = -1
+    for i, (kind, k, k_clear) in enumerate(events):
+        k_end = k_clear if k_clear is not None else k
+        start = 0 if i == 0 else (_last_end(events[i - 1]) + k) // 2
+        end = n if i == len(events) - 1 else (k_end + events[i + 1][1]) // 2
+        if (end - start) * dt < MIN_WINDOW_S or k - start < 2:
+            continue
+        # the measurement's return is an event of the measurement too
+        lost = (lost_until >= 0 and k <= lost_until + quiet) or (
+            no_load and kind == "fault" and _fell_at_once(v, k, dt)
+        )
+        if lost and k >= lost_until:  # lost until the measurement comes back
+            before = float(np.median(v[max(0, k - int(round(1.0 / dt))) : k]))
+            back = np.flatnonzero(v[k:] >= 0.8 * before)
+            lost_until = k + int(back[0]) if back.size else n
+        if no_load and kind == "fault":
+            kind = "field_step"
+        out.append(FileEvent(kind, start, k, end, (k_end + end) // 2, lost))
+    return out
+
+
+def _moves_terminal(signals: Mapping[str, Array], k: int, dt: float) -> bool:
+    """Whether V_t, Q or P moved at the event by more than their noise allows (a field channel's
+    ripple, a static exciter's, can pass the step threshold with nothing happening to the machine)."""
+    span = max(5, int(round(0.5 / dt)))
+    for c in ("v_t", "q_e", "p_e"):
+        x = np.asarray(signals[c], float)
+        if not np.isfinite(x).all():
+            continue
+        a, b = x[max(0, k - span) : k], x[k + span // 2 : k + span + span // 2]
+        if len(a) < 5 or len(b) < 5:
+            continue
+        sigma = float(np.median(np.abs(np.diff(x[max(0, k - 4 * span) : k])))) / (0.6745 * np.sqrt(2.0))
+        floor = STEP_NOISE_SIGMAS * max(sigma, 1e-6) * np.sqrt(2.0 / span)
+        if abs(float(np.mean(b) - np.mean(a))) > max(floor, MIN_TERMINAL_MOVE):
+            return True
+    return False
+
+
+def _last_end(e: tuple[str, int, int | None]) -> int:
+    return e[2] if e[2] is not None else e[1]
+
+
+def _fell_at_once(v: Array, k: int, dt: float) -> bool:
+    """V_t lost half its pre-event value within LOST_MEASUREMENT_S of the event."""
+    span = max(1, int(round(1.0 / dt)))
+    before = float(np.median(v[max(0, k - span) : k])) if k > 0 else float(v[0])
+    m = max(1, int(round(LOST_MEASUREMENT_S / dt)))
+    a = max(0, k - m)
+    return bool(np.min(v[a : k + m + 1]) < 0.5 * before and np.max(v[a:k]) > 0.8 * before) if k > a else False

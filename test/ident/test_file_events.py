@@ -1,0 +1,127 @@
+"""Every event of a test file: look-alikes of a commissioning day's trend logs at 208 reports/s."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from phid_ros.ident.file_events import events_of_file
+from phid_ros.ident.open_circuit import OpenCircuitError, open_circuit, saturation_seen
+from phid_ros.ident.scenario import make_scenario
+from phid_ros.model.channels import CHANNELS, Frame
+
+DT = 0.0048  # a trend log's 208 reports/s
+T_D0 = 3.77
+
+
+def no_load_file(steps: list[tuple[float, float]], seconds: float, seed: int = 0, curve: float = 0.0) -> dict:
+    """An open-circuit AVR test: E_fd steps at the given (time, level), V_t follows through T'_d0
+    onto the open-circuit curve E_fd = V (1 + curve (V - 0.8)^2 for V > 0.8)."""
+    rng = np.random.default_rng(seed)
+    n = int(seconds / DT)
+    t = np.arange(n) * DT
+    e = np.full(n, 1.0)
+    for at, level in steps:
+        e[t >= at] = level
+    v = np.empty(n)
+    v[0] = 1.0 if curve == 0 else _on_curve(1.0, curve)
+    for k in range(1, n):  # T'_d0 dV/dt = E_fd - V (1 + S(V))
+        f = v[k - 1] * (1 + curve * max(v[k - 1] - 0.8, 0) ** 2)
+        v[k] = v[k - 1] + DT / T_D0 * (e[k - 1] - f)
+    sig = {c: np.full(n, np.nan) for c in CHANNELS}
+    sig.update(
+        v_t=v + rng.normal(0, 2e-4, n),
+        v_f=e + rng.normal(0, 0.01, n),  # a static exciter's ripple
+        p_e=np.zeros(n),
+        q_e=np.zeros(n),
+        i_d=np.zeros(n),
+        i_q=np.zeros(n),
+        theta_t=np.zeros(n),
+    )
+    return sig
+
+
+def _on_curve(e: float, curve: float) -> float:
+    v = e
+    for _ in range(50):
+        v = e / (1 + curve * max(v - 0.8, 0) ** 2)
+    return v
+
+
+def test_a_step_and_its_return_are_two_events_with_their_own_plateaus() -> None:
+    # a manual no-load test: the field steps and V_t settles through T'_d0 (about 4 T'_d0 to settle)
+    sig = no_load_file([(8.0, 1.1), (60.0, 1.0)], 75.0)
+    events = events_of_file(sig, DT)
+    assert [e.kind for e in events] == ["field_step", "field_step"]
+    assert [round(e.event * DT, 2) for e in events] == pytest.approx([8.0, 60.0], abs=0.01)
+    first, second = events
+    assert first.start == 0 and first.end == second.start and second.end == len(sig["v_t"])  # no plateau twice
+    assert (first.event + first.end) // 2 <= first.steady_start < first.end
+    # the first event's steady part is the 1.1 plateau, not a mean over both
+    v_post = float(np.mean(sig["v_t"][first.steady_start : first.end]))
+    assert v_post == pytest.approx(1.1, abs=0.005)
+    # the mean of the file's last fifth (the paper's rule) is the return's plateau
+    assert float(np.mean(sig["v_t"][int(0.8 * len(sig["v_t"])) :])) < 1.05
+
+
+def test_field_ripple_without_a_terminal_move_is_no_event() -> None:
+    sig = no_load_file([], 20.0)
+    sig["v_f"] = sig["v_f"] + np.where(np.arange(len(sig["v_f"])) * DT > 10.0, 0.03, 0.0)  # V_t does not follow
+    sig["v_t"][:] = 1.0 + np.random.default_rng(1).normal(0, 2e-4, len(sig["v_t"]))
+    assert events_of_file(sig, DT) == []
+
+
+def test_a_voltage_measurement_lost_at_no_load_is_named_not_taken_for_a_fault() -> None:
+    sig = no_load_file([(15.0, 1.05)], 30.0)
+    k = int(6.0 / DT)
+    back = int(9.0 / DT)
+    sig["v_t"][k:back] = 0.0  # a VT fuse: the measurement drops in one report and comes back later
+    events = events_of_file(sig, DT)
+    lost = [e for e in events if e.lost_measurement]
+    assert lost and lost[0].event * DT == pytest.approx(6.0, abs=DT)
+    assert all(e.kind != "fault" for e in events)
+    # the measurement's return is no event of the machine; the field step after it is
+    assert [round(e.event * DT) for e in events if not e.lost_measurement] == [15]
+
+
+def _scenarios(sig: dict, events: list) -> list:
+    frame = Frame.of_columns(sig, int(round(DT * 1e9)))
+    out = []
+    for e in events:
+        s = make_scenario(
+            f"f@{e.event * DT:.1f}s", frame.rows(e.start, e.end), kind="field_step", k_event=e.event - e.start
+        )
+        s.steady_start = e.steady_start - e.start
+        out.append(s)
+    return out
+
+
+def test_t_d0_from_no_load_steps_on_the_air_gap_line() -> None:
+    sig = no_load_file([(8.0, 1.05), (20.0, 1.0)], 32.0, seed=3)
+    scs = _scenarios(sig, events_of_file(sig, DT))
+    assert saturation_seen(scs) is None
+    est = open_circuit(scs).T_d0_prime
+    assert est.identifiable
+    assert abs(est.value - T_D0) / T_D0 < 0.03
+
+
+def test_t_d0_withheld_where_the_no_load_tests_saturate() -> None:
+    # S(1.1) of about 0.2: the step's own time constant is T'_d0 over the curve's slope, about half
+    sig = no_load_file([(8.0, 1.35), (20.0, 1.0)], 32.0, seed=4, curve=2.5)
+    scs = _scenarios(sig, events_of_file(sig, DT))
+    assert saturation_seen(scs) is not None
+    est = open_circuit(scs).T_d0_prime
+    assert not est.identifiable and "saturated part" in est.note
+    # and the fitted number is indeed wrong: publishing it would have been the defect
+    assert abs(est.value - T_D0) / T_D0 > 0.15
+
+
+def test_no_no_load_step_is_an_error() -> None:
+    sig = no_load_file([], 20.0)
+    frame = Frame.of_columns(sig, int(round(DT * 1e9)))
+    s = make_scenario("flat", frame, kind="field_step", k_event=100)
+    with pytest.raises(OpenCircuitError):
+        open_circuit([s])
+    assert math.isfinite(DT)
