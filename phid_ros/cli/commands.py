@@ -261,7 +261,26 @@ def cmd_info(args: argparse.Namespace, console: Console) -> int:
         table.add_row(topic, msgtype, str(count))
     console.print(table)
     _print_recording(console, tally, scenarios, metadata)
+    if any(not sc.event_ns for sc in scenarios):
+        _print_events(console, path, min(s.start_ns for s in tally.summaries()))
     return 0
+
+
+def _print_events(console: Console, path: Path, t0: int) -> None:
+    """The events of test files imported whole (markers without an event stamp), as ``phid
+    identify`` cuts them: one per step, return or de-excitation, and what is left out."""
+    from phid_ros.api import cut_scenarios
+
+    cut = cut_scenarios(path)
+    table = Table(title="events (as phid identify cuts the scenarios)", title_justify="left")
+    for col in ("scenario", "kind", "event s", "window s"):
+        table.add_column(col)
+    for sc in cut.scenarios:
+        table.add_row(sc.name, sc.kind, f"{(sc.start_ns - t0) / NS + sc.k_event * sc.dt:.3f}", f"{sc.n * sc.dt:.1f}")
+    console.print(table)
+    for p in cut.problems:
+        if "skipped" in p:
+            console.print(f"left out: {p}", highlight=False)
 
 
 def _print_recording(console: Console, tally: StreamTally, scenarios: list, metadata: dict[str, str]) -> None:

@@ -88,3 +88,14 @@ def test_nothing_wrong_is_published_as_identified(day: Path) -> None:
     t_d0 = res.estimates["T_d0_prime"]
     assert not t_d0.identifiable and "saturated part" in t_d0.note
     assert any("E_fd is not on the machine's base" in (res.estimates[n].note or "") for n in ("X_d", "T_d0_prime"))
+
+
+def test_info_lists_the_events_and_what_is_left_out(day: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from phid_ros.cli.main import main
+
+    assert main(["info", "--wide", str(day)]) == 0
+    out = capsys.readouterr().out
+    assert "events (as phid identify cuts the scenarios)" in out
+    for name in ("AVR_PH_Step10@13.3s", "AVR_PH_Step10@19.6s", "RR_MR_Step10@138.0s"):
+        assert name in out
+    assert "left out: " in out and "AVR_RR_PH_Ispad_Q141" in out and "measurement lost" in out
