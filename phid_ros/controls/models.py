@@ -17,6 +17,7 @@ function, :func:`transfer`, discretised with the same first-order hold.
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -47,7 +48,18 @@ class ControlParameter:
     held: bool = False  # not fitted: the model's structure holds it at its default (a stage left out)
 
     def outside(self, value: float) -> bool:
+        """Outside the fit's search range."""
         return not self.low <= value <= self.high
+
+    def record_problem(self, value: float) -> str | None:
+        """What makes a record's value one the simulation cannot take, or None. Not the fit's
+        search range: a published record carries what its fit found (ESST5B T_B2 = 5.1 ms), and
+        the play-in integrates any positive time constant exactly (first-order hold)."""
+        if not math.isfinite(value):
+            return "is not a number"
+        if self.unit == "s" and value < 0:
+            return "is a negative time constant"
+        return None
 
 
 @dataclass(frozen=True)

@@ -182,10 +182,9 @@ def read_unit(path: str | Path, bus: int | None = None, machine_id: str | None =
                 "give the unit's K_E"
             )
         for q in model.parameters:
-            if not q.limit and not q.held and q.outside(values[q.name]):
-                raise DyrError(
-                    f"{p}:{r.line}: {r.model} {q.name} = {values[q.name]:g} is outside {q.low:g}..{q.high:g} {q.unit}"
-                )
+            problem = None if q.limit or q.held else q.record_problem(values[q.name])
+            if problem is not None:
+                raise DyrError(f"{p}:{r.line}: {r.model} {q.name} = {values[q.name]:g} {problem}")
         try:
             model.recorded(values)  # what the simulation cannot take of the record, refused by name
         except ValueError as exc:

@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from phid_ros.cli.main import main
@@ -148,3 +149,24 @@ def test_calibration_starts_from_the_unit_s_existing_record(staged, tmp_path) ->
     assert controls["exciter"]["fit_as_well"] == {} and controls["governor"]["fit_as_well"] == {}
     assert controls["exciter"]["parameters"]["K"] == pytest.approx(100.0, rel=0.05)
     assert controls["governor"]["parameters"]["R"] == pytest.approx(0.05, rel=0.05)
+
+
+def test_an_e_fd_band_does_not_widen_with_a_play_in_that_drifts_away() -> None:
+    """Before, the band took four stds of the pre-event difference: a play-in that diverged (the
+    Mostar day's de-excitation, 28 pu off) had a 16 pu band and the 9.5 pu error of another passed."""
+    from phid_ros.controls.unit_validation import channel_check
+
+    rng = np.random.default_rng(7)
+    dt, n, k = 0.005, 4000, 1000
+    recorded = 2.0 + 0.02 * rng.standard_normal(n)
+    recorded[k:] += 0.5  # the test's response: a 0.5 pu step of E_fd
+    idx = np.arange(n)
+    pre = slice(0, k)
+    follows = recorded + 0.005 * rng.standard_normal(n)  # the model, with the input's noise through it
+    good, _, _ = channel_check("v_f", recorded, dt, idx, pre, simulated_at=follows)
+    assert good.passed and good.band == pytest.approx(0.055, abs=0.005)  # 10 % of the response, noise peaks in
+    # a play-in swinging away slowly from the start (3 pu, 8 s period): four plain stds of its
+    # pre-event difference were 8.5 pu, and it passed
+    drifts = follows + 3.0 * np.sin(2 * np.pi * idx * dt / 8.0)
+    bad, _, _ = channel_check("v_f", recorded, dt, idx, pre, simulated_at=drifts)
+    assert not bad.passed and bad.band < 0.2 and bad.max_error > 2.9

@@ -101,8 +101,8 @@ def test_comments_continuations_and_several_units(tmp_path: Path) -> None:
         ("1 'GENROU' 1 1.0 2.0 /\n", r"bad\.dyr:1: GENROU has 2 constants; PSS/E's has 14"),
         (
             "1 'GENSAL' 1 5.0 0.05 0.05 3.0 0.0 1.1 0.7 0.3 0.22 0.15 0.0 0.0 /\n"
-            "1 'SEXS' 1 0.2 5.0 5000.0 0.05 -5 5 /\n",
-            r"bad\.dyr:2: SEXS K = 5000 is outside 5\.\.1000 pu",
+            "1 'SEXS' 1 0.2 5.0 500.0 -0.05 -5 5 /\n",
+            r"bad\.dyr:2: SEXS TE = -0\.05 is a negative time constant",
         ),
         (
             "1 'GENSAL' 1 5.0 0.05 0.05 3.0 0.0 1.1 0.7 0.3 0.22 0.15 0.0 0.0 /\n"
@@ -130,3 +130,18 @@ def test_a_start_from_record_outside_the_physical_range_names_the_dyr(tmp_path: 
     err = capsys.readouterr().err.strip()
     assert err.startswith(f"phid: error: {path}: GENROU at bus 1 id '1': invalid generator parameters: H=348 s"), err
     assert "\n" not in err
+
+
+def test_a_published_record_is_read_as_published(tmp_path: Path) -> None:
+    """The Mostar unit's published ST5B fit (ALSETLab, RaPId) carries T_B2 = 5.11 ms, T_1 = 5.18 ms
+    and K_R = 505: outside the fit's search ranges, inside what the play-in integrates exactly."""
+    path = tmp_path / "pub.dyr"
+    path.write_text(
+        "1 'GENSAL' 1 3.77 0.0552 0.0823 2.3362 0.0 1.12 0.642 0.354 0.24 0.1 0.1 0.4 /\n"
+        "1 'ESST5B' 1 0.0127 505.3 0.00518 0.982 2.237 -8.384 1.701 21.98 0.0263 0.00511 "
+        "1 1 1 1 1 1 1 1 /\n"
+    )
+    unit = read_unit(path)
+    exciter = unit.controls["exciter"]
+    assert exciter.model == "ESST5B"
+    assert exciter.values["TB2"] == 0.00511 and exciter.values["KR"] == 505.3
