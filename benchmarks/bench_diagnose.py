@@ -37,7 +37,6 @@ from common import ROOT, catalogue_scenarios, median_time  # noqa: E402
 from phid_ros.cluster import default_workers  # noqa: E402
 from phid_ros.diagnose.candidates import candidate  # noqa: E402
 from phid_ros.diagnose.fit import SCREEN_CHUNK, ModelSpec, Problem, chi_square  # noqa: E402
-from phid_ros.diagnose.playin import OUTPUTS, play_in  # noqa: E402
 from phid_ros.diagnose.workflow import (  # noqa: E402
     DiagnoseOptions,
     diagnose,
@@ -47,6 +46,7 @@ from phid_ros.diagnose.workflow import (  # noqa: E402
     window,
 )
 from phid_ros.ident.pipeline import IdentifyOptions, identify  # noqa: E402
+from phid_ros.ident.plant_playin import OUTPUTS, play_in  # noqa: E402
 
 BAG = ROOT / "bags" / "saturation"
 

@@ -12,11 +12,11 @@ from phid_ros.cli.common import finish, load_truth, step_thresholds, warn
 from phid_ros.cli.progress import ProgressLine
 from phid_ros.cli.tables import CHANNEL_LABELS, Col, effect_values_text, fmt, pct, print_table, signed_int
 from phid_ros.diagnose.localise import localise
-from phid_ros.diagnose.playin import OUTPUTS
 from phid_ros.diagnose.results import is_determined, to_json
 from phid_ros.diagnose.workflow import DiagnoseOptions, diagnose
 from phid_ros.errors import PhidError
 from phid_ros.ident.pipeline import IdentifyOptions
+from phid_ros.ident.plant_playin import OUTPUTS
 from phid_ros.io.results import read_json, write_json
 from phid_ros.model.parameters import PARAMETER_NAMES, SYMBOLS
 

@@ -26,8 +26,8 @@ from scipy.optimize import least_squares
 
 from phid_ros import jit
 from phid_ros.diagnose.candidates import Candidate, FreeParameter
-from phid_ros.diagnose.playin import OUTPUTS, PlayIn, play_in, residual_matrix
 from phid_ros.errors import PhidError
+from phid_ros.ident.plant_playin import PlayIn, play_in, residual_matrix
 from phid_ros.ident.scenario import ScenarioData
 from phid_ros.model.conventions import DEFAULT_F_NOMINAL_HZ
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME
@@ -100,25 +100,6 @@ def base_free(
             out.append(FreeParameter(n, s.low, s.high, log=True))
         else:
             out.append(FreeParameter(n, max(s.low, v / 3), min(s.high, 3 * v), log=True))
-    return out
-
-
-def residuals(runs: Sequence[PlayIn], sigma: Mapping[str, float], out: Array | None = None) -> Array:
-    """Noise-normalised residuals, shape (samples, models), into ``out`` if given.
-
-    Written into one array block by block (no per-block temporaries, no concatenation): a fit
-    assembles it at every evaluation, and the copies cost as much as the arithmetic. ``out``:
-    the fit's Jacobian columns take them where they are needed, not through a copy."""
-    rows = sum(r.sim[c].shape[0] for r in runs for c in OUTPUTS)
-    if out is None:
-        out = np.empty((rows, runs[0].sim[OUTPUTS[0]].shape[1]))
-    at = 0
-    for r in runs:
-        for c in OUTPUTS:
-            block = out[at : at + r.sim[c].shape[0]]
-            np.subtract(r.sim[c], r.meas[c], out=block)
-            np.divide(block, sigma[c], out=block)
-            at += len(block)
     return out
 
 

@@ -43,9 +43,9 @@ from phid_ros.cluster import Jobs
 from phid_ros.diagnose.candidates import Candidate, library
 from phid_ros.diagnose.fit import FitError, FitResult, ModelSpec, Problem, chi_square, fit
 from phid_ros.diagnose.localise import noise_std
-from phid_ros.diagnose.playin import OUTPUTS, PlayIn, play_in
-from phid_ros.diagnose.playin import STEP_SECONDS as PLAYIN_STEP_SECONDS
 from phid_ros.errors import PhidError
+from phid_ros.ident.plant_playin import OUTPUTS, PlayIn, play_in
+from phid_ros.ident.plant_playin import STEP_SECONDS as PLAYIN_STEP_SECONDS
 from phid_ros.ident.results import MAX_RELATIVE_STD
 from phid_ros.ident.scenario import ScenarioData
 from phid_ros.model.conventions import DEFAULT_F_NOMINAL_HZ

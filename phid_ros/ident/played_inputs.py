@@ -1,6 +1,6 @@
 """The boundary signals a play-in is driven by, with the sensor noise taken out of V_t and theta_t.
 
-A play-in (:mod:`phid_ros.ident.validation`, :mod:`phid_ros.diagnose.playin`) drives the model
+A play-in (:mod:`phid_ros.ident.validation`, :mod:`phid_ros.ident.plant_playin`) drives the model
 with the measured terminal voltage. V_t and theta_t reach the simulated currents, P and Q
 algebraically (through V_d, V_q), so their noise is not averaged out by the machine's time
 constants as the noise on P_m and V_f is: it is an error in the variables the fit regresses on.
@@ -16,7 +16,7 @@ more: a corner below 8 Hz) puts into V_t, and leaves a third of a 1 kHz recorder
 Measured on STEPS's GENSAL without noise: the played-in V_t moves by at most 1.5e-4 pu, theta_t
 by 3e-4 rad, both at a fault's first samples; with its noise, X_d +0.6 % and T'_d0 +1.3 %.
 
-Only a fit reads them (:func:`phid_ros.diagnose.playin.residual_matrix`). A score plays the
+Only a fit reads them (:func:`phid_ros.ident.plant_playin.residual_matrix`). A score plays the
 measurements in and removes their white noise from the residual; the noise smoothing leaves is
 correlated over a few rows, and a score would count it as unexplained.
 """

@@ -120,7 +120,7 @@ def integrate_residuals(
     """:func:`integrate`, writing noise-normalised residuals into ``out`` instead of returning outputs.
 
     Why: a fit reads only ``(output - measurement) / sigma`` of each channel, stacked per
-    scenario and channel (``diagnose.fit.residuals``' rows, one column per model). Written
+    scenario and channel (``ident.plant_playin.residuals``' rows, one column per model). Written
     there as the step computes each output, no (6, steps, columns) trajectory is stored and
     read again, and a column stops at its scenario's end. The same operations in the same
     order: the residuals are those of the outputs, bit for bit. False when the compiled path
@@ -449,7 +449,7 @@ def _compiled_step(sources: str) -> Any:
 
         Column ``c`` (``c0 + c`` overall) is model ``(c0 + c) % m`` of scenario ``j = (c0 + c) // m``;
         its residual of channel ``order[q]`` at step k goes to row ``rows_at[j] + q n_keep[j] + k``
-        of ``out`` (``fit.residuals``' layout), for k below ``n_keep[j]``, where the column stops.
+        of ``out`` (``plant_playin.residuals``' layout), for k below ``n_keep[j]``, where the column stops.
         """
         _ = sources
         n_states, cols = x0.shape

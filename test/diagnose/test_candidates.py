@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from phid_ros.diagnose.candidates import CANDIDATES, Candidate, candidate, library, torsional_peak
-from phid_ros.diagnose.fit import ModelSpec, Problem, fit, residuals
-from phid_ros.diagnose.playin import play_in
+from phid_ros.diagnose.fit import ModelSpec, Problem, fit
 from phid_ros.diagnose.workflow import channel_sigma, window
+from phid_ros.ident.plant_playin import play_in, residuals
 from phid_ros.model.parameters import TABLE1
 from phid_ros.sim.effects import REGISTRY, PlantEffect, parse_effect, register
 from phid_ros.sim.runner import SimulationConfig, simulate_scenarios

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from phid_ros import compiled_filters
-from phid_ros.diagnose.playin import OUTPUTS, play_in
+from phid_ros.ident.plant_playin import OUTPUTS, play_in
 from phid_ros.model.parameters import TABLE1
 from phid_ros.sim import kernel
 from phid_ros.sim.effects import REGISTRY, PlantEffect
@@ -108,7 +108,7 @@ def test_an_effect_without_compiled_terms_runs_in_numpy(windows, monkeypatch):
 def test_columns_split_over_threads_give_the_same_bits(windows, monkeypatch):
     """The compiled loop runs its columns on several threads where cores are spare: each column's
     arithmetic is its own, so the outputs are identical to one thread's."""
-    from phid_ros.diagnose import playin
+    from phid_ros.ident import plant_playin as playin
 
     base = {k: spread(v, 0.1) for k, v in TABLE1.as_dict().items()}
     effects = [
@@ -170,9 +170,8 @@ def test_residuals_written_by_the_kernel_equal_the_trajectories_subtracted(windo
     """A fit's residual matrix, written by the compiled step as it computes each output, is the
     trajectories' (output - measurement) / sigma bit for bit, in fit.residuals' layout, also
     with the columns split over threads and written into a column slice of a wider array."""
-    from phid_ros.diagnose import playin
-    from phid_ros.diagnose.fit import residuals
-    from phid_ros.diagnose.playin import residual_matrix
+    from phid_ros.ident import plant_playin as playin
+    from phid_ros.ident.plant_playin import residual_matrix, residuals
 
     # windows of unequal length: a column stops at its own window's end
     wins = [windows[0].rows(0, windows[0].n - 700), *windows[1:]]

@@ -1,5 +1,8 @@
 """The play-in of an extended model: the plant's own equations, driven by the measured terminal.
 
+Used by the diagnosis (its fits and scores) and by ``phid validate`` (a record's machine as
+written: saturation, dampers), so it lives with the identification's own play-in.
+
 The identified model (and any candidate effects added to it) is the simulator's
 :class:`~phid_ros.sim.plant.Plant` with a zero-impedance network whose source is
 the *measured* terminal phasor (V_t, theta_t), with measured P_m and V_f: no grid
@@ -178,6 +181,25 @@ def _trajectories(st: _Setup, scenarios: Sequence[ScenarioData], m: int) -> list
     return out
 
 
+def residuals(runs: Sequence[PlayIn], sigma: Mapping[str, float], out: Array | None = None) -> Array:
+    """Noise-normalised residuals, shape (samples, models), into ``out`` if given.
+
+    Written into one array block by block (no per-block temporaries, no concatenation): a fit
+    assembles it at every evaluation, and the copies cost as much as the arithmetic. ``out``:
+    the fit's Jacobian columns take them where they are needed, not through a copy."""
+    rows = sum(r.sim[c].shape[0] for r in runs for c in OUTPUTS)
+    if out is None:
+        out = np.empty((rows, runs[0].sim[OUTPUTS[0]].shape[1]))
+    at = 0
+    for r in runs:
+        for c in OUTPUTS:
+            block = out[at : at + r.sim[c].shape[0]]
+            np.subtract(r.sim[c], r.meas[c], out=block)
+            np.divide(block, sigma[c], out=block)
+            at += len(block)
+    return out
+
+
 def residual_matrix(
     scenarios: Sequence[ScenarioData],
     base: Mapping[str, Any],
@@ -189,15 +211,13 @@ def residual_matrix(
     step: float = STEP_SECONDS,
     order: str = "C",
 ) -> Array:
-    """``fit.residuals(play_in(..., smooth=True), sigma, out)``: the noise-normalised residuals (rows, m),
+    """``residuals(play_in(..., smooth=True), sigma, out)``: the noise-normalised residuals (rows, m),
     into a new array laid out in ``order`` when ``out`` is None.
 
     Compiled, the play-in writes each residual into ``out`` as it computes the output
     (``kernel.integrate_residuals``): no trajectories are kept, bit for bit the same numbers.
     Else the trajectories are played in and subtracted.
     """
-    from phid_ros.diagnose.fit import residuals  # the layout's one definition, and the reference
-
     # the fit's inputs have their noise taken out (errors in variables: phid_ros.ident.played_inputs);
     # a score (play_in) reads them as measured, whose noise it removes as white
     st = _setup(scenarios, base, effects, m, f_nominal_hz, step, smooth=True)
