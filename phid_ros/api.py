@@ -290,7 +290,9 @@ def validate_record(
         progress("playing the unit in")
     models = [c.model for c in unit.controls.values()]
     described = " + ".join([f"{unit.machine} at bus {unit.bus} id '{unit.machine_id}'", *models])
-    result = validate_unit(scenarios, params, controls, cut.f_nominal_hz, f"{described} ({unit.source})")
+    result = validate_unit(
+        scenarios, params, controls, cut.f_nominal_hz, f"{described} ({unit.source})", unit.effects()
+    )
     base = cut.recording.metadata.get("base_mva")
     on_base = f"{float(base):g} MVA" if base is not None else "not stated in the recording"
     result.notes[:0] = cut.problems + [

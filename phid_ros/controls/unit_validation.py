@@ -23,7 +23,7 @@ drops the sensors' noise.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -39,10 +39,12 @@ from phid_ros.controls.identify import (
     zero_phase,
 )
 from phid_ros.controls.models import MODELS, ControlModel
+from phid_ros.ident.plant_playin import play_in as plant_play_in
 from phid_ros.ident.scenario import ScenarioData
 from phid_ros.ident.terminal import with_channels, with_rotor_angle
-from phid_ros.ident.validation import MOD026_TOLERANCE_PU, play_in, play_in_stride
-from phid_ros.model.parameters import GeneratorParameters
+from phid_ros.ident.validation import MOD026_TOLERANCE_PU, STEP_SECONDS, play_in, play_in_stride
+from phid_ros.model.parameters import PARAMETER_NAMES, GeneratorParameters
+from phid_ros.sim.effects import PlantEffect
 
 Array = NDArray[np.float64]
 
@@ -162,8 +164,11 @@ def validate_unit(
     controls: dict[str, Control],
     f_nominal_hz: float,
     describe: str,
+    effects: Sequence[tuple[type[PlantEffect], Mapping[str, Any]]] = (),
 ) -> UnitValidation:
-    """Every scenario played in with the unit; the MOD-026/027 checks and the traces for the overlays."""
+    """Every scenario played in with the unit; the MOD-026/027 checks and the traces for the
+    overlays. ``effects``: the machine beyond the fourth-order model (a record's saturation and
+    dampers), played in by the plant's own equations (:mod:`phid_ros.ident.plant_playin`)."""
     notes: list[str] = []
     played: list[ScenarioData] = []
     made: list[dict[str, str]] = []
@@ -206,7 +211,7 @@ def validate_unit(
         made.append(by)
         per_notes.append(mine)
         skipped.append(unchecked)
-    trajectories = play_in(played, [params], f_nominal_hz) if played else []
+    trajectories = _machine_play_in(played, params, f_nominal_hz, effects) if played else []
     out: list[ScenarioCheck] = []
     for s, p, traj, by, mine, unchecked in zip(scenarios, played, trajectories, made, per_notes, skipped):
         idx = np.arange(0, s.n, play_in_stride(s.dt))
@@ -230,6 +235,27 @@ def validate_unit(
     if not any(sc.checks for sc in out):
         notes.append("no channel to check: the recordings carry none of P, Q, E_fd, P_m")
     return UnitValidation(describe, out, notes)
+
+
+@dataclass
+class _Played:
+    p_e: Array  # (steps, 1)
+    q_e: Array
+
+
+def _machine_play_in(
+    played: Sequence[ScenarioData],
+    params: GeneratorParameters,
+    f_nominal_hz: float,
+    effects: Sequence[tuple[type[PlantEffect], Mapping[str, Any]]],
+) -> list[Any]:
+    """The machine's P and Q at every play-in step: the fourth-order play-in, or the plant's with
+    the effects (on the same grid: the validation's step)."""
+    if not effects:
+        return play_in(played, [params], f_nominal_hz)
+    base = {name: getattr(params, name) for name in PARAMETER_NAMES}
+    runs = plant_play_in(played, base, effects, 1, f_nominal_hz, step=STEP_SECONDS)
+    return [_Played(r.sim["p_e"], r.sim["q_e"]) for r in runs]
 
 
 def channel_check(

@@ -20,11 +20,13 @@ import re
 import shlex
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from phid_ros.controls.models import MODELS as CONTROL_MODELS
 from phid_ros.errors import ParameterError, PhidError
 from phid_ros.export.formats import PSSE_ORDER
 from phid_ros.model.parameters import GeneratorParameters
+from phid_ros.sim.effects import MagneticSaturation, PlantEffect, SubtransientDynamics
 
 
 class DyrError(PhidError):
@@ -80,18 +82,47 @@ class Unit:
         except ParameterError as exc:  # the file and the record, not only the values
             raise DyrError(f"{self.source}: {self.machine} at bus {self.bus} id '{self.machine_id}': {exc}") from None
 
-    def not_simulated(self) -> list[str]:
-        """What the record carries that the fourth-order play-in leaves out."""
-        out = []
+    def effects(self) -> list[tuple[type[PlantEffect], dict[str, Any]]]:
+        """The record's machine beyond the fourth-order model, as the simulator's effects, so a
+        validation plays the machine the record writes: the dampers (GENSAL's d axis, GENROU's
+        both; X'' = X''_d = X''_q, X_l as written) and the saturation (S(1.0), S(1.2), the
+        quadratic curve of both models, on E'_q for GENSAL and on the air-gap flux for GENROU)."""
+        c = self.constants
+        out: list[tuple[type[PlantEffect], dict[str, Any]]] = []
+        if self._dampers():
+            # X''_q = X''_d in both models; GENSAL's q damper is its q transient circuit already
+            # (X'_q = X'', :meth:`parameters`), which x_qpp = X'' leaves inert here
+            damper = {"x_dpp": c["Xd2"], "x_qpp": c["Xd2"], "t_d0pp": c["Td20"], "t_q0pp": c["Tq20"], "x_l": c["Xl"]}
+            out.append((SubtransientDynamics, damper))
+        if self._saturated():
+            form = "gensal" if self.machine == "GENSAL" else "genrou"
+            out.append((MagneticSaturation, {"s10": c["S10"], "s12": c["S12"], "form": form, "curve": "quadratic"}))
+        return out
+
+    def _dampers(self) -> bool:
         c = self.constants
         # a damper acts in an axis whose transient reactance lies above X'' (GENSAL's q axis is
         # its damper, simulated as the q transient circuit)
-        if c["Xd2"] < c["Xd1"] - 1e-9:
-            out.append(f"the d-axis damper (X'' = {c['Xd2']:g}, T''_d0 = {c['Td20']:g} s)")
-        if self.machine == "GENROU" and c["Xd2"] < c["Xq1"] - 1e-9:
-            out.append(f"the q-axis damper (X'' = {c['Xd2']:g}, T''_q0 = {c['Tq20']:g} s)")
-        if c["S10"] or c["S12"]:
-            out.append(f"saturation (S(1.0) = {c['S10']:g}, S(1.2) = {c['S12']:g})")
+        acts = c["Xd2"] < c["Xd1"] - 1e-9 or (self.machine == "GENROU" and c["Xd2"] < c["Xq1"] - 1e-9)
+        return bool(acts and c["Td20"] > 0 and c["Tq20"] > 0 and 0 < c["Xl"] < c["Xd2"])
+
+    def _saturated(self) -> bool:
+        c = self.constants
+        return bool(c["S12"] > c["S10"] > 0)
+
+    def not_simulated(self) -> list[str]:
+        """What the record carries that the play-in (the fourth-order model with :meth:`effects`)
+        leaves out."""
+        out = []
+        c = self.constants
+        damped = c["Xd2"] < c["Xd1"] - 1e-9 or (self.machine == "GENROU" and c["Xd2"] < c["Xq1"] - 1e-9)
+        if damped and not self._dampers():
+            out.append(
+                f"the dampers (X'' = {c['Xd2']:g}, T''_d0 = {c['Td20']:g} s, T''_q0 = {c['Tq20']:g} s, "
+                f"X_l = {c['Xl']:g}: a time constant not positive or X_l not below X'')"
+            )
+        if (c["S10"] or c["S12"]) and not self._saturated():
+            out.append(f"saturation (S(1.0) = {c['S10']:g}, S(1.2) = {c['S12']:g}: needs S(1.2) > S(1.0) > 0)")
         for settings in self.controls.values():
             out += CONTROL_MODELS[settings.model].not_simulated(settings.values)
         return out + [f"{r}: not a model phid validates" for r in self.ignored]

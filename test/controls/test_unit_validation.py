@@ -170,3 +170,42 @@ def test_an_e_fd_band_does_not_widen_with_a_play_in_that_drifts_away() -> None:
     drifts = follows + 3.0 * np.sin(2 * np.pi * idx * dt / 8.0)
     bad, _, _ = channel_check("v_f", recorded, dt, idx, pre, simulated_at=drifts)
     assert not bad.passed and bad.band < 0.2 and bad.max_error > 2.9
+
+
+def test_a_record_s_saturation_and_dampers_are_played_as_written(tmp_path: Path) -> None:
+    """``phid validate`` used to drop a record's saturation and dampers (the Mostar unit's published
+    GENSAL: Q off by 0.26-0.30 pu until its saturation was simulated). A GENROU with S(1.0) 0.1,
+    S(1.2) 0.4 and dampers, simulated, then validated against its own record: the record's machine
+    as written follows the recording; the fourth-order machine alone does not."""
+    from phid_ros.controls.unit_validation import validate_unit
+    from phid_ros.export.dyr_read import read_unit
+    from phid_ros.ident.scenario import scenario_from_simulation
+    from phid_ros.model.parameters import TABLE1
+    from phid_ros.sim.effects import MagneticSaturation, SubtransientDynamics
+    from phid_ros.sim.runner import SimulationConfig, simulate_scenarios
+    from phid_ros.sim.scenarios import find_scenario, with_duration
+
+    effects = (
+        MagneticSaturation(s10=0.1, s12=0.4, form="genrou", curve="quadratic"),
+        SubtransientDynamics(x_dpp=0.24, x_qpp=0.24, t_d0pp=0.05, t_q0pp=0.08, x_l=0.15),
+    )
+    cfg = SimulationConfig(effects=effects)
+    [run] = simulate_scenarios([with_duration(find_scenario("S09"), 6.0)], cfg)
+    s = scenario_from_simulation(run, run.truth)
+    p_m0 = float(np.mean(s["p_e"][s.pre_slice()]))
+    p = TABLE1
+    dyr = tmp_path / "unit.dyr"
+    dyr.write_text(
+        f"1 'GENROU' 1 {p.T_d0_prime} 0.05 {p.T_q0_prime} 0.08 {p.H} {p.D - p_m0} {p.X_d} {p.X_q} "
+        f"{p.X_d_prime} {p.X_q_prime} 0.24 0.15 0.1 0.4 /\n"
+    )
+    unit = read_unit(dyr)
+    assert [cls.name for cls, _ in unit.effects()] == ["subtransient_dynamics", "magnetic_saturation"]
+    assert unit.not_simulated() == []
+    params = unit.parameters(p_m0)
+    as_written = validate_unit([s], params, {}, cfg.f_nominal_hz, "as written", unit.effects())
+    fourth_order = validate_unit([s], params, {}, cfg.f_nominal_hz, "fourth order")
+    q_written = next(c for c in as_written.scenarios[0].checks if c.channel == "q_e")
+    q_fourth = next(c for c in fourth_order.scenarios[0].checks if c.channel == "q_e")
+    assert q_written.max_error < 0.01
+    assert q_fourth.max_error > 5 * q_written.max_error

@@ -40,10 +40,12 @@ def test_an_exported_unit_reads_back_as_the_same_machine_exciter_and_governor(tm
             assert getattr(params, name) == pytest.approx(getattr(TABLE1, name), rel=1e-6), name
     assert {k: c.model for k, c in unit.controls.items()} == {"exciter": "SEXS", "governor": "TGOV1"}
     assert unit.controls["exciter"].values["K"] == 100.0 and unit.controls["governor"].values["T3"] == 6.0
+    # the q-axis damper (X'' = X'_d < X'_q) is played as written, by the simulator's own effect
+    [(damper, values)] = unit.effects()
+    assert damper.name == "subtransient_dynamics" and values["x_qpp"] == 0.5 and values["t_q0pp"] == 0.03
     said = unit.not_simulated()
-    assert said[0] == "the q-axis damper (X'' = 0.5, T''_q0 = 0.03 s)"  # X'' = X'_d < X'_q
     # every record constant the small-signal play-in leaves out is said, with its value
-    assert said[1].startswith("SEXS EMIN = ") and said[2].startswith("TGOV1 VMAX = ") and len(said) == 3
+    assert said[0].startswith("SEXS EMIN = ") and said[1].startswith("TGOV1 VMAX = ") and len(said) == 2
 
 
 def test_the_damping_comes_back_in_phid_s_form(tmp_path: Path) -> None:
@@ -85,7 +87,10 @@ def test_comments_continuations_and_several_units(tmp_path: Path) -> None:
     assert one.constants["H"] == 3.48 and one.controls == {}
     two = read_unit(path, bus=2, machine_id="2")
     assert list(two.controls) == ["governor"] and two.ignored == ["IEEEST (line 6)"]
-    assert "saturation (S(1.0) = 0.1, S(1.2) = 0.4)" in two.not_simulated()
+    assert ("magnetic_saturation", 0.1, 0.4, "genrou") in [
+        (cls.name, v["s10"], v["s12"], v["form"]) for cls, v in two.effects() if "s10" in v
+    ]
+    assert not any("saturation" in n for n in two.not_simulated())
     # the governor's limits are in the record and not in the small-signal play-in: said, with values
     assert any(n.startswith(f"{two.controls['governor'].model} ") and "small-signal" in n for n in two.not_simulated())
     with pytest.raises(DyrError, match=r"no GENROU or GENSAL record at the unit asked; the file has bus 1"):
