@@ -268,7 +268,7 @@ def validate_record(
     recording at ``path``, as MOD-026/027 ask; the record's constants on the recording's base."""
     import numpy as np
 
-    from phid_ros.controls.unit_validation import control_of, validate_unit
+    from phid_ros.controls.unit_validation import control_of, field_on_machine_base, validate_unit
     from phid_ros.export.dyr_read import read_unit
 
     unit = read_unit(dyr, bus, machine_id)
@@ -282,6 +282,9 @@ def validate_record(
     missing = [c for c in ("v_t", "p_e", "q_e") if any(c in s.absent for s in scenarios)]
     if missing:
         raise PhidError(f"{source}: not recorded: {', '.join(missing)}; the play-in needs V_t and checks P and Q")
+    c = unit.constants
+    curve = f"S(1.0) = {c['S10']:g}, S(1.2) = {c['S12']:g}" if c["S10"] or c["S12"] else "unsaturated"
+    scenarios, base_notes = field_on_machine_base(scenarios, unit.open_circuit_field, curve)
     # PSS/E's D is phid's less P_m0 (the record's swing equation divides P_m by the speed)
     p_m0 = float(np.median([np.mean(s["p_e"][s.pre_slice()]) for s in scenarios]))
     params = unit.parameters(p_m0)
@@ -295,10 +298,14 @@ def validate_record(
     )
     base = cut.recording.metadata.get("base_mva")
     on_base = f"{float(base):g} MVA" if base is not None else "not stated in the recording"
-    result.notes[:0] = cut.problems + [
-        f"the record's constants taken on the recording's machine base ({on_base}): PSS/E keeps MBASE in the .raw",
-        *(f"not simulated: {n}" for n in unit.not_simulated()),
-    ]
+    result.notes[:0] = (
+        cut.problems
+        + base_notes
+        + [
+            f"the record's constants taken on the recording's machine base ({on_base}): PSS/E keeps MBASE in the .raw",
+            *(f"not simulated: {n}" for n in unit.not_simulated()),
+        ]
+    )
     doc = {"validation": result.as_json(), "parameters": params.as_dict(), "p_m0": p_m0, **result_provenance(path)}
     return RecordValidation(result, params, p_m0, doc, list(cut.recording.warnings))
 

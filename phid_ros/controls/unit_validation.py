@@ -23,7 +23,7 @@ drops the sensors' noise.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -122,6 +122,46 @@ class UnitValidation:
             "scenarios": [s.as_json() for s in self.scenarios],
             "notes": self.notes,
         }
+
+
+FIELD_BASE_TOLERANCE = 0.05  # a recorded E_fd within this of the machine's base is taken as it is
+
+
+def field_on_machine_base(
+    scenarios: Sequence[ScenarioData], open_circuit: Callable[[Array], Array], curve: str
+) -> tuple[list[ScenarioData], list[str]]:
+    """The recorded E_fd put on the machine's base where the recording's no-load tests show
+    another (an excitation controller's own per unit: U_f 0.37 at V_t = 1.0), and the notes.
+
+    At a no-load plateau the machine's E_fd is ``open_circuit(V_t)``, the record's open-circuit
+    curve (``curve`` says which): the recorded value's ratio to it, fitted through the origin
+    over every plateau, is the base, applied to every scenario of the set (on line as well).
+    Without a no-load test nothing is changed."""
+    from phid_ros.ident.terminal import at_no_load
+
+    pts: list[tuple[float, float]] = []
+    for s in scenarios:
+        if not s.has("v_f") or not at_no_load(s):
+            continue
+        for sl in (s.pre_slice(), s.steady_slice()):
+            v = float(np.mean(s["v_t"][sl])) if sl.stop - (sl.start or 0) >= 10 else 0.0
+            if v > 0.2:  # a de-excited machine's remanence is no point of the curve
+                pts.append((v, float(np.mean(s["v_f"][sl]))))
+    if not pts:
+        return list(scenarios), []
+    v_t, recorded = np.array([p[0] for p in pts]), np.array([p[1] for p in pts])
+    machine = open_circuit(v_t)
+    k = float(machine @ recorded / (recorded @ recorded))
+    if abs(k - 1.0) <= FIELD_BASE_TOLERANCE:
+        return list(scenarios), []
+    scatter = float(np.max(np.abs(k * recorded / machine - 1.0)))
+    note = (
+        f"E_fd (v_f) is recorded on another base: 1 pu of the machine's = {1 / k:.4g} as recorded, from "
+        f"{len(pts)} no-load plateau(s) at V_t {v_t.min():.3f}-{v_t.max():.3f} pu on the record's open-circuit "
+        f"curve ({curve}; points within {100 * scatter:.1f} %): every scenario's E_fd multiplied by {k:.4g}"
+    )
+    out = [with_channels(s, {"v_f": k * np.asarray(s["v_f"], float)}, note) if s.has("v_f") else s for s in scenarios]
+    return out, [note]
 
 
 @dataclass(frozen=True)

@@ -22,15 +22,27 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+from numpy.typing import NDArray
+
 from phid_ros.controls.models import MODELS as CONTROL_MODELS
 from phid_ros.errors import ParameterError, PhidError
 from phid_ros.export.formats import PSSE_ORDER
 from phid_ros.model.parameters import GeneratorParameters
-from phid_ros.sim.effects import MagneticSaturation, PlantEffect, SubtransientDynamics
+from phid_ros.sim.effects import (
+    MagneticSaturation,
+    PlantEffect,
+    SubtransientDynamics,
+    saturation_curve,
+    saturation_factor,
+)
 
 
 class DyrError(PhidError):
     """A .dyr the validation cannot read, or a unit it does not hold."""
+
+
+Array = NDArray[np.float64]
 
 
 @dataclass(frozen=True)
@@ -98,6 +110,16 @@ class Unit:
             form = "gensal" if self.machine == "GENSAL" else "genrou"
             out.append((MagneticSaturation, {"s10": c["S10"], "s12": c["S12"], "form": form, "curve": "quadratic"}))
         return out
+
+    def open_circuit_field(self, v_t: Array) -> Array:
+        """E_fd that holds the open-circuit machine at ``v_t`` (pu): V_t (1 + S(V_t)) on the
+        record's saturation curve (at no load both models saturate on V_t: E'_q, the air-gap flux)."""
+        v = np.asarray(v_t, float)
+        if not self._saturated():
+            return v
+        c = self.constants
+        a, b = saturation_curve("quadratic", c["S10"], c["S12"])
+        return np.asarray(v * (1.0 + saturation_factor(False, a, b, v)), dtype=float)
 
     def _dampers(self) -> bool:
         c = self.constants

@@ -135,6 +135,7 @@ def with_channels(s: ScenarioData, channels: dict[str, Array], note: str) -> Sce
         list(s.extra_switching),
         s.measurement_window_s,
         s.absent - set(channels),
+        s.steady_start,
     )
 
 

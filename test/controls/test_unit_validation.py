@@ -209,3 +209,29 @@ def test_a_record_s_saturation_and_dampers_are_played_as_written(tmp_path: Path)
     q_fourth = next(c for c in fourth_order.scenarios[0].checks if c.channel == "q_e")
     assert q_written.max_error < 0.01
     assert q_fourth.max_error > 5 * q_written.max_error
+
+
+def test_a_controller_s_field_base_is_calibrated_on_the_no_load_plateaus() -> None:
+    """An excitation controller records E_fd on its own base (Mostar: U_f 0.373 at V_t 1.0): at
+    each no-load plateau the machine's E_fd is the record's open-circuit curve at V_t, so the
+    recorded value's ratio to it is the base; on the air-gap line within 5 % nothing changes."""
+    from phid_ros.controls.unit_validation import field_on_machine_base
+    from phid_ros.ident.scenario import make_scenario
+    from phid_ros.model.channels import CHANNELS, Frame
+
+    dt, n = 0.0048, 4000
+    t = np.arange(n) * dt
+    v = np.where(t < 8.0, 1.0, 1.1)
+    curve = lambda x: x * (1 + 0.2 * np.maximum(x - 0.8, 0) ** 2 / x)  # noqa: E731 - the record's
+    sig = {c: np.zeros(n) for c in CHANNELS}
+    sig.update(v_t=v, v_f=curve(v) / 2.95, omega=np.ones(n))
+    s = make_scenario("noload", Frame.of_columns(sig, int(dt * 1e9)), kind="field_step", k_event=int(8.0 / dt))
+    [out], notes = field_on_machine_base([s], curve, "test curve")
+    assert float(notes[0].rsplit("multiplied by ", 1)[1]) == pytest.approx(2.95, rel=1e-3)
+    assert np.allclose(out["v_f"], curve(v))
+    on_line_only = make_scenario(
+        "online", Frame.of_columns({**sig, "p_e": np.full(n, 0.5)}, int(dt * 1e9)), kind="field_step", k_event=100
+    )
+    assert field_on_machine_base([on_line_only], curve, "test curve") == ([on_line_only], [])
+    machine_base = s.with_frame(Frame.of_columns({**sig, "v_f": curve(v)}, int(dt * 1e9)))
+    assert field_on_machine_base([machine_base], curve, "test curve")[1] == []

@@ -99,3 +99,29 @@ def test_info_lists_the_events_and_what_is_left_out(day: Path, capsys: pytest.Ca
     for name in ("AVR_PH_Step10@13.3s", "AVR_PH_Step10@19.6s", "RR_MR_Step10@138.0s"):
         assert name in out
     assert "left out: " in out and "AVR_RR_PH_Ispad_Q141" in out and "measurement lost" in out
+
+
+def test_validate_puts_the_controller_s_field_on_the_machine_base_and_plays_every_event(
+    day: Path, tmp_path: Path
+) -> None:
+    """The published GENSAL + ST5B fit (SOURCE.md), written as a .dyr: read as published (T_B2 5.1 ms),
+    its saturation and dampers played, the controller's E_fd put on the machine's base on the
+    no-load plateaus with the record's own open-circuit curve. The published fit scaled its
+    simulated E_fd by 1/2.89 against the recorded one; the no-load plateaus give 1/3.06."""
+    from phid_ros.api import validate_record
+
+    dyr = tmp_path / "published.dyr"
+    dyr.write_text(
+        "1 'GENSAL' 1 3.77 0.0552 0.0823 2.3362 0.0 1.12 0.642 0.354 0.24 0.1 0.1 0.4 /\n"
+        "1 'ESST5B' 1 0.0127 505.3 0.00518 0.982 2.237 -8.384 1.701 21.98 0.0263 0.00511 1 1 1 1 1 1 1 1 /\n"
+    )
+    v = validate_record(dyr, day)
+    [base] = [n for n in v.result.notes if n.startswith("E_fd (v_f) is recorded on another base")]
+    k = float(base.rsplit("multiplied by ", 1)[1])
+    assert k == pytest.approx(2.89, rel=0.08)
+    assert not any("saturation" in n or "damper" in n for n in v.result.notes if n.startswith("not simulated"))
+    names = [sc.scenario for sc in v.result.scenarios]
+    assert "AVR_PH_Step10@13.3s" in names and "AVR_PH_Step10@19.6s" in names
+    # the no-load step's return: an open-circuit machine's Q stays within MOD-026's 0.05 pu
+    back = next(sc for sc in v.result.scenarios if sc.scenario == "AVR_PH_Step10@19.6s")
+    assert next(c for c in back.checks if c.channel == "q_e").max_error < 0.06
