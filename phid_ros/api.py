@@ -359,3 +359,12 @@ def identify_scenarios(
         return identify(scenarios, options, truth, progress)
     except ConsistencyError as exc:
         raise ConsistencyError(f"{source}: {exc}") from None
+
+
+def characterise_sheet(path: str | Path) -> tuple[Any, Any]:
+    """(the test sheet, its IEEE 115 characteristics): ``phid characterise``'s work."""
+    from phid_ros.ident.characteristics import characterise
+    from phid_ros.io.test_sheet import load_test_sheet
+
+    sheet = load_test_sheet(path)
+    return sheet, characterise(sheet.occ.i_f, sheet.occ.x, sheet.scc.i_f, sheet.scc.x)

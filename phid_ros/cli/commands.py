@@ -384,6 +384,13 @@ def cmd_validate(args: argparse.Namespace, console: Console) -> int:
     return run(args, console)
 
 
+def cmd_characterise(args: argparse.Namespace, console: Console) -> int:
+    from phid_ros.cli.characterise import characterise_command
+
+    refuse_inputs([args.json], [args.sheet])
+    return characterise_command(args, console)
+
+
 def cmd_history(args: argparse.Namespace, console: Console) -> int:
     from phid_ros.cli.fleet import run_history
 

@@ -12,6 +12,7 @@ from collections.abc import Callable, Mapping
 
 from phid_ros import __version__
 from phid_ros.cli.commands import (
+    cmd_characterise,
     cmd_diagnose,
     cmd_export,
     cmd_fleet,
@@ -390,6 +391,19 @@ def _add_validate(sub: Subparsers) -> None:
     p.set_defaults(func=cmd_validate)
 
 
+def _add_characterise(sub: Subparsers) -> None:
+    p = sub.add_parser(
+        "characterise",
+        help="IEEE 115 from a machine's open- and short-circuit curves: air-gap line, X_du, SCR, S(1.0), S(1.2)",
+        description="A test sheet (YAML) names the curves' tables and the rated voltage and armature current: "
+        "rated: {v: 127.0, i_a: 5.25}; occ: {file: occ.csv, i_f: IF, v: V}; scc: {file: scc.csv, i_f: IF, i_a: IA}. "
+        "Guide: docs/guide/field-recordings.md.",
+    )
+    p.add_argument("sheet", metavar="SHEET.yaml", help="the test sheet")
+    p.add_argument("--json", metavar="OUT", help="write the characteristics here")
+    p.set_defaults(func=cmd_characterise)
+
+
 def build_parser() -> Parser:
     parser = Parser(prog="phid", description="Port-Hamiltonian generator identification.")
     parser.add_argument("-V", "--version", action="version", version=f"phid_ros {__version__}")
@@ -408,6 +422,7 @@ def build_parser() -> Parser:
         _add_history,
         _add_export,
         _add_validate,
+        _add_characterise,
         _add_info,
     ):
         add(sub)
