@@ -27,7 +27,7 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
-from phid_ros.numerics import first_order_response
+from phid_ros.numerics import first_order_coefficients, first_order_response
 
 Array = NDArray[np.float64]
 
@@ -114,6 +114,60 @@ def first_order(t: float) -> NDArray[np.float64]:
     return np.array([t, 1.0])
 
 
+class LimitsError(ValueError):
+    """A record's limits that cannot hold the recorded operating point: not simulated."""
+
+
+@dataclass(frozen=True)
+class OperatingLevels:
+    """Where an exciter and the machine stood before the event: what its limits are measured
+    against (a static exciter's ceiling is proportional to V_T and lowered by K_C I_FD)."""
+
+    v_t: Array  # the terminal voltage (pu) on the inputs' grid
+    output0: float  # E_fd before the event, machine pu
+    i_fd0: float  # the field current before the event, machine pu (E_fd at rest)
+
+
+def nonwindup_lag(u: Array, tau: float, dt: float, lo: Array, hi: Array, x0: float) -> Array:
+    """1/(1 + s tau) from ``x0`` with its state held within [lo, hi] (IEEE 421.5's non-windup
+    limit: the output leaves a limit as soon as the input turns back)."""
+    if tau <= 1e-6:
+        return np.clip(u, lo, hi)
+    a, b0, b1 = first_order_coefficients(tau, dt)
+    y = np.empty(len(u))
+    x = x0
+    prev = float(u[0]) if len(u) else 0.0
+    for k in range(len(u)):
+        x = min(max(a * x + b0 * prev + b1 * float(u[k]), float(lo[k])), float(hi[k]))
+        y[k] = x
+        prev = float(u[k])
+    return y
+
+
+def nonwindup_lead_lag(u: Array, t_lead: float, t_lag: float, dt: float, lo: float, hi: float, x0: float) -> Array:
+    """(1 + s t_lead)/(1 + s t_lag) from rest at ``x0`` with a non-windup limit on its output
+    (IEEE 421.5: at a limit the lag's state is set so the output sits on it, and the output
+    leaves the limit as soon as the input allows)."""
+    if t_lag <= 1e-6:
+        return np.clip(u, lo, hi)
+    r = t_lead / t_lag
+    a, b0, b1 = first_order_coefficients(t_lag, dt)
+    y = np.empty(len(u))
+    x = x0
+    prev = float(u[0]) if len(u) else 0.0
+    for k in range(len(u)):
+        uk = float(u[k])
+        x = a * x + b0 * prev + b1 * uk
+        out = r * uk + (1.0 - r) * x
+        if out > hi or out < lo:
+            out = min(max(out, lo), hi)
+            if abs(1.0 - r) > 1e-12:
+                x = (out - r * uk) / (1.0 - r)
+        y[k] = out
+        prev = uk
+    return y
+
+
 def lead_lag(u: Array, t_lead: float, t_lag: float, dt: float) -> Array:
     """(1 + s t_lead)/(1 + s t_lag) from rest."""
     if t_lag <= 1e-6:
@@ -133,6 +187,9 @@ class ControlModel(ABC):
     icons: ClassVar[tuple[tuple[str, int], ...]] = ()
     # constants of branches the small-signal path does not pass through (said in a validation)
     outside_path: ClassVar[tuple[str, ...]] = ()
+    # limits :meth:`limited` simulates (said apart from the ones the play-in leaves out)
+    simulated_limits: ClassVar[tuple[str, ...]] = ()
+    simulated_limits_how: ClassVar[str] = ""
 
     @classmethod
     def fitted(cls) -> tuple[ControlParameter, ...]:
@@ -162,7 +219,9 @@ class ControlModel(ABC):
         record's values: its limits (and the exciter saturation, the rectifier loading, which act
         only at large signals) and the branches outside its path."""
         out = []
-        limits = [p for p in cls.parameters if p.limit]
+        limits = [p for p in cls.parameters if p.limit and p.name not in cls.simulated_limits]
+        if cls.simulated_limits and cls.simulated_limits_how:
+            out.append(f"{cls.name}: {cls.simulated_limits_how}")
         if limits:
             named = ", ".join(f"{p.name} = {values[p.name]:g}" for p in limits)
             out.append(
@@ -173,6 +232,14 @@ class ControlModel(ABC):
             named = ", ".join(f"{p.name} = {values[p.name]:g}" for p in idle)
             out.append(f"{cls.name} {named} ({idle[0].meaning})")
         return out
+
+    @classmethod
+    def limited(
+        cls, values: Mapping[str, float], x: ControlInputs, reference: float, levels: OperatingLevels
+    ) -> Array | None:
+        """The output's deviation with the limits the model declares simulated, from the
+        operating levels; None where the model has only its small-signal path."""
+        return None
 
     @classmethod
     def defaults(cls) -> dict[str, float]:
@@ -384,6 +451,33 @@ class ESST5B(ControlModel):
         e = reference * x.reference_step - lag(x.v_t, v["TR"], x.dt)
         first = lead_lag(e, v["TC1"], v["TB1"], x.dt)
         return v["KR"] * lag(lead_lag(first, v["TC2"], v["TB2"], x.dt), v["T1"], x.dt)
+
+    simulated_limits = ("KC", "VRMAX", "VRMIN")
+    simulated_limits_how = (
+        "V_R within VRMIN..VRMAX after the lead-lags, E_fd within VRMIN V_T..VRMAX V_T - K_C I_FD on a "
+        "non-windup T_1 lag, the first lead-lag non-windup (IEEE 421.5 ST5B); I_FD held at its pre-event value"
+    )
+
+    @classmethod
+    def limited(
+        cls, values: Mapping[str, float], x: ControlInputs, reference: float, levels: OperatingLevels
+    ) -> Array | None:
+        v = values
+        loading = v["KC"] * levels.i_fd0
+        v_r0 = levels.output0 + loading  # at rest V_R = E_fd + K_C I_FD (the lead-lags' gain is 1)
+        if not v["VRMIN"] <= v_r0 <= v["VRMAX"]:
+            raise LimitsError(
+                f"V_R at rest {v_r0:.3f} (E_fd {levels.output0:.3f} + K_C {v['KC']:g} x I_FD {levels.i_fd0:.3f}) lies "
+                f"outside VRMIN..VRMAX {v['VRMIN']:g}..{v['VRMAX']:g}: the record's limits do not hold the recorded "
+                "operating point"
+            )
+        e = reference * x.reference_step - lag(x.v_t, v["TR"], x.dt)
+        # K_R, the second lead-lag, then the first with its non-windup limit, and the limiter
+        w = v_r0 + v["KR"] * lead_lag(e, v["TC2"], v["TB2"], x.dt)
+        v_r = nonwindup_lead_lag(w, v["TC1"], v["TB1"], x.dt, v["VRMIN"], v["VRMAX"], v_r0)
+        u = np.clip(v_r, v["VRMIN"], v["VRMAX"]) - loading
+        lo, hi = v["VRMIN"] * levels.v_t, v["VRMAX"] * levels.v_t - loading
+        return nonwindup_lag(u, v["T1"], x.dt, lo, hi, levels.output0) - levels.output0
 
 
 @register

@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.optimize import minimize_scalar
 
 from phid_ros.controls.identify import (
     KINDS,
@@ -38,7 +39,7 @@ from phid_ros.controls.identify import (
     simulate_cases,
     zero_phase,
 )
-from phid_ros.controls.models import MODELS, ControlModel
+from phid_ros.controls.models import MODELS, ControlModel, LimitsError, OperatingLevels
 from phid_ros.ident.plant_playin import play_in as plant_play_in
 from phid_ros.ident.scenario import ScenarioData
 from phid_ros.ident.terminal import with_channels, with_rotor_angle
@@ -172,19 +173,53 @@ class Control:
     values: dict[str, float]
 
 
-def _control_output(s: ScenarioData, kind: str, control: Control) -> tuple[Array, float] | None:
+REFERENCE_SEARCH = (-0.5, 0.5)  # pu: a limited exciter's reference step is sized within this
+
+
+def _control_output(
+    s: ScenarioData, kind: str, control: Control, level: float, notes: list[str]
+) -> tuple[Array, float] | None:
     """The control's output deviation (pu) on the scenario's samples, and the reference step it
-    was given; None where the recording lacks the input the kind needs."""
+    was given; None where the recording lacks the input the kind needs. A model that simulates
+    its limits (:meth:`ControlModel.limited`) is played from ``level``, its output's pre-event
+    value, and its reference step sized by a bounded search (the response is not linear in it)."""
     case: ControlCase | None = control_case(s, kind, output=False)
     if case is None:
         return None
-    [pred] = simulate_cases(control.model, control.values, [case])
-    reference = 0.0
-    if case.stepped:
-        free = control.model.response(control.values, case.inputs, 0.0)
-        unit = control.model.response(control.values, case.inputs, 1.0) - free
-        denom = float(unit @ unit)
-        reference = float(unit @ (pred - free)) / denom if denom > 0 else 0.0
+    model, values = control.model, control.values
+    v_t0 = float(np.mean(s["v_t"][s.pre_slice()]))
+    levels = OperatingLevels(v_t0 + case.inputs.v_t, level, level) if kind == "exciter" else None
+    try:
+        limited = levels is not None and model.limited(values, case.inputs, 0.0, levels) is not None
+    except LimitsError as exc:
+        notes.append(f"{model.name}'s limits not simulated: {exc}")
+        limited = False
+    if levels is not None and limited:
+
+        def played(r: float) -> Array:
+            out = model.limited(values, case.inputs, r, levels)
+            assert out is not None
+            return out
+
+        reference = 0.0
+        if case.stepped:
+            reference = float(
+                minimize_scalar(
+                    lambda r: float(np.sum((played(r) - case.output) ** 2)),
+                    bounds=REFERENCE_SEARCH,
+                    method="bounded",
+                    options={"xatol": 1e-5},
+                ).x
+            )
+        pred = played(reference)
+    else:
+        [pred] = simulate_cases(model, values, [case])
+        reference = 0.0
+        if case.stepped:
+            free = model.response(values, case.inputs, 0.0)
+            unit = model.response(values, case.inputs, 1.0) - free
+            denom = float(unit @ unit)
+            reference = float(unit @ (pred - free)) / denom if denom > 0 else 0.0
     k = fit_stride(s.dt)
     coarse = np.arange(0, s.n, k) * s.dt
     return np.interp(np.arange(s.n) * s.dt, coarse, pred), reference
@@ -224,8 +259,8 @@ def validate_unit(
         by: dict[str, str] = {}
         for kind, channel in (("exciter", "v_f"), ("governor", "p_m")):
             control = controls.get(kind)
-            response = _control_output(s, kind, control) if control is not None else None
             level = _pre_event_level(s, channel, params)
+            response = _control_output(s, kind, control, level, mine) if control is not None else None
             if control is not None and response is not None:
                 put[channel], by[channel] = level + response[0], control.model.name
                 if response[1]:

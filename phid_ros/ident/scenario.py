@@ -239,6 +239,36 @@ def classify(
     )
 
 
+FIRST_RESPONSE_S = (0.02, 0.15)  # the response right after a step, before the field's flux moves
+
+
+def from_the_field(signals: Mapping[str, Array], dt: float, k: int) -> str | None:
+    """Why a V_t step at sample ``k`` came from the machine's field (an AVR reference or a field
+    step), or None. A step of the network's voltage makes a loaded machine absorb reactive power
+    as V_t rises (Q falls); raising its own field makes it deliver more (Q rises): the sign of
+    dQ/dV_t right after the step tells them apart (FIRST_RESPONSE_S, while the field's flux still
+    holds the EMF behind X'_d: later a weak machine's Q can follow a network step), where both
+    moved clearly against a second of the signals' own noise before the event."""
+    v, q = np.asarray(signals["v_t"], float), np.asarray(signals["q_e"], float)
+    if not (np.isfinite(v).all() and np.isfinite(q).all()):
+        return None
+    one = max(2, int(round(1.0 / dt)))
+    lo, hi = k + max(1, int(round(FIRST_RESPONSE_S[0] / dt))), k + max(2, int(round(FIRST_RESPONSE_S[1] / dt)))
+    if k - one < 0 or hi > len(v):
+        return None
+    dv = float(np.mean(v[lo:hi]) - np.mean(v[k - one : k]))
+    dq = float(np.mean(q[lo:hi]) - np.mean(q[k - one : k]))
+    m = hi - lo
+    noise_v = float(np.std(np.diff(v[k - one : k]))) * STEP_NOISE_SIGMAS / math.sqrt(m)
+    noise_q = float(np.std(np.diff(q[k - one : k]))) * STEP_NOISE_SIGMAS / math.sqrt(m)
+    if abs(dv) > max(noise_v, 1e-3) and abs(dq) > max(noise_q, 1e-3) and dv * dq > 0:
+        return (
+            f"Q moved with V_t in the first {FIRST_RESPONSE_S[1]:g} s ({dq:+.3f} pu for {dv:+.4f} pu): at a "
+            "network step they move apart (the field's flux holds the EMF behind X'_d)"
+        )
+    return None
+
+
 STEP_SIGNAL = {"torque_step": "p_m", "voltage_step": "v_t", "field_step": "v_f"}
 
 
@@ -339,6 +369,9 @@ def make_scenario(
             k_event, k_clear = k_ev, (k_cl if kind == "fault" else None)
     if kind not in KINDS:
         raise ScenarioError(f"scenario {name}: kind {kind!r} not one of {KINDS}")
+    if kind == "voltage_step" and k_event is not None and (why := from_the_field(sig, dt, int(k_event))):
+        kind = "field_step"
+        notes.append(f"labelled voltage_step, taken as field_step: {why}")
     if kind == "fault" and k_clear is None:
         _, _, k_clear, _ = classify(sig, dt)
     return ScenarioData(

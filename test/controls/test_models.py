@@ -125,3 +125,56 @@ def test_an_ieeeg1_record_phid_cannot_simulate_is_refused_by_name(tmp_path, edit
     )
     with pytest.raises(DyrError, match=rf"unit\.dyr:2: IEEEG1: {message}"):
         read_unit(path)
+
+
+def _st5b(**over: float) -> dict[str, float]:
+    from phid_ros.controls.models import ESST5B
+
+    return {
+        **ESST5B.defaults(),
+        "TR": 0.01,
+        "KR": 200.0,
+        "T1": 0.005,
+        "KC": 0.2,
+        "VRMAX": 3.0,
+        "VRMIN": -2.0,
+        "TC1": 1.0,
+        "TB1": 5.0,
+        "TC2": 0.05,
+        "TB2": 0.05,
+        **over,
+    }
+
+
+def test_esst5b_limited_is_the_small_signal_path_away_from_its_limits() -> None:
+    from phid_ros.controls.models import ESST5B, ControlInputs, OperatingLevels
+
+    dt, n = 0.005, 2000
+    step = (np.arange(n) >= 200).astype(float)
+    x = ControlInputs(dt, 0.001 * np.sin(np.arange(n) * dt * 3), np.zeros(n), step)
+    levels = OperatingLevels(np.ones(n), 1.2, 1.2)
+    values = _st5b()
+    linear = ESST5B.response(values, x, 0.001)
+    limited = ESST5B.limited(values, x, 0.001, levels)
+    assert limited is not None and np.max(np.abs(limited - linear)) < 1e-9
+
+
+def test_esst5b_ceiling_follows_v_t_and_the_rectifier_loading_and_lets_go_at_once() -> None:
+    """A +5 % reference step for 1 s: V_R far above VRMAX; E_fd sits at VRMAX V_T - K_C I_FD and
+    leaves it as soon as the step is taken back (non-windup: no integrator to unwind)."""
+    from phid_ros.controls.models import ESST5B, ControlInputs, LimitsError, OperatingLevels
+
+    dt, n = 0.005, 800
+    t = np.arange(n) * dt
+    step = ((t >= 0.5) & (t < 1.5)).astype(float)
+    v_t = 1.0 - 0.05 * ((t >= 0.8) & (t < 1.2))  # the terminal voltage sags while at the ceiling
+    x = ControlInputs(dt, np.zeros(n), np.zeros(n), step)
+    values = _st5b()
+    efd = 1.2 + ESST5B.limited(values, x, 0.05, OperatingLevels(v_t, 1.2, 1.2))
+    ceiling = 3.0 * v_t - 0.2 * 1.2
+    assert np.all(efd <= ceiling + 1e-12)
+    on = (t > 0.6) & (t < 1.45) & ~((t >= 1.2) & (t < 1.25))  # but the T_1 lag rising after the sag
+    assert np.allclose(efd[on], ceiling[on], atol=1e-4)  # K_R 200 x 0.05: held at the ceiling throughout
+    assert efd[int(1.52 / dt)] < 0.5 * (efd[int(1.45 / dt)] + 1.2)  # down within 20 ms of the return
+    with pytest.raises(LimitsError, match="V_R at rest 3.36"):
+        ESST5B.limited(values, x, 0.05, OperatingLevels(v_t, 2.8, 2.8))

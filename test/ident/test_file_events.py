@@ -125,3 +125,30 @@ def test_no_no_load_step_is_an_error() -> None:
     with pytest.raises(OpenCircuitError):
         open_circuit([s])
     assert math.isfinite(DT)
+
+
+def test_a_voltage_step_from_the_field_is_told_from_one_of_the_network() -> None:
+    """The Mostar map labels the on-line AVR test voltage_step; Q rose with V_t (+0.367 pu for
+    +0.043 pu), which only the machine's own field does: a network step makes Q fall as V_t rises."""
+    from phid_ros.ident.scenario import scenario_from_simulation
+    from phid_ros.sim.runner import SimulationConfig, simulate_scenarios
+    from phid_ros.sim.scenarios import paper_catalogue, with_duration
+
+    network = [with_duration(sc, 8.0) for sc in paper_catalogue() if sc.kind == "voltage_step"]
+    assert len(network) >= 3
+    for run in simulate_scenarios(network, SimulationConfig()):
+        s = scenario_from_simulation(run, run.measured)
+        assert s.kind == "voltage_step", s.notes
+    n, k = 4000, 2000
+    sig = {c: np.full(n, np.nan) for c in CHANNELS}
+    rng = np.random.default_rng(3)
+    rise = (np.arange(n) >= k).astype(float)
+    sig.update(
+        v_t=0.987 + 0.043 * rise + rng.normal(0, 5e-4, n),
+        q_e=0.003 + 0.36 * rise + rng.normal(0, 3e-3, n),
+        p_e=np.full(n, 0.61),
+        v_f=1.4 + 0.4 * rise,
+        theta_t=np.zeros(n),
+    )
+    s = make_scenario("AVR step", Frame.of_columns(sig, int(round(DT * 1e9))), kind="voltage_step", k_event=k)
+    assert s.kind == "field_step" and any("Q moved with V_t" in note for note in s.notes)
