@@ -19,8 +19,20 @@ from phid_ros.io.bags import write_recording
 from phid_ros.io.channel_map import ChannelMapError, load_channel_map
 from phid_ros.io.pmu_csv import import_pmu_csv
 
-# beside the repository, as ../shared/realdata, or where PHID_REALDATA says
-REALDATA = Path(os.environ.get("PHID_REALDATA", Path(__file__).resolve().parents[2].parent / "shared" / "realdata"))
+
+def _realdata() -> Path:
+    """Where PHID_REALDATA says, else ``shared/realdata`` beside the repository or beside one of
+    its parent folders (a CI clone one level deeper than the working copy)."""
+    if "PHID_REALDATA" in os.environ:
+        return Path(os.environ["PHID_REALDATA"])
+    repo = Path(__file__).resolve().parents[2]
+    for folder in repo.parents:
+        if (folder / "shared" / "realdata").is_dir():
+            return folder / "shared" / "realdata"
+    return repo.parent / "shared" / "realdata"
+
+
+REALDATA = _realdata()
 DAY = REALDATA / "mostar-dev"
 pytestmark = pytest.mark.skipif(not DAY.is_dir(), reason=f"{DAY} is absent (the real recordings are not shipped)")
 
