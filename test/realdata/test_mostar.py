@@ -137,6 +137,16 @@ def test_validate_puts_the_controller_s_field_on_the_machine_base_and_plays_ever
     # the no-load step's return: an open-circuit machine's Q stays within MOD-026's 0.05 pu
     back = next(sc for sc in v.result.scenarios if sc.scenario == "AVR_PH_Step10@19.6s")
     assert next(c for c in back.checks if c.channel == "q_e").max_error < 0.06
+    # the on-line AVR steps, labelled voltage_step in the map, are the field's (Q rose with V_t)
+    on_line = [sc for sc in v.result.scenarios if sc.scenario.startswith("AVR_MR_PSS_ON@")]
+    assert len(on_line) == 2 and all(sc.kind == "field_step" for sc in on_line)
+    assert all(next(c for c in sc.checks if c.channel == "q_e").max_error < 0.2 for sc in on_line)
+    # a de-excitation has no regulator in the loop: E_fd as recorded, the machine checked on Q
+    stop = next(sc for sc in v.result.scenarios if sc.scenario == "AVR_PH_Stop_INV")
+    assert any("de-excitation" in n for n in stop.notes) and [c.channel for c in stop.checks] == ["q_e", "p_e"]
+    assert stop.checks[0].max_error < 0.25
+    # the published ST5B's limits cannot hold the recorded operating points: said, not simulated
+    assert any("limits not simulated: V_R at rest" in n for sc in on_line for n in sc.notes)
 
 
 LAB = REALDATA / "usn-lab-2kva"
