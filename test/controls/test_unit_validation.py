@@ -209,6 +209,29 @@ def test_a_record_s_saturation_and_dampers_are_played_as_written(tmp_path: Path)
     q_fourth = next(c for c in fourth_order.scenarios[0].checks if c.channel == "q_e")
     assert q_written.max_error < 0.01
     assert q_fourth.max_error > 5 * q_written.max_error
+    # a damper constant shorter than the play-in integrates: that effect is left out, and said
+    fast = [
+        (cls, {**v, "t_q0pp": 0.002}) if cls.name == "subtransient_dynamics" else (cls, v) for cls, v in unit.effects()
+    ]
+    short = validate_unit([s], params, {}, cfg.f_nominal_hz, "fast damper", fast)
+    assert any("subtransient_dynamics not simulated: t_q0pp = 0.002 s" in n for n in short.notes)
+    assert all(np.isfinite(c.max_error) for c in short.scenarios[0].checks)
+
+
+def test_the_switching_instants_and_a_fault_s_on_period_are_left_out() -> None:
+    from phid_ros.controls.unit_validation import SWITCH_CYCLES, switching_spans
+    from phid_ros.ident.scenario import make_scenario
+    from phid_ros.model.channels import CHANNELS, Frame
+
+    dt, n = 0.001, 4000
+    sig = {c: np.ones(n) for c in CHANNELS}
+    sig["v_t"] = np.where((np.arange(n) >= 1000) & (np.arange(n) < 1150), 0.2, 1.0)
+    s = make_scenario("fault", Frame.of_columns(sig, 1_000_000), kind="fault", k_event=1000, k_clear=1150)
+    idx = np.arange(0, n, 4)
+    skip = switching_spans(s, idx, 50.0)
+    t = idx * dt
+    assert skip[(t >= 1.0) & (t < 1.15 + SWITCH_CYCLES / 50.0)].all()
+    assert not skip[(t < 1.0) | (t >= 1.15 + SWITCH_CYCLES / 50.0)].any()
 
 
 def test_a_controller_s_field_base_is_calibrated_on_the_no_load_plateaus() -> None:
