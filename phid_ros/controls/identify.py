@@ -104,9 +104,29 @@ class ControlCase:
     stepped: bool  # a reference step of unknown size at the event
 
 
+DE_EXCITED = 0.3  # V_t ending below this share of its pre-event value: the field was switched off
+
+
+def regulator_out_of_loop(s: ScenarioData) -> str | None:
+    """Why no voltage regulator was in the loop in the scenario, or None: a manual test (a
+    field-current regulator held I_f, said by the map or manifest) or a de-excitation (the
+    converter in inverter mode, or the field breaker open: V_t ends below DE_EXCITED of its start)."""
+    if s.regulator == "manual":
+        return "a manual test (a field-current regulator held I_f): the AVR was not in the loop"
+    v0 = float(np.mean(s["v_t"][s.pre_slice()]))
+    end = float(np.mean(s["v_t"][s.steady_slice()]))
+    if v0 > 0 and end < DE_EXCITED * v0:
+        return f"a de-excitation (V_t {v0:.3f} -> {end:.3f} pu): no regulator in the loop"
+    return None
+
+
 def _cases(scenarios: Sequence[ScenarioData], kind: str, role: str) -> list[ControlCase]:
     _needs, _out, _stepped, fitted_kinds = KINDS[kind]
-    picked = (control_case(s, kind) for s in scenarios if s.role == role and s.kind in fitted_kinds)
+    picked = (
+        control_case(s, kind)
+        for s in scenarios
+        if s.role == role and s.kind in fitted_kinds and not (kind == "exciter" and regulator_out_of_loop(s))
+    )
     return [c for c in picked if c is not None]
 
 

@@ -37,6 +37,7 @@ from phid_ros.controls.identify import (
     ControlCase,
     control_case,
     fit_stride,
+    regulator_out_of_loop,
     simulate_cases,
     zero_phase,
 )
@@ -175,19 +176,6 @@ class Control:
     values: dict[str, float]
 
 
-DE_EXCITED = 0.3  # V_t ending below this share of its pre-event value: the field was switched off
-
-
-def de_excitation(s: ScenarioData) -> str | None:
-    """Why the scenario is a de-excitation (the field driven off by the converter in inverter
-    mode, or its breaker opened), or None: no voltage regulator is in the loop then."""
-    v0 = float(np.mean(s["v_t"][s.pre_slice()]))
-    end = float(np.mean(s["v_t"][s.steady_slice()]))
-    if v0 > 0 and end < DE_EXCITED * v0:
-        return f"a de-excitation (V_t {v0:.3f} -> {end:.3f} pu): no regulator in the loop"
-    return None
-
-
 REFERENCE_SEARCH = (-0.5, 0.5)  # pu: a limited exciter's reference step is sized within this
 
 
@@ -275,7 +263,7 @@ def validate_unit(
         for kind, channel in (("exciter", "v_f"), ("governor", "p_m")):
             control = controls.get(kind)
             level = _pre_event_level(s, channel, params)
-            if control is not None and kind == "exciter" and s.has("v_f") and (why := de_excitation(s)):
+            if control is not None and kind == "exciter" and s.has("v_f") and (why := regulator_out_of_loop(s)):
                 mine.append(f"exciter {control.model.name} not played in: {why}; E_fd as recorded")
                 control = None
             response = _control_output(s, kind, control, level, mine) if control is not None else None

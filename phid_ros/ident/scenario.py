@@ -77,6 +77,8 @@ class ScenarioData:
     # a test file that holds several: its plateau ends where the next event's window starts); None:
     # the paper's final fifth
     steady_start: int | None = None
+    # who held the field: "avr", "manual" (a field-current regulator: the AVR not in the loop), or ""
+    regulator: str = ""
     # what the stages derive from this scenario alone, kept for the next identification that reads
     # it (a recalibration every few minutes re-reads the same stored windows); not an init field,
     # so a scenario made from this one (dataclasses.replace, with_frame) starts without it
@@ -160,6 +162,7 @@ class ScenarioData:
             self.measurement_window_s,
             self.absent,
             self.steady_start,
+            self.regulator,
         )
 
     def rows(self, a: int, b: int) -> ScenarioData:
@@ -177,6 +180,7 @@ class ScenarioData:
             self.measurement_window_s,
             self.absent,
             None if self.steady_start is None else min(max(self.steady_start - a, 0), b - a - 1),
+            self.regulator,
         )
 
 
@@ -317,6 +321,7 @@ def make_scenario(
     k_clear: int | None = None,
     thresholds: StepThresholds = DEFAULT_THRESHOLDS,
     measurement_window_s: float = 0.0,
+    regulator: str = "",
 ) -> ScenarioData:
     """Check a window and build its :class:`ScenarioData`; classify it where the input does not say.
 
@@ -385,6 +390,7 @@ def make_scenario(
         notes=notes,
         measurement_window_s=measurement_window_s,
         absent=absent,
+        regulator=regulator,
     )
 
 
@@ -508,6 +514,7 @@ def resampled(s: ScenarioData, period_ns: int) -> ScenarioData:
         s.measurement_window_s,
         s.absent,
         None if s.steady_start is None else at(s.steady_start),
+        s.regulator,
     )
     return out
 

@@ -136,6 +136,7 @@ def with_channels(s: ScenarioData, channels: dict[str, Array], note: str) -> Sce
         s.measurement_window_s,
         s.absent - set(channels),
         s.steady_start,
+        s.regulator,
     )
 
 

@@ -57,6 +57,8 @@ def write_csv_set(folder: str | Path, rec: Recording) -> Path:
         with atomic_output(out / name) as tmp:
             np.savetxt(tmp, rows, delimiter=",", header=",".join(CSV_COLUMNS), comments="", fmt="%.9g")
         entry = {"file": name, "kind": sc.kind, "role": sc.role, "generator_damping": sc.generator_damping}
+        if sc.regulator:
+            entry["regulator"] = sc.regulator
         if sc.event_ns:  # the marker's event time, so a small labelled step is not searched for
             entry["event_time_s"] = (sc.event_ns - int(t_ns[a])) / NS
         entries.append(entry)

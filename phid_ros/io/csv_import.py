@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from phid_ros.errors import CsvImportError
-from phid_ros.io.recording import MEASUREMENT_WINDOW_KEY, Recording, ScenarioInfo, StreamSamples
+from phid_ros.io.recording import MEASUREMENT_WINDOW_KEY, REGULATORS, Recording, ScenarioInfo, StreamSamples
 from phid_ros.io.results import read_json
 from phid_ros.io.topics import STREAMS
 from phid_ros.model.channels import CHANNELS, SAME_PERIOD, unit_problem
@@ -55,6 +55,7 @@ class ScenarioTable:
     source: str = ""  # the file it came from, for messages
     notes: list[str] = field(default_factory=list)  # what the importer did to it (resampled, ...)
     start_ns: int | None = None  # when the file says it began (a COMTRADE .cfg's start time)
+    regulator: str = ""  # who held the field: "avr", "manual" (io.recording.REGULATORS) or not said
 
 
 def _open_text(path: Path) -> TextIO:
@@ -221,7 +222,7 @@ def is_number(s: str) -> bool:
     return True
 
 
-def _manifest_entry(entry: Any, k: int, manifest: Path) -> tuple[Path, str, str, bool, float | None]:
+def _manifest_entry(entry: Any, k: int, manifest: Path) -> tuple[Path, str, str, bool, float | None, str]:
     where = f"{manifest}: scenarios[{k}]"
     if not isinstance(entry, dict) or "file" not in entry:
         raise CsvImportError(f"{where}: each scenario needs a 'file'")
@@ -234,6 +235,9 @@ def _manifest_entry(entry: Any, k: int, manifest: Path) -> tuple[Path, str, str,
         raise CsvImportError(f"{where}: role {role!r} not one of {ROLES}")
     if not isinstance(damping, bool):
         raise CsvImportError(f"{where}: generator_damping must be true or false")
+    regulator = entry.get("regulator", "")
+    if regulator not in ("", *REGULATORS):
+        raise CsvImportError(f"{where}: regulator {regulator!r} not one of {REGULATORS}")
     event = entry.get("event_time_s")
     if event is not None and (
         isinstance(event, bool) or not isinstance(event, (int, float)) or not math.isfinite(event)
@@ -244,7 +248,7 @@ def _manifest_entry(entry: Any, k: int, manifest: Path) -> tuple[Path, str, str,
     path = (folder / name).resolve()
     if Path(name).is_absolute() or not path.is_relative_to(folder):
         raise CsvImportError(f"{where}: file {name!r} is outside the manifest's folder {folder}; refused")
-    return manifest.parent / name, kind, role, damping, None if event is None else float(event)
+    return manifest.parent / name, kind, role, damping, None if event is None else float(event), regulator
 
 
 def import_csv_set(
@@ -266,7 +270,7 @@ def import_csv_set(
     warnings: list[str] = []
     tables: list[ScenarioTable] = []
     for k, entry in enumerate(scenarios):
-        path, kind, role, damping, event_s = _manifest_entry(entry, k, manifest)
+        path, kind, role, damping, event_s, regulator = _manifest_entry(entry, k, manifest)
         cols, extra = read_scenario_csv(path, strict=strict)
         if extra:
             warnings.append(f"{path}: ignored extra column(s) {extra}")
@@ -276,7 +280,9 @@ def import_csv_set(
                 f"{manifest}: scenarios[{k}]: event_time_s {event_s:g} lies outside {path.name}'s "
                 f"t = {t[0]:g} .. {t[-1]:g} s"
             )
-        tables.append(ScenarioTable(_scenario_name(path), kind, role, damping, t, cols, event_s, str(path)))
+        table = ScenarioTable(_scenario_name(path), kind, role, damping, t, cols, event_s, str(path))
+        table.regulator = regulator
+        tables.append(table)
     rec = recording_from_tables(tables, float(f_nom), base_mva, f"import-csv {manifest.name}", start_ns=start_ns)
     window = meta.get(MEASUREMENT_WINDOW_KEY)
     if window is not None:
@@ -332,6 +338,7 @@ def recording_from_tables(
                 event_ns=event_ns,
                 end_ns=int(stamps[-1]),
                 description=f"imported from {Path(tab.source).name}",
+                regulator=tab.regulator,
             )
         )
         cursor = int(stamps[-1]) + int(GAP_BETWEEN_SCENARIOS_S * NS)

@@ -36,7 +36,7 @@ from phid_ros.io.phasors import (
     sequence_problem,
     system_frequency,
 )
-from phid_ros.io.recording import MEASUREMENT_WINDOW_KEY, Recording
+from phid_ros.io.recording import MEASUREMENT_WINDOW_KEY, REGULATORS, Recording
 from phid_ros.model.channels import NO_LOAD_CURRENT, current_of
 from phid_ros.model.conventions import terminal_to_dq
 
@@ -252,7 +252,11 @@ def scenario_table(path: Path, cmap: ChannelMap, t: Array, channels: dict[str, A
     if not isinstance(damping, bool):
         raise ChannelMapError(f"{cmap.path}: scenarios.{path.stem}: generator_damping must be true or false")
     ev = None if event is None else float(event)
+    regulator = meta.get("regulator", "")
+    if regulator not in ("", *REGULATORS):
+        raise ChannelMapError(f"{cmap.path}: scenarios.{path.stem}: regulator must be one of {REGULATORS}")
     table = ScenarioTable(path.stem, kind, role, damping, t, channels, ev, str(path))
+    table.regulator = regulator
     if cmap.open_circuit:
         table.notes.append(
             f"{path.name}: no stator quantity mapped ({cmap.path}): imported as a no-load test, breaker open, "

@@ -10,6 +10,7 @@ from __future__ import annotations
 import heapq
 import itertools
 import math
+import re
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
@@ -78,6 +79,26 @@ class ScenarioInfo:
     clearing_ns: int = 0  # 0: not a fault
     end_ns: int = 0
     description: str = ""
+    regulator: str = ""  # who held the field in the test: "avr", "manual", or "" (not said)
+
+
+# who holds the field in a test: the voltage regulator (AVR) or a field-current regulator (manual,
+# the AVR not in the loop). A scenario marker carries it in its description, "regulator: manual".
+REGULATORS = ("avr", "manual")
+_REGULATOR_TAG = re.compile(r"(?:^|; )regulator: (avr|manual)$")
+
+
+def with_regulator(description: str, regulator: str) -> str:
+    """A marker's description with the scenario's regulator said at its end."""
+    if not regulator:
+        return description
+    return f"{description}; regulator: {regulator}" if description else f"regulator: {regulator}"
+
+
+def regulator_in(description: str) -> str:
+    """The regulator a marker's description says, or ""."""
+    m = _REGULATOR_TAG.search(description)
+    return m.group(1) if m else ""
 
 
 @dataclass
@@ -176,7 +197,7 @@ def iter_recording_messages(
             event=ns_to_time(sc.event_ns),
             clearing=ns_to_time(sc.clearing_ns),
             end=ns_to_time(sc.end_ns),
-            description=sc.description,
+            description=with_regulator(sc.description, sc.regulator),
         )
         markers.append((sc.start_ns, SCENARIO_TOPIC, SCENARIO_MSGTYPE, msg))
     markers.sort(key=lambda item: item[0])
@@ -503,6 +524,7 @@ def scenario_from_message(msg: Any) -> ScenarioInfo:
         clearing_ns=stamp_ns(m.clearing),
         end_ns=stamp_ns(m.end),
         description=m.description,
+        regulator=regulator_in(m.description),
     )
 
 

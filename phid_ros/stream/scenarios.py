@@ -212,6 +212,7 @@ def _marked_scenarios(
                         k_clear=int(np.searchsorted(t, m.clearing_ns)) - a if m.clearing_ns else None,
                         thresholds=thresholds,
                         measurement_window_s=window_s,
+                        regulator=m.regulator,
                     )
                 )
         except ScenarioError as exc:
@@ -228,6 +229,7 @@ def _marked_scenarios(
                     k_event=e.event - e.start,
                     thresholds=thresholds,
                     measurement_window_s=window_s,
+                    regulator=m.regulator,
                 )
             except ScenarioError as exc:
                 problems.append(f"{source}: skipped {exc}")

@@ -247,3 +247,20 @@ def test_semicolon_fields_with_decimal_points_still_read(tmp_path):
     path.write_text(";".join(CSV_COLUMNS) + "\n" + "\n".join(";".join(f"{v:g}" for v in r) for r in rows) + "\n")
     got, _ = read_scenario_csv(path)
     assert got["v_t"][0] == 0.5 and got["q_e"][4] == 0.5 + 0.25 * (len(CSV_COLUMNS) - 2)
+
+
+def test_a_manifest_s_regulator_is_checked(tmp_path) -> None:
+    import json
+
+    from phid_ros.io.csv_import import CsvImportError, import_csv_set
+
+    rows = ["t,v_t,theta_t,i_d,i_q,omega,delta,v_f,p_m,p_e,q_e"]
+    rows += [f"{k * 0.01:.2f},1,0,0.5,0.5,1,0.8,1.5,0.8,0.8,0.2" for k in range(300)]
+    (tmp_path / "a.csv").write_text("\n".join(rows) + "\n")
+    manifest = tmp_path / "manifest.json"
+    manifest.write_text(json.dumps({"scenarios": [{"file": "a.csv", "kind": "field_step", "regulator": "hand"}]}))
+    with pytest.raises(CsvImportError, match=r"regulator 'hand' not one of \('avr', 'manual'\)"):
+        import_csv_set(manifest)
+    manifest.write_text(json.dumps({"scenarios": [{"file": "a.csv", "kind": "field_step", "regulator": "manual"}]}))
+    rec, _ = import_csv_set(manifest)
+    assert rec.scenarios[0].regulator == "manual"

@@ -174,3 +174,42 @@ def test_the_laboratory_machine_s_curves(tmp_path: Path) -> None:
     assert len(c.left_out) == 1 and "0.317 pu" in c.left_out[0]
     # the open-circuit curve at its measured points: the planning models' quadratic through S(1.0), S(1.2)
     assert c.planning_worst < 0.035
+
+
+def test_a_manual_test_said_in_the_map_is_played_with_its_recorded_field(tmp_path: Path) -> None:
+    """RR_* files are manual tests (a field-current regulator holds I_f; the map's comment says so).
+    Said in the map (``regulator: manual``), the import carries it through the bag and a CSV set,
+    the exciter's fit leaves it out and validate plays its recorded E_fd: the manual field step's Q
+    error falls from 6.05 pu (the AVR model played in) to 0.38 pu, its return's from 0.144 to 0.054 pu."""
+    from phid_ros.api import validate_record
+    from phid_ros.io.csv_export import write_csv_set
+
+    text = (
+        (DAY / "map_online.yaml")
+        .read_text()
+        .replace("RR_MR_Step10: {kind: field_step}", "RR_MR_Step10: {kind: field_step, regulator: manual}")
+    )
+    (tmp_path / "map_online.yaml").write_text(text)
+    maps = [load_channel_map(DAY / "map_noload.yaml"), load_channel_map(tmp_path / "map_online.yaml")]
+    rec = import_pmu_csv(sorted(DAY.glob("*.csv")), maps)  # the no-load files calibrate the field's base
+    assert {s.name: s.regulator for s in rec.scenarios}["RR_MR_Step10"] == "manual"
+    assert {s.name: s.regulator for s in rec.scenarios}["AVR_MR_PSS_ON"] == ""
+    bag = tmp_path / "rr.mcap"
+    write_recording(bag, rec)
+    cut = cut_scenarios(bag)
+    assert {s.name: s.regulator for s in cut.scenarios}["RR_MR_Step10@138.0s"] == "manual"
+    write_csv_set(tmp_path / "set", rec)
+    assert {s.name: s.regulator for s in cut_scenarios(tmp_path / "set" / "manifest.json").scenarios}[
+        "RR_MR_Step10@143.7s"
+    ] == "manual"
+    dyr = tmp_path / "published.dyr"
+    dyr.write_text(
+        "1 'GENSAL' 1 3.77 0.0552 0.0823 2.3362 0.0 1.12 0.642 0.354 0.24 0.1 0.1 0.4 /\n"
+        "1 'ESST5B' 1 0.0127 505.3 0.00518 0.982 2.237 -8.384 1.701 21.98 0.0263 0.00511 1 1 1 1 1 1 1 1 /\n"
+    )
+    v = validate_record(dyr, bag)
+    manual = next(sc for sc in v.result.scenarios if sc.scenario == "RR_MR_Step10@138.0s")
+    assert any("manual test" in n for n in manual.notes)
+    assert next(c for c in manual.checks if c.channel == "q_e").max_error < 0.5  # 0.378; 6.05 with the AVR
+    back = next(sc for sc in v.result.scenarios if sc.scenario == "RR_MR_Step10@143.7s")
+    assert next(c for c in back.checks if c.channel == "q_e").max_error < 0.1  # 0.054; 0.144 with the AVR
