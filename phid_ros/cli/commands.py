@@ -16,6 +16,7 @@ from rich.table import Table
 from phid_ros.cli.common import warn, write_output
 from phid_ros.cli.info import StreamTally
 from phid_ros.cli.progress import ProgressLine
+from phid_ros.cli.tables import Col, print_table
 from phid_ros.errors import PhidError
 from phid_ros.io.outputs import atomic_output, refuse_inputs
 from phid_ros.io.recording import Recording
@@ -272,12 +273,12 @@ def _print_events(console: Console, path: Path, t0: int) -> None:
     from phid_ros.api import cut_scenarios
 
     cut = cut_scenarios(path)
-    table = Table(title="events (as phid identify cuts the scenarios)", title_justify="left")
-    for col in ("scenario", "kind", "event s", "window s"):
-        table.add_column(col)
-    for sc in cut.scenarios:
-        table.add_row(sc.name, sc.kind, f"{(sc.start_ns - t0) / NS + sc.k_event * sc.dt:.3f}", f"{sc.n * sc.dt:.1f}")
-    console.print(table)
+    cols = (Col("scenario", "left", key=True, breakable=True), Col("kind", "left"), Col("event s"), Col("window s"))
+    rows = [
+        (sc.name, sc.kind, f"{(sc.start_ns - t0) / NS + sc.k_event * sc.dt:.3f}", f"{sc.n * sc.dt:.1f}")
+        for sc in cut.scenarios
+    ]
+    print_table(console, "events (as phid identify cuts the scenarios)", cols, rows)
     for p in cut.problems:
         if "skipped" in p:
             console.print(f"left out: {p}", highlight=False)
@@ -301,21 +302,29 @@ def _print_recording(console: Console, tally: StreamTally, scenarios: list, meta
         )
     console.print(streams)
     if scenarios:
-        sc_table = Table(title="scenarios", title_justify="left")
-        for col in ("name", "kind", "role", "damping", "event s", "window s"):
-            sc_table.add_column(col)
         t0 = min(s.start_ns for s in tally.summaries())
-        for sc in scenarios:
-            ev = f"{(sc.event_ns - t0) / NS:.3f}" if sc.event_ns else "?"
-            sc_table.add_row(
+        cols = (
+            Col("name", "left", key=True, breakable=True),
+            Col("kind", "left"),
+            Col("role", "left", keep=5),
+            Col("damping", "left", keep=4),
+            Col("regulator", "left", keep=3),
+            Col("event s"),
+            Col("window s"),
+        )
+        rows = [
+            (
                 sc.name,
                 sc.kind,
                 sc.role,
                 "yes" if sc.generator_damping else "no",
-                ev,
+                sc.regulator,
+                f"{(sc.event_ns - t0) / NS:.3f}" if sc.event_ns else "?",
                 f"{(sc.end_ns - sc.start_ns) / NS:.1f}",
             )
-        console.print(sc_table)
+            for sc in scenarios
+        ]
+        print_table(console, "scenarios", cols, rows)
     _print_determinable(console, tally)
     if metadata:
         console.print("metadata: " + ", ".join(f"{k}={v}" for k, v in sorted(metadata.items())), highlight=False)

@@ -22,14 +22,8 @@ class StreamSummary:
     backwards: int  # stamps not after their predecessor (duplicates, out of order, clock jumps)
 
 
-def summarise_streams(rec: Recording) -> list[StreamSummary]:
-    tally = StreamTally()
-    tally.add(rec)
-    return tally.summaries()
-
-
 class StreamTally:
-    """:func:`summarise_streams` over a recording read in parts (``phid info`` on a day's bag):
+    """Per-stream samples, rates, spans and gaps of a recording read in parts (``phid info`` on a day's bag):
     counts carried from part to part, a gap or a step back between two parts counted too; and
     which channels carry data, for the table of what they determine."""
 

@@ -32,8 +32,6 @@ from phid_ros.ident.validation import ValidationResult
 from phid_ros.model.conventions import DEFAULT_F_NOMINAL_HZ
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, GeneratorParameters, validation_problems
 
-METHODS = tuple(stage3_methods())  # ("fast", "paper"): the command line's names of stage 3's methods
-
 
 @dataclass
 class IdentifyOptions:

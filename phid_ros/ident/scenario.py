@@ -184,12 +184,6 @@ class ScenarioData:
         )
 
 
-def _step_size(x: Array, k: int, span: int) -> float:
-    a = max(0, k - span)
-    b = min(len(x), k + span)
-    return float(np.mean(x[k:b]) - np.mean(x[a:k])) if b > k and k > a else 0.0
-
-
 def _largest_step(x: Array, span: int) -> tuple[int, float]:
     """Sample and size of the largest mean shift between ``span`` samples before and after."""
     c = np.concatenate(([0.0], np.cumsum(x)))
@@ -206,7 +200,6 @@ def _largest_step(x: Array, span: int) -> tuple[int, float]:
 def classify(
     signals: Mapping[str, Array],
     dt: float,
-    k_hint: int | None = None,
     pre_seconds: float = 0.5,
     thresholds: StepThresholds = DEFAULT_THRESHOLDS,
 ) -> tuple[str, int, int | None, str]:

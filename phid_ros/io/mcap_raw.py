@@ -31,7 +31,7 @@ from numpy.typing import NDArray
 Buffer = Union[bytes, mmap.mmap]  # a file's bytes, read or mapped
 
 MAGIC = b"\x89MCAP0\r\n"
-OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK, OP_DATA_END, OP_FOOTER = 0x03, 0x04, 0x05, 0x06, 0x0F, 0x02
+OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK, OP_DATA_END = 0x03, 0x04, 0x05, 0x06, 0x0F
 _U16, _U32, _U64 = struct.Struct("<H"), struct.Struct("<I"), struct.Struct("<Q")
 _REC = struct.Struct("<BQ")
 _MSG = struct.Struct("<HIQQ")

@@ -526,9 +526,3 @@ def scenario_from_message(msg: Any) -> ScenarioInfo:
         description=m.description,
         regulator=regulator_in(m.description),
     )
-
-
-def iter_channel_arrays(rec: Recording) -> Iterator[tuple[str, str, NDArray[np.float64]]]:
-    for sname, stream in rec.streams.items():
-        for cname, values in stream.channels.items():
-            yield sname, cname, values
