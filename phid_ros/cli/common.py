@@ -16,8 +16,17 @@ from phid_ros.model.parameters import GeneratorParameters
 
 
 def warn(message: str) -> None:
-    """A warning: on stderr, one line, so that stdout stays the command's result."""
-    print(f"phid: warning: {message}", file=sys.stderr)
+    """A warning: on stderr, so that stdout stays the command's result. One line where stderr is
+    a file or a pipe (a log, grep); on a terminal, folded between words at its width and
+    indented, where the terminal itself cut words in two."""
+    text = f"phid: warning: {message}"
+    if sys.stderr.isatty():
+        import shutil
+        import textwrap
+
+        width = shutil.get_terminal_size((80, 24)).columns
+        text = textwrap.fill(text, width=max(40, width), subsequent_indent="    ", break_on_hyphens=False)
+    print(text, file=sys.stderr)
 
 
 def read_input(path: str | Path) -> tuple[Recording, str]:

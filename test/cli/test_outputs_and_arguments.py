@@ -198,3 +198,26 @@ def test_a_bad_fix_is_said_before_the_recording_is_read(tmp_path, capsys, monkey
     monkeypatch.setattr(identify, "cut_unit", lambda *a, **k: read.append(a))
     assert main(["identify", str(BAGS / "catalogue"), "--fix", "X_d=abc"]) == 2
     assert "--fix X_d: 'abc' is not a number" in capsys.readouterr().err and not read
+
+
+def test_a_warning_folds_between_words_on_a_terminal_and_stays_one_line_in_a_pipe(monkeypatch, capsys) -> None:
+    import io
+
+    from phid_ros.cli.common import warn
+
+    long = "the field base is off by +168.3 % " * 6
+    warn(long)
+    assert capsys.readouterr().err.count("\n") == 1  # piped: one line
+
+    class Tty(io.StringIO):
+        def isatty(self) -> bool:
+            return True
+
+    tty = Tty()
+    monkeypatch.setattr("sys.stderr", tty)
+    monkeypatch.setattr("shutil.get_terminal_size", lambda fallback=(80, 24): __import__("os").terminal_size((60, 24)))
+    warn(long)
+    lines = tty.getvalue().splitlines()
+    assert len(lines) > 2 and all(len(line) <= 60 for line in lines)
+    assert all(line.startswith("    ") for line in lines[1:])
+    assert " ".join(line.strip() for line in lines) == f"phid: warning: {long}".strip()
