@@ -192,8 +192,9 @@ def run(args: Any, console: Console) -> int:
     print_controls(console, controls)
     if res.stage1_paper is not None:
         console.print(
-            f"paper's differential damping (stage 1a): H = {res.stage1_paper.H.value:.4f} s, "
-            f"D = {res.stage1_paper.D.value:.4f} pu",
+            f"for comparison, not in the result: the paper's differential damping (stage 1a) gives H = "
+            f"{res.stage1_paper.H.value:.4f} s, D = {res.stage1_paper.D.value:.4f} pu (the table's H, D "
+            "are stage 1's swing regression, the ones published)",
             highlight=False,
         )
 
