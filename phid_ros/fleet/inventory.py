@@ -113,7 +113,8 @@ def _empty(path: Path) -> bool:
 def _is_recording(path: Path) -> bool:
     if path.suffix == ".mcap" and not path.name.endswith(".partial.mcap"):
         return not _empty(path)  # nothing recorded (a recorder that never wrote): warned by the walk, not a task
-    return path.suffix == ".json" and not path.name.endswith(".truth.json") and _is_manifest(path)
+    truth = path.name.endswith(".truth.json") or path.name == "truth.json"
+    return path.suffix == ".json" and not truth and _is_manifest(path)
 
 
 def _is_manifest(path: Path) -> bool:

@@ -48,6 +48,9 @@ def read_json(path: str | Path) -> dict[str, Any]:
 
 
 def truth_path_for(bag_path: str | Path) -> Path:
-    """Where the simulator puts the truth file of a bag: ``<bag>.truth.json`` beside it."""
+    """Where the simulator puts the truth file of a recording: ``<bag>.truth.json`` beside a bag
+    or an .mcap, ``DIR/truth.json`` in a CSV set's folder (the set is the folder)."""
     p = Path(bag_path)
+    if p.name == "manifest.json":
+        return p.with_name("truth.json")
     return p.with_name(p.name + ".truth.json")

@@ -64,7 +64,7 @@ def test_simulate_to_a_csv_set_then_import_it(tmp_path, capsys):
         "S04_torque_+0.10.csv",
         "V1_power_step.csv",
         "manifest.json",
-        "manifest.json.truth.json",
+        "truth.json",
     ]
     assert main(args) == 2 and "already exists" in capsys.readouterr().err  # not replaced without --force
     out = tmp_path / "imported"
