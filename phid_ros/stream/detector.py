@@ -196,8 +196,8 @@ class Detector:
         t0 = ev.inception_ns - int(s.pre_s * NS)
         t, x = self.ring.window(t0, t1)
         t, x = t.copy(), x.copy()
-        expected = int(round((t1 - t0) / self.period_ns)) + 1
         latest = self.ring.latest_ns or 0
+        expected = grid_points(t0, t1, self.period_ns, latest if self.ring.latest_ns is not None else t0)
         w = EventWindow(t_ns=t, values=x, period_ns=self.period_ns, event=ev)
         if ev.segment != self._segment:
             w.usable, w.reason = False, "the clock jumped (new segment) before the window was complete"
@@ -217,6 +217,15 @@ class Detector:
             why += [f"{gappy} have gaps"] if gappy else []
             w.usable, w.reason = False, "stale data in the window: " + "; ".join(why)
         return w
+
+
+def grid_points(t0: int, t1: int, period_ns: int, anchor: int) -> int:
+    """How many samples of the grid ``anchor + k period_ns`` lie in [t0, t1]. A window's bounds are
+    not on the grid (a trend log at 4.8 ms: the inception less 2 s): rounding the span over the
+    period counted one sample more than the grid holds half the time, and refused every window."""
+    k_min = -((anchor - t0) // period_ns)  # ceil((t0 - anchor) / period)
+    k_max = (t1 - anchor) // period_ns
+    return max(0, k_max - k_min + 1)
 
 
 def window_status(w: EventWindow) -> str:

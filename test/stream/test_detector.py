@@ -41,3 +41,19 @@ def test_a_gap_in_the_data_makes_the_window_stale_not_wrong():
         windows += w
     assert [e.kind for e in events] == ["torque_step"] and events[0].inception_ns == 5000 * MS
     assert len(windows) == 1 and not windows[0].usable and "omega" in windows[0].reason
+
+
+def test_a_window_at_a_trend_log_s_rate_counts_the_grid_s_own_samples() -> None:
+    """208.33 reports/s (4.8 ms): a window's bounds fall between reports, and rounding its span
+    over the period counted one report more than there are, so every window was refused."""
+    from phid_ros.stream.detector import grid_points
+
+    period, anchor = 4_800_000, 1_000_000_123
+    rng = np.random.default_rng(0)
+    for _ in range(200):
+        t0 = anchor + int(rng.integers(-(10**10), 10**10))
+        t1 = t0 + int(rng.integers(0, 10**10))
+        k = np.arange(-((anchor - t0) // period) - 2, (t1 - anchor) // period + 3)
+        stamps = anchor + k * period
+        assert grid_points(t0, t1, period, anchor) == int(np.count_nonzero((stamps >= t0) & (stamps <= t1)))
+    assert grid_points(0, 10_000_000, 1_000_000, 0) == 11  # on a 1 kHz grid: both ends count, as before
