@@ -27,6 +27,15 @@ exclude_patterns = ["_build", "make_screenshots.py"]
 autodoc_typehints = "description"
 autodoc_member_order = "bysource"
 html_theme = "alabaster"
-html_theme_options = {"description": "Port-Hamiltonian identification of synchronous generators", "fixed_sidebar": True}
+# alabaster's 940-pixel page left a 660-pixel column that cut every code block (a channel map, a
+# usage line); the body takes the window's width instead
+html_theme_options = {
+    "description": "Port-Hamiltonian identification of synchronous generators",
+    "fixed_sidebar": True,
+    "page_width": "1200px",
+    "body_max_width": "none",
+}
+# no typographic quotes or dashes: "--fix" copied from the command reference must stay two hyphens
+smartquotes = False
 # The guides link to files of the repository (a test, a module, a config file) by path in
 # backquotes; they are not documents of this site, and nothing here should pretend they are.
