@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from phid_ros.errors import PhidError
-from phid_ros.io.csv_import import decimal_comma_fields
+from phid_ros.io.csv_import import decimal_comma_fields, is_number
 from phid_ros.io.yaml_doc import load_yaml
 
 Array = NDArray[np.float64]
@@ -128,14 +128,6 @@ def read_table(path: Path, columns: list[str]) -> dict[str, Array]:
         try:
             out[col] = np.array([float(f) for f in fields])
         except ValueError:
-            k = next(i for i, f in enumerate(fields) if not _is_float(f))
+            k = next(i for i, f in enumerate(fields) if not is_number(f))
             raise SheetError(f"{path}: line {k + 2}, column {col!r}: {fields[k]!r} is not a number") from None
     return out
-
-
-def _is_float(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
