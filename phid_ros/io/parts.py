@@ -64,6 +64,13 @@ class RecordingParts:
         files: list[Path] | None = None
         if p.is_dir():
             files = _rosbag2_mcap_files(p, self.metadata)
+        elif p.suffix == ".json":  # a CSV scenario set (its manifest): small, read whole as one part
+            from phid_ros.io.csv_import import import_csv_set
+
+            self._whole, notes = import_csv_set(p)
+            self.metadata = dict(self._whole.metadata)
+            self.warnings += notes
+            return
         elif is_mcap_file(p):
             from phid_ros.io.mcap_file import file_metadata
 

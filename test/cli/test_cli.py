@@ -102,3 +102,12 @@ def test_user_errors_are_one_line_without_traceback(tmp_path, short_runs, short_
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and "Traceback" not in r.stderr
     assert lines[0].startswith(message.format(tmp=tmp_path))
+
+
+def test_replay_reads_a_csv_set(tmp_path):
+    """Every form an import or a simulation writes is read by every command: replay refused a CSV set."""
+    manifest = tmp_path / "set" / "manifest.json"
+    assert main(["simulate", "--scenario", "S04", "--duration", "4", "--out", str(manifest)]) == 0
+    out = tmp_path / "replay.mcap"
+    assert main(["replay", str(manifest), "--out", str(out)]) == 0
+    assert out.stat().st_size > 0

@@ -226,3 +226,23 @@ def test_replay_counts_the_windows_of_a_trend_log_right(
     assert main(["replay", str(day), "--out", str(tmp_path / "out.mcap"), "--wide"]) == 0
     out = capsys.readouterr().out
     assert "events found" in out and "samples (ring buffer too short or gap)" not in out
+
+
+def test_every_output_form_of_the_import_is_read_back(day: Path, tmp_path: Path) -> None:
+    """The day written as a CSV set (``--out DIR/manifest.json``) reads back in identify (the same
+    numbers as the .mcap's), validate, info and replay (which refused a CSV set before)."""
+    from phid_ros.cli.main import main
+    from phid_ros.io.csv_export import write_csv_set
+
+    maps = [load_channel_map(DAY / "map_noload.yaml"), load_channel_map(DAY / "map_online.yaml")]
+    manifest = write_csv_set(tmp_path / "set", import_pmu_csv(sorted(DAY.glob("*.csv")), maps))
+    opts = IdentifyOptions(baseline=False, validate=False, constraints=Constraints(fixed={"X_q": 0.62}))
+    results = []
+    for path in (day, manifest):
+        cut = cut_scenarios(path)
+        results.append(identify_cut([(cut.scenarios, cut.problems, str(path))], opts)[1])
+    for name in ("X_d", "X_d_prime", "T_d0_prime"):
+        a, b = results[0].estimates[name], results[1].estimates[name]
+        assert a.identifiable == b.identifiable and a.value == pytest.approx(b.value, rel=1e-3), name
+    assert main(["info", str(manifest)]) == 0
+    assert main(["replay", str(manifest), "--out", str(tmp_path / "replay.mcap")]) == 0
