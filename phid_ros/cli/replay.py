@@ -226,6 +226,7 @@ def run(args: Any, console: Any) -> int:
     from phid_ros.io.outputs import atomic_output, partial_path, refuse_inputs
     from phid_ros.io.overview import Overview
     from phid_ros.io.parts import recording_parts
+    from phid_ros.io.recording import not_recorded
     from phid_ros.stream.pipeline import PipelineSettings
 
     out_path = Path(args.out)
@@ -243,6 +244,7 @@ def run(args: Any, console: Any) -> int:
         period_ns=first.streams["pt_ct"].period_ns if "pt_ct" in first.streams else PipelineSettings.period_ns,
         store_path=args.store or ":memory:",
         unit=unit,
+        not_recorded=not_recorded(parts.metadata),
     )
     pipeline = MonitorPipeline(settings)
     if len(pipeline.store):

@@ -24,7 +24,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from phid_ros.errors import CsvImportError
-from phid_ros.io.recording import MEASUREMENT_WINDOW_KEY, REGULATORS, Recording, ScenarioInfo, StreamSamples
+from phid_ros.io.recording import (
+    MEASUREMENT_WINDOW_KEY,
+    NOT_RECORDED_KEY,
+    REGULATORS,
+    Recording,
+    ScenarioInfo,
+    StreamSamples,
+)
 from phid_ros.io.results import read_json
 from phid_ros.io.topics import STREAMS
 from phid_ros.model.channels import CHANNELS, SAME_PERIOD, unit_problem
@@ -358,4 +365,7 @@ def recording_from_tables(
     metadata = {"f_nominal_hz": str(float(f_nominal_hz)), "source": source}
     if base_mva is not None:
         metadata["base_mva"] = str(base_mva)
+    never = [c for c in CHANNELS if all(np.isnan(tab.columns[c]).all() for tab in tables)]
+    if never:
+        metadata[NOT_RECORDED_KEY] = ",".join(never)
     return Recording(streams=streams, scenarios=infos, metadata=metadata)

@@ -121,8 +121,6 @@ def identification_channels(
             block["p_e"], block["q_e"] = power.real, power.imag
         if delta is not None:
             block["i_d"], block["i_q"] = terminal_to_dq(np.abs(i), delta, np.angle(i))
-        elif cmap.open_circuit:  # no current: both axes' components are zero whatever the rotor's angle
-            block["i_d"], block["i_q"] = np.zeros(len(k)), np.zeros(len(k))
         if cmap.has("i_t") and not cmap.has("phi_i") and cmap.has("p_e", "q_e"):
             currents.append((np.abs(i), value("i_t")))
         for c, x in block.items():

@@ -11,7 +11,7 @@ import heapq
 import itertools
 import math
 import re
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -80,6 +80,15 @@ class ScenarioInfo:
     end_ns: int = 0
     description: str = ""
     regulator: str = ""  # who held the field in the test: "avr", "manual", or "" (not said)
+
+
+# channels the recorder never carried (a trend log has no rotor angle), comma-separated: the
+# online pipeline judges the others, and an absent channel is not a dead one
+NOT_RECORDED_KEY = "not_recorded"
+
+
+def not_recorded(metadata: Mapping[str, str]) -> frozenset[str]:
+    return frozenset(c for c in metadata.get(NOT_RECORDED_KEY, "").split(",") if c)
 
 
 # who holds the field in a test: the voltage regulator (AVR) or a field-current regulator (manual,

@@ -60,6 +60,9 @@ class StreamHealth:
     # samples kept with a channel that had no finite value in the whole message (a dead sensor
     # channel beside live ones: its samples are NaN, a gap on that channel only, not dropped)
     dead_channel: int = 0
+    # every channel of the stream declared not recorded (PipelineSettings.not_recorded): a plant
+    # without a speed encoder has no encoder stream to go stale
+    not_recorded: bool = False
     gaps: int = 0
     missing: int = 0  # samples absent in those gaps (by the stamps): what was lost on the way
     clock_jumps: int = 0
@@ -116,6 +119,8 @@ class StreamHealth:
         ``now_ns`` is the receiver's clock (live nodes); ``stream_now_ns`` the newest stamp of
         any stream, which also works on a replayed recording where nothing is received late.
         """
+        if self.not_recorded:
+            return "OK", "not recorded here (declared)"
         if self.last_stamp_ns is None:
             return "STALE", "no data yet"
         if now_ns is not None and self.last_receive_ns is not None and now_ns - self.last_receive_ns > stale_ns:
@@ -258,6 +263,7 @@ class Aligner:
         max_gap_ns: int = 60 * NS,
         stale_ns: int = NS,
         expected_rates_hz: Mapping[str, float] | None = None,
+        not_recorded: frozenset[str] = frozenset(),
     ):
         self.period_ns = int(period_ns)
         self.max_bracket_ns = int(max_bracket_ns if max_bracket_ns is not None else 5 * period_ns)
@@ -267,6 +273,10 @@ class Aligner:
         self.stale_ns = int(stale_ns)
         rates = dict(expected_rates_hz or {})
         self.health = {s.name: StreamHealth(s.name, rates.get(s.name, NS / period_ns)) for s in STREAMS}
+        # per stream, which of its channels the recorder never carries: not dead when they are NaN
+        self._absent = {s.name: np.array([c in not_recorded for c in s.channels]) for s in STREAMS}
+        for s in STREAMS:
+            self.health[s.name].not_recorded = bool(self._absent[s.name].all())
         self._pending = {s.name: _Pending(s.channels) for s in STREAMS}
         self._held: dict[str, _Held | None] = {s.name: None for s in STREAMS}
         self._recent_t = {s.name: _RecentStamps() for s in STREAMS}
@@ -402,12 +412,15 @@ class Aligner:
             self._accept(stream, h, t, x, period_ns, regular=True)
             return
         n = len(t)
+        if h.not_recorded and not np.isfinite(x).any():
+            return  # a stream the recorder never carries: its empty messages are neither data nor loss
         dead = ~np.isfinite(x).any(axis=0) if n > 1 else np.zeros(x.shape[1], dtype=bool)
         if dead.any() and not dead.all():
             # a channel dead for the whole message: its samples kept as NaN, the live channels judged
             x = x.copy()
             x[:, dead] = np.nan
-            h.dead_channel += n
+            if (dead & ~self._absent[stream]).any():  # a channel never recorded is not a dead one
+                h.dead_channel += n
             live = ~dead
             x_live, lo, hi = x[:, live], lo[live], hi[live]
         else:

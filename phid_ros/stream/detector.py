@@ -42,6 +42,8 @@ class DetectorSettings:
     detect_every_s: float = 1.0  # stream time between detector runs (latency: this plus settle_s)
     # the smallest P_m and V_t steps taken as disturbances (phid identify's --min-*-step)
     thresholds: StepThresholds = DEFAULT_THRESHOLDS
+    # channels the recorder never carries: NaN throughout a window, they are absent, not stale
+    not_recorded: frozenset[str] = frozenset()
 
     @property
     def lag_s(self) -> float:
@@ -209,10 +211,11 @@ class Detector:
                 w.usable = False
         elif len(t) < expected:
             w.usable, w.reason = False, f"window has {len(t)} of {expected} samples (ring buffer too short or gap)"
-        if w.usable and not np.isfinite(x).all():
+        judged = [i for i, c in enumerate(CHANNELS) if c not in s.not_recorded]
+        if w.usable and not np.isfinite(x[:, judged]).all():
             finite = np.isfinite(x)
-            dead = [c for i, c in enumerate(CHANNELS) if len(x) and not finite[:, i].any()]
-            gappy = [c for i, c in enumerate(CHANNELS) if finite[:, i].any() and not finite[:, i].all()]
+            dead = [c for i, c in enumerate(CHANNELS) if len(x) and not finite[:, i].any() and i in judged]
+            gappy = [c for i, c in enumerate(CHANNELS) if finite[:, i].any() and not finite[:, i].all() and i in judged]
             why = [f"no data on {', '.join(dead)} (a dead channel)"] if dead else []
             why += [f"{gappy} have gaps"] if gappy else []
             w.usable, w.reason = False, "stale data in the window: " + "; ".join(why)

@@ -13,6 +13,7 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 from phid_ros.model.bounds import Bounded
+from phid_ros.model.channels import CHANNELS
 from phid_ros.model.conventions import seconds_to_ns
 from phid_ros.stream.detector import POST_EVENT_S, PRE_EVENT_S
 from phid_ros.stream.pipeline import PipelineSettings
@@ -57,6 +58,14 @@ SENSORS: tuple[Tunable, ...] = (  # how both nodes subscribe to the sensor topic
             runtime=False,
         )
         for stream in RATED_STREAMS
+    ),
+    Tunable(
+        "not_recorded",
+        str,
+        "",
+        "comma-separated channels the plant's recorder never carries (a trend log: omega,delta,p_m): absent, "
+        "not dead; windows without them are used",
+        runtime=False,
     ),
 )
 
@@ -132,7 +141,16 @@ def validate(table: tuple[Tunable, ...], name: str, value: Any, *, running: bool
         ok = isinstance(value, spec.type)
     if not ok:
         return f"{name} must be a {spec.type.__name__}, got {value!r}"
+    if name == "not_recorded":
+        unknown = [c for c in channel_list(value) if c not in CHANNELS]
+        if unknown:
+            return f"not_recorded: unknown channel(s) {', '.join(unknown)}; channels: {', '.join(CHANNELS)}"
     return spec.outside(value, str)
+
+
+def channel_list(text: str) -> frozenset[str]:
+    """A comma-separated channel list (the ``not_recorded`` parameter) as a set."""
+    return frozenset(c.strip() for c in text.split(",") if c.strip())
 
 
 def pipeline_settings(
@@ -163,6 +181,7 @@ def pipeline_settings(
         tracking_enabled=bool(v["tracking_enabled"]),
         tracking=TrackerSettings(window_s=float(v["tracking_window_s"]), hop_s=float(v["tracking_hop_s"])),
         expected_rates_hz={s: float(v[f"{s}_rate_hz"]) for s in RATED_STREAMS if v[f"{s}_rate_hz"] > 0},
+        not_recorded=channel_list(str(v["not_recorded"])),
     )
 
 

@@ -51,8 +51,13 @@ class PipelineSettings:
     tracking_base: GeneratorParameters | None = None
     # stream -> the rate /diagnostics expects of it, where it is not the grid's (a 50 Hz PMU)
     expected_rates_hz: dict[str, float] = field(default_factory=dict)
+    # channels the plant's recorder never carries (a trend log: no rotor angle, speed, P_m): not
+    # dead when NaN, and a window without them is usable (its scenario marks them absent)
+    not_recorded: frozenset[str] = frozenset()
 
     def __post_init__(self) -> None:
+        if self.not_recorded != self.detector.not_recorded:  # one declaration for the aligner and the detector
+            self.detector = dataclasses.replace(self.detector, not_recorded=frozenset(self.not_recorded))
         d = self.detector
         # a window is cut up to lag_s after its end, and detection looks context_s back
         needed = d.pre_s + d.post_s + max(d.context_s, d.lag_s)
@@ -257,7 +262,12 @@ class MonitorPipeline:
 
     def _new_aligner(self) -> Aligner:
         s = self.settings
-        return Aligner(s.period_ns, stale_ns=int(s.stale_timeout_s * NS), expected_rates_hz=s.expected_rates_hz)
+        return Aligner(
+            s.period_ns,
+            stale_ns=int(s.stale_timeout_s * NS),
+            expected_rates_hz=s.expected_rates_hz,
+            not_recorded=s.not_recorded,
+        )
 
     # -- helpers ----------------------------------------------------------------------------
     def _label(self, e: Event) -> None:

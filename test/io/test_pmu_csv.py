@@ -241,9 +241,11 @@ def test_a_no_load_test_imports_as_an_open_circuit_and_each_file_takes_the_map_i
     rec = import_pmu_csv([tmp_path / "noload.csv", tmp_path / "online.csv"], maps)
     pt = rec.streams["pt_ct"]
     first = pt.t_ns <= rec.scenarios[0].end_ns
-    # open circuit: P = Q = I = 0, said so; the on-line file through the fuller map keeps its P and Q
-    for c in ("p_e", "q_e", "i_d", "i_q"):
+    # open circuit: P = Q = I = 0, said so (I_d, I_q, like the rotor angle, not recorded: NaN); the
+    # on-line file through the fuller map keeps its P and Q
+    for c in ("p_e", "q_e"):
         assert np.all(pt.channels[c][first] == 0.0)
+    assert np.isnan(pt.channels["i_d"]).all() and rec.metadata["not_recorded"] == "i_d,i_q,omega,delta,p_m"
     assert np.allclose(pt.channels["p_e"][~first], 0.5) and np.allclose(pt.channels["q_e"][~first], 0.2)
     assert sum("no stator quantity mapped" in w for w in rec.warnings) == 1
     # a map of V_t alone is no open circuit: it carries nothing to identify

@@ -39,3 +39,36 @@ def test_every_event_is_listed_and_stored_with_a_dead_channel(short_recording, t
         assert not w.usable and f"no data on {channel} (a dead channel)" in w.reason
     assert set(stored) == {e.event_id for e in clean.events}  # stored, with the reason
     assert all(f"no data on {channel}" in reason for reason in stored.values())
+
+
+def test_a_channel_declared_not_recorded_is_absent_not_dead(short_recording, tmp_path):
+    """A trend log has no rotor angle, speed or P_m: declared not recorded (the import's metadata),
+    their NaN is no dead channel, the encoder stream is "not recorded here", and the windows are used."""
+    rec = copy.deepcopy(short_recording)
+    for s in rec.streams.values():
+        for c in ("omega", "p_m", "delta"):
+            if c in s.channels:
+                s.channels[c][:] = np.nan
+    settings = PipelineSettings(
+        detector=DetectorSettings(pre_s=1.0, post_s=3.0),
+        auto_recalibrate=False,
+        store_path=str(tmp_path / "declared.sqlite"),
+        not_recorded=frozenset({"omega", "p_m", "delta"}),
+    )
+    p = MonitorPipeline(settings)
+    out = replay(rec, p)
+    assert out.windows and all(w.usable for w in out.windows), [w.reason for w in out.windows]
+    assert p.aligner.status("encoder") == ("OK", "not recorded here (declared)")
+    assert p.health["pmu"].dead_channel == 0 and p.health["encoder"].dropped == 0
+    p.close()
+
+
+def test_a_deployment_declares_what_its_recorder_never_carries() -> None:
+    from phid_ros.stream.params import INGEST, pipeline_settings, validate
+
+    s = pipeline_settings({"not_recorded": "omega, delta,p_m"}, detect=True)
+    assert s.not_recorded == {"omega", "delta", "p_m"} and s.detector.not_recorded == s.not_recorded
+    assert validate(INGEST, "not_recorded", "omega,speed", running=False) == (
+        "not_recorded: unknown channel(s) speed; channels: v_t, theta_t, i_d, i_q, omega, delta, v_f, p_m, p_e, q_e"
+    )
+    assert validate(INGEST, "not_recorded", "omega", running=True) is not None  # set at start, not while running
