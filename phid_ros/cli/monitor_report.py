@@ -25,8 +25,10 @@ from phid_ros.io.overview import Overview
 from phid_ros.model.conventions import NS
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, SYMBOLS
 
+# (stamp ns, {stream: (level, dropped, gaps, clock jumps)}): one diagnostics stamp of a replay
+HealthSnapshot = tuple[int, dict[str, tuple[str, int, int, int]]]
+
 if TYPE_CHECKING:
-    from phid_ros.cli.replay import OutputCollector
     from phid_ros.ident.results import Estimate
     from phid_ros.stream.pipeline import Outputs
     from phid_ros.stream.tracker import TrackPoint
@@ -216,8 +218,9 @@ def replay_alarms(points: list[ParameterPoint], sigmas: float = DRIFT_SIGMAS) ->
 
 
 def write_replay_report(
-    path: str | Path, overview: Overview, outputs: Outputs, collector: OutputCollector, source: str
+    path: str | Path, overview: Overview, outputs: Outputs, health_log: list[HealthSnapshot], source: str
 ) -> Path:
+    """``health_log``: each stream's health at every diagnostics stamp (replay's ``OutputCollector.health_log``)."""
     figure_backend()
     start = overview.span_ns()[0]
     usable = {w.event.event_id: w.usable for w in outputs.windows}
@@ -230,10 +233,9 @@ def write_replay_report(
     ]
     replay_alarms(points)
     health = HealthLog()
-    for t_ns, snap in collector.health_log:
+    for t_ns, snap in health_log:
         health.add((t_ns - start) / NS, snap)
-    from phid_ros.cli.replay import severity_text
-    from phid_ros.stream.detector import window_status
+    from phid_ros.stream.detector import severity_text, window_status
 
     reasons = {w.event.event_id: window_status(w) for w in outputs.windows}
 

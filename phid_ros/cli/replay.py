@@ -17,6 +17,8 @@ from phid_ros.stream.replay import replay
 if TYPE_CHECKING:
     from rich.console import Console
 
+    from phid_ros.cli.monitor_report import HealthSnapshot
+
 HEALTH_LOG_MAX = 8000  # diagnostics snapshots kept for the report
 BAG_TOPICS = {key: (output_topic(key), msgtype) for key, (_, msgtype) in OUTPUT_TOPICS.items()}
 
@@ -43,7 +45,7 @@ class OutputCollector:
         self._batch: list[tuple[int, str, str, object]] = []
         # each stream's health at every diagnostics stamp, for the report: (stamp, {stream: (level, dropped,
         # gaps, clock jumps)})
-        self.health_log: list[tuple[int, dict[str, tuple[str, int, int, int]]]] = []
+        self.health_log: list[HealthSnapshot] = []
 
     def _add(self, key: str, log_ns: int, msg: object) -> None:
         topic, msgtype = BAG_TOPICS[key]
@@ -61,23 +63,12 @@ class OutputCollector:
 
     def _collect(self, out: Outputs) -> None:
         from phid_ros.stream import messages as m
+        from phid_ros.stream.emit import emit
 
-        for e in out.events:
-            self._add("events", e.inception_ns, m.event_message(self.types, e))
-        for w in out.windows:
-            self._add(
-                "windows", int(w.t_ns[-1]) if len(w.t_ns) else w.event.inception_ns, m.window_message(self.types, w)
-            )
         for r in out.recalibrations:
             self.last_status = r.status
-            msg = m.parameters_message(self.types, r)
-            if msg is not None:
-                self._add("parameters", r.stream_time_ns, msg)
-        for energy in out.energy:
-            for t, msg in zip(energy.t_ns, m.hamiltonian_messages(self.types, energy)):
-                self._add("hamiltonian", int(t), msg)
-        for p in out.tracked:
-            self._add("tracked_parameters", p.t_ns, m.tracked_message(self.types, p))
+        for p in emit(self.types, out):
+            self._add(p.key, p.log_ns, p.message)
         now = self.pipeline.latest_ns
         if now is not None:
             if self._next_diag is None:
@@ -134,13 +125,6 @@ def check_output(out: Path, force: bool) -> None:
         )
 
 
-def severity_text(kind: str, severity: float) -> str:
-    """An event's size in its own terms: a fault's dip of V_t, a step's change of P_m or V_t."""
-    if kind == "fault":
-        return f"V_t -{100 * severity:.0f}%"
-    return f"{'ΔP_m' if kind == 'torque_step' else 'ΔV_t'} {severity:+.3f} pu"
-
-
 def print_summary(
     console: Console, start: int, pipeline: MonitorPipeline, outputs: Outputs, collector: OutputCollector
 ) -> None:
@@ -148,7 +132,7 @@ def print_summary(
     ``start``: the recording's first stamp, times are shown from it."""
     from phid_ros.cli.tables import CONCISE_LEGEND, Col, estimate_text, fmt, print_table
     from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, SYMBOLS
-    from phid_ros.stream.detector import window_status
+    from phid_ros.stream.detector import severity_text, window_status
 
     usable = {w.event.event_id: window_status(w) for w in outputs.windows}
     cols = [
@@ -310,7 +294,7 @@ def run(args: Any, console: Any) -> int:
         from phid_ros.cli.monitor_report import write_replay_report
 
         with ProgressLine(f"writing {args.report}"):
-            write_replay_report(args.report, overview, outputs, collector, source=str(args.bag))
+            write_replay_report(args.report, overview, outputs, collector.health_log, source=str(args.bag))
         console.print(f"wrote {args.report}", highlight=False)
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     # the one line that differs between two replays of the same bag: it is measured, not replayed

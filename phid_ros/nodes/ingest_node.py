@@ -12,7 +12,7 @@ from typing import Any
 from rclpy.node import Node
 
 from phid_ros.nodes import common
-from phid_ros.stream import messages as m
+from phid_ros.stream.emit import emit
 from phid_ros.stream.params import INGEST, apply, pipeline_settings
 from phid_ros.stream.pipeline import MonitorPipeline
 
@@ -26,8 +26,9 @@ class IngestNode(Node):
         settings.keep_windows = False
         self.pipeline = MonitorPipeline(settings)
         self.types = common.msg_types()
-        self.events_pub = common.output_publisher(self, "events", common.reliable_qos())
-        self.windows_pub = common.output_publisher(self, "windows", common.reliable_qos())
+        self.publishers_by_key = {
+            key: common.output_publisher(self, key, common.reliable_qos()) for key in ("events", "windows")
+        }
         self.add_on_set_parameters_callback(common.on_set(INGEST, self._apply))
         common.steady_timer(self, self.values["process_period_s"], self.process)
         self.input = common.InputWatch()
@@ -40,13 +41,11 @@ class IngestNode(Node):
         # the input ended: the windows still open are cut with what came (as phid replay does at
         # a recording's end), so an event in its last seconds is published, not held forever
         out = self.pipeline.process(final=self.input.ended(self.values["end_of_data_s"]))
-        for e in out.events:
-            self.events_pub.publish(m.event_message(self.types, e))
-        for w in out.windows:
-            if w.usable:
-                self.windows_pub.publish(m.window_message(self.types, w, common.float_seq))
-            else:
-                self.get_logger().warning(f"event {w.event.event_id} ({w.event.kind}) not usable: {w.reason}")
+        done = emit(self.types, out, self.publishers_by_key, common.float_seq, list)
+        for p in done:
+            self.publishers_by_key[p.key].publish(p.message)
+        for note in done.notes:
+            self.get_logger().warning(note)
 
 
 def main(args: list[str] | None = None) -> None:

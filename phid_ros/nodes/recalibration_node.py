@@ -18,6 +18,7 @@ from phid_ros.io.recording import scenario_from_message
 from phid_ros.io.topics import OUTPUT_TOPICS, SCENARIO_TOPIC
 from phid_ros.nodes import common
 from phid_ros.stream import messages as m
+from phid_ros.stream.emit import emit
 from phid_ros.stream.params import RECALIBRATION, apply, pipeline_settings
 from phid_ros.stream.pipeline import MonitorPipeline, Outputs
 
@@ -46,9 +47,11 @@ class RecalibrationNode(Node):
         self.create_subscription(
             self.types["phid_msgs/msg/ScenarioMarker"], SCENARIO_TOPIC, self._on_marker, common.reliable_qos()
         )
-        self.params_pub = common.output_publisher(self, "parameters", common.latched_qos())
-        self.tracked_pub = common.output_publisher(self, "tracked_parameters", common.latched_qos())
-        self.energy_pub = common.output_publisher(self, "hamiltonian", common.reliable_qos(HAMILTONIAN_DEPTH))
+        self.publishers_by_key = {
+            "parameters": common.output_publisher(self, "parameters", common.latched_qos()),
+            "tracked_parameters": common.output_publisher(self, "tracked_parameters", common.latched_qos()),
+            "hamiltonian": common.output_publisher(self, "hamiltonian", common.reliable_qos(HAMILTONIAN_DEPTH)),
+        }
         self.diag_pub = common.output_publisher(self, "diagnostics", common.reliable_qos(10))
         self.create_service(Trigger, "~/recalibrate", self._recalibrate)
         self.create_service(Trigger, "~/reset", self._reset)
@@ -88,18 +91,11 @@ class RecalibrationNode(Node):
     def _publish(self, out: Outputs) -> None:
         for r in out.recalibrations:
             self.last_status = r.status
-            msg = m.parameters_message(self.types, r, common.float_seq, list)
-            if msg is not None:
-                self.params_pub.publish(msg)
-            if not r.accepted:
-                self.get_logger().warning(r.status)
-        for e in out.energy:
-            for msg in m.hamiltonian_messages(self.types, e):
-                self.energy_pub.publish(msg)
-        for point in out.tracked:
-            self.tracked_pub.publish(m.tracked_message(self.types, point, common.float_seq, list))
-            for alarm in point.alarms:
-                self.get_logger().warning(alarm)
+        done = emit(self.types, out, self.publishers_by_key, common.float_seq, list)
+        for p in done:
+            self.publishers_by_key[p.key].publish(p.message)
+        for note in done.notes:
+            self.get_logger().warning(note)
 
     def publish_diagnostics(self) -> None:
         now = int(self.get_clock().now().nanoseconds)

@@ -238,6 +238,13 @@ def window_status(w: EventWindow) -> str:
     return f"ok, shortened: {w.reason}" if w.reason else "ok"
 
 
+def severity_text(kind: str, severity: float) -> str:
+    """An event's size in its own terms: a fault's dip of V_t, a step's change of P_m or V_t."""
+    if kind == "fault":
+        return f"V_t -{100 * severity:.0f}%"
+    return f"{'ΔP_m' if kind == 'torque_step' else 'ΔV_t'} {severity:+.3f} pu"
+
+
 def forward_filled(x: NDArray[np.float64]) -> NDArray[np.float64]:
     """Forward-fill NaN gaps (leading ones take the first finite value) for detection only."""
     bad = ~np.isfinite(x)

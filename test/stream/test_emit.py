@@ -1,0 +1,72 @@
+"""The one outputs -> messages mapping (phid_ros.stream.emit), used by the nodes and by replay."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from phid_ros.io.msg_schemas import typestore
+from phid_ros.model.channels import CHANNELS
+from phid_ros.model.conventions import NS
+from phid_ros.model.parameters import GeneratorParameters
+from phid_ros.stream.detector import Event, EventWindow, event_id
+from phid_ros.stream.emit import ALL_KEYS, emit
+from phid_ros.stream.messages import window_from_message
+from phid_ros.stream.pipeline import Outputs
+from phid_ros.stream.recalibration import RecalibrationOutcome
+
+T0 = 1_700_000_000 * NS
+PERIOD = NS // 100
+
+
+def _window(t_ns: int, usable: bool = True, reason: str = "") -> EventWindow:
+    ev = Event(
+        event_id=event_id("torque_step", t_ns),
+        kind="torque_step",
+        inception_ns=t_ns,
+        clearing_ns=0,
+        severity=0.1,
+        v_prefault=1.0,
+        segment=0,
+    )
+    n = 200
+    values = np.tile(np.linspace(0.5, 1.5, len(CHANNELS)), (n, 1))
+    t = t_ns - NS + np.arange(n, dtype=np.int64) * PERIOD
+    return EventWindow(t_ns=t, values=values, period_ns=PERIOD, event=ev, usable=usable, reason=reason)
+
+
+@pytest.fixture(scope="module")
+def types() -> dict:
+    return typestore().types
+
+
+def test_every_output_becomes_one_message_at_its_stream_time(types: dict) -> None:
+    good, cut = _window(T0), _window(T0 + 30 * NS, usable=False, reason="the clock jumped")
+    rejected = RecalibrationOutcome(False, "kept last good set: too few events", GeneratorParameters(), None, [], T0, 0)
+    out = Outputs(events=[good.event, cut.event], windows=[good, cut], recalibrations=[rejected])
+    done = emit(types, out)
+    keys = [(p.key, p.log_ns) for p in done]
+    # both events are said; only the usable window goes out, stamped at its last sample
+    assert keys == [
+        ("events", T0),
+        ("events", T0 + 30 * NS),
+        ("windows", int(good.t_ns[-1])),
+        ("parameters", T0),
+    ]
+    assert done.notes[0].startswith(f"event {cut.event.event_id} (torque_step) window not published")
+    assert "the clock jumped" in done.notes[0]
+    assert done.notes[1] == "kept last good set: too few events"
+    # the window's samples arrive as they were cut
+    back = window_from_message(done.messages[2].message)
+    np.testing.assert_array_equal(back.values, good.values)
+    np.testing.assert_array_equal(back.t_ns, good.t_ns)
+
+
+def test_a_node_gets_only_its_topics(types: dict) -> None:
+    w = _window(T0)
+    out = Outputs(events=[w.event], windows=[w])
+    assert [p.key for p in emit(types, out, {"windows"})] == ["windows"]
+    assert list(emit(types, out, {"parameters", "hamiltonian"})) == []
+    with pytest.raises(ValueError, match="no output topic"):
+        emit(types, out, {"diagnostics"})
+    assert "diagnostics" not in ALL_KEYS
