@@ -12,8 +12,10 @@ from phid_ros.cli.tables import Col, fmt, print_table
 
 def characterise_command(args: argparse.Namespace, console: Console) -> int:
     from phid_ros.api import characterise_sheet, result_provenance
+    from phid_ros.io.outputs import refuse_inputs
     from phid_ros.io.results import write_json
 
+    refuse_inputs([args.json], [args.sheet])
     sheet, c = characterise_sheet(args.sheet)
     rows = [
         ("I_fg", "A", c.i_fg, "field current for rated voltage on the air-gap line (the field's base)"),

@@ -81,7 +81,7 @@ def print_rounds(console: Console, doc: dict[str, Any]) -> None:
     print_table(console, "candidates (each fitted with the base parameters refitted)", cols, rows)
 
 
-def run(args: Any, console: Console) -> int:
+def diagnose_command(args: Any, console: Console) -> int:
     t_start = time.perf_counter()
     if args.workers < 0:
         raise PhidError(f"--workers {args.workers}: give 0 (every core) or a positive number of processes")

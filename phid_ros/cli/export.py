@@ -17,7 +17,7 @@ from phid_ros.io.results import read_json
 SUFFIX = {"psse-dyr": ".dyr", "pslf-dyd": ".dyd", "andes": ".andes.json"}
 
 
-def run(args: argparse.Namespace, console: Console) -> int:
+def export_command(args: argparse.Namespace, console: Console) -> int:
     result = read_json(args.result)
     diagnosis = read_json(args.diagnosis) if args.diagnosis else None
     mva = args.mva if args.mva is not None else result.get("base_mva")

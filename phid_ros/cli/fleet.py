@@ -19,7 +19,7 @@ from phid_ros.model.conventions import utc_of_stamp
 from phid_ros.model.parameters import PARAMETER_NAMES, SYMBOLS
 
 
-def run(args: Any, console: Console) -> int:
+def fleet_command(args: Any, console: Console) -> int:
     if args.workers < 0:
         raise PhidError(f"--workers {args.workers}: give 0 (one per core) or a positive number of processes")
     if args.scheduler and args.workers:
@@ -130,8 +130,11 @@ def print_history(console: Console, unit: str, rows: list[Row], flagged: list[Ch
     print_table(console, f"unit {unit}: parameter history", cols, table, CONCISE_LEGEND + "; ! = flagged change")
 
 
-def run_history(args: Any, console: Console) -> int:
+def history_command(args: Any, console: Console) -> int:
+    from phid_ros.io.outputs import refuse_inputs
+
     path = Path(args.fleet) / HISTORY_FILE
+    refuse_inputs([args.report], [path])
     with History(path, create=False) as h:
         rows = h.rows(args.unit)
         if not rows:

@@ -143,7 +143,7 @@ def start_from_dyr(args: Any) -> dict[str, dict[str, float]]:
     return {kind: dict(settings.values) for kind, settings in unit.controls.items()}
 
 
-def run(args: Any, console: Console) -> int:
+def identify_command(args: Any, console: Console) -> int:
     from phid_ros.io.outputs import refuse_inputs
 
     refuse_inputs([args.json, args.report], [*args.input, args.truth, getattr(args, "start_from", None)])

@@ -11,22 +11,7 @@ import sys
 from collections.abc import Callable, Mapping
 
 from phid_ros import __version__
-from phid_ros.cli.commands import (
-    cmd_characterise,
-    cmd_diagnose,
-    cmd_export,
-    cmd_fleet,
-    cmd_history,
-    cmd_identify,
-    cmd_import_comtrade,
-    cmd_import_csv,
-    cmd_import_pmu,
-    cmd_info,
-    cmd_replay,
-    cmd_simulate,
-    cmd_track,
-    cmd_validate,
-)
+from phid_ros.cli.commands import command
 from phid_ros.controls.models import of_kind
 from phid_ros.fleet.history import DRIFT_SIGMAS
 from phid_ros.io.recording import DEFAULT_BLOCK_SIZE
@@ -150,7 +135,6 @@ def _add_simulate(sub: Subparsers) -> None:
         metavar="NAME=REL@START-END",
         help="with --ambient: drift a parameter, e.g. T_d0_prime=0.1@300-1500 (+10 %% from 300 s to 1500 s)",
     )
-    p.set_defaults(func=cmd_simulate)
 
 
 def _add_import_csv(sub: Subparsers) -> None:
@@ -159,7 +143,6 @@ def _add_import_csv(sub: Subparsers) -> None:
     _add_recording_output(p)
     p.add_argument("--strict", action="store_true", help="refuse extra columns instead of ignoring them")
     _add_block_size(p)
-    p.set_defaults(func=cmd_import_csv)
 
 
 def _add_field_imports(sub: Subparsers) -> None:
@@ -183,7 +166,6 @@ def _add_field_imports(sub: Subparsers) -> None:
         )
         _add_recording_output(p)
         _add_block_size(p)
-        p.set_defaults(func=cmd_import_comtrade if name == "import-comtrade" else cmd_import_pmu)
 
 
 def _add_identify(sub: Subparsers) -> None:
@@ -244,7 +226,6 @@ def _add_identify(sub: Subparsers) -> None:
             metavar="MODEL",
             help=f"the unit's {kind} model, if known (repeatable: the candidates; default all: {', '.join(names)})",
         )
-    p.set_defaults(func=cmd_identify)
 
 
 def _add_diagnose(sub: Subparsers) -> None:
@@ -260,7 +241,6 @@ def _add_diagnose(sub: Subparsers) -> None:
         "--scheduler", metavar="tcp://HOST:8786", help="fit the candidates on an existing Dask cluster instead"
     )
     add_step_thresholds(p)
-    p.set_defaults(func=cmd_diagnose)
 
 
 def _add_replay(sub: Subparsers) -> None:
@@ -282,7 +262,6 @@ def _add_replay(sub: Subparsers) -> None:
     p.add_argument(
         "--report", metavar="OUT.html", help="write an HTML report: events, parameters and stream health over time"
     )
-    p.set_defaults(func=cmd_replay)
 
 
 def _add_track(sub: Subparsers) -> None:
@@ -300,7 +279,6 @@ def _add_track(sub: Subparsers) -> None:
     p.add_argument(
         "--report", metavar="OUT.html", help="write an HTML report: parameters over time with ±2σ, alarms, health"
     )
-    p.set_defaults(func=cmd_track)
 
 
 def _add_fleet(sub: Subparsers) -> None:
@@ -318,7 +296,6 @@ def _add_fleet(sub: Subparsers) -> None:
         "--retry-failed", action="store_true", help="run again the recordings that failed with this phid version"
     )
     p.add_argument("--summary", action="store_true", help="print one row per unit with its latest set and flags")
-    p.set_defaults(func=cmd_fleet)
 
 
 def _add_history(sub: Subparsers) -> None:
@@ -334,7 +311,6 @@ def _add_history(sub: Subparsers) -> None:
         default=DRIFT_SIGMAS,
         help=f"flag a change between consecutive well-identified sets beyond this many σ (default {DRIFT_SIGMAS:g})",
     )
-    p.set_defaults(func=cmd_history)
 
 
 def _add_export(sub: Subparsers) -> None:
@@ -365,7 +341,6 @@ def _add_export(sub: Subparsers) -> None:
         action="store_true",
         help="write parameters flagged not identified (they are named in the record's comment)",
     )
-    p.set_defaults(func=cmd_export)
 
 
 def _add_info(sub: Subparsers) -> None:
@@ -373,7 +348,6 @@ def _add_info(sub: Subparsers) -> None:
     p.add_argument(
         "bag", help="rosbag2 folder, .mcap file (a bag cut short is read as far as it goes), or CSV manifest.json"
     )
-    p.set_defaults(func=cmd_info)
 
 
 def _add_validate(sub: Subparsers) -> None:
@@ -388,7 +362,6 @@ def _add_validate(sub: Subparsers) -> None:
     p.add_argument("--json", metavar="OUT", help="write the checks (per scenario and channel) here")
     p.add_argument("--report", metavar="OUT.html", help="write the overlays, recorded against simulated, here")
     add_step_thresholds(p)
-    p.set_defaults(func=cmd_validate)
 
 
 def _add_characterise(sub: Subparsers) -> None:
@@ -401,7 +374,6 @@ def _add_characterise(sub: Subparsers) -> None:
     )
     p.add_argument("sheet", metavar="SHEET.yaml", help="the test sheet")
     p.add_argument("--json", metavar="OUT", help="write the characteristics here")
-    p.set_defaults(func=cmd_characterise)
 
 
 def build_parser() -> Parser:
@@ -426,7 +398,8 @@ def build_parser() -> Parser:
         _add_info,
     ):
         add(sub)
-    for p in sub.choices.values():
+    for name, p in sub.choices.items():
+        p.set_defaults(func=command(name))
         p.add_argument("--wide", action="store_true", help="print tables at full width (default: fit the terminal)")
     return parser
 

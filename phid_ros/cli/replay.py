@@ -200,7 +200,7 @@ def print_summary(
     print_table(console, "stream health", hcols, hrows)
 
 
-def run(args: Any, console: Any) -> int:
+def replay_command(args: Any, console: Any) -> int:
     import itertools
     import resource
 

@@ -128,7 +128,7 @@ def base_parameters(args: Any) -> GeneratorParameters:
     return load_parameters(args.base)
 
 
-def run(args: Any, console: Any) -> int:
+def track_command(args: Any, console: Any) -> int:
     if args.hop > args.window:
         raise PhidError(f"--hop {args.hop:g} s is longer than --window {args.window:g} s: samples would be skipped")
     from phid_ros.io.outputs import refuse_inputs

@@ -24,7 +24,10 @@ from phid_ros.io.outputs import write_text
 from phid_ros.io.results import write_json
 
 
-def run(args: Any, console: Console) -> int:
+def validate_command(args: Any, console: Console) -> int:
+    from phid_ros.io.outputs import refuse_inputs
+
+    refuse_inputs([args.json, args.report], [args.dyr, args.input])
     with ProgressLine(f"reading {args.input} and cutting its scenarios") as progress:
         found = validate_record(
             args.dyr,
