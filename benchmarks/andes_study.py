@@ -25,8 +25,9 @@ sys.path.insert(0, str(ROOT))
 
 from phid_ros.api import load_recording  # noqa: E402
 from phid_ros.diagnose import candidates  # noqa: E402
+from phid_ros.diagnose.options import DiagnoseOptions  # noqa: E402
 from phid_ros.diagnose.results import to_json  # noqa: E402
-from phid_ros.diagnose.workflow import DiagnoseOptions, diagnose  # noqa: E402
+from phid_ros.diagnose.workflow import diagnose  # noqa: E402
 from phid_ros.ident.pipeline import IdentifyOptions, identify  # noqa: E402
 from phid_ros.model.parameters import PARAMETER_NAMES, GeneratorParameters  # noqa: E402
 from phid_ros.stream.scenarios import scenarios_from_recording  # noqa: E402

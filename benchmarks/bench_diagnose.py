@@ -37,14 +37,10 @@ from common import ROOT, catalogue_scenarios, median_time  # noqa: E402
 from phid_ros.cluster import default_workers  # noqa: E402
 from phid_ros.diagnose.candidates import candidate  # noqa: E402
 from phid_ros.diagnose.fit import SCREEN_CHUNK, ModelSpec, Problem, chi_square  # noqa: E402
-from phid_ros.diagnose.workflow import (  # noqa: E402
-    DiagnoseOptions,
-    diagnose,
-    pre_event,
-    split,
-    starting_point,
-    window,
-)
+from phid_ros.diagnose.options import DiagnoseOptions  # noqa: E402
+from phid_ros.diagnose.trials import starting_point  # noqa: E402
+from phid_ros.diagnose.windows import pre_event, split, window  # noqa: E402
+from phid_ros.diagnose.workflow import diagnose  # noqa: E402
 from phid_ros.ident.pipeline import IdentifyOptions, identify  # noqa: E402
 from phid_ros.ident.plant_playin import OUTPUTS, play_in  # noqa: E402
 

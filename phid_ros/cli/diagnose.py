@@ -12,8 +12,9 @@ from phid_ros.cli.common import finish, load_truth, step_thresholds, warn
 from phid_ros.cli.progress import ProgressLine
 from phid_ros.cli.tables import CHANNEL_LABELS, Col, effect_values_text, fmt, pct, print_table, signed_int
 from phid_ros.diagnose.localise import localise
+from phid_ros.diagnose.options import DiagnoseOptions
 from phid_ros.diagnose.results import is_determined, to_json
-from phid_ros.diagnose.workflow import DiagnoseOptions, diagnose
+from phid_ros.diagnose.workflow import diagnose
 from phid_ros.errors import PhidError
 from phid_ros.ident.pipeline import IdentifyOptions
 from phid_ros.ident.plant_playin import OUTPUTS
@@ -50,7 +51,7 @@ def print_parameters(console: Console, doc: dict[str, Any]) -> None:
     rows = []
     for n in PARAMETER_NAMES:
         row = [SYMBOLS[n], fmt(doc["parameters_identified"][n]), fmt(doc["parameters_base_refit"][n])]
-        # n.d.: the data do not determine it (a two-point profile, diagnose.workflow.determined)
+        # n.d.: the data do not determine it (a two-point profile, diagnose.determinability.determined)
         row.append(fmt(doc["parameters"][n]) + ("" if is_determined(doc, n) else " n.d."))
         if truth:
             e = doc["errors_pct"]

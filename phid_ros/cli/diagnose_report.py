@@ -12,8 +12,8 @@ from phid_ros.cli.common import figure_backend
 from phid_ros.cli.report import STYLE, html_table, png_data_uri
 from phid_ros.cli.tables import CHANNEL_LABELS, axis_label, effect_values_text, fmt, pct, signed_int
 from phid_ros.diagnose.fit import evaluate
+from phid_ros.diagnose.outcome import Diagnosis
 from phid_ros.diagnose.results import is_determined
-from phid_ros.diagnose.workflow import Diagnosis
 from phid_ros.ident.plant_playin import OUTPUTS, PlayIn
 from phid_ros.io.outputs import write_text
 from phid_ros.model.parameters import PARAMETER_NAMES, SYMBOLS

@@ -6,7 +6,7 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
-from phid_ros.diagnose.workflow import Diagnosis, Score, parameter_errors
+from phid_ros.diagnose.outcome import Diagnosis, Score, parameter_errors
 from phid_ros.model.parameters import GeneratorParameters
 
 RMSE_DEFINITION = (
@@ -41,7 +41,7 @@ def to_json(
                 "name": name,
                 "parameters": dict(values),
                 "parameters_std": dict(std),
-                # false where the data do not determine it (diagnose.workflow.determined)
+                # false where the data do not determine it (diagnose.determinability.determined)
                 "identifiable": dict(d.effects_identifiable.get(name, {})),
                 "presence_sigma": trial.presence,
                 "rmse_before": prev.overall,

@@ -68,8 +68,9 @@ def _identify_into(row: Row, path: str, diagnose: bool) -> None:
 
 
 def _diagnose_into(row: Row, scenarios: list, res: IdentificationResult, f_hz: float) -> None:
+    from phid_ros.diagnose.options import DiagnoseOptions
     from phid_ros.diagnose.results import to_json
-    from phid_ros.diagnose.workflow import DiagnoseOptions, diagnose
+    from phid_ros.diagnose.workflow import diagnose
 
     # workers=0: the candidates of a round go to the fleet's own cluster (phid_ros.cluster.Jobs)
     d = diagnose(scenarios, res.parameters, DiagnoseOptions.after(res, f_nominal_hz=f_hz, workers=0))

@@ -9,7 +9,7 @@ import pytest
 
 from phid_ros.diagnose.candidates import CANDIDATES, Candidate, candidate, library, torsional_peak
 from phid_ros.diagnose.fit import ModelSpec, Problem, fit
-from phid_ros.diagnose.workflow import channel_sigma, window
+from phid_ros.diagnose.windows import channel_sigma, window
 from phid_ros.ident.plant_playin import play_in, residuals
 from phid_ros.model.parameters import TABLE1
 from phid_ros.sim.effects import REGISTRY, PlantEffect, parse_effect, register
@@ -121,7 +121,9 @@ def test_presence_is_standard_deviations_from_absent_and_a_bound_on_that_side_is
 
 
 def test_a_further_effect_must_explain_a_quarter_of_what_is_left_and_stand_clear_of_absent():
-    from phid_ros.diagnose.workflow import DiagnoseOptions, Score, Trial, _passes
+    from phid_ros.diagnose.options import DiagnoseOptions
+    from phid_ros.diagnose.outcome import Score, Trial
+    from phid_ros.diagnose.trials import passes
 
     opt = DiagnoseOptions()
     current = Score({}, 2.0)  # 4 noise variances left
@@ -129,19 +131,19 @@ def test_a_further_effect_must_explain_a_quarter_of_what_is_left_and_stand_clear
     def trial(after: float, presence: float | None, delta_bic: float = -5000.0) -> Trial:
         return Trial("x", {}, None, 0.0, heldout=Score({}, after), delta_bic=delta_bic, presence=presence)
 
-    assert _passes(trial(1.5, 50.0), current, True, opt)  # 4 -> 2.25: 44 % of what was left
-    assert not _passes(trial(1.9, 50.0), current, True, opt)  # 4 -> 3.61: 10 %, an imperfect first effect's
-    assert _passes(trial(1.9, 50.0), current, False, opt)  # as the first effect the absolute drop suffices
-    assert not _passes(trial(1.0, 2.0), current, False, opt)  # 2 std from absent
-    assert not _passes(trial(1.0, 0.0), current, False, opt)  # on the bound of its absent side
-    assert _passes(trial(1.0, None), current, False, opt)  # a latency: no std, the criteria decide
-    assert not _passes(trial(1.0, 50.0, delta_bic=-100.0), current, False, opt)  # BIC margin 200
+    assert passes(trial(1.5, 50.0), current, True, opt)  # 4 -> 2.25: 44 % of what was left
+    assert not passes(trial(1.9, 50.0), current, True, opt)  # 4 -> 3.61: 10 %, an imperfect first effect's
+    assert passes(trial(1.9, 50.0), current, False, opt)  # as the first effect the absolute drop suffices
+    assert not passes(trial(1.0, 2.0), current, False, opt)  # 2 std from absent
+    assert not passes(trial(1.0, 0.0), current, False, opt)  # on the bound of its absent side
+    assert passes(trial(1.0, None), current, False, opt)  # a latency: no std, the criteria decide
+    assert not passes(trial(1.0, 50.0, delta_bic=-100.0), current, False, opt)  # BIC margin 200
 
 
 def test_options_after_an_identification_hold_stage1_d_and_free_what_sat_at_a_bound():
     # phid diagnose, phid fleet and the studies take their options from here; built by hand
     # without them, D refits free and bags/saturation gained a spurious shaft_torsion
-    from phid_ros.diagnose.workflow import DiagnoseOptions
+    from phid_ros.diagnose.options import DiagnoseOptions
     from phid_ros.ident.pipeline import IdentificationResult
     from phid_ros.ident.results import Estimate
 
@@ -159,7 +161,9 @@ def test_a_delay_the_play_in_step_can_mimic_is_never_named():
     exceed the step; 20 ms (a PMU's latency) still passes the same evidence."""
     from phid_ros.diagnose.candidates import SensorDelayCandidate
     from phid_ros.diagnose.fit import FitResult, ModelSpec
-    from phid_ros.diagnose.workflow import DiagnoseOptions, Score, Trial, _passes, _unresolved
+    from phid_ros.diagnose.options import DiagnoseOptions
+    from phid_ros.diagnose.outcome import Score, Trial
+    from phid_ros.diagnose.trials import passes, unresolved
 
     def trial(delay_ms: float) -> Trial:
         spec = ModelSpec({}, [(SensorDelayCandidate, {"stream": "pt_ct", "delay_ms": delay_ms})])
@@ -168,9 +172,9 @@ def test_a_delay_the_play_in_step_can_mimic_is_never_named():
 
     current = Score(overall=1.0, channels={})
     opt = DiagnoseOptions()
-    assert not _passes(trial(1.0), current, False, opt) and not _passes(trial(2.0), current, False, opt)
-    assert _passes(trial(20.0), current, False, opt)
-    assert _unresolved([trial(1.0)]) == [
+    assert not passes(trial(1.0), current, False, opt) and not passes(trial(2.0), current, False, opt)
+    assert passes(trial(20.0), current, False, opt)
+    assert unresolved([trial(1.0)]) == [
         "sensor_delay not named: a 1 ms delay is not beyond the play-in step of 2 ms, whose error mimics it"
     ]
 
@@ -180,7 +184,7 @@ def test_a_candidate_with_no_admissible_trial_is_set_aside_not_a_crash():
     has no point that describes a machine. Its screen says so with an infinite chi-square (seen
     on noise-free STEPS data at two loadings: numpy's "argmin of an empty sequence" ended the
     diagnosis), and no play-in is run for it."""
-    from phid_ros.diagnose.workflow import screen
+    from phid_ros.diagnose.screening import screen
 
     base = replace(TABLE1, X_d_prime=0.12, X_q_prime=0.12).as_dict()
     cand = candidate("subtransient_dynamics")

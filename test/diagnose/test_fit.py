@@ -69,8 +69,8 @@ def test_a_profile_point_starts_where_the_final_fit_s_jacobian_predicts():
     from types import SimpleNamespace
 
     from phid_ros.diagnose.candidates import FreeParameter
+    from phid_ros.diagnose.determinability import profile_start
     from phid_ros.diagnose.fit import FitResult, ModelSpec
-    from phid_ros.diagnose.workflow import profile_start
 
     xd, td = FreeParameter("X_d_prime", 0.1, 1.0, log=True), FreeParameter("T_d0_prime", 0.5, 5.0, log=True)
     x = np.log([0.5, 1.4])
@@ -88,8 +88,8 @@ def test_an_effect_parameter_that_rides_a_flat_valley_is_not_determined() -> Non
     refits the held-out data could not tell from the best, X''_q moved 2 % (its std 0.15 %) and
     T''_q0 18 %; X''_d and T''_d0 stayed within 0.4 %."""
     from phid_ros.diagnose.candidates import SaturationCandidate, SubtransientCandidate
+    from phid_ros.diagnose.determinability import effects_determined
     from phid_ros.diagnose.fit import FitResult, ModelSpec
-    from phid_ros.diagnose.workflow import effects_determined
 
     final = {"x_dpp": 0.2621, "x_qpp": 0.2787, "t_d0pp": 0.0319, "t_q0pp": 0.0355}
     std = {"x_dpp": 0.00028, "x_qpp": 0.00042, "t_d0pp": 0.00008, "t_q0pp": 0.00039}

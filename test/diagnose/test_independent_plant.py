@@ -20,8 +20,9 @@ from __future__ import annotations
 import pytest
 
 from phid_ros.api import load_recording
+from phid_ros.diagnose.options import DiagnoseOptions
 from phid_ros.diagnose.results import to_json
-from phid_ros.diagnose.workflow import DiagnoseOptions, diagnose
+from phid_ros.diagnose.workflow import diagnose
 from phid_ros.ident.pipeline import IdentifyOptions, identify
 from phid_ros.model.parameters import GeneratorParameters
 from phid_ros.sim.scenarios import paper_catalogue, with_duration

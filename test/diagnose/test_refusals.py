@@ -7,7 +7,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from phid_ros.diagnose.workflow import DiagnoseError, diagnose
+from phid_ros.diagnose.options import DiagnoseError
+from phid_ros.diagnose.workflow import diagnose
 from phid_ros.model.parameters import TABLE1
 
 

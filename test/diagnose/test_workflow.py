@@ -13,8 +13,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from phid_ros.diagnose.options import DiagnoseOptions
 from phid_ros.diagnose.results import to_json
-from phid_ros.diagnose.workflow import DiagnoseOptions, diagnose
+from phid_ros.diagnose.workflow import diagnose
 from phid_ros.ident.pipeline import IdentifyOptions, identify
 from phid_ros.model.parameters import TABLE1
 from phid_ros.sim.effects import REGISTRY, PlantEffect
