@@ -14,11 +14,14 @@ scipy.signal's lfilter and find_peaks.
   map so that ``d/dt`` of the filtered signal and the filtered signal stay
   consistent to the sample (trapezoid rule).
 - :func:`rk4`: fixed-step Runge-Kutta for right-hand sides vectorised over columns.
+- :func:`uniform_grid` / :func:`interpolant`: the one way a recording is put onto a uniform
+  grid (a recorder's jittered or off-cycle clock, a coarser rate, a coarse prediction).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -213,3 +216,30 @@ def rk4(
         x = x + h6 * (k1 + 2.0 * (k2 + k3) + k4)
         states[k + 1] = x
     return states
+
+
+def uniform_grid(start: float, end: float, period: float) -> Array:
+    """``start``, ``start + period``, ... up to ``end`` inclusive (an ``end`` that rounding puts a
+    hair past the last step is still on it): the times a recording is resampled onto."""
+    grid = start + np.arange(0.0, end - start + 0.5 * period, period)
+    return grid[grid <= end]
+
+
+def interpolant(
+    t: NDArray[np.floating[Any]], x: NDArray[np.floating[Any]], how: Literal["linear", "cubic"] = "linear"
+) -> Callable[[NDArray[np.floating[Any]]], Array]:
+    """``x``, sampled at the increasing times ``t``, as a function of time.
+
+    ``linear`` for phasors and slow values (smooth at their report rate; never overshoots a
+    step), ``cubic`` for waveforms: a cubic spline through samples ``h`` apart misses a sinusoid
+    of angular frequency ``w`` by at most 5/384 (w h)^4 of its amplitude. Built once, read at
+    any times (a file read in parts reads one channel's interpolant part by part).
+    """
+    if how == "cubic":
+        from scipy.interpolate import CubicSpline  # where a waveform needs it, not at every import
+
+        spline = CubicSpline(t, x)
+        return lambda at: np.asarray(spline(at), dtype=np.float64)
+    if how != "linear":
+        raise ValueError(f"interpolant: how={how!r}, expected 'linear' or 'cubic'")
+    return lambda at: np.interp(at, t, x)

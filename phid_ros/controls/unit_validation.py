@@ -47,6 +47,7 @@ from phid_ros.ident.scenario import ScenarioData
 from phid_ros.ident.terminal import with_channels, with_rotor_angle
 from phid_ros.ident.validation import MOD026_TOLERANCE_PU, STEP_SECONDS, play_in, play_in_stride
 from phid_ros.model.parameters import PARAMETER_NAMES, GeneratorParameters
+from phid_ros.numerics import interpolant
 from phid_ros.sim.effects import PlantEffect
 
 Array = NDArray[np.float64]
@@ -225,7 +226,7 @@ def _control_output(
             reference = float(unit @ (pred - free)) / denom if denom > 0 else 0.0
     k = fit_stride(s.dt)
     coarse = np.arange(0, s.n, k) * s.dt
-    return np.interp(np.arange(s.n) * s.dt, coarse, pred), reference
+    return interpolant(coarse, pred)(np.arange(s.n) * s.dt), reference
 
 
 def _band(channel: str, recorded: Array, pre: slice) -> float:

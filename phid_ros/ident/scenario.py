@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 from phid_ros.errors import PhidError
 from phid_ros.model.channels import CHANNELS, SAME_PERIOD, Frame  # the one channel table, shared by every layer
 from phid_ros.model.conventions import NS, seconds_to_ns, terminal_to_dq
+from phid_ros.numerics import interpolant
 
 Array = NDArray[np.float64]
 KINDS = ("torque_step", "voltage_step", "fault", "field_step")
@@ -489,7 +490,7 @@ def resampled(s: ScenarioData, period_ns: int) -> ScenarioData:
     values = np.empty((len(t_new), s.frame.values.shape[1]), order="F")
     for i in range(values.shape[1]):
         x = s.frame.values[:, i]
-        values[:, i] = np.interp(t_new, t_old, sosfiltfilt(sos, x) if np.isfinite(x).all() else x)
+        values[:, i] = interpolant(t_old, sosfiltfilt(sos, x) if np.isfinite(x).all() else x)(t_new)
 
     def at(k: int) -> int:
         return int(round(k * old_dt / new_dt))

@@ -12,11 +12,10 @@ from __future__ import annotations
 
 import calendar
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 from phid_ros.io import comtrade_dat
 from phid_ros.io.channel_map import WAVEFORMS, ChannelMap, ChannelMapError, choose_map
@@ -25,6 +24,7 @@ from phid_ros.io.csv_import import ScenarioTable
 from phid_ros.io.field_channels import field_recording, identification_channels, scenario_table
 from phid_ros.io.recording import Recording
 from phid_ros.model.conventions import NS
+from phid_ros.numerics import interpolant, uniform_grid
 
 __all__ = ["ComtradeImportError", "import_comtrade", "read_comtrade", "unwrap_stamps"]
 
@@ -121,10 +121,8 @@ def _on_cycle_grid(
         return None
     end = (n - 1) / fs if t is None else t[-1]
     fs_new = math.ceil(per_cycle - 1e-9) * f0  # up, never down: no resolution is lost
-    grid = np.arange(0.0, end + 0.5 / fs_new, 1.0 / fs_new)
-    grid = grid[grid <= end]
-    # a cubic spline through samples h apart misses a sinusoid of angular frequency w by at most
-    # 5/384 (w h)^4 of its amplitude (the spline's error bound; the fourth derivative is w^4 times it)
+    grid = uniform_grid(0.0, end, 1.0 / fs_new)
+    # the spline's error bound (numerics.interpolant), the fourth derivative being w^4 times the wave
     err = 100 * 5 / 384 * (2 * math.pi * f0 / fs) ** 4
     how = "uneven steps" if t is not None else f"{per_cycle:.3f} samples per {f0:g} Hz cycle"
     notes.append(
@@ -158,17 +156,18 @@ def read_comtrade(path: str | Path, cmaps: ChannelMap | Sequence[ChannelMap]) ->
     if regrid is None and t_rec is not None:  # uneven phasor or value channels
         regrid = (np.arange(0.0, t_rec[-1], 1.0 / fs), fs)
         notes.append(f"{p.name}: resampled from uneven steps to {fs:g} Hz by a cubic spline")
+    # the samples' times where they are resampled (a file on one grid keeps none)
+    t_known = t_rec if t_rec is not None else np.arange(len(samples)) / fs if regrid is not None else np.empty(0)
     if regrid is not None:
-        t_rec = np.arange(len(samples)) / fs if t_rec is None else t_rec
         fs = regrid[1]
 
-    splines: dict[str, CubicSpline] = {}
+    splines: dict[str, Callable[[np.ndarray], np.ndarray]] = {}
 
     def recorded(name: str, rows: slice) -> np.ndarray:
         if regrid is None:
             return samples.values(columns[name], rows)
         if name not in splines:
-            splines[name] = CubicSpline(t_rec, samples.values(columns[name]))
+            splines[name] = interpolant(t_known, samples.values(columns[name]), "cubic")
         return splines[name](regrid[0][rows])
 
     length = len(regrid[0]) if regrid is not None else len(samples)

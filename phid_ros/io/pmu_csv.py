@@ -25,6 +25,7 @@ from phid_ros.io.csv_import import decimal_comma_fields, is_number
 from phid_ros.io.field_channels import field_recording, identification_channels, scenario_table
 from phid_ros.io.recording import Recording
 from phid_ros.model.conventions import NS
+from phid_ros.numerics import interpolant, uniform_grid
 
 MAX_JITTER = 0.01  # of the reporting period: a clean export, taken as it is
 # a step up to this much off the period is a jittered clock (a controller's trend log, +-0.3 ms at
@@ -277,8 +278,7 @@ def read_pmu_csv(
         period = (t[-1] - t[0]) / (len(t) - 1)  # the clock's mean period: the median of jittered steps is off
         # a jittered clock, nothing missing: the reports onto the mean period, linearly (the
         # channels are phasors and slow values, smooth at the report rate)
-        grid = np.arange(0.0, t[-1] - t[0] + 0.5 * period, period)[: len(t)] + t[0]
-        grid = grid[grid <= t[-1]]
+        grid = uniform_grid(t[0], t[-1], period)[: len(t)]
         notes.append(
             f"{p.name}: report times jitter by up to {jitter * 1e3:.3f} ms around {period * 1e3:.3f} ms: "
             f"resampled onto {1 / period:.4g} per s by linear interpolation"
@@ -292,7 +292,7 @@ def read_pmu_csv(
         if len(col.parts) > 1:
             col.parts = [np.concatenate(col.parts)]  # the chunks let go: a day's column is held once, not twice
         x = col.parts[0]
-        return np.interp(grid[rows], t, x) if grid is not None else x[rows]
+        return interpolant(t, x)(grid[rows]) if grid is not None else x[rows]
 
     length = len(grid) if grid is not None else len(t)
     t_out, channels = identification_channels(cmap, recorded, length, 1.0 / period, str(p))
