@@ -14,6 +14,12 @@ sys.path.insert(0, str(ROOT))
 
 import phid_ros  # noqa: E402
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from reference_pages import write_pages  # noqa: E402
+
+# the reference of parameters, effects, control models and node parameters, from their declarations
+write_pages(Path(__file__).resolve().parent / "reference")
+
 project = "phid_ros"
 author = "phid_ros maintainers"
 copyright = "2026, phid_ros maintainers (Apache-2.0)"
@@ -23,7 +29,7 @@ extensions = ["myst_parser", "sphinx.ext.autodoc", "sphinx.ext.napoleon", "sphin
 source_suffix = {".md": "markdown"}
 myst_enable_extensions = ["colon_fence", "deflist"]
 myst_heading_anchors = 3
-exclude_patterns = ["_build", "make_screenshots.py"]
+exclude_patterns = ["_build", "make_screenshots.py", "reference_pages.py"]
 autodoc_typehints = "description"
 autodoc_member_order = "bysource"
 html_theme = "alabaster"
