@@ -53,7 +53,7 @@ setup(
         "scipy>=1.11",
         "rosbags>=0.10",
         "mcap>=1.1",
-        "zstandard>=0.21",  # zstd-compressed MCAP chunks, read by our own walk (io/mcap_raw.py)
+        "zstandard>=0.21",  # zstd-compressed MCAP chunks, read by our own walk (io/bags/mcap_raw.py)
         "lz4>=4.0",  # lz4-compressed MCAP chunks, likewise
         "rich>=13.0",
         "matplotlib>=3.6",

@@ -38,11 +38,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from phid_ros.fleet.inventory import discover  # noqa: E402
 from phid_ros.fleet.run import FleetOptions, run_fleet  # noqa: E402
 from phid_ros.fleet.task import process_recording  # noqa: E402
-from phid_ros.io.digest import content_hash, recording_files  # noqa: E402
+from phid_ros.io.files.digest import content_hash, recording_files  # noqa: E402
 
 
 def make_inventory(root: Path, n: int) -> None:
-    from phid_ros.io.bags import write_recording
+    from phid_ros.io.bags.recordings import write_recording
     from phid_ros.sim.recording import DEFAULT_START_NS, recording_from_runs
     from phid_ros.sim.runner import SimulationConfig, simulate_scenarios
     from phid_ros.sim.scenarios import paper_catalogue

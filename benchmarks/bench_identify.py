@@ -47,8 +47,8 @@ def main() -> None:
             print(f"  {key:11s} median {statistics.median(s[key] for s in stages):.3f} s")
 
     from phid_ros.ident.pipeline import IdentifyOptions, identify
-    from phid_ros.io.bags import read_recording
-    from phid_ros.io.results import write_json
+    from phid_ros.io.bags.recordings import read_recording
+    from phid_ros.io.files.results import write_json
     from phid_ros.stream.scenarios import scenarios_from_recording
 
     warm = []

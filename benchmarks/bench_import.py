@@ -6,7 +6,7 @@ Makes the catalogue's scenarios (12 s at 1 kHz) as three sets of one recording e
 COMTRADE (six waveforms and six value channels), ASCII COMTRADE, and the CSV scenario set of
 the same phasors; then times each import (median over ``--runs``) and prints the ratio to
 the CSV import. Also times the phasor step alone: the sliding one-cycle DFT by cumulative sums
-(``phid_ros.io.phasors``) against a direct per-window DFT (``np.convolve`` per phase), and
+(``phid_ros.io.field.phasors``) against a direct per-window DFT (``np.convolve`` per phase), and
 prints the peak resident memory of the process.
 """
 
@@ -25,16 +25,16 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from phid_ros.io.channel_map import load_channel_map  # noqa: E402
-from phid_ros.io.comtrade_import import import_comtrade  # noqa: E402
-from phid_ros.io.csv_export import write_csv_set  # noqa: E402
-from phid_ros.io.csv_import import import_csv_set  # noqa: E402
-from phid_ros.io.phasors import positive_sequence  # noqa: E402
+from phid_ros.io.csvset.csv_export import write_csv_set  # noqa: E402
+from phid_ros.io.csvset.csv_import import import_csv_set  # noqa: E402
+from phid_ros.io.field.channel_map import load_channel_map  # noqa: E402
+from phid_ros.io.field.comtrade_import import import_comtrade  # noqa: E402
+from phid_ros.io.field.phasors import positive_sequence  # noqa: E402
 from phid_ros.sim.recording import recording_from_runs  # noqa: E402
 from phid_ros.sim.runner import SimulationConfig, simulate_scenarios  # noqa: E402
 from phid_ros.sim.scenarios import paper_catalogue, with_duration  # noqa: E402
-from test.io.comtrade_writer import write_comtrade  # noqa: E402
-from test.io.test_comtrade_import import MAP, waveforms  # noqa: E402
+from test.io.field.comtrade_writer import write_comtrade  # noqa: E402
+from test.io.field.test_comtrade_import import MAP, waveforms  # noqa: E402
 
 
 def median(fn, runs: int) -> float:

@@ -41,8 +41,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import median_time  # noqa: E402
 
 from phid_ros import jit  # noqa: E402
-from phid_ros.io.cdr_blocks import decode_group  # noqa: E402
-from phid_ros.io.mcap_raw import iter_messages  # noqa: E402
+from phid_ros.io.bags.cdr_blocks import decode_group  # noqa: E402
+from phid_ros.io.bags.mcap_raw import iter_messages  # noqa: E402
 from phid_ros.io.msg_schemas import typestore  # noqa: E402
 from phid_ros.numerics import all_pole, first_order_coefficients, first_order_response_kept  # noqa: E402
 

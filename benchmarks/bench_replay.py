@@ -21,7 +21,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from common import CATALOGUE  # noqa: E402
 
-from phid_ros.io.bags import read_recording  # noqa: E402
+from phid_ros.io.bags.recordings import read_recording  # noqa: E402
 from phid_ros.io.recording import Recording, StreamSamples  # noqa: E402
 from phid_ros.io.topics import STREAMS  # noqa: E402
 from phid_ros.model.conventions import NS

@@ -26,7 +26,7 @@ OUT=$(mktemp -d)
 python3 - "$BAG" "$OUT/replay.json" <<'PY'
 import json, sys
 from phid_ros.stream.replay import replay
-from phid_ros.io.bags import read_recording
+from phid_ros.io.bags.recordings import read_recording
 from phid_ros.stream.pipeline import MonitorPipeline
 p = MonitorPipeline(); out = replay(read_recording(sys.argv[1]), p)
 json.dump({"parameters": p.parameters.as_dict(), "hamiltonian": sum(len(e.t_ns) for e in out.energy)}, open(sys.argv[2], "w"))

@@ -19,7 +19,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from common import median_time as timed  # noqa: E402
 
-from phid_ros.io.bags import read_recording, write_recording
+from phid_ros.io.bags.recordings import read_recording, write_recording
 from phid_ros.sim.recording import recording_from_runs
 from phid_ros.sim.runner import SimulationConfig, simulate_scenarios
 from phid_ros.sim.scenarios import paper_catalogue

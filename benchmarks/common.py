@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 from phid_ros.ident.scenario import ScenarioData
-from phid_ros.io.bags import read_recording
+from phid_ros.io.bags.recordings import read_recording
 from phid_ros.stream.scenarios import scenarios_from_recording
 
 ROOT = Path(__file__).resolve().parents[1]

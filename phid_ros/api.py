@@ -51,7 +51,7 @@ def result_provenance(*paths: str | Path) -> dict[str, str]:
     are named joined by " + ", their digest the SHA-256 of theirs."""
     import hashlib
 
-    from phid_ros.io.digest import content_hash
+    from phid_ros.io.files.digest import content_hash
     from phid_ros.provenance import method_version
 
     digests = [content_hash(Path(p)) for p in paths]
@@ -63,11 +63,11 @@ def load_recording(path: str | Path) -> Recording:
     """A rosbag2 folder, a single .mcap, or a CSV manifest.json; the reader's warnings in ``warnings``.
 
     A stream whose clock is so far off that its stamps meet no other stream's is an error
-    (:mod:`phid_ros.io.clock_check`).
+    (:mod:`phid_ros.io.field.clock_check`).
     """
-    from phid_ros.io.bags import read_recording
-    from phid_ros.io.clock_check import clock_problems
-    from phid_ros.io.csv_import import import_csv_set
+    from phid_ros.io.bags.recordings import read_recording
+    from phid_ros.io.csvset.csv_import import import_csv_set
+    from phid_ros.io.field.clock_check import clock_problems
 
     p = Path(path)
     if p.suffix == ".json":
@@ -177,7 +177,7 @@ def cut_unit(
     """Several recordings of one unit cut as :func:`cut_scenarios` cuts one: the same recording
     given twice counted once, and refused when the recordings are not of one unit's per unit
     (another nominal frequency, another MVA base)."""
-    from phid_ros.io.digest import distinct_recordings
+    from phid_ros.io.files.digest import distinct_recordings
 
     kept, notes = distinct_recordings([str(p) for p in paths])
     cuts = []
@@ -364,7 +364,7 @@ def identify_scenarios(
 def characterise_sheet(path: str | Path) -> tuple[Any, Any]:
     """(the test sheet, its IEEE 115 characteristics): ``phid characterise``'s work."""
     from phid_ros.ident.characteristics import characterise
-    from phid_ros.io.test_sheet import load_test_sheet
+    from phid_ros.io.field.test_sheet import load_test_sheet
 
     sheet = load_test_sheet(path)
     return sheet, characterise(sheet.occ.i_f, sheet.occ.x, sheet.scc.i_f, sheet.scc.x)

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from phid_ros.io.csv_export import write_csv_set
-from phid_ros.io.csv_import import ScenarioTable, recording_from_tables
+from phid_ros.io.csvset.csv_export import write_csv_set
+from phid_ros.io.csvset.csv_import import ScenarioTable, recording_from_tables
 from phid_ros.sim.scenarios import Scenario
 
 # the simulator's sensor noise (phid_ros.sim.sensors defaults), per channel

@@ -75,7 +75,7 @@ def test_a_missing_extra_is_one_line_naming_it(monkeypatch):
 
 
 def test_import_comtrade_without_the_field_extra_says_so(monkeypatch, tmp_path):
-    from phid_ros.io.comtrade_dat import open_recording
+    from phid_ros.io.field.comtrade_dat import open_recording
 
     (tmp_path / "rec.cfg").write_text("STATION,DEVICE,1999\n")
     monkeypatch.setitem(sys.modules, "comtrade", None)

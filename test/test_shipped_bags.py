@@ -4,8 +4,8 @@ from pathlib import Path
 
 import numpy as np
 
-from phid_ros.io.bags import read_recording
-from phid_ros.io.results import read_json
+from phid_ros.io.bags.recordings import read_recording
+from phid_ros.io.files.results import read_json
 from phid_ros.model.parameters import TABLE1
 from phid_ros.sim.recording import recording_from_runs
 from phid_ros.sim.runner import SimulationConfig, simulate_scenarios

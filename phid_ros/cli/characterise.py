@@ -12,8 +12,8 @@ from phid_ros.cli.tables import Col, fmt, print_table
 
 def characterise_command(args: argparse.Namespace, console: Console) -> int:
     from phid_ros.api import characterise_sheet, result_provenance
-    from phid_ros.io.outputs import refuse_inputs
-    from phid_ros.io.results import write_json
+    from phid_ros.io.files.outputs import refuse_inputs
+    from phid_ros.io.files.results import write_json
 
     refuse_inputs([args.json], [args.sheet])
     sheet, c = characterise_sheet(args.sheet)

@@ -10,8 +10,8 @@ from typing import Any
 from phid_ros.api import load_recording
 from phid_ros.errors import PhidError
 from phid_ros.ident.scenario import StepThresholds
+from phid_ros.io.files.results import read_json
 from phid_ros.io.recording import Recording
-from phid_ros.io.results import read_json
 from phid_ros.model.parameters import GeneratorParameters
 
 
@@ -39,11 +39,11 @@ def read_input(path: str | Path) -> tuple[Recording, str]:
 
 def write_output(out: Path, rec: Recording, block_size: int) -> None:
     """A recording to a bag folder, a single .mcap, or a CSV set (``DIR/manifest.json``), whole or not at all."""
-    from phid_ros.io.bags import write_recording
-    from phid_ros.io.outputs import atomic_output
+    from phid_ros.io.bags.recordings import write_recording
+    from phid_ros.io.files.outputs import atomic_output
 
     if out.name == "manifest.json":
-        from phid_ros.io.csv_export import write_csv_set
+        from phid_ros.io.csvset.csv_export import write_csv_set
 
         write_csv_set(out.parent, rec)  # the manifest last: a killed run leaves no set that looks complete
     else:

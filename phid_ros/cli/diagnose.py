@@ -18,7 +18,7 @@ from phid_ros.diagnose.workflow import diagnose
 from phid_ros.errors import PhidError
 from phid_ros.ident.pipeline import IdentifyOptions
 from phid_ros.ident.plant_playin import OUTPUTS
-from phid_ros.io.results import read_json, write_json
+from phid_ros.io.files.results import read_json, write_json
 from phid_ros.model.parameters import PARAMETER_NAMES, SYMBOLS
 
 
@@ -86,7 +86,7 @@ def diagnose_command(args: Any, console: Console) -> int:
     t_start = time.perf_counter()
     if args.workers < 0:
         raise PhidError(f"--workers {args.workers}: give 0 (every core) or a positive number of processes")
-    from phid_ros.io.outputs import refuse_inputs
+    from phid_ros.io.files.outputs import refuse_inputs
 
     refuse_inputs([args.json, args.report], [args.input, args.truth])
     with ProgressLine(f"reading {args.input} and cutting its scenarios") as progress:

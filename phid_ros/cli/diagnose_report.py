@@ -15,7 +15,7 @@ from phid_ros.diagnose.fit import evaluate
 from phid_ros.diagnose.outcome import Diagnosis
 from phid_ros.diagnose.results import is_determined
 from phid_ros.ident.plant_playin import OUTPUTS, PlayIn
-from phid_ros.io.outputs import write_text
+from phid_ros.io.files.outputs import write_text
 from phid_ros.model.parameters import PARAMETER_NAMES, SYMBOLS
 
 SHOWN = ("omega", "delta", "i_d", "q_e")

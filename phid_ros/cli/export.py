@@ -11,8 +11,8 @@ from phid_ros.cli.common import warn
 from phid_ros.cli.tables import Col, print_table
 from phid_ros.export.formats import PSLF_CONTROLS, WRITERS, pslf_left_out
 from phid_ros.export.record import FIELDS, ExportError, build_record
-from phid_ros.io.outputs import refuse_inputs, write_text
-from phid_ros.io.results import read_json
+from phid_ros.io.files.outputs import refuse_inputs, write_text
+from phid_ros.io.files.results import read_json
 
 SUFFIX = {"psse-dyr": ".dyr", "pslf-dyd": ".dyd", "andes": ".andes.json"}
 

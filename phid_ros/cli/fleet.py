@@ -131,7 +131,7 @@ def print_history(console: Console, unit: str, rows: list[Row], flagged: list[Ch
 
 
 def history_command(args: Any, console: Console) -> int:
-    from phid_ros.io.outputs import refuse_inputs
+    from phid_ros.io.files.outputs import refuse_inputs
 
     path = Path(args.fleet) / HISTORY_FILE
     refuse_inputs([args.report], [path])

@@ -15,7 +15,7 @@ from phid_ros.cli.tables import Col, fmt, pct, print_table
 from phid_ros.controls.identify import ControlFit
 from phid_ros.ident.constraints import parse_constraints
 from phid_ros.ident.pipeline import IdentificationResult, IdentifyOptions
-from phid_ros.io.results import write_json
+from phid_ros.io.files.results import write_json
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, SYMBOLS, GeneratorParameters
 
 # imported here, with the command, so that their import is start-up and not "reading"
@@ -144,7 +144,7 @@ def start_from_dyr(args: Any) -> dict[str, dict[str, float]]:
 
 
 def identify_command(args: Any, console: Console) -> int:
-    from phid_ros.io.outputs import refuse_inputs
+    from phid_ros.io.files.outputs import refuse_inputs
 
     refuse_inputs([args.json, args.report], [*args.input, args.truth, getattr(args, "start_from", None)])
     control_starts = start_from_dyr(args) if getattr(args, "start_from", None) else {}

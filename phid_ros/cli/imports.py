@@ -11,13 +11,13 @@ from rich.console import Console
 from phid_ros.cli.common import warn, write_output
 from phid_ros.cli.progress import ProgressLine
 from phid_ros.errors import PhidError
-from phid_ros.io.outputs import atomic_output, refuse_inputs
+from phid_ros.io.files.outputs import atomic_output, refuse_inputs
 from phid_ros.io.recording import Recording
 
 
 def import_csv_command(args: argparse.Namespace, console: Console) -> int:
-    from phid_ros.io.bags import write_recording
-    from phid_ros.io.csv_import import import_csv_set
+    from phid_ros.io.bags.recordings import write_recording
+    from phid_ros.io.csvset.csv_import import import_csv_set
 
     out = Path(args.out)
     refuse_inputs([out], [args.manifest])
@@ -35,20 +35,20 @@ def import_csv_command(args: argparse.Namespace, console: Console) -> int:
 
 
 def import_comtrade_command(args: argparse.Namespace, console: Console) -> int:
-    from phid_ros.io.comtrade_import import import_comtrade
+    from phid_ros.io.field.comtrade_import import import_comtrade
 
     return _import_field(args, console, import_comtrade)
 
 
 def import_pmu_command(args: argparse.Namespace, console: Console) -> int:
-    from phid_ros.io.pmu_csv import import_pmu_csv
+    from phid_ros.io.field.pmu_csv import import_pmu_csv
 
     return _import_field(args, console, import_pmu_csv)
 
 
 def _import_field(args: argparse.Namespace, console: Console, read: Callable[..., Recording]) -> int:
     """Field recordings through a channel map -> one scenario set, written as ``phid simulate`` writes."""
-    from phid_ros.io.channel_map import load_channel_map
+    from phid_ros.io.field.channel_map import load_channel_map
 
     out = Path(args.out)
     if out.name == "manifest.json":  # a CSV scenario set: its folder is the output

@@ -102,7 +102,7 @@ def _iso(ns: int) -> str:
 
 
 def info_command(args: argparse.Namespace, console: Console) -> int:
-    from phid_ros.io.bags import topic_table, walked_topic_table
+    from phid_ros.io.bags.recordings import topic_table, walked_topic_table
     from phid_ros.io.parts import recording_parts
     from phid_ros.io.recording import expected_type
 

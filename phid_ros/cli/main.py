@@ -14,7 +14,7 @@ from phid_ros.cli.parser import EXIT_USER_ERROR, build_parser
 from phid_ros.cli.tables import make_console
 from phid_ros.cluster import tune_malloc
 from phid_ros.errors import PhidError
-from phid_ros.io.outputs import CANNOT_WRITE
+from phid_ros.io.files.outputs import CANNOT_WRITE
 
 __all__ = ["EXIT_USER_ERROR", "build_parser", "entry", "main"]
 

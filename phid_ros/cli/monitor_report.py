@@ -20,7 +20,7 @@ from phid_ros.cli.common import figure_backend, mark_withheld
 from phid_ros.cli.report import STYLE, html_table, png_data_uri
 from phid_ros.cli.tables import CONCISE_LEGEND, estimate_text
 from phid_ros.fleet.history import DRIFT_SIGMAS
-from phid_ros.io.outputs import write_text
+from phid_ros.io.files.outputs import write_text
 from phid_ros.io.overview import Overview
 from phid_ros.model.conventions import NS
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, SYMBOLS

@@ -117,7 +117,7 @@ class OutputCollector:
 def check_output(out: Path, force: bool) -> None:
     """An existing output is replaced only with --force or when an earlier phid replay wrote it."""
     from phid_ros.errors import PhidError
-    from phid_ros.io.bags import recording_source
+    from phid_ros.io.bags.recordings import recording_source
 
     if out.exists() and not force and not (recording_source(out) or "").startswith("phid replay"):
         raise PhidError(
@@ -206,8 +206,8 @@ def replay_command(args: Any, console: Any) -> int:
 
     from phid_ros.cli.common import warn
     from phid_ros.cli.progress import ProgressLine
-    from phid_ros.io.bags import open_message_writer
-    from phid_ros.io.outputs import atomic_output, partial_path, refuse_inputs
+    from phid_ros.io.bags.recordings import open_message_writer
+    from phid_ros.io.files.outputs import atomic_output, partial_path, refuse_inputs
     from phid_ros.io.overview import Overview
     from phid_ros.io.parts import recording_parts
     from phid_ros.io.recording import not_recorded

@@ -17,7 +17,7 @@ from phid_ros.cli.tables import pct
 from phid_ros.ident.pipeline import IdentificationResult
 from phid_ros.ident.scenario import KINDS as KIND_ORDER
 from phid_ros.ident.validation import play_in
-from phid_ros.io.outputs import write_text
+from phid_ros.io.files.outputs import write_text
 from phid_ros.model.parameters import (
     PARAMETER_NAMES,
     SPECS_BY_NAME,

@@ -11,7 +11,7 @@ from rich.console import Console
 from phid_ros.cli.common import write_output
 from phid_ros.cli.progress import ProgressLine
 from phid_ros.errors import PhidError
-from phid_ros.io.outputs import atomic_output
+from phid_ros.io.files.outputs import atomic_output
 from phid_ros.model.conventions import NS
 
 
@@ -22,7 +22,7 @@ def _parse_effects(items: Sequence[str]) -> tuple:
 
 
 def simulate_command(args: argparse.Namespace, console: Console) -> int:
-    from phid_ros.io.results import truth_path_for, write_json
+    from phid_ros.io.files.results import truth_path_for, write_json
     from phid_ros.sim.recording import recording_from_runs, truth_document
     from phid_ros.sim.runner import SimulationConfig, simulate_scenarios
     from phid_ros.sim.scenarios import find_scenario, paper_catalogue, validation_scenarios
@@ -61,8 +61,8 @@ def simulate_command(args: argparse.Namespace, console: Console) -> int:
 
 
 def _simulation_output(args: argparse.Namespace) -> Path:
-    from phid_ros.io.outputs import refuse_inputs
-    from phid_ros.io.results import truth_path_for
+    from phid_ros.io.files.outputs import refuse_inputs
+    from phid_ros.io.files.results import truth_path_for
 
     out = Path(args.out)
     if out.name == "manifest.json":  # a CSV scenario set: its folder is the output
@@ -89,9 +89,9 @@ def _parse_drift(text: str) -> object:
 def _simulate_ambient(args: argparse.Namespace, console: Console) -> int:
     import numpy as np
 
-    from phid_ros.io.bags import open_message_writer
+    from phid_ros.io.bags.recordings import open_message_writer
+    from phid_ros.io.files.results import truth_path_for, write_json
     from phid_ros.io.recording import Recording, StreamSamples, iter_recording_messages
-    from phid_ros.io.results import truth_path_for, write_json
     from phid_ros.io.topics import STREAMS
     from phid_ros.model.conventions import NS
     from phid_ros.sim.ambient import AmbientSettings, ambient_chunks

@@ -13,8 +13,8 @@ from phid_ros.cli.monitor_report import HealthLog
 from phid_ros.cli.progress import ProgressLine
 from phid_ros.cli.tables import CONCISE_LEGEND, estimate_text
 from phid_ros.errors import PhidError
-from phid_ros.io.bags import write_messages
-from phid_ros.io.outputs import atomic_output
+from phid_ros.io.bags.recordings import write_messages
+from phid_ros.io.files.outputs import atomic_output
 from phid_ros.io.overview import Overview
 from phid_ros.io.parts import recording_parts
 from phid_ros.io.recording import Recording
@@ -131,7 +131,7 @@ def base_parameters(args: Any) -> GeneratorParameters:
 def track_command(args: Any, console: Any) -> int:
     if args.hop > args.window:
         raise PhidError(f"--hop {args.hop:g} s is longer than --window {args.window:g} s: samples would be skipped")
-    from phid_ros.io.outputs import refuse_inputs
+    from phid_ros.io.files.outputs import refuse_inputs
 
     refuse_inputs([args.out, args.report], [args.bag, args.base])
     if args.out:

@@ -20,12 +20,12 @@ from phid_ros.controls.unit_validation import (
     ScenarioCheck,
     UnitValidation,
 )
-from phid_ros.io.outputs import write_text
-from phid_ros.io.results import write_json
+from phid_ros.io.files.outputs import write_text
+from phid_ros.io.files.results import write_json
 
 
 def validate_command(args: Any, console: Console) -> int:
-    from phid_ros.io.outputs import refuse_inputs
+    from phid_ros.io.files.outputs import refuse_inputs
 
     refuse_inputs([args.json, args.report], [args.dyr, args.input])
     with ProgressLine(f"reading {args.input} and cutting its scenarios") as progress:

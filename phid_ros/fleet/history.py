@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from phid_ros.errors import PhidError
-from phid_ros.io.sqlite_schema import check_intact, migrate, table_columns
+from phid_ros.io.files.sqlite_schema import check_intact, migrate, table_columns
 from phid_ros.model.parameters import PARAMETER_NAMES
 
 DRIFT_SIGMAS = 4.0  # a change between consecutive well-identified sets beyond this many σ is flagged
@@ -83,7 +83,7 @@ def _create_sql() -> str:
     )
 
 
-# the history's schema, step by step (io/sqlite_schema.py)
+# the history's schema, step by step (io/files/sqlite_schema.py)
 SCHEMA_STEPS = (
     _create_sql()
     + "; CREATE INDEX IF NOT EXISTS runs_unit ON runs (unit, start_ns)"

@@ -148,7 +148,7 @@ def _from_list(path: Path) -> tuple[list[Item], list[str]]:
 
 
 def _read_yaml_list(path: Path) -> list[tuple[str, str]]:
-    from phid_ros.io.yaml_doc import YamlDocError, load_yaml
+    from phid_ros.io.files.yaml_doc import YamlDocError, load_yaml
 
     try:
         doc = load_yaml(path, all_text=True)  # unit 0412 and recording 0412.mcap as written

@@ -22,7 +22,7 @@ from phid_ros.extras import require
 from phid_ros.fleet.history import History, Row
 from phid_ros.fleet.inventory import Item, discover
 from phid_ros.fleet.task import one_line, process_recording
-from phid_ros.io.digest import content_hash, stat_key
+from phid_ros.io.files.digest import content_hash, stat_key
 from phid_ros.provenance import method_version
 
 if TYPE_CHECKING:

@@ -3,7 +3,7 @@
 ``phid replay`` and ``phid track`` feed the online pipeline in file order and keep only what the
 pipeline keeps (its ring buffer, the windows, the tracker's state); reading the whole file
 first held every sample of it (0.5 GB per hour of 1 kHz data). :func:`recording_parts` walks the
-file as :func:`phid_ros.io.bags.read_recording` does, by the same MCAP walker and the same
+file as :func:`phid_ros.io.bags.recordings.read_recording` does, by the same MCAP walker and the same
 assembly, but hands over a :class:`~phid_ros.io.recording.Recording` every ``part_messages``
 messages. A part's samples keep their positions in the file (``msg_seq``), so a player that
 takes the parts in turn feeds the pipeline the very sequence the whole recording would.
@@ -40,7 +40,7 @@ class RecordingParts:
     """
 
     def __init__(self, path: str | Path, part_messages: int = PART_MESSAGES) -> None:
-        from phid_ros.io.mcap_raw import WalkStatus
+        from phid_ros.io.bags.mcap_raw import WalkStatus
 
         self.path = Path(path)
         self.source = str(path)
@@ -55,8 +55,8 @@ class RecordingParts:
         self._plan()
 
     def _plan(self) -> None:
-        from phid_ros.io.bags import is_mcap_file, read_recording
-        from phid_ros.io.mcap_raw import WalkStatus
+        from phid_ros.io.bags.mcap_raw import WalkStatus
+        from phid_ros.io.bags.recordings import is_mcap_file, read_recording
 
         p = self.path
         if not p.exists():
@@ -65,14 +65,14 @@ class RecordingParts:
         if p.is_dir():
             files = _rosbag2_mcap_files(p, self.metadata)
         elif p.suffix == ".json":  # a CSV scenario set (its manifest): small, read whole as one part
-            from phid_ros.io.csv_import import import_csv_set
+            from phid_ros.io.csvset.csv_import import import_csv_set
 
             self._whole, notes = import_csv_set(p)
             self.metadata = dict(self._whole.metadata)
             self.warnings += notes
             return
         elif is_mcap_file(p):
-            from phid_ros.io.mcap_file import file_metadata
+            from phid_ros.io.bags.mcap_file import file_metadata
 
             files = [p]
             # a file cut before its summary: read what is there, the walk says how much
@@ -95,7 +95,7 @@ class RecordingParts:
         if self._whole is not None:
             return len(self._whole.scenarios)
         if self.path.is_dir():
-            from phid_ros.io.rosbag2 import bag_metadata
+            from phid_ros.io.bags.rosbag2 import bag_metadata
 
             try:
                 topics = bag_metadata(self.path).get("topics_with_message_count") or []
@@ -140,7 +140,7 @@ class RecordingParts:
             self._spanned(self._whole)
             yield self._whole
             return
-        from phid_ros.io.mcap_raw import McapFormatError, iter_message_runs
+        from phid_ros.io.bags.mcap_raw import McapFormatError, iter_message_runs
 
         def items() -> Iterator[tuple]:
             first = 0
@@ -192,7 +192,7 @@ class RecordingParts:
 
 def _rosbag2_mcap_files(path: Path, metadata: dict[str, str]) -> list[Path] | None:
     """The storage files of a rosbag2 folder the walker reads, its phid metadata into ``metadata``."""
-    from phid_ros.io.rosbag2 import mcap_storage
+    from phid_ros.io.bags.rosbag2 import mcap_storage
 
     if not (path / "metadata.yaml").is_file():
         raise BagError(f"{path}: not a rosbag2 folder (metadata.yaml missing)")

@@ -416,10 +416,10 @@ def recording_from_raw(
     """Assemble a recording from raw CDR (topic, msgtype, bytes), decoding sensor blocks vectorised.
 
     An item may carry its position in the file as a fourth field, and its payload may then be a
-    run of equally long messages (:func:`phid_ros.io.mcap_raw.iter_message_runs`); without it the
+    run of equally long messages (:func:`phid_ros.io.bags.mcap_raw.iter_message_runs`); without it the
     items are in file order.
     """
-    from phid_ros.io.cdr_blocks import decode_group, stack_by_length
+    from phid_ros.io.bags.cdr_blocks import decode_group, stack_by_length
 
     store = typestore()
     raws: dict[str, list] = {}
@@ -484,7 +484,7 @@ def recording_from_raw(
 
 def checked_payloads(messages: Iterable[tuple], source: str) -> Iterator[tuple]:
     """(topic, type, payload[, position]) from (topic, schema name, encoding, payload[, position]):
-    our topics must be cdr and known. The payload may be a run (:data:`phid_ros.io.mcap_raw.Positioned`).
+    our topics must be cdr and known. The payload may be a run (:data:`phid_ros.io.bags.mcap_raw.Positioned`).
 
     Foreign topics pass through unchecked (they are counted, then ignored).
     """

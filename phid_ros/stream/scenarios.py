@@ -103,7 +103,7 @@ def check_streams(rec: Recording, source: str) -> None:
 def check_part(part: Recording, source: str) -> None:
     """A part of a recording read in parts: its channels' units and its streams' clocks, as
     :func:`phid_ros.api.load_recording` checks a whole one."""
-    from phid_ros.io.clock_check import clock_problems
+    from phid_ros.io.field.clock_check import clock_problems
 
     check_streams_units(part, source)
     problems = clock_problems(part)

@@ -27,11 +27,11 @@ from pathlib import Path
 import numpy as np
 
 from phid_ros.errors import PhidError
-from phid_ros.io.sqlite_schema import check_intact, migrate, table_columns
+from phid_ros.io.files.sqlite_schema import check_intact, migrate, table_columns
 from phid_ros.model.channels import CHANNELS
 from phid_ros.stream.detector import Event, EventWindow
 
-# the store's schema, step by step (io/sqlite_schema.py): version n + 1 is steps[:n + 1] applied
+# the store's schema, step by step (io/files/sqlite_schema.py): version n + 1 is steps[:n + 1] applied
 SCHEMA_STEPS = (
     """
     CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);

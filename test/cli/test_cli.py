@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from phid_ros.cli.main import main
-from phid_ros.io.bags import read_recording
+from phid_ros.io.bags.recordings import read_recording
 from phid_ros.model.parameters import TABLE1
 
 
@@ -46,7 +46,7 @@ def test_simulation_is_deterministic(tmp_path):
 
 
 def test_import_csv_command(tmp_path, short_runs):
-    from test.io.test_csv_import import write_set
+    from test.io.csvset.test_csv_import import write_set
 
     manifest = write_set(tmp_path, short_runs[:2], extra={"comment": 1.0})
     out = tmp_path / "imported"
@@ -89,12 +89,12 @@ def test_simulate_to_a_csv_set_then_import_it(tmp_path, capsys):
 )
 def test_user_errors_are_one_line_without_traceback(tmp_path, short_runs, short_recording, make, args, message):
     if make == "truncated":
-        from phid_ros.io.bags import write_recording
+        from phid_ros.io.bags.recordings import write_recording
 
         p = write_recording(tmp_path / "t.mcap", short_recording)
         p.write_bytes(p.read_bytes()[:5000])
     elif make == "badcol":
-        from test.io.test_csv_import import write_set
+        from test.io.csvset.test_csv_import import write_set
 
         write_set(tmp_path, short_runs[:1], mutate=lambda k, lines: [lines[0].replace("v_t", "vt")] + lines[1:])
     r = run_phid(*[a.format(tmp=tmp_path) for a in args])

@@ -8,7 +8,7 @@ import pytest
 
 from phid_ros.cli.main import main
 from phid_ros.model.parameters import TABLE1
-from test.io.field_sets import FIELD_BASE_V, trend_log_set
+from test.io.field.field_sets import FIELD_BASE_V, trend_log_set
 
 
 @pytest.fixture(scope="module")

@@ -51,7 +51,7 @@ def test_identify_shipped_catalogue_writes_the_contract(tmp_path, capsys):
 
 
 def test_identify_a_csv_manifest(tmp_path, catalogue_runs):
-    from test.io.test_csv_import import write_set
+    from test.io.csvset.test_csv_import import write_set
 
     runs = [r for r in catalogue_runs if r.scenario.name[:3] in ("S04", "S06", "S09", "S10", "S13", "S15", "V1_")]
     # CSV exports of a plant rarely say what each file is: leave kind 'unknown' to be classified
@@ -70,7 +70,7 @@ def test_identify_a_csv_manifest(tmp_path, catalogue_runs):
 
 
 def test_identify_a_bag_without_markers(tmp_path, short_recording):
-    from phid_ros.io.bags import write_recording
+    from phid_ros.io.bags.recordings import write_recording
     from phid_ros.io.recording import Recording
 
     bare = Recording(streams=short_recording.streams, scenarios=[], metadata=short_recording.metadata)
@@ -140,7 +140,7 @@ def test_inconsistent_base_between_truth_and_bag(tmp_path):
 def test_a_nan_window_is_skipped_by_name_and_the_rest_identified(tmp_path, short_recording):
     import numpy as np
 
-    from phid_ros.io.bags import write_recording
+    from phid_ros.io.bags.recordings import write_recording
     from phid_ros.io.recording import Recording, StreamSamples
 
     pmu = short_recording.streams["pmu"]

@@ -9,7 +9,7 @@ import json
 import pytest
 
 from phid_ros.cli.main import main
-from phid_ros.io.bags import write_messages, write_recording
+from phid_ros.io.bags.recordings import write_messages, write_recording
 from phid_ros.io.recording import Recording, StreamSamples, recording_messages
 
 
@@ -86,7 +86,7 @@ def test_a_channel_in_physical_units_is_refused_with_its_likely_unit(
 
 
 def test_import_csv_refuses_a_kv_column(tmp_path, catalogue_runs, capsys):
-    from test.io.test_csv_import import write_set
+    from test.io.csvset.test_csv_import import write_set
 
     def kv(k, lines):
         header = lines[0].split(",")
@@ -107,7 +107,7 @@ def test_import_csv_refuses_a_kv_column(tmp_path, catalogue_runs, capsys):
 
 @pytest.mark.parametrize("name", ["../outside.csv", "/etc/passwd"])
 def test_manifest_paths_stay_inside_its_folder(tmp_path, catalogue_runs, capsys, name):
-    from test.io.test_csv_import import write_set
+    from test.io.csvset.test_csv_import import write_set
 
     folder = tmp_path / "set"
     folder.mkdir()
@@ -121,7 +121,7 @@ def test_manifest_paths_stay_inside_its_folder(tmp_path, catalogue_runs, capsys,
 
 
 def test_the_same_csv_listed_twice_counts_once(tmp_path, catalogue_runs, capsys):
-    from test.io.test_csv_import import write_set
+    from test.io.csvset.test_csv_import import write_set
 
     runs = [r for r in catalogue_runs if r.scenario.name[:3] in ("S04", "S10", "S15")]
     manifest = write_set(tmp_path, runs)
@@ -139,7 +139,7 @@ def test_the_same_csv_listed_twice_counts_once(tmp_path, catalogue_runs, capsys)
 
 
 def test_nothing_to_identify_is_an_error_not_a_json_of_nulls(tmp_path, catalogue_runs, capsys):
-    from test.io.test_csv_import import write_set
+    from test.io.csvset.test_csv_import import write_set
 
     runs = [r for r in catalogue_runs if r.scenario.role == "validate"]
     manifest = write_set(tmp_path, runs)

@@ -19,7 +19,7 @@ BAGS = Path(__file__).resolve().parents[2] / "bags"
 
 @pytest.fixture(scope="module")
 def small_bag(tmp_path_factory, short_recording):
-    from phid_ros.io.bags import write_recording
+    from phid_ros.io.bags.recordings import write_recording
 
     return write_recording(tmp_path_factory.mktemp("bag") / "short.mcap", short_recording)
 
@@ -86,7 +86,7 @@ def test_replay_killed_leaves_a_readable_partial_output(tmp_path):
     p.send_signal(signal.SIGKILL)
     p.wait()
     assert not out.exists() and partial.exists()
-    from phid_ros.io.bags import walked_topic_table
+    from phid_ros.io.bags.recordings import walked_topic_table
 
     topics, warnings = walked_topic_table(partial)
     counts = dict((t, n) for t, _, n in topics)
@@ -137,7 +137,7 @@ def test_ordinary_mistakes_are_one_line_exit_2_before_work(tmp_path, capsys, mon
 def test_marker_names_with_markup_characters_print_as_they_are(tmp_path, short_recording, capsys):
     import dataclasses
 
-    from phid_ros.io.bags import write_recording
+    from phid_ros.io.bags.recordings import write_recording
     from phid_ros.io.recording import Recording
 
     named = [dataclasses.replace(s, name=f"[bold]{s.name}[/]") for s in short_recording.scenarios]
@@ -159,7 +159,7 @@ def test_warnings_go_to_stderr(tmp_path, small_bag, capsys):
 def test_a_bag_folder_output_names_its_storage_after_the_folder(tmp_path):
     # built in x.partial/ and renamed at the end: the storage file inside must not keep the
     # staging name (a shipped bag read "saturation.partial.mcap", as if it were cut short)
-    from phid_ros.io.bags import read_recording
+    from phid_ros.io.bags.recordings import read_recording
 
     out = tmp_path / "run"
     assert main(["simulate", "--scenario", "S04", "--duration", "3", "--out", str(out)]) == 0
@@ -181,7 +181,7 @@ def test_an_unknown_option_names_its_command_once(capsys):
 
 def test_info_reads_a_csv_scenario_set(tmp_path, short_recording, capsys):
     """``phid info`` on a CSV set's manifest raised "InvalidMagic: not a valid MCAP file"."""
-    from phid_ros.io.csv_export import write_csv_set
+    from phid_ros.io.csvset.csv_export import write_csv_set
 
     manifest = write_csv_set(tmp_path / "set", short_recording)
     assert main(["info", str(manifest)]) == 0

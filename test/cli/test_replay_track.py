@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from phid_ros.cli.main import main
-from phid_ros.io.bags import topic_table
+from phid_ros.io.bags.recordings import topic_table
 
 BAGS = Path(__file__).resolve().parents[2] / "bags"
 
@@ -81,7 +81,7 @@ def test_replay_aligns_on_the_recordings_own_rate(tmp_path, capsys):
     import re
     from dataclasses import replace
 
-    from phid_ros.io.bags import read_recording, write_recording
+    from phid_ros.io.bags.recordings import read_recording, write_recording
     from phid_ros.io.recording import Recording
 
     rec = read_recording(BAGS / "catalogue")

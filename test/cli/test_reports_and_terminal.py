@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from phid_ros.cli.main import main
-from phid_ros.io.bags import topic_table
+from phid_ros.io.bags.recordings import topic_table
 from test.browser import assert_readable, chromium, screenshot
 
 BAGS = Path(__file__).resolve().parents[2] / "bags"

@@ -144,11 +144,11 @@ def test_a_field_test_with_only_v_t_p_q_and_e_fd_gives_the_exciter(tmp_path) -> 
     on the controller's base, ~208 reports/s; no speed, no P_m, no rotor angle) with an SEXS in the
     loop: the field base calibrated at no load, the exciter named with its constants; the
     governor said to be not identifiable from these channels."""
-    from phid_ros.io.channel_map import load_channel_map
-    from phid_ros.io.pmu_csv import import_pmu_csv
+    from phid_ros.io.field.channel_map import load_channel_map
+    from phid_ros.io.field.pmu_csv import import_pmu_csv
     from phid_ros.model.parameters import TABLE1
     from phid_ros.stream.scenarios import scenarios_from_recording
-    from test.io.field_sets import trend_log_set
+    from test.io.field.field_sets import trend_log_set
 
     paths, cmap = trend_log_set(tmp_path, TABLE1, exciter=EXCITER)
     scenarios, _ = scenarios_from_recording(import_pmu_csv(paths, load_channel_map(cmap)), "trend logs")

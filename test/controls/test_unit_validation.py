@@ -70,7 +70,7 @@ def test_a_pmu_recording_without_e_fd_p_m_or_rotor_angle_is_validated_on_p_and_q
     them, and P and Q are checked; nothing is said of E_fd or P_m. A load-reference step whose
     size only the unrecorded P_m would give is not checked, and says so."""
     from test.andes_plant import MACHINE_MVA, run, staged_config, system
-    from test.io.field_sets import PMU_MAP, phasor_columns, pmu_lines
+    from test.io.field.field_sets import PMU_MAP, phasor_columns, pmu_lines
 
     dyr, _manifest = staged
     paths, entries = [], []

@@ -30,7 +30,7 @@ DRIFT = 1.08  # U2's T'_d0 on its second day
 
 @pytest.fixture(scope="module")
 def inventory(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    from phid_ros.io.bags import write_recording
+    from phid_ros.io.bags.recordings import write_recording
     from phid_ros.sim.recording import DEFAULT_START_NS, recording_from_runs
     from phid_ros.sim.runner import SimulationConfig, simulate_scenarios
     from phid_ros.sim.scenarios import paper_catalogue
@@ -244,7 +244,7 @@ def test_history_command_flags_a_jump_and_writes_its_report(tmp_path: Path, caps
 
 
 def test_a_csv_scenario_set_and_a_rosbag2_folder_are_one_recording_each(tmp_path: Path):
-    from phid_ros.io.digest import content_hash
+    from phid_ros.io.files.digest import content_hash
 
     unit = tmp_path / "tree" / "G1"
     (unit / "set").mkdir(parents=True)

@@ -1,7 +1,7 @@
 """Recordings with a recorder's channels: what they determine comes back, the rest is named.
 
 The recordings are the project's simulator written as real recorders write them
-(:mod:`test.io.field_sets`): an excitation controller's trend logs (V_t, P, Q, I_t, E_fd, I_fd
+(:mod:`test.io.field.field_sets`): an excitation controller's trend logs (V_t, P, Q, I_t, E_fd, I_fd
 on its own bases, ~208 reports/s with jitter, a no-load test on one day and on-line steps on
 the next) and PMU exports (V and I phasors only).
 """
@@ -19,14 +19,14 @@ from phid_ros.ident import determinable, open_circuit, terminal
 from phid_ros.ident.constraints import Constraints
 from phid_ros.ident.pipeline import IdentifyOptions
 from phid_ros.ident.scenario import make_scenario, scenario_from_simulation
-from phid_ros.io.channel_map import ChannelMapError, load_channel_map
-from phid_ros.io.pmu_csv import import_pmu_csv
+from phid_ros.io.field.channel_map import ChannelMapError, load_channel_map
+from phid_ros.io.field.pmu_csv import import_pmu_csv
 from phid_ros.model.channels import CHANNEL_INDEX, Frame
 from phid_ros.model.conventions import utc_of_stamp
 from phid_ros.model.parameters import TABLE1
 from phid_ros.sim.runner import simulate_scenarios
 from phid_ros.sim.scenarios import Scenario
-from test.io.field_sets import FIELD_BASE_A, FIELD_BASE_V, NO_LOAD, pmu_set, trend_log_set
+from test.io.field.field_sets import FIELD_BASE_A, FIELD_BASE_V, NO_LOAD, pmu_set, trend_log_set
 
 NOT_DETERMINED = "not identifiable from these channels"
 

@@ -13,8 +13,8 @@ import pytest
 
 from phid_ros.ident.pipeline import IdentifyOptions, identify
 from phid_ros.ident.scenario import StepThresholds
-from phid_ros.io.csv_export import write_csv_set
-from phid_ros.io.csv_import import import_csv_set
+from phid_ros.io.csvset.csv_export import write_csv_set
+from phid_ros.io.csvset.csv_import import import_csv_set
 from phid_ros.sim.recording import simulate_recording
 from phid_ros.sim.runner import SimulationConfig
 from phid_ros.sim.scenarios import Scenario, paper_catalogue, with_duration

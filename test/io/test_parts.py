@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from phid_ros.cli.replay import OutputCollector
-from phid_ros.io.bags import read_recording
+from phid_ros.io.bags.recordings import read_recording
 from phid_ros.io.msg_schemas import typestore
 from phid_ros.io.overview import Overview
 from phid_ros.io.parts import recording_parts

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from phid_ros.io.bags import read_recording
+from phid_ros.io.bags.recordings import read_recording
 from phid_ros.io.recording import recording_messages
 from phid_ros.model.conventions import NS
 

@@ -28,7 +28,7 @@ def plant(tmp_path_factory):
     are disturbances too. The fault's run goes on for 5 s after its window, as a plant's data go
     on: a node cuts a window once detection has passed its end (up to 3 s later).
     """
-    from phid_ros.io.bags import read_recording, write_recording
+    from phid_ros.io.bags.recordings import read_recording, write_recording
     from phid_ros.io.recording import Recording
     from phid_ros.sim.recording import recording_from_runs
     from phid_ros.sim.runner import SimulationConfig, simulate_scenarios

@@ -15,9 +15,9 @@ import pytest
 from phid_ros.api import cut_scenarios, identify_cut
 from phid_ros.ident.constraints import Constraints
 from phid_ros.ident.pipeline import IdentifyOptions
-from phid_ros.io.bags import write_recording
-from phid_ros.io.channel_map import ChannelMapError, load_channel_map
-from phid_ros.io.pmu_csv import import_pmu_csv
+from phid_ros.io.bags.recordings import write_recording
+from phid_ros.io.field.channel_map import ChannelMapError, load_channel_map
+from phid_ros.io.field.pmu_csv import import_pmu_csv
 
 
 def _realdata() -> Path:
@@ -183,7 +183,7 @@ def test_a_manual_test_said_in_the_map_is_played_with_its_recorded_field(tmp_pat
     the exciter's fit leaves it out and validate plays its recorded E_fd: the manual field step's Q
     error falls from 6.05 pu (the AVR model played in) to 0.38 pu, its return's from 0.144 to 0.054 pu."""
     from phid_ros.api import validate_record
-    from phid_ros.io.csv_export import write_csv_set
+    from phid_ros.io.csvset.csv_export import write_csv_set
 
     text = (
         (DAY / "map_online.yaml")
@@ -233,7 +233,7 @@ def test_every_output_form_of_the_import_is_read_back(day: Path, tmp_path: Path)
     """The day written as a CSV set (``--out DIR/manifest.json``) reads back in identify (the same
     numbers as the .mcap's), validate, info and replay (which refused a CSV set before)."""
     from phid_ros.cli.main import main
-    from phid_ros.io.csv_export import write_csv_set
+    from phid_ros.io.csvset.csv_export import write_csv_set
 
     maps = [load_channel_map(DAY / "map_noload.yaml"), load_channel_map(DAY / "map_online.yaml")]
     manifest = write_csv_set(tmp_path / "set", import_pmu_csv(sorted(DAY.glob("*.csv")), maps))

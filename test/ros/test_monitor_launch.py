@@ -51,7 +51,7 @@ def generate_test_description():
 
 def replay_reference():
     """What `phid replay` publishes for the same bag: the final set and the usable windows."""
-    from phid_ros.io.bags import read_recording
+    from phid_ros.io.bags.recordings import read_recording
     from phid_ros.stream.pipeline import MonitorPipeline
     from phid_ros.stream.replay import replay
 

@@ -8,7 +8,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from phid_ros.io.bags import read_recording, write_messages
+from phid_ros.io.bags.recordings import read_recording, write_messages
 from phid_ros.io.recording import ns_to_time, recording_messages
 from phid_ros.model.conventions import NS, stamp_ns
 from phid_ros.stream.detector import DetectorSettings

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from phid_ros.io.bags import read_recording
+from phid_ros.io.bags.recordings import read_recording
 from phid_ros.model.conventions import NS
 from phid_ros.model.parameters import PARAMETER_NAMES, TABLE1
 from phid_ros.stream.pipeline import MonitorPipeline, PipelineSettings

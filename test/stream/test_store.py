@@ -98,7 +98,7 @@ def test_two_concurrent_writers_lose_nothing(tmp_path):
 
 def test_kill_9_during_a_recalibration_then_restart(tmp_path, short_recording):
     """The process dies mid-run; the store is intact and a rerun completes it without duplicates."""
-    from phid_ros.io.bags import write_recording
+    from phid_ros.io.bags.recordings import write_recording
 
     bag = write_recording(tmp_path / "rec.mcap", short_recording)
     store = tmp_path / "s.sqlite"
@@ -137,7 +137,7 @@ def test_kill_9_during_a_recalibration_then_restart(tmp_path, short_recording):
 def test_replaying_two_machines_into_one_store_is_refused(tmp_path, short_recording, capsys):
     """The bug report: a second recording's events replaced the first's. Now: a clear refusal."""
     from phid_ros.cli.main import main
-    from phid_ros.io.bags import write_recording
+    from phid_ros.io.bags.recordings import write_recording
     from phid_ros.io.recording import Recording, StreamSamples
 
     a = write_recording(tmp_path / "a.mcap", short_recording)

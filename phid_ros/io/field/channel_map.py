@@ -1,0 +1,315 @@
+"""The channel map of a field recording: which recorded channel is which quantity, and its scale.
+
+One format for COMTRADE and PMU exports (YAML or JSON)::
+
+    machine: {mva: 1000, kv: 20, f_nominal_hz: 50}   # kv: rated line-to-line terminal voltage
+    time: Timestamp                                     # PMU exports: the report-time column
+    date: Date                                          # trend logs: a date column beside time of day
+    ratios: {pt: "20000/110", ct: "30000/1"}            # primary/secondary, or a number
+    values: secondary                                   # the recorded values' side (default primary)
+    channels:
+      v_a: VA                                           # a channel's name, or {name, unit, side}
+      i_a: {name: IA, unit: A}
+      load_angle: {name: ROTOR, unit: deg}
+      omega: {name: SPEED, unit: Hz}
+      v_f: EFD                                          # per unit, or {name, unit: V, base: volts per pu}
+      i_fd: {name: IFD, unit: A}                        # field current (stands in for E_fd in steady state)
+      p_m: {name: PMECH, unit: MW}
+    scenarios:                                          # optional, by recording file stem
+      trip_0412: {kind: fault, role: identify, event_time_s: 0.1}
+
+Everything becomes per unit on the machine base: V_base = kv/sqrt(3) per phase, I_base =
+mva/(sqrt(3) kv), S_base = mva. Secondary values are scaled by the PT ratio (voltages), the CT
+ratio (currents) or both (powers); a secondary value without its ratio is refused. The field's
+quantities (E_fd in V, I_fd in A) take their base from the map (``base``: the value that is
+1 pu, IEEE 115's air-gap-line base) or, without one, from a no-load test in the same set
+(:func:`phid_ros.io.field.field_channels.calibrate_field`).
+
+A no-load test (breaker open) maps the terminal voltage and the field alone (``v_t`` with
+``v_f`` and/or ``i_fd``, no stator quantity): it is imported as an open circuit, P = Q = I = 0,
+and the import says so. Otherwise the terminal voltage and the stator current (or P and Q) are
+required: a channel the
+recorder did not carry (rotor angle, speed, P_m, E_fd) is left out of the map, and the
+identification determines what the others allow (:mod:`phid_ros.ident.determinable`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from phid_ros.errors import PhidError
+
+# quantity -> (physical kind, units accepted, default unit)
+QUANTITIES: dict[str, tuple[str, tuple[str, ...], str]] = {
+    **{f"v_{p}": ("voltage", ("V", "kV"), "V") for p in "abc"},  # instantaneous, phase to neutral
+    **{f"i_{p}": ("current", ("A", "kA"), "A") for p in "abc"},
+    "v_t": ("voltage", ("V", "kV", "V_ll", "kV_ll", "pu"), "kV_ll"),  # RMS magnitude
+    "theta_t": ("angle", ("deg", "rad"), "deg"),
+    "i_t": ("current", ("A", "kA", "pu"), "A"),
+    "phi_i": ("angle", ("deg", "rad"), "deg"),
+    "p_e": ("power", ("W", "kW", "MW", "pu"), "MW"),
+    "q_e": ("power", ("var", "kvar", "Mvar", "pu"), "Mvar"),
+    "p_m": ("power", ("W", "kW", "MW", "pu"), "MW"),
+    "delta": ("angle", ("deg", "rad"), "deg"),  # rotor angle against a nominal-frequency reference
+    "load_angle": ("angle", ("deg", "rad"), "deg"),  # rotor angle against the terminal voltage
+    "omega": ("speed", ("pu", "Hz", "rpm"), "pu"),
+    "v_f": ("field", ("pu", "V"), "pu"),  # E_fd; in V with its base, or calibrated at no load
+    "i_fd": ("field", ("pu", "A"), "pu"),  # I_fd; likewise
+}
+FIELD_QUANTITIES = ("v_f", "i_fd")
+WAVEFORMS = ("v_a", "v_b", "v_c", "i_a", "i_b", "i_c")
+SCALE = {"V": 1.0, "kV": 1e3, "V_ll": 1.0, "kV_ll": 1e3, "A": 1.0, "kA": 1e3, "W": 1.0, "kW": 1e3, "MW": 1e6}
+SCALE.update({"var": 1.0, "kvar": 1e3, "Mvar": 1e6, "deg": math.pi / 180, "rad": 1.0})
+RATIO_OF = {"voltage": ("pt",), "current": ("ct",), "power": ("pt", "ct")}
+
+
+class ChannelMapError(PhidError):
+    """A channel map that is malformed or does not fit the recording."""
+
+
+@dataclass(frozen=True)
+class ChannelSpec:
+    quantity: str
+    name: str
+    unit: str
+    side: str  # primary | secondary
+    base: float | None = None  # field quantities in V or A: the value that is 1 pu (None: calibrate)
+
+
+@dataclass
+class ChannelMap:
+    path: str
+    mva: float
+    kv: float
+    f_nominal_hz: float
+    channels: dict[str, ChannelSpec]
+    ratios: dict[str, float] = field(default_factory=dict)
+    rated_rpm: float | None = None
+    scenarios: dict[str, dict[str, Any]] = field(default_factory=dict)
+    time_column: str = "Timestamp"  # PMU exports: the report-time column
+    date_column: str | None = None  # trend logs: a date column beside a time-of-day one
+    phasor_window_cycles: float = 0.0  # PMU exports: the cycles the PMU's phasor filter spans (0: unknown)
+
+    @property
+    def v_base(self) -> float:  # per phase, RMS volts
+        return self.kv * 1e3 / math.sqrt(3.0)
+
+    @property
+    def i_base(self) -> float:
+        return self.mva * 1e6 / (math.sqrt(3.0) * self.kv * 1e3)
+
+    def has(self, *quantities: str) -> bool:
+        return all(q in self.channels for q in quantities)
+
+    @property
+    def has_stator_current(self) -> bool:
+        return self.has("i_a", "i_b", "i_c") or self.has("i_t", "phi_i") or self.has("p_e", "q_e")
+
+    @property
+    def open_circuit(self) -> bool:
+        """A no-load test's map: the terminal voltage and the field, no stator quantity at all (the
+        breaker is open: no recorder writes a stator current, and P = Q = I = 0)."""
+        stator = ("i_a", "i_b", "i_c", "i_t", "phi_i", "p_e", "q_e")
+        return self.has("v_t") and not any(self.has(q) for q in stator) and any(self.has(q) for q in FIELD_QUANTITIES)
+
+    def ratio(self, spec: ChannelSpec) -> float:
+        """What turns the recorded value into a primary one (1 for primary values)."""
+        kind = QUANTITIES[spec.quantity][0]
+        if spec.side == "primary" or kind not in RATIO_OF or spec.unit == "pu":
+            return 1.0
+        missing = [r for r in RATIO_OF[kind] if r not in self.ratios]
+        if missing:
+            raise ChannelMapError(
+                f"{self.path}: {spec.quantity} ({spec.name}) is a secondary value but the map gives no "
+                f"{' and '.join(missing).upper()} ratio (ratios: {{pt: ..., ct: ...}})"
+            )
+        return math.prod(self.ratios[r] for r in RATIO_OF[kind])
+
+    def to_pu(self, spec: ChannelSpec, x: Any) -> Any:
+        """A recorded channel in per unit on the machine base (angles in radians, speed as recorded,
+        a field quantity without its base as recorded: :func:`field_channels.calibrate_field`)."""
+        kind = QUANTITIES[spec.quantity][0]
+        if kind == "field" and spec.base is not None:
+            return x / spec.base
+        if spec.unit == "pu" or kind in ("speed", "field"):
+            return x
+        if kind == "angle":
+            return x * SCALE[spec.unit]
+        value = x * SCALE[spec.unit] * self.ratio(spec)
+        if kind == "voltage":
+            return value / (self.v_base * (math.sqrt(3.0) if spec.unit.endswith("_ll") else 1.0))
+        if kind == "current":
+            return value / self.i_base
+        return value / (self.mva * 1e6)
+
+
+def _positive(doc: Mapping[str, Any], key: str, where: str) -> float:
+    v = doc.get(key)
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
+        raise ChannelMapError(f"{where}: {key} must be a positive number, got {v!r}")
+    return float(v)
+
+
+def _ratio(value: Any, where: str) -> float:
+    if isinstance(value, str) and "/" in value:
+        a, _, b = value.partition("/")
+        try:
+            r = float(a) / float(b)
+        except (ValueError, ZeroDivisionError):
+            raise ChannelMapError(f"{where}: ratio {value!r} is not PRIMARY/SECONDARY") from None
+    elif isinstance(value, (int, float)) and not isinstance(value, bool):
+        r = float(value)
+    else:
+        raise ChannelMapError(f"{where}: ratio {value!r} is not a number or PRIMARY/SECONDARY")
+    if not (math.isfinite(r) and r > 0):
+        raise ChannelMapError(f"{where}: ratio {value!r} must be positive")
+    return r
+
+
+def _channel(quantity: str, entry: Any, side: str, where: str) -> ChannelSpec:
+    _, units, default = QUANTITIES[quantity]
+    if isinstance(entry, str):
+        entry = {"name": entry}
+    if not isinstance(entry, Mapping) or not isinstance(entry.get("name"), str) or not entry["name"]:
+        raise ChannelMapError(f"{where}: {quantity} needs a channel name (NAME or {{name: NAME, unit: ...}})")
+    unit = entry.get("unit", default)
+    if unit not in units:
+        raise ChannelMapError(f"{where}: {quantity} unit {unit!r} not one of {', '.join(units)}")
+    s = entry.get("side", side)
+    if s not in ("primary", "secondary"):
+        raise ChannelMapError(f"{where}: {quantity} side {s!r} must be primary or secondary")
+    base = None
+    if "base" in entry:
+        if quantity not in FIELD_QUANTITIES or unit == "pu":
+            raise ChannelMapError(f"{where}: {quantity}: base is for a field quantity recorded in V or A")
+        base = _positive(entry, "base", f"{where}: {quantity}")
+    return ChannelSpec(quantity, entry["name"], unit, s, base)
+
+
+def load_channel_map(path: str | Path) -> ChannelMap:
+    from phid_ros.io.files.yaml_doc import YamlDocError, load_yaml
+
+    p = Path(path)
+    if not p.is_file():
+        raise ChannelMapError(f"{p}: no such channel map")
+    try:
+        doc = json.loads(p.read_text(encoding="utf-8")) if p.suffix == ".json" else load_yaml(p)
+    except json.JSONDecodeError as exc:
+        raise ChannelMapError(f"{p}: not valid JSON ({exc})") from None
+    except YamlDocError as exc:
+        raise ChannelMapError(str(exc)) from None
+    where = str(p)
+    if not isinstance(doc, Mapping) or not isinstance(doc.get("machine"), Mapping):
+        raise ChannelMapError(f"{where}: needs a 'machine' section with mva, kv and f_nominal_hz")
+    m = doc["machine"]
+    side = doc.get("values", "primary")
+    if side not in ("primary", "secondary"):
+        raise ChannelMapError(f"{where}: values {side!r} must be primary or secondary")
+    raw = doc.get("channels")
+    if not isinstance(raw, Mapping) or not raw:
+        raise ChannelMapError(f"{where}: needs a 'channels' section naming the recorded channels")
+    unknown = sorted(set(raw) - set(QUANTITIES))
+    if unknown:
+        raise ChannelMapError(f"{where}: unknown quantity {unknown}; known: {', '.join(QUANTITIES)}")
+    ratios_doc = doc.get("ratios") or {}
+    if not isinstance(ratios_doc, Mapping) or set(ratios_doc) - {"pt", "ct"}:
+        raise ChannelMapError(f"{where}: ratios takes pt and ct only")
+    scenarios = doc.get("scenarios") or {}
+    if not isinstance(scenarios, Mapping) or not all(isinstance(v, Mapping) for v in scenarios.values()):
+        raise ChannelMapError(f"{where}: scenarios must map a recording's file stem to {{kind, role, event_time_s}}")
+    cmap = ChannelMap(
+        path=where,
+        mva=_positive(m, "mva", f"{where}: machine"),
+        kv=_positive(m, "kv", f"{where}: machine"),
+        f_nominal_hz=_positive(m, "f_nominal_hz", f"{where}: machine") if "f_nominal_hz" in m else 50.0,
+        channels={q: _channel(q, e, side, where) for q, e in raw.items()},
+        ratios={k: _ratio(v, f"{where}: ratios.{k}") for k, v in ratios_doc.items()},
+        rated_rpm=_positive(m, "rated_rpm", f"{where}: machine") if "rated_rpm" in m else None,
+        scenarios={str(k): dict(v) for k, v in scenarios.items()},
+        time_column=str(doc.get("time", "Timestamp")),
+        date_column=str(doc["date"]) if doc.get("date") else None,
+        phasor_window_cycles=_positive(m, "phasor_window_cycles", f"{where}: machine")
+        if "phasor_window_cycles" in m
+        else 0.0,
+    )
+    for spec in cmap.channels.values():
+        cmap.ratio(spec)  # a secondary value without its ratio is refused now, not after reading
+    if cmap.has("omega") and cmap.channels["omega"].unit == "rpm" and cmap.rated_rpm is None:
+        raise ChannelMapError(f"{where}: omega in rpm needs machine.rated_rpm")
+    return cmap
+
+
+def check_recording(cmap: ChannelMap, source: str, available: list[str]) -> None:
+    """The map against one recording's channels: what the identification needs is mapped, and
+    every mapped channel is there; the message lists the recording's channels to choose from."""
+    require_complete(cmap, source, available)
+    for q, spec in cmap.channels.items():
+        if spec.name not in available:
+            raise ChannelMapError(
+                f"{cmap.path}: channel {spec.name!r} for {q} is not in {source} (channels: {', '.join(available)})"
+            )
+
+
+def choose_map(cmaps: Sequence[ChannelMap], source: str, available: list[str]) -> ChannelMap:
+    """The map among ``cmaps`` that fits a recording (:func:`check_recording`), the one naming the
+    most channels where several do: a unit's folder has a no-load map (V_t and the field) and an
+    on-line one, and an on-line test fits both. Where none fits, the fullest map's complaint."""
+    ranked = sorted(cmaps, key=lambda m: -len(m.channels))
+    first: ChannelMapError | None = None
+    for cmap in ranked:
+        try:
+            check_recording(cmap, source, available)
+        except ChannelMapError as exc:
+            first = first or exc
+            continue
+        return cmap
+    assert first is not None
+    raise first
+
+
+def one_machine(cmaps: Sequence[ChannelMap]) -> ChannelMap:
+    """The first of several maps of one unit, after checking that they describe one machine and
+    map each field quantity alike (the field's base is calibrated once for the whole set)."""
+    if not cmaps:
+        raise ChannelMapError("no channel map given")
+    head = cmaps[0]
+    for m in cmaps[1:]:
+        if (m.mva, m.kv, m.f_nominal_hz) != (head.mva, head.kv, head.f_nominal_hz):
+            raise ChannelMapError(
+                f"{m.path}: machine {m.mva:g} MVA, {m.kv:g} kV, {m.f_nominal_hz:g} Hz, but {head.path} says "
+                f"{head.mva:g} MVA, {head.kv:g} kV, {head.f_nominal_hz:g} Hz: the maps of one set describe one unit"
+            )
+        for q in FIELD_QUANTITIES:
+            a, b = head.channels.get(q), m.channels.get(q)
+            if a is not None and b is not None and a != b:
+                raise ChannelMapError(
+                    f"{m.path}: {q} is mapped as {b.name} ({b.unit}) here, {a.name} ({a.unit}) in {head.path}"
+                )
+    return head
+
+
+def require_complete(cmap: ChannelMap, source: str, available: list[str]) -> None:
+    """The terminal voltage and the stator current can be formed from what is mapped (every
+    identification needs them; the rotor angle, speed, P_m and E_fd widen what it determines);
+    else name what is missing and the recording's channels to choose from."""
+    needs = []
+    if not (cmap.has("v_a", "v_b", "v_c") or cmap.has("v_t")):
+        needs.append("the terminal voltage (v_a, v_b, v_c waveforms, or v_t)")
+    if not (cmap.has_stator_current or cmap.open_circuit):
+        needs.append(
+            "the stator current (i_a, i_b, i_c waveforms, or i_t and phi_i, or p_e and q_e; "
+            "a no-load test maps v_t and the field, v_f or i_fd, alone)"
+        )
+    if cmap.has("i_t", "phi_i") and not cmap.has("theta_t"):
+        needs.append("theta_t (phi_i is an angle against the same reference)")
+    if cmap.has("delta") and not (cmap.has("theta_t") or cmap.has("v_a", "v_b", "v_c")):
+        needs.append("theta_t (delta is an angle against the same reference; or map load_angle)")
+    if needs:
+        raise ChannelMapError(
+            f"{cmap.path}: no channel mapped for {'; '.join(needs)}; {source} has: {', '.join(available)}"
+        )

@@ -1,0 +1,349 @@
+"""Mapped field channels -> the identification's channels (t, v_t, theta_t, i_d, i_q, ...).
+
+Shared by the COMTRADE and PMU importers: a reader hands over a function that returns a
+recorded channel by name, the sample rate and the recording's name; this turns them into the
+per-unit channels of a scenario, in the recording's synchronous frame (a reference rotating
+at the system frequency before the disturbance: the single-machine model's infinite bus).
+With waveforms, every channel goes through the same one-cycle window as the phasors (the DFT
+for the waveforms, its moving average for the channels recorded as values), so all share one
+delay and one bandwidth and are stamped at the window's centre.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from phid_ros.io.csvset.csv_import import KINDS, ROLES, ScenarioTable, recording_from_tables
+from phid_ros.io.field import phasors
+from phid_ros.io.field.channel_map import (
+    FIELD_QUANTITIES,
+    QUANTITIES,
+    WAVEFORMS,
+    ChannelMap,
+    ChannelMapError,
+    one_machine,
+)
+from phid_ros.io.field.phasors import (
+    PhasorError,
+    blocks,
+    moving_average,
+    phasor_piece,
+    samples_per_cycle,
+    sequence_problem,
+    system_frequency,
+)
+from phid_ros.io.recording import MEASUREMENT_WINDOW_KEY, REGULATORS, Recording
+from phid_ros.model.channels import NO_LOAD_CURRENT, current_of
+from phid_ros.model.conventions import terminal_to_dq
+
+Array = NDArray[np.float64]
+CArray = NDArray[np.complex128]
+MIN_OUTPUT_RATE_HZ = 1000.0  # waveforms above twice this are decimated to at least this rate
+
+
+Recorded = Callable[[str, slice], Array]  # a recorded channel's samples in a range, by the channel's name
+
+
+def identification_channels(
+    cmap: ChannelMap, recorded: Recorded, length: int, fs: float, source: str
+) -> tuple[Array, dict[str, Array]]:
+    """(t from the first sample in s, the CHANNELS in per unit) of ``length`` recorded samples.
+
+    A channel the map does not name comes out NaN (not recorded): the identification runs what
+    the others determine. Without a terminal angle (a trend log's V_t, P, Q) the terminal
+    voltage is the reference, theta_t is 0 and the frequency the nominal one. A field current
+    (``i_fd``) comes out beside the CHANNELS, for :func:`calibrate_field`.
+
+    The recording is converted a block at a time (:func:`phasors.blocks`: each block's phasors
+    from the samples around it, so the outcome is the whole recording's at once): only the
+    outputs are held whole, not the complex phasors and their intermediates (a 2 h, 1 kHz
+    recording's would be gigabytes).
+    """
+    f0 = cmap.f_nominal_hz
+    waveforms = cmap.has(*WAVEFORMS[:3])
+    try:
+        n = samples_per_cycle(fs, f0) if waveforms else 1
+    except PhasorError as exc:
+        raise ChannelMapError(f"{source}: {exc}") from None
+    if waveforms and length < 12 * n:
+        raise ChannelMapError(f"{source}: {length} samples: too short for phasors (needs at least 12 cycles)")
+    m = length - n + 1
+    # waveforms above twice MIN_OUTPUT_RATE_HZ are decimated to at least it
+    step = int(fs // MIN_OUTPUT_RATE_HZ) if waveforms and fs >= 2 * MIN_OUTPUT_RATE_HZ else 1
+    t = (np.arange(0, m, step, dtype=np.float64) + (n - 1) / 2) / fs
+    names = ["v_t", "theta_t", "omega", "delta", "v_f", "p_m", "p_e", "q_e", "i_d", "i_q"]
+    out = {c: np.full(len(t), np.nan) for c in names + (["i_fd"] if cmap.has("i_fd") else [])}
+    currents: list[tuple[Array, Array]] = []  # (|P + jQ| / V_t, recorded I_t) where both are, for the check
+    f_sys = f0
+    for s, e, lo, hi in blocks(m, n) if waveforms else blocks(m, 1, 4 * phasors.BLOCK):
+        k = np.arange(s, e)
+        keep = (k % step) == 0
+        rows = slice(-(-s // step), -(-e // step))
+        t_block = (k + (n - 1) / 2).astype(np.float64) / fs
+        v1, value = _block_phasor(cmap, recorded, fs, n, (s, e, lo, hi), source)
+        if s == 0:
+            f_sys = _frequency_before(cmap, v1, value, t_block, fs, n)
+        frame = np.exp(-2j * np.pi * (f_sys - f0) * t_block)
+        v = v1 * frame
+        del v1
+        if cmap.has("i_a", "i_b", "i_c"):
+            i1, _ = _three_phase(cmap, recorded, fs, n, (s, e, lo, hi), ("i_a", "i_b", "i_c"), source)
+            i = i1 * frame
+            del i1
+        elif cmap.has("i_t", "phi_i"):
+            i = value("i_t") * np.exp(1j * value("phi_i")) * frame
+        elif cmap.open_circuit:
+            i = np.zeros_like(v)
+        else:
+            i = np.conj((value("p_e") + 1j * value("q_e")) / v)
+        del frame
+        theta_t = np.angle(v)  # unwrapped over the whole recording below
+        if cmap.has("load_angle"):
+            delta = theta_t + value("load_angle")
+        elif cmap.has("delta"):
+            delta = value("delta") - 2 * np.pi * (f_sys - f0) * t_block
+        else:
+            delta = None
+        block = {"v_t": np.abs(v), "theta_t": theta_t}
+        if delta is not None:
+            block["delta"] = delta
+        if cmap.has("omega"):
+            block["omega"] = _speed(cmap, value("omega"), f_sys)
+        block.update({q: value(q) for q in ("v_f", "p_m", "i_fd") if cmap.has(q)})
+        if cmap.has("p_e", "q_e"):
+            block["p_e"], block["q_e"] = value("p_e"), value("q_e")
+        else:
+            power = v * np.conj(i)
+            block["p_e"], block["q_e"] = power.real, power.imag
+        if delta is not None:
+            block["i_d"], block["i_q"] = terminal_to_dq(np.abs(i), delta, np.angle(i))
+        if cmap.has("i_t") and not cmap.has("phi_i") and cmap.has("p_e", "q_e"):
+            currents.append((np.abs(i), value("i_t")))
+        for c, x in block.items():
+            out[c][rows] = x[keep]
+    for c in ("theta_t", "delta"):  # angles are unwrapped within a block; between blocks here
+        _unwrap_in_place(out[c])
+    if currents:
+        _check_current(np.concatenate([a for a, _ in currents]), np.concatenate([b for _, b in currents]), source)
+    return t, out
+
+
+def _unwrap_in_place(x: Array, block: int = 1 << 18) -> None:
+    """``np.unwrap`` of the finite entries, a block at a time (no copies of hours of samples)."""
+    last = np.nan
+    for s in range(0, len(x), block):
+        seg = x[s : s + block]
+        known = np.flatnonzero(np.isfinite(seg))
+        if known.size:
+            y = seg[known] if np.isnan(last) else np.concatenate(([last], seg[known]))
+            y = np.unwrap(y)
+            seg[known] = y if np.isnan(last) else y[1:]
+            last = float(seg[known[-1]])
+
+
+def _values_of(cmap: ChannelMap, recorded: Recorded, rows: slice, n: int) -> Callable[[str], Array]:
+    """A block's value channels (per unit; angles unwrapped) through the phasors' one-cycle window."""
+
+    def value(q: str) -> Array:
+        x = _pu(cmap, recorded, q, rows)
+        return moving_average(x, n) if n > 1 else x
+
+    return value
+
+
+def _pu(cmap: ChannelMap, recorded: Recorded, q: str, rows: slice) -> Array:
+    spec = cmap.channels[q]
+    x = np.asarray(cmap.to_pu(spec, recorded(spec.name, rows)), dtype=float)
+    return np.unwrap(x) if QUANTITIES[q][0] == "angle" else x  # recorders wrap angles to +-180 deg
+
+
+def _three_phase(
+    cmap: ChannelMap,
+    recorded: Recorded,
+    fs: float,
+    n: int,
+    plan: tuple[int, int, int, int],
+    phases: tuple[str, str, str],
+    source: str,
+) -> tuple[CArray, Array]:
+    s, e, lo, hi = plan
+    piece = slice(lo, hi + n - 1)
+    try:
+        xa, xb, xc = (_pu(cmap, recorded, q, piece) for q in phases)
+        if lo == 0 and (problem := sequence_problem(xa, xb, xc, n)) is not None:
+            names = ", ".join(f"{q}: {cmap.channels[q].name}" for q in phases)
+            raise ChannelMapError(f"{source}: {names}: {problem}")
+        p, f = phasor_piece(xa, xb, xc, fs, cmap.f_nominal_hz, n, lo)
+    except PhasorError as exc:
+        raise ChannelMapError(f"{source}: {exc}") from None
+    return p[s - lo : e - lo], f[s - lo : e - lo]
+
+
+def _block_phasor(
+    cmap: ChannelMap, recorded: Recorded, fs: float, n: int, plan: tuple[int, int, int, int], source: str
+) -> tuple[CArray, Callable[[str], Array]]:
+    """(the terminal voltage phasor at the nominal frequency's reference, the value channels) of a block."""
+    s, e, _, _ = plan
+    value = _values_of(cmap, recorded, slice(s, e + n - 1), n)
+    if cmap.has(*WAVEFORMS[:3]):
+        return _three_phase(cmap, recorded, fs, n, plan, ("v_a", "v_b", "v_c"), source)[0], value
+    v_mag = value("v_t")
+    return (v_mag * np.exp(1j * value("theta_t")) if cmap.has("theta_t") else v_mag.astype(complex)), value
+
+
+def _frequency_before(
+    cmap: ChannelMap, v1: CArray, value: Callable[[str], Array], t: Array, fs: float, n: int
+) -> float:
+    """The system frequency before the disturbance, from the first block: the reference of the
+    synchronous frame (the single-machine model's infinite bus)."""
+    f0 = cmap.f_nominal_hz
+    if cmap.has(*WAVEFORMS[:3]):
+        return system_frequency(v1, fs, f0, n)
+    if not cmap.has("theta_t"):
+        return f0
+    m = min(len(t), max(int(0.5 * fs), 10))
+    return f0 + float(np.polyfit(t[:m], np.unwrap(np.angle(v1[:m])), 1)[0]) / (2 * np.pi)
+
+
+CURRENT_TOLERANCE = 0.05  # |S|/V against a recorded I_t: beyond this a CT ratio or a base is wrong
+
+
+def _check_current(from_powers: Array, i_t: Array, source: str) -> None:
+    """A recorded I_t against |P + jQ| / V_t: the three disagree when a ratio or base is wrong."""
+    loaded = from_powers > 0.1
+    if loaded.sum() < 10:
+        return
+    r = float(np.median(i_t[loaded] / from_powers[loaded]))
+    if abs(r - 1.0) > CURRENT_TOLERANCE:
+        raise ChannelMapError(
+            f"{source}: I_t is {r:.3g} times |P + jQ| / V_t: the CT ratio, a unit or the machine's base "
+            "(mva, kv) in the map is wrong"
+        )
+
+
+def _speed(cmap: ChannelMap, x: Array, f_sys: float) -> Array:
+    """Speed per unit of the synchronous frame (the grid's frequency before the disturbance)."""
+    unit = cmap.channels["omega"].unit
+    if unit == "Hz":
+        return x / f_sys
+    per_nominal = x / cmap.rated_rpm if unit == "rpm" and cmap.rated_rpm else x
+    return per_nominal * cmap.f_nominal_hz / f_sys
+
+
+def scenario_table(path: Path, cmap: ChannelMap, t: Array, channels: dict[str, Array]) -> ScenarioTable:
+    """One recording's channels as a scenario, with what the map says of it (by the file's stem)."""
+    meta = cmap.scenarios.get(path.stem, {})
+    kind, role = meta.get("kind", "unknown"), meta.get("role", "identify")
+    if kind not in KINDS or role not in ROLES:
+        raise ChannelMapError(f"{cmap.path}: scenarios.{path.stem}: kind must be one of {KINDS}, role one of {ROLES}")
+    event = meta.get("event_time_s")
+    if event is not None and not (isinstance(event, (int, float)) and t[0] < float(event) < t[-1]):
+        raise ChannelMapError(
+            f"{cmap.path}: scenarios.{path.stem}: event_time_s {event!r} lies outside the recording's "
+            f"{t[0]:.3f} .. {t[-1]:.3f} s"
+        )
+    damping = meta.get("generator_damping", True)
+    if not isinstance(damping, bool):
+        raise ChannelMapError(f"{cmap.path}: scenarios.{path.stem}: generator_damping must be true or false")
+    ev = None if event is None else float(event)
+    regulator = meta.get("regulator", "")
+    if regulator not in ("", *REGULATORS):
+        raise ChannelMapError(f"{cmap.path}: scenarios.{path.stem}: regulator must be one of {REGULATORS}")
+    table = ScenarioTable(path.stem, kind, role, damping, t, channels, ev, str(path))
+    table.regulator = regulator
+    if cmap.open_circuit:
+        table.notes.append(
+            f"{path.name}: no stator quantity mapped ({cmap.path}): imported as a no-load test, breaker open, "
+            "P = Q = I = 0"
+        )
+    return table
+
+
+def field_recording(
+    tables: list[ScenarioTable], cmaps: Sequence[ChannelMap], source: str, window_s: float
+) -> Recording:
+    """The scenario set of several field recordings (each read through one of ``cmaps``, maps of
+    one unit), with the window their phasors were measured over."""
+    cmap = one_machine(cmaps)
+    names = [t.name for t in tables]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise ChannelMapError(f"recordings with the same name {dup}: scenario names must differ")
+    field_notes = calibrate_field(tables, cmaps)
+    starts = [t.start_ns for t in tables if t.start_ns is not None]
+    # the recording begins when its first file says it did (the import's own date before)
+    kwargs = {"start_ns": min(starts)} if starts else {}
+    rec = recording_from_tables(tables, cmap.f_nominal_hz, cmap.mva, source, **kwargs)
+    rec.warnings.extend(n for t in tables for n in t.notes)
+    rec.warnings.extend(field_notes)
+    if window_s > 0:
+        rec.metadata[MEASUREMENT_WINDOW_KEY] = repr(window_s)
+    return rec
+
+
+STEADY_SHARE = 0.2  # the final fifth of a recording (and the part before its event) as steady states
+
+
+def _steady_slices(tab: ScenarioTable) -> list[slice]:
+    """The recording's steady parts: before its event (or its first fifth) and its final fifth."""
+    n = len(tab.t)
+    if tab.event_time_s is not None:
+        k = int(np.searchsorted(tab.t, tab.event_time_s)) - max(1, n // 100)
+    else:
+        k = int(n * STEADY_SHARE)
+    head = slice(0, k) if k >= 10 else None
+    return [sl for sl in (head, slice(int(n * (1 - STEADY_SHARE)), n)) if sl is not None]
+
+
+def no_load_points(tables: list[ScenarioTable], quantity: str) -> list[tuple[float, float, str]]:
+    """(the field quantity as recorded, V_t, the recording) at each steady state without stator current."""
+    out = []
+    for tab in tables:
+        if quantity not in tab.columns:
+            continue
+        c = tab.columns
+        current = current_of(c)
+        for sl in _steady_slices(tab):
+            if float(np.median(current[sl])) < NO_LOAD_CURRENT:
+                out.append((float(np.median(c[quantity][sl])), float(np.median(c["v_t"][sl])), tab.name))
+    return out
+
+
+def calibrate_field(tables: list[ScenarioTable], cmaps: Sequence[ChannelMap]) -> list[str]:
+    """Field quantities recorded in V or A without a stated base get it from the set's no-load tests.
+
+    At no load in steady state the fourth-order model has V_t = E'_q = E_fd (and = I_fd, both in
+    IEEE 115's air-gap-line per unit), so the slope of the recorded field quantity against V_t
+    through the origin is its base. A saturated no-load point (above rated voltage) gives a base
+    too high; the note says how far the points scatter about the line. Returns the notes.
+    """
+    notes = []
+    for q in FIELD_QUANTITIES:
+        cmap = next((m for m in cmaps if q in m.channels), cmaps[0])
+        spec = cmap.channels.get(q)
+        if spec is None or spec.unit == "pu" or spec.base is not None:
+            continue
+        pts = no_load_points(tables, q)
+        if not pts:
+            raise ChannelMapError(
+                f"{cmap.path}: {q} ({spec.name}) is recorded in {spec.unit} without a base, and no no-load test "
+                f"in the set calibrates it: add one, or give {q}: {{name: {spec.name}, unit: {spec.unit}, "
+                f"base: <{spec.unit} at 1 pu on the air-gap line>}}"
+            )
+        raw, v_t = np.array([p[0] for p in pts]), np.array([p[1] for p in pts])
+        base = float(raw @ v_t / (v_t @ v_t))
+        scatter = float(np.max(np.abs(raw / (base * v_t) - 1.0)))
+        for tab in tables:
+            if q in tab.columns:
+                tab.columns[q] = tab.columns[q] / base
+        recordings = sorted({p[2] for p in pts})
+        notes.append(
+            f"{q} ({spec.name}): 1 pu = {base:.5g} {spec.unit}, calibrated on the air-gap line from "
+            f"{len(pts)} no-load steady state(s) of {', '.join(recordings)} (V_t = {q} at no load; "
+            f"V_t {v_t.min():.3f}-{v_t.max():.3f} pu, points within {100 * scatter:.2f} % of the line)"
+        )
+    return notes

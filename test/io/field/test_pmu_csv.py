@@ -1,0 +1,258 @@
+"""PMU exports in: phasor columns through the channel map give the simulator's channels back."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from phid_ros.io.field.channel_map import ChannelMapError, load_channel_map
+from phid_ros.io.field.pmu_csv import PmuImportError, import_pmu_csv
+from phid_ros.sim.runner import SimulationConfig, simulate_scenarios
+from phid_ros.sim.scenarios import find_scenario, with_duration
+from test.io.field.field_sets import phasor_columns, pmu_lines
+
+KV, MVA = 20.0, 1000.0
+V_BASE = KV * 1e3 / np.sqrt(3)
+I_BASE = MVA * 1e6 / (np.sqrt(3) * KV * 1e3)
+STEP = 10  # 1 kHz simulation -> 100 reports per second
+MAP = """
+machine: {mva: 1000, kv: 20, f_nominal_hz: 50, phasor_window_cycles: 2}
+time: Timestamp
+channels:
+  v_t: {name: "GEN1:V1_MAG", unit: V}
+  theta_t: {name: "GEN1:V1_ANG", unit: deg}
+  i_t: {name: "GEN1:I1_MAG", unit: A}
+  phi_i: {name: "GEN1:I1_ANG", unit: deg}
+  omega: {name: SPEED, unit: pu}
+  delta: {name: ROTOR_ANGLE, unit: deg}
+  v_f: EFD
+  p_m: {name: PMECH, unit: MW}
+scenarios:
+  S09: {kind: voltage_step, event_time_s: 1.0}
+"""
+
+
+@pytest.fixture(scope="module")
+def export(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("pmu")
+    run = simulate_scenarios([with_duration(find_scenario("S09"), 6.0)], SimulationConfig())[0]
+    m = {c: x[: run.n_analysis : STEP] for c, x in run.measured.items()}
+    cols = phasor_columns(m, STEP, "GEN1")
+    cols.update(
+        {
+            "GEN1:FREQ": 50.0 * m["omega"],
+            "SPEED": m["omega"],
+            "ROTOR_ANGLE": np.degrees(m["delta"]),
+            "EFD": m["v_f"],
+            "PMECH": m["p_m"] * MVA,
+        }
+    )
+    lines = pmu_lines(cols)
+    path = folder / "S09.csv"
+    path.write_text("\n".join(lines) + "\n")
+    (folder / "map.yaml").write_text(MAP)
+    return path, load_channel_map(folder / "map.yaml"), m
+
+
+def test_pmu_export_gives_the_channels_back(export) -> None:
+    path, cmap, m = export
+    rec = import_pmu_csv([path], cmap)
+    [sc] = rec.scenarios
+    assert (sc.name, sc.kind) == ("S09", "voltage_step") and sc.event_ns - sc.start_ns == 1_000_000_000
+    assert rec.streams["pt_ct"].period_ns == 10_000_000 and rec.metadata["measurement_window_s"] == repr(0.04)
+    got = {c: x for s in rec.streams.values() for c, x in s.channels.items()}
+    for c in ("v_t", "i_d", "i_q", "v_f", "p_m"):
+        assert np.allclose(got[c], m[c], atol=1e-9), c
+    assert np.allclose(got["delta"] - got["theta_t"], m["delta"] - m["theta_t"], atol=1e-9)
+    # the synchronous frame is the frequency before the event, fitted from the angle: a tiny ramp at most
+    ramp = (got["theta_t"] - m["theta_t"]) - (got["theta_t"] - m["theta_t"])[0]
+    assert np.max(np.abs(ramp)) < 5e-3 and np.allclose(got["omega"], m["omega"], rtol=2e-5)
+    assert np.allclose(got["p_e"], m["p_e"], atol=0.02)  # from V and I: the sensors' own noise differs
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (lambda rows: rows.__setitem__(5, rows[6]), r"S09\.csv: report times do not increase \(line 7"),
+        (lambda rows: rows.pop(9), r"S09\.csv: reports missing at line 10: 20\.000 ms after the previous, at 0\.090 s"),
+        (lambda rows: rows.__setitem__(0, rows[0].replace("EFD", "E_FD")), r"channel 'EFD' for v_f is not in S09\.csv"),
+        (lambda rows: rows.__setitem__(4, rows[4].rsplit(",", 1)[0] + ",n/a"), r"line 5, column 'PMECH': 'n/a'"),
+    ],
+)
+def test_bad_exports_are_named(export, tmp_path, edit, message) -> None:
+    path, cmap, _ = export
+    rows = path.read_text().splitlines()
+    edit(rows)
+    bad = tmp_path / "S09.csv"
+    bad.write_text("\n".join(rows) + "\n")
+    with pytest.raises((PmuImportError, ChannelMapError), match=message):
+        import_pmu_csv([bad], cmap)
+
+
+def test_a_trend_log_with_date_and_time_of_day_and_a_jittered_clock_is_read(export, tmp_path) -> None:
+    """An excitation controller's trend log: a date column 20.09.2015 beside a time of day
+    12:52:35.2364630, about 100 reports a second jittered by +-0.3 ms, ';' fields with decimal
+    commas. Refused before ("reports missing or uneven"); now resampled onto its period."""
+    path, cmap, _ = export
+    plain = import_pmu_csv([path], cmap)
+    rows = path.read_text().splitlines()
+    head = rows[0].split(",")
+    rng = np.random.default_rng(5)
+    start = 12 * 3600 + 52 * 60 + 35.236463
+    out = [";".join(["Date", "Time", *head[1:]])]
+    jitter = rng.uniform(-3e-4, 3e-4, len(rows) - 1)
+    for k, row in enumerate(rows[1:]):
+        secs = start + 0.01 * k + jitter[k]
+        h, rem = divmod(secs, 3600)
+        m, s = divmod(rem, 60)
+        fields = row.split(",")[1:]
+        out.append(
+            ";".join(["20.09.2015", f"{int(h):02d}:{int(m):02d}:{s:010.7f}", *(f.replace(".", ",") for f in fields)])
+        )
+    log = tmp_path / "S09.csv"
+    log.write_text("\r\n".join(out) + "\r\n")
+    (tmp_path / "map.yaml").write_text(MAP.replace("time: Timestamp", "time: Time\ndate: Date"))
+    rec = import_pmu_csv([log], load_channel_map(tmp_path / "map.yaml"))
+    assert any("report times jitter by up to 0." in w and "resampled onto 100 per s" in w for w in rec.warnings)
+    for stream in ("pt_ct", "pmu", "encoder"):
+        for c, want in plain.streams[stream].channels.items():
+            got = rec.streams[stream].channels[c]
+            assert got.shape == want.shape
+            # a 0.3 ms shift of a 100 Hz report of slow phasors: a few 1e-4 pu at the steps
+            assert np.allclose(got, want, atol=5e-3), (stream, c, float(np.max(np.abs(got - want))))
+
+
+def test_an_export_read_a_chunk_at_a_time_is_read_as_whole(export, tmp_path, monkeypatch) -> None:
+    """Chunks of 7 reports (the file's 600 in 86 chunks) give the channels of one chunk, and a
+    bad entry deep in the file is named by its line, after the time checks as before."""
+    from phid_ros.io.field import pmu_csv
+
+    path, cmap, _ = export
+    whole = import_pmu_csv([path], cmap)
+    monkeypatch.setattr(pmu_csv, "CHUNK_ROWS", 7)
+    chunked = import_pmu_csv([path], cmap)
+    for name, stream in whole.streams.items():
+        assert np.array_equal(stream.t_ns, chunked.streams[name].t_ns)
+        for c, x in stream.channels.items():
+            assert np.array_equal(x, chunked.streams[name].channels[c], equal_nan=True), (name, c)
+    rows = path.read_text().splitlines()
+    for line, edit, message in [
+        (400, lambda r: r.rsplit(",", 1)[0] + ",inf", r"line 400, column 'PMECH': 'inf' is not finite"),
+        (401, lambda r: r + ",1.0", r"line 401 has 11 fields, the header 10"),
+        (402, lambda r: "12.5" + r[r.index(",") :], r"line 402, column 'Timestamp': '12\.5' is not a time \(iso"),
+    ]:
+        bad = rows.copy()
+        bad[line - 1] = edit(bad[line - 1])
+        (tmp_path / "S09.csv").write_text("\n".join(bad) + "\n")
+        with pytest.raises(PmuImportError, match=message):
+            import_pmu_csv([tmp_path / "S09.csv"], cmap)
+
+
+@pytest.mark.parametrize("reports", [0, 1])
+def test_an_export_without_two_reports_is_refused(export, tmp_path, reports) -> None:
+    path, cmap, _ = export
+    (tmp_path / "S09.csv").write_text("\n".join(path.read_text().splitlines()[: 1 + reports]) + "\n")
+    with pytest.raises(PmuImportError, match=r"S09\.csv: needs a header row and at least two reports"):
+        import_pmu_csv([tmp_path / "S09.csv"], cmap)
+
+
+def test_a_trend_log_with_thousands_points_and_a_one_digit_hour_reads_as_the_plain_export(export, tmp_path) -> None:
+    """A decimal-comma trend log writes P in kW as 802.637 (802 637 kW) and its times of day as
+    9:00:00.0000000. Before: every ',' became '.', the '.' stayed, P_m was read 1000x small
+    without a word (X_d +81 % published as identified), and the one-digit hour was "not a time"."""
+    path, cmap, _ = export
+    plain = import_pmu_csv([path], cmap)
+    rows = path.read_text().splitlines()
+    head = rows[0].split(",")
+    k_pm = head.index("PMECH")
+    out = [";".join(["Date", "Time", *head[1:]])]
+    for k, row in enumerate(rows[1:]):
+        secs = 9 * 3600 + 0.01 * k
+        clock = f"{int(secs // 3600)}:{int(secs % 3600 // 60):02d}:{secs % 60:010.7f}"  # 9:00:00.0000000
+        fields = row.split(",")
+        fields[k_pm] = f"{float(fields[k_pm]) * 1e3:,.3f}".replace(",", " ").replace(".", ",").replace(" ", ".")
+        cells = [f.replace(".", ",") if j != k_pm else f for j, f in enumerate(fields)]
+        out.append(";".join(["20.09.2015", clock, *cells[1:]]))
+    assert "9:00:00.0000000" in out[1] and "." in out[1].split(";")[k_pm + 1]
+    log = tmp_path / "S09.csv"
+    log.write_text("\n".join(out) + "\n")
+    in_kw = MAP.replace("{name: PMECH, unit: MW}", "{name: PMECH, unit: kW}")
+    (tmp_path / "map.yaml").write_text(in_kw.replace("time: Timestamp", "time: Time\ndate: Date"))
+    rec = import_pmu_csv([log], load_channel_map(tmp_path / "map.yaml"))
+    p_m = rec.streams["encoder"].channels["p_m"]
+    assert np.allclose(p_m, plain.streams["encoder"].channels["p_m"], rtol=1e-6), float(np.nanmax(p_m))
+    out[5] = out[5].replace(out[5].split(";")[k_pm + 1], "802.63", 1)  # a point that groups nothing
+    log.write_text("\n".join(out) + "\n")
+    with pytest.raises(PmuImportError, match=r"line 6, column 'PMECH': '802\.63' has a point that does not group"):
+        import_pmu_csv([log], load_channel_map(tmp_path / "map.yaml"))
+
+
+def test_an_export_whose_decimal_mark_changes_midway_is_refused(export, tmp_path, monkeypatch) -> None:
+    from phid_ros.io.field import pmu_csv
+
+    path, cmap, _ = export
+    rows = path.read_text().splitlines()
+    out = [rows[0].replace(",", ";")] + [r.replace(",", ";") for r in rows[1:]]  # ';' with decimal points
+    out[300] = out[300].replace(".", ",")
+    log = tmp_path / "S09.csv"
+    log.write_text("\n".join(out) + "\n")
+    monkeypatch.setattr(pmu_csv, "CHUNK_ROWS", 100)
+    with pytest.raises(PmuImportError, match=r"line 301, column '.*' has a decimal comma where the reports before"):
+        import_pmu_csv([log], cmap)
+    out[300] = out[300].replace(",", ".")
+    log.write_text("\n".join(out) + "\n")
+    plain = import_pmu_csv([path], cmap)
+    got = import_pmu_csv([log], cmap)
+    assert np.array_equal(got.streams["pt_ct"].channels["v_t"], plain.streams["pt_ct"].channels["v_t"])
+
+
+NO_LOAD_MAP = """
+machine: {mva: 30, kv: 10.5, f_nominal_hz: 50}
+time: Timestamp
+channels:
+  v_t: {name: UG, unit: pu}
+  v_f: {name: UF, unit: pu}
+"""
+ON_LINE_MAP = (
+    NO_LOAD_MAP
+    + """  p_e: {name: P, unit: pu}
+  q_e: {name: Q, unit: pu}
+"""
+)
+
+
+def _trend_log(path, columns: dict) -> None:
+    n = len(next(iter(columns.values())))
+    rows = ["Timestamp," + ",".join(columns)]
+    rows += [f"{k * 0.005:.4f}," + ",".join(f"{columns[c][k]:.6f}" for c in columns) for k in range(n)]
+    path.write_text("\n".join(rows) + "\n")
+
+
+def test_a_no_load_test_imports_as_an_open_circuit_and_each_file_takes_the_map_it_fits(tmp_path) -> None:
+    n = 800
+    _trend_log(tmp_path / "noload.csv", {"UG": np.full(n, 1.0), "UF": np.full(n, 0.37)})
+    _trend_log(
+        tmp_path / "online.csv",
+        {"UG": np.full(n, 1.0), "UF": np.full(n, 0.6), "P": np.full(n, 0.5), "Q": np.full(n, 0.2)},
+    )
+    (tmp_path / "noload.yaml").write_text(NO_LOAD_MAP)
+    (tmp_path / "online.yaml").write_text(ON_LINE_MAP)
+    maps = [load_channel_map(tmp_path / "noload.yaml"), load_channel_map(tmp_path / "online.yaml")]
+    rec = import_pmu_csv([tmp_path / "noload.csv", tmp_path / "online.csv"], maps)
+    pt = rec.streams["pt_ct"]
+    first = pt.t_ns <= rec.scenarios[0].end_ns
+    # open circuit: P = Q = I = 0, said so (I_d, I_q, like the rotor angle, not recorded: NaN); the
+    # on-line file through the fuller map keeps its P and Q
+    for c in ("p_e", "q_e"):
+        assert np.all(pt.channels[c][first] == 0.0)
+    assert np.isnan(pt.channels["i_d"]).all() and rec.metadata["not_recorded"] == "i_d,i_q,omega,delta,p_m"
+    assert np.allclose(pt.channels["p_e"][~first], 0.5) and np.allclose(pt.channels["q_e"][~first], 0.2)
+    assert sum("no stator quantity mapped" in w for w in rec.warnings) == 1
+    # a map of V_t alone is no open circuit: it carries nothing to identify
+    (tmp_path / "v_only.yaml").write_text(NO_LOAD_MAP.replace("  v_f: {name: UF, unit: pu}\n", ""))
+    with pytest.raises(ChannelMapError, match="no channel mapped for the stator current"):
+        import_pmu_csv([tmp_path / "noload.csv"], load_channel_map(tmp_path / "v_only.yaml"))
+    # maps of two machines are not one set
+    (tmp_path / "other.yaml").write_text(ON_LINE_MAP.replace("mva: 30", "mva: 40"))
+    with pytest.raises(ChannelMapError, match="the maps of one set describe one unit"):
+        import_pmu_csv([tmp_path / "noload.csv"], [maps[0], load_channel_map(tmp_path / "other.yaml")])
