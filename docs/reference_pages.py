@@ -60,7 +60,7 @@ def effects_page() -> str:
     parts = [
         "# Plant effects\n\n"
         "The physical effects the simulator can add to the fourth-order model and the diagnosis can name "
-        "(`phid_ros/sim/effects.py`, one class each, registered by name). `phid simulate --effect "
+        "(`phid_ros/sim/effects/`, one module each, registered by name). `phid simulate --effect "
         "NAME:key=value,...` adds one; the ranges are the realistic ones a value is checked against.\n"
     ]
     for name, cls in sorted(REGISTRY.items()):

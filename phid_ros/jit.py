@@ -26,14 +26,15 @@ def available() -> bool:
     return njit is not None and not os.environ.get("PHID_NO_JIT")
 
 
-def maybe_jit(f: Any, *, inline: bool = False) -> Any:
+def maybe_jit(f: Any, *, inline: bool = False, cache: bool = True) -> Any:
     """``f`` compiled lazily on first call, or ``f`` itself without numba.
 
     ``inline``: compiled into each compiled caller (numba's own inlining) instead of called.
+    ``cache``: False for a function numba cannot key (a closure over compiled functions).
     """
     if njit is None:
         return f
-    return njit(**OPTIONS, **({"inline": "always"} if inline else {}))(f)
+    return njit(**{**OPTIONS, "cache": cache}, **({"inline": "always"} if inline else {}))(f)
 
 
 def f64(dims: int, readonly: bool = False) -> Any:

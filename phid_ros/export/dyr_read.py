@@ -29,13 +29,9 @@ from phid_ros.controls.models import MODELS as CONTROL_MODELS
 from phid_ros.errors import ParameterError, PhidError
 from phid_ros.export.formats import PSSE_ORDER
 from phid_ros.model.parameters import GeneratorParameters
-from phid_ros.sim.effects import (
-    MagneticSaturation,
-    PlantEffect,
-    SubtransientDynamics,
-    saturation_curve,
-    saturation_factor,
-)
+from phid_ros.sim.effects import PlantEffect
+from phid_ros.sim.effects.magnetic_saturation import MagneticSaturation, saturation_curve, saturation_factor
+from phid_ros.sim.effects.subtransient_dynamics import SubtransientDynamics
 
 
 class DyrError(PhidError):

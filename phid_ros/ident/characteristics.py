@@ -139,9 +139,9 @@ def characterise(occ_i_f: Array, occ_v: Array, scc_i_f: Array, scc_i_a: Array) -
 
 def _planning_worst(v: Array, i_f: Array, g: float, s10: float, s12: float) -> float:
     """The largest relative error of I_fg V (1 + S(V)), S the planning models' quadratic through
-    S(1.0), S(1.2) (:func:`phid_ros.sim.effects.saturation_curve`), over the measured points in
+    S(1.0), S(1.2) (:func:`phid_ros.sim.effects.magnetic_saturation.saturation_curve`), over the measured points in
     PLANNING_RANGE (NaN where the two are not both known and S(1.2) > S(1.0) > 0)."""
-    from phid_ros.sim.effects import saturation_curve, saturation_factor
+    from phid_ros.sim.effects.magnetic_saturation import saturation_curve, saturation_factor
 
     if not (math.isfinite(s10) and math.isfinite(s12) and s12 > s10 > 0):
         return math.nan

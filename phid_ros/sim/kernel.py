@@ -6,11 +6,14 @@ side, not on arithmetic (a run of one model cost nearly what a run of a dozen di
 the same steps take a few percent of that time.
 
 What: the generator model (5)-(13) of :class:`~phid_ros.sim.plant.Plant` with the stator
-resistance and the registered effects that declare their terms (``PlantEffect.kernel_terms``),
+resistance and every registered effect that declares compiled terms (``PlantEffect.compiled``),
 driven by the measured terminal phasor (no network: the play-in's zero-impedance source).
-The equations are not written here: the kernel compiles ``model/equations``' and
-``model/conventions``' functions and the effects' term functions as they are, and only says
-in which order a column calls them.
+Nothing of an effect is written here: the kernel is built from the registry when it is
+imported, each effect's rows of coefficients placed after the base model's and its compiled
+functions called at their place in a column's right-hand side (:func:`_compose`), so an
+effect with compiled equations is one module of :mod:`phid_ros.sim.effects`. The base
+model's equations are ``model/equations``' and ``model/conventions``' functions compiled as
+written (:mod:`phid_ros.sim.jitted`); this module only says in which order a column calls them.
 The numpy plant (``Plant._rhs`` with the effects' hooks) stays the reference: a test runs
 both on every effect combination and holds them equal to rounding, and :func:`integrate`
 returns None, so the caller falls back to numpy, when numba is not installed, when
@@ -20,6 +23,7 @@ returns None, so the caller falls back to numpy, when numba is not installed, wh
 from __future__ import annotations
 
 import hashlib
+import inspect
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -32,47 +36,31 @@ from numpy.typing import NDArray
 
 from phid_ros.jit import available, maybe_jit
 from phid_ros.model import conventions, equations
-from phid_ros.sim import effects
+from phid_ros.sim import effects, jitted
+from phid_ros.sim.effects.base import PlantEffect
 
 Array = NDArray[np.float64]
 
-# rows of the per-column coefficient matrix the kernel reads
-ROWS = (
-    "inv_2h",
-    "xd_diff",
-    "xq_diff",
-    "inv_td0",
-    "inv_tq0",
-    "x_d_prime",
-    "x_q_prime",
-    "r_a",
-    "damping",
-    "sat_curve",  # magnetic saturation: 1 exponential, 0 quadratic; the curve's two constants;
-    "sat_c1",  # the q-axis share (X_q - X_l)/(X_d - X_l) of GENROU's form
-    "sat_c2",
-    "sat_q",
-    "x_dpp",  # subtransient dynamics (GENROU's dampers): reactances, time constants,
-    "x_qpp",  # X'_d - X_l and X'_q - X_l, the flux shares g_d, g_q and the dampers' load on
-    "t_d0pp",  # the transient windings
-    "t_q0pp",
-    "xdp_l",
-    "xqp_l",
-    "g_d",
-    "g_q",
-    "load_d",
-    "load_q",
-    "inv_2h_t",  # shaft torsion: 1/2H of turbine and generator, stiffness, shaft damping
-    "inv_2h_g",
-    "k_shaft",
-    "d_shaft",
-)
-ROW = {name: i for i, name in enumerate(ROWS)}
+# rows of the per-column coefficient matrix: the base model's, then each compiled effect's own
+BASE_ROWS = ("inv_2h", "xd_diff", "xq_diff", "inv_td0", "inv_tq0", "x_d_prime", "x_q_prime", "r_a", "damping")
 # the same indices as constants, which the compiled code reads as literals
-INV_2H, XD_DIFF, XQ_DIFF, INV_TD0, INV_TQ0, XDP, XQP, R_A, DAMPING = range(9)
-SAT_CURVE, SAT_C1, SAT_C2, SAT_Q = range(9, 13)
-X_DPP, X_QPP, T_D0PP, T_Q0PP, XDP_L, XQP_L, G_D, G_Q, LOAD_D, LOAD_Q = range(13, 23)
-INV_2H_T, INV_2H_G, K_SHAFT, D_SHAFT = range(23, 27)
-SATURATION_FORMS = {"gensal": 1, "genrou": 2}  # the kernel's `sat` flag; 0: none
+INV_2H, XD_DIFF, XQ_DIFF, INV_TD0, INV_TQ0, XDP, XQP, R_A, DAMPING = range(len(BASE_ROWS))
+
+
+def compiled_parts(classes: Any) -> list[tuple[type[PlantEffect], int]]:
+    """The effects with compiled terms among ``classes`` (in their order), each with the first row
+    of its coefficients."""
+    parts, row = [], len(BASE_ROWS)
+    for cls in classes:
+        if cls.compiled is not None:
+            parts.append((cls, row))
+            row += len(cls.compiled.rows)
+    return parts
+
+
+PARTS = compiled_parts(effects.REGISTRY.values())  # the kernel's effects: every registered one that compiles
+N_ROWS = len(BASE_ROWS) + sum(len(cls.compiled.rows) for cls, _ in PARTS if cls.compiled is not None)
+PART_OF = {cls: k for k, (cls, _) in enumerate(PARTS)}
 
 OUTPUTS = ("delta", "omega", "i_d", "i_q", "p_e", "q_e")  # rows of what :func:`integrate` returns
 
@@ -184,7 +172,7 @@ def _column_args(
     terms = _terms(plant, x0.shape[1], damping)
     if terms is None:
         return None
-    coef, flags = terms
+    coef, at = terms
     p_m, v_f, v_t, theta = (np.ascontiguousarray(a, dtype=np.float64) for a in staged)
 
     def args(a: int, b: int) -> tuple[Any, ...]:
@@ -196,9 +184,7 @@ def _column_args(
             theta,
             np.ascontiguousarray(source[:, a:b], dtype=np.int64),
             np.ascontiguousarray(coef[:, a:b]),
-            flags[0],
-            flags[1],
-            flags[2],
+            at,
             float(plant.ws),
             int(n_steps),
             float(h),
@@ -218,44 +204,141 @@ def _over_columns(run: Callable[[int, int], Any], cols: int, threads: int) -> li
         return list(pool.map(run, edges[:-1], edges[1:]))
 
 
-def _terms(plant: Any, cols: int, damping: Array) -> tuple[Array, tuple[int, int, int]] | None:
-    """The coefficient matrix (len(ROWS), cols) and the flags, or None for an unsupported plant."""
-    coef = np.zeros((len(ROWS), cols))
+def _terms(plant: Any, cols: int, damping: Array) -> tuple[Array, NDArray[np.int64]] | None:
+    """The coefficient matrix (N_ROWS, cols) and each compiled effect's ``at`` (-1: not in this
+    plant), or None for a plant the kernel has no terms for."""
+    coef = np.zeros((N_ROWS, cols))
+    at = np.full(len(PARTS), -1, dtype=np.int64)
 
-    def put(name: str, value: Any) -> None:
-        coef[ROW[name]] = np.broadcast_to(np.asarray(value, dtype=np.float64), (cols,))
+    def put(row: int, value: Any) -> None:
+        coef[row] = np.broadcast_to(np.asarray(value, dtype=np.float64), (cols,))
 
-    for name in ("inv_2h", "xd_diff", "xq_diff", "inv_td0", "inv_tq0", "x_d_prime", "x_q_prime"):
-        put(name, getattr(plant.coef, name))
-    put("r_a", plant.r_a)
-    put("damping", damping)
-    flags = {"saturation": 0, "subtransient": -1, "torsion": -1}
+    for row, name in enumerate(BASE_ROWS[:7]):
+        put(row, getattr(plant.coef, name))
+    put(R_A, plant.r_a)
+    put(DAMPING, damping)
     for effect, sl in zip(plant.effects, plant.slots):
         found = effect.kernel_terms(plant)
         if found is None:
             return None
-        for name, value in found.items():
-            if name in flags:
-                flags[name] = int(value) if name == "saturation" else sl.start
-            else:
-                put(name, value)
-    return coef, (flags["saturation"], flags["subtransient"], flags["torsion"])
+        cls = type(effect)
+        if cls.compiled is None:
+            continue  # acts through the plant's constants or the measurements only
+        k = PART_OF.get(cls)
+        if k is None:
+            return None  # registered after this kernel was built: the numpy plant runs it
+        first = PARTS[k][1]
+        for i, name in enumerate(cls.compiled.rows):
+            put(first + i, found[name])
+        at[k] = effect.kernel_setting(plant, sl)
+    return coef, at
 
 
 # inlined: the step calls the column's right-hand side four times, and as a call each passed
 # three arrays and a dozen scalars: 1.5x the time
 _maybe_jit_inlined = partial(maybe_jit, inline=True)
+# the links of the composition below: closures over the effects' functions, inlined into the
+# cached step (see _compiled_step); on their own they are never cached (a closure over a
+# compiled function gets a new key in every process)
+_link_jit = partial(maybe_jit, inline=True, cache=False)
 
 
-# the equations, compiled as they are written (one place each)
-_dq_of, _powers = (maybe_jit(getattr(conventions, n)) for n in ("dq_of", "powers"))
-_rotor_angle, _swing, _field_d, _field_q, _stator, _airgap_power = (
-    maybe_jit(getattr(equations, n)) for n in ("rotor_angle", "swing", "field_d", "field_q", "stator", "airgap_power")
-)
-_saturation_factor, _flux_magnitude, _damper_emf, _damper_drives, _shaft_torque = (
-    maybe_jit(getattr(effects, n))
-    for n in ("saturation_factor", "flux_magnitude", "damper_emf", "damper_drives", "shaft_torque")
-)
+def _base_emf(x: Array, coef: Array, c: int, at: NDArray[np.int64]) -> tuple[float, float, float, float]:
+    return x[2], x[3], coef[XDP, c], coef[XQP, c]  # the fourth-order model: E'_q, E'_d behind X'_d, X'_q
+
+
+def _no_losses(
+    x: Array, out: Array, coef: Array, c: int, at: NDArray[np.int64], psi_d: float, psi_q: float, i_d: float, i_q: float
+) -> tuple[float, float]:
+    return 0.0, 0.0
+
+
+def _base_swing(
+    x: Array,
+    out: Array,
+    coef: Array,
+    c: int,
+    at: NDArray[np.int64],
+    d_omega: float,
+    p_m: float,
+    p_airgap: float,
+    damping: float,
+    ws: float,
+) -> float:
+    return d_omega
+
+
+def _emf_link(prev: Any, hook: Any, k: int, r: int) -> Any:
+    def emf(x: Array, coef: Array, c: int, at: NDArray[np.int64]) -> tuple[float, float, float, float]:
+        if at[k] >= 0:
+            return hook(x, coef, c, r, at[k])
+        return prev(x, coef, c, at)
+
+    return _link_jit(emf)
+
+
+def _losses_link(prev: Any, hook: Any, k: int, r: int) -> Any:
+    def losses(
+        x: Array,
+        out: Array,
+        coef: Array,
+        c: int,
+        at: NDArray[np.int64],
+        psi_d: float,
+        psi_q: float,
+        i_d: float,
+        i_q: float,
+    ) -> tuple[float, float]:
+        loss_d, loss_q = prev(x, out, coef, c, at, psi_d, psi_q, i_d, i_q)
+        if at[k] >= 0:
+            d, q = hook(x, out, coef, c, r, at[k], psi_d, psi_q, i_d, i_q)
+            loss_d = loss_d + d
+            loss_q = loss_q + q
+        return loss_d, loss_q
+
+    return _link_jit(losses)
+
+
+def _swing_link(prev: Any, hook: Any, k: int, r: int) -> Any:
+    def swing(
+        x: Array,
+        out: Array,
+        coef: Array,
+        c: int,
+        at: NDArray[np.int64],
+        d_omega: float,
+        p_m: float,
+        p_airgap: float,
+        damping: float,
+        ws: float,
+    ) -> float:
+        d = prev(x, out, coef, c, at, d_omega, p_m, p_airgap, damping, ws)
+        if at[k] >= 0:
+            d = hook(x, out, coef, c, r, at[k], p_m, p_airgap, damping, ws)
+        return d
+
+    return _link_jit(swing)
+
+
+def _compose(parts: list[tuple[type[PlantEffect], int]]) -> tuple[Any, Any, Any]:
+    """The right-hand side's three places for effects, each a chain over the compiled effects in
+    the registry's order: the EMF behind the stator reactances (the last effect present that
+    provides one), the losses in the field equations (summed in that order, as the numpy plant
+    sums its hooks'), and the rotor's swing (the last present that replaces it)."""
+    emf, losses, swing = _link_jit(_base_emf), _link_jit(_no_losses), _link_jit(_base_swing)
+    for k, (cls, r) in enumerate(parts):
+        part = cls.compiled
+        assert part is not None
+        if part.emf is not None:
+            emf = _emf_link(emf, _maybe_jit_inlined(part.emf), k, r)
+        if part.losses is not None:
+            losses = _losses_link(losses, _maybe_jit_inlined(part.losses), k, r)
+        if part.swing is not None:
+            swing = _swing_link(swing, _maybe_jit_inlined(part.swing), k, r)
+    return emf, losses, swing
+
+
+_emf, _losses, _swing_of = _compose(PARTS)
 
 
 @_maybe_jit_inlined
@@ -268,61 +351,51 @@ def _rhs_column(
     vt: float,
     th: float,
     coef: Array,
-    sat: int,
-    sub_at: int,
-    tor_at: int,
+    at: NDArray[np.int64],
     ws: float,
 ) -> tuple[float, float, float, float]:
     """dx/dt of one column: ``Plant._rhs`` with the effects' hooks, in the same order.
 
     Returns the stator solution it used, (I_d, I_q, V_d, V_q), for the outputs."""
     delta, omega, e_q, e_d = x[0], x[1], x[2], x[3]
-    if sub_at >= 0:  # GENROU's dampers: the EMF behind X''_d, X''_q is the air-gap flux psi''
-        eq_i = _damper_emf(coef[G_D, c], e_q, x[sub_at])
-        ed_i = _damper_emf(coef[G_Q, c], e_d, x[sub_at + 1])
-        xd_i, xq_i = coef[X_DPP, c], coef[X_QPP, c]
-    else:
-        eq_i, ed_i, xd_i, xq_i = e_q, e_d, coef[XDP, c], coef[XQP, c]
-    v_d, v_q = _dq_of(vt, delta - th)
-    i_d, i_q = _stator(eq_i, ed_i, v_d, v_q, coef[R_A, c], xd_i, xq_i)
-    p_airgap = _airgap_power(eq_i, ed_i, i_d, i_q, xd_i, xq_i)
+    eq_i, ed_i, xd_i, xq_i = _emf(x, coef, c, at)
+    v_d, v_q = jitted.dq_of(vt, delta - th)
+    i_d, i_q = jitted.stator(eq_i, ed_i, v_d, v_q, coef[R_A, c], xd_i, xq_i)
+    p_airgap = jitted.airgap_power(eq_i, ed_i, i_d, i_q, xd_i, xq_i)
     damping = coef[DAMPING, c]
-    d_omega = _swing(pm, p_airgap, omega, damping, coef[INV_2H, c])
-    loss_d = 0.0
-    loss_q = 0.0
-    if sat > 0:
-        s = _saturation_factor(
-            coef[SAT_CURVE, c] > 0.5, coef[SAT_C1, c], coef[SAT_C2, c], e_q if sat == 1 else _flux_magnitude(eq_i, ed_i)
-        )
-        if sat == 1:
-            loss_d = loss_d + s * e_q
-        else:
-            loss_d = loss_d + s * eq_i
-            loss_q = loss_q + s * ed_i * coef[SAT_Q, c]
-    if sub_at >= 0:
-        drive_d, drive_q = _damper_drives(e_q, e_d, x[sub_at], x[sub_at + 1], i_d, i_q, coef[XDP_L, c], coef[XQP_L, c])
-        loss_d = loss_d + coef[LOAD_D, c] * drive_d
-        loss_q = loss_q + coef[LOAD_Q, c] * drive_q
-        out[sub_at] = drive_d / coef[T_D0PP, c]
-        out[sub_at + 1] = drive_q / coef[T_Q0PP, c]
-    out[0] = _rotor_angle(omega, ws)
-    out[2] = _field_d(vf, e_q, i_d, coef[XD_DIFF, c], loss_d, coef[INV_TD0, c])
-    out[3] = _field_q(e_d, i_q, coef[XQ_DIFF, c], loss_q, coef[INV_TQ0, c])
-    if tor_at >= 0:
-        torque = _shaft_torque(coef[K_SHAFT, c], coef[D_SHAFT, c], x[tor_at], delta, x[tor_at + 1], omega)
-        d_omega = _swing(torque, p_airgap, omega, damping, coef[INV_2H_G, c])
-        out[tor_at] = _rotor_angle(x[tor_at + 1], ws)
-        out[tor_at + 1] = _swing(pm, torque, x[tor_at + 1], 0.0, coef[INV_2H_T, c])
-    out[1] = d_omega
+    d_omega = jitted.swing(pm, p_airgap, omega, damping, coef[INV_2H, c])
+    loss_d, loss_q = _losses(x, out, coef, c, at, eq_i, ed_i, i_d, i_q)
+    out[0] = jitted.rotor_angle(omega, ws)
+    out[2] = jitted.field_d(vf, e_q, i_d, coef[XD_DIFF, c], loss_d, coef[INV_TD0, c])
+    out[3] = jitted.field_q(e_d, i_q, coef[XQ_DIFF, c], loss_q, coef[INV_TQ0, c])
+    out[1] = _swing_of(x, out, coef, c, at, d_omega, pm, p_airgap, damping, ws)
     return i_d, i_q, v_d, v_q
 
 
-def _sources_digest() -> str:
-    """The text of the files whose equations the step compiles (see :func:`_compiled_step`)."""
-    digest = hashlib.sha256()
-    for module in (conventions, equations, effects):
-        digest.update(Path(str(module.__file__)).read_bytes())
+def _digest(files: Any, extra: str = "") -> str:
+    digest = hashlib.sha256(extra.encode())
+    for path in sorted({str(f) for f in files}):
+        digest.update(Path(path).read_bytes())
     return digest.hexdigest()
+
+
+def _equation_files() -> list[str]:
+    return [str(conventions.__file__), str(equations.__file__), str(jitted.__file__)]
+
+
+def _sources_digest(parts: list[tuple[type[PlantEffect], int]] | None = None) -> str:
+    """The text of every file whose functions the step compiles (see :func:`_compiled_step`): the
+    model's equations, and each compiled effect's module and functions; and the composition
+    itself (which effects, in which order, at which rows)."""
+    parts = PARTS if parts is None else parts
+    files = _equation_files() + [str(inspect.getsourcefile(effects.base))]
+    for cls, _ in parts:
+        files.append(str(inspect.getsourcefile(cls)))
+        assert cls.compiled is not None
+        files += [
+            str(inspect.getsourcefile(f)) for f in (cls.compiled.emf, cls.compiled.losses, cls.compiled.swing) if f
+        ]
+    return _digest(files, repr([(cls.__module__, cls.__qualname__, r) for cls, r in parts]))
 
 
 @_maybe_jit_inlined
@@ -337,9 +410,7 @@ def _column_step(
     theta: Array,
     source: NDArray[np.int64],
     coef: Array,
-    sat: int,
-    sub_at: int,
-    tor_at: int,
+    at: NDArray[np.int64],
     ws: float,
     h: float,
     work: Array,
@@ -353,26 +424,24 @@ def _column_step(
     pm, vf, vt, th = source[0, c], source[1, c], source[2, c], source[3, c]
     for i in range(n_states):
         x[i] = xall[i, c]
-    i_d, i_q, v_d, v_q = _rhs_column(
-        x, k1, c, p_m[a, pm], v_f[a, vf], v_t[a, vt], theta[a, th], coef, sat, sub_at, tor_at, ws
-    )
+    i_d, i_q, v_d, v_q = _rhs_column(x, k1, c, p_m[a, pm], v_f[a, vf], v_t[a, vt], theta[a, th], coef, at, ws)
     res[0] = x[0]
     res[1] = x[1]
     res[2] = i_d
     res[3] = i_q
-    res[4], res[5] = _powers(v_d, v_q, i_d, i_q)  # P_e (13) and Q_e
+    res[4], res[5] = jitted.powers(v_d, v_q, i_d, i_q)  # P_e (13) and Q_e
     if last:
         return
     h2, h6 = 0.5 * h, h / 6.0
     for i in range(n_states):
         xs[i] = x[i] + h2 * k1[i]
-    _rhs_column(xs, k2, c, p_m[b, pm], v_f[b, vf], v_t[b, vt], theta[b, th], coef, sat, sub_at, tor_at, ws)
+    _rhs_column(xs, k2, c, p_m[b, pm], v_f[b, vf], v_t[b, vt], theta[b, th], coef, at, ws)
     for i in range(n_states):
         xs[i] = x[i] + h2 * k2[i]
-    _rhs_column(xs, k3, c, p_m[b, pm], v_f[b, vf], v_t[b, vt], theta[b, th], coef, sat, sub_at, tor_at, ws)
+    _rhs_column(xs, k3, c, p_m[b, pm], v_f[b, vf], v_t[b, vt], theta[b, th], coef, at, ws)
     for i in range(n_states):
         xs[i] = x[i] + h * k3[i]
-    _rhs_column(xs, k4, c, p_m[e, pm], v_f[e, vf], v_t[e, vt], theta[e, th], coef, sat, sub_at, tor_at, ws)
+    _rhs_column(xs, k4, c, p_m[e, pm], v_f[e, vf], v_t[e, vt], theta[e, th], coef, at, ws)
     for i in range(n_states):
         xall[i, c] = x[i] + h6 * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i])
 
@@ -395,9 +464,7 @@ def _compiled_step(sources: str) -> Any:
         theta: Array,
         source: NDArray[np.int64],
         coef: Array,
-        sat: int,
-        sub_at: int,
-        tor_at: int,
+        at: NDArray[np.int64],
         ws: float,
         n_steps: int,
         h: float,
@@ -413,9 +480,7 @@ def _compiled_step(sources: str) -> Any:
         res = np.empty(6)
         for k in range(n_steps + 1):
             for c in range(cols):
-                _column_step(
-                    xall, c, k, k == n_steps, p_m, v_f, v_t, theta, source, coef, sat, sub_at, tor_at, ws, h, work, res
-                )
+                _column_step(xall, c, k, k == n_steps, p_m, v_f, v_t, theta, source, coef, at, ws, h, work, res)
                 for q in range(6):
                     out[q, k, c] = res[q]
         return out
@@ -429,9 +494,7 @@ def _compiled_step(sources: str) -> Any:
         theta: Array,
         source: NDArray[np.int64],
         coef: Array,
-        sat: int,
-        sub_at: int,
-        tor_at: int,
+        at: NDArray[np.int64],
         ws: float,
         n_steps: int,
         h: float,
@@ -462,9 +525,7 @@ def _compiled_step(sources: str) -> Any:
                 n = n_keep[j]
                 if k >= n:
                     continue  # past this scenario's end: no output of it is read, so no step taken
-                _column_step(
-                    xall, c, k, k == n - 1, p_m, v_f, v_t, theta, source, coef, sat, sub_at, tor_at, ws, h, work, res
-                )
+                _column_step(xall, c, k, k == n - 1, p_m, v_f, v_t, theta, source, coef, at, ws, h, work, res)
                 i = (c0 + c) % m
                 row = rows_at[j] + k
                 for q in range(6):
@@ -505,13 +566,13 @@ def _paper_rhs_column(
     x: Array, out: Array, c: int, vt: float, th: float, pm: float, vf: float, coef: Array, ws: float
 ) -> None:
     """dx/dt of one column: ``validation.play_in``'s right-hand side, the same operations in the same order."""
-    v_d, v_q = _dq_of(vt, x[0] - th)
-    i_d, i_q = _stator(x[2], x[3], v_d, v_q, None, coef[P_XDP, c], coef[P_XQP, c])
-    p_e = _powers(v_d, v_q, i_d, i_q)[0]  # (13)
-    out[0] = _rotor_angle(x[1], ws)
-    out[1] = _swing(pm, p_e, x[1], coef[P_D, c], coef[P_INV_2H, c])
-    out[2] = _field_d(vf, x[2], i_d, coef[P_XD_DIFF, c], None, coef[P_INV_TD0, c])
-    out[3] = _field_q(x[3], i_q, coef[P_XQ_DIFF, c], None, coef[P_INV_TQ0, c])
+    v_d, v_q = jitted.dq_of(vt, x[0] - th)
+    i_d, i_q = jitted.stator(x[2], x[3], v_d, v_q, None, coef[P_XDP, c], coef[P_XQP, c])
+    p_e = jitted.powers(v_d, v_q, i_d, i_q)[0]  # (13)
+    out[0] = jitted.rotor_angle(x[1], ws)
+    out[1] = jitted.swing(pm, p_e, x[1], coef[P_D, c], coef[P_INV_2H, c])
+    out[2] = jitted.field_d(vf, x[2], i_d, coef[P_XD_DIFF, c], None, coef[P_INV_TD0, c])
+    out[3] = jitted.field_q(x[3], i_q, coef[P_XQ_DIFF, c], None, coef[P_INV_TQ0, c])
 
 
 def _compiled_paper_step(sources: str) -> Any:
@@ -551,4 +612,4 @@ def _compiled_paper_step(sources: str) -> Any:
     return paper_steps
 
 
-_paper_rk4 = _compiled_paper_step(_sources_digest())
+_paper_rk4 = _compiled_paper_step(_digest(_equation_files()))

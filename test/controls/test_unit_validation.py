@@ -181,7 +181,8 @@ def test_a_record_s_saturation_and_dampers_are_played_as_written(tmp_path: Path)
     from phid_ros.export.dyr_read import read_unit
     from phid_ros.ident.scenario import scenario_from_simulation
     from phid_ros.model.parameters import TABLE1
-    from phid_ros.sim.effects import MagneticSaturation, SubtransientDynamics
+    from phid_ros.sim.effects.magnetic_saturation import MagneticSaturation
+    from phid_ros.sim.effects.subtransient_dynamics import SubtransientDynamics
     from phid_ros.sim.runner import SimulationConfig, simulate_scenarios
     from phid_ros.sim.scenarios import find_scenario, with_duration
 

@@ -10,7 +10,7 @@ import pytest
 from phid_ros.cli.main import main
 from phid_ros.ident.characteristics import characterise
 from phid_ros.io.field.test_sheet import SheetError, load_test_sheet
-from phid_ros.sim.effects import saturation_curve, saturation_factor
+from phid_ros.sim.effects.magnetic_saturation import saturation_curve, saturation_factor
 
 I_FG, X_DU, S10, S12 = 0.8, 1.1, 0.1, 0.4
 

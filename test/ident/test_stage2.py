@@ -46,7 +46,7 @@ def test_steady_states_off_the_origin_flag_x_d(tmp_path) -> None:
     """Saturation bends the steady states off the line through the origin: X_d is then not identified
     (it came out +12 % 'identified' on the saturation bag, +14 % on ANDES's saturated GENROU)."""
     from phid_ros.ident.pipeline import IdentifyOptions, identify
-    from phid_ros.sim.effects import MagneticSaturation
+    from phid_ros.sim.effects.magnetic_saturation import MagneticSaturation
     from phid_ros.sim.recording import simulate_recording
     from phid_ros.sim.runner import SimulationConfig
     from phid_ros.sim.scenarios import paper_catalogue, with_duration

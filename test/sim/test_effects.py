@@ -6,7 +6,9 @@ import numpy as np
 import pytest
 
 from phid_ros.errors import SimulationError
-from phid_ros.sim.effects import REGISTRY, MagneticSaturation, StatorResistance, parse_effect
+from phid_ros.sim.effects import REGISTRY, parse_effect
+from phid_ros.sim.effects.magnetic_saturation import MagneticSaturation
+from phid_ros.sim.effects.stator_resistance import StatorResistance
 from phid_ros.sim.plant import OperatingPoint
 from phid_ros.sim.runner import SimulationConfig, build_inputs, simulate_scenarios
 from phid_ros.sim.scenarios import Scenario, find_scenario
@@ -137,7 +139,8 @@ def test_shaft_torsion_adds_its_mode_to_the_measured_speed():
 def test_truth_names_the_leakage_reactance_in_force():
     # Unset, X_l follows the planning rule min(0.15, 0.8 X''); the truth file must carry that
     # number (a "null" would leave a reader to guess which X_l the simulated machine had).
-    from phid_ros.sim.effects import SubtransientDynamics, effects_summary
+    from phid_ros.sim.effects import effects_summary
+    from phid_ros.sim.effects.subtransient_dynamics import SubtransientDynamics
 
     unset = SubtransientDynamics(x_dpp=0.16, x_qpp=0.2)
     assert effects_summary([unset])[0]["x_l"] == pytest.approx(0.128)

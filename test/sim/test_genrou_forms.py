@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from phid_ros.model.parameters import GeneratorParameters
-from phid_ros.sim.effects import REGISTRY, saturation_curve, saturation_factor
+from phid_ros.sim.effects import REGISTRY
+from phid_ros.sim.effects.magnetic_saturation import saturation_curve, saturation_factor
 from phid_ros.sim.plant import OperatingPoint, Plant
 from phid_ros.sim.runner import SimulationConfig, simulate_scenarios
 from phid_ros.sim.scenarios import paper_catalogue, with_duration

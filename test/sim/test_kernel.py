@@ -133,9 +133,88 @@ def test_columns_split_over_threads_give_the_same_bits(windows, monkeypatch):
             np.testing.assert_array_equal(a.sim[c], b.sim[c])
 
 
+CORE_LOSS = '''"""A test's effect: an extra loss on the d-axis field, k E'_q (one module, nothing else)."""
+
+from phid_ros.sim.effects.base import Compiled, EffectParameter, PlantEffect, register
+
+
+def compiled_losses(x, out, coef, c, r, at, psi_d, psi_q, i_d, i_q):
+    return coef[r, c] * x[2], 0.0
+
+
+@register
+class CoreLoss(PlantEffect):
+    name = "core_loss_for_test"
+    parameters = (EffectParameter("k", 0.02, "pu", "loss per unit of E'_q", 0.0, 0.1, absent=0.0),)
+    compiled = Compiled(rows=("k",), losses=compiled_losses)
+
+    def transient_losses(self, states, ctx, params):
+        return self["k"] * ctx.e_q, 0.0
+
+    def kernel_terms(self, plant):
+        return {"k": self["k"]}
+'''
+
+
+def test_a_compiled_effect_is_one_module(windows, tmp_path, monkeypatch):
+    """The kernel is built from the registry: an effect with compiled equations, written as one
+    module and imported, is compiled into the play-in without an edit of the kernel, and its
+    compiled play-in equals the numpy plant's; until the kernel is built again, the numpy plant
+    runs it (never a kernel without its terms)."""
+    import importlib
+    import sys
+
+    (tmp_path / "core_loss_for_test.py").write_text(CORE_LOSS)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    module = importlib.import_module("core_loss_for_test")
+    base = {k: spread(v, 0.1) for k, v in TABLE1.as_dict().items()}
+    effects = [
+        (module.CoreLoss, {"k": spread(0.03)}),
+        (REGISTRY["magnetic_saturation"], VALUES["magnetic_saturation"]()),
+    ]
+    try:
+        assert kernel.integrate.__module__ == "phid_ros.sim.kernel"
+        assert module.CoreLoss not in kernel.PART_OF  # registered after the kernel was built
+        before = kernel._terms
+        calls = []
+        monkeypatch.setattr(kernel, "_terms", lambda *a: calls.append(out := before(*a)) or out)
+        play_in(windows, base, effects, m=M)
+        assert calls and all(c is None for c in calls)  # the numpy plant ran it
+        monkeypatch.undo()
+        monkeypatch.syspath_prepend(str(tmp_path))
+        importlib.reload(kernel)  # built again: the registry now holds the new effect
+        assert module.CoreLoss in kernel.PART_OF
+        assert kernel.PARTS[-1][0] is module.CoreLoss  # after the registered ones: its rows follow theirs
+        compiled = play_in(windows, base, effects, m=M)
+        monkeypatch.setenv("PHID_NO_JIT", "1")
+        reference = play_in(windows, base, effects, m=M)
+        plain = play_in(windows, base, effects[1:], m=M)
+        for a, b, c in zip(compiled, reference, plain):
+            for name in OUTPUTS:
+                scale = max(1.0, float(np.max(np.abs(b.sim[name]))))
+                assert np.max(np.abs(a.sim[name] - b.sim[name])) <= 1e-10 * scale, name
+            assert np.max(np.abs(a.sim["i_d"] - c.sim["i_d"])) > 1e-4  # the loss acted
+    finally:
+        del REGISTRY["core_loss_for_test"]
+        sys.modules.pop("core_loss_for_test", None)
+        importlib.reload(kernel)
+    assert not any(cls.name == "core_loss_for_test" for cls, _ in kernel.PARTS)
+
+
+def test_the_kernel_names_no_effect():
+    """Nothing of an effect is written in the kernel: its rows, flags and branches come from the registry."""
+    import inspect
+
+    text = inspect.getsource(kernel)
+    for name, cls in REGISTRY.items():
+        assert name not in text and cls.__name__ not in text, name
+        for row in cls.compiled.rows if cls.compiled else ():
+            assert f'"{row}"' not in text, row
+
+
 def test_the_compiled_step_is_cached_under_the_text_of_the_equations_it_compiles():
     # numba's cache looks only at the file of the function it caches; the step compiles the
-    # equations of model/ and sim/effects.py, so their text is part of its cache key
+    # equations of model/ and of every compiled effect's module, so their text is part of its cache key
     cells = [c.cell_contents for c in kernel._rk4_outputs.py_func.__closure__]
     assert kernel._sources_digest() in cells
 
