@@ -155,6 +155,13 @@ def print_summary(
         for e in outputs.events
     ]
     print_table(console, f"events found ({len(outputs.events)}); t from the start of the recording", cols, rows)
+    for lost, back in pipeline.detector.lost_measurements:
+        until = f"back at {(back - start) / NS:.1f} s" if back is not None else "not back by the end"
+        console.print(
+            f"V_t measurement lost at no load at {(lost - start) / NS:.1f} s, {until}: no event taken from it "
+            "(an open-circuit voltage cannot fall within 20 ms)",
+            highlight=False,
+        )
     for r in outputs.recalibrations:
         console.print(
             f"recalibration at {(r.stream_time_ns - start) / NS:.1f} s with {len(r.event_ids)} events: "

@@ -27,14 +27,16 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
+from phid_ros.model.bounds import Bounded
 from phid_ros.numerics import first_order_coefficients, first_order_response
 
 Array = NDArray[np.float64]
 
 
 @dataclass(frozen=True)
-class ControlParameter:
-    """One constant of a control model's PSS/E record."""
+class ControlParameter(Bounded):
+    """One constant of a control model's PSS/E record; ``low``..``high`` is the fit's search range
+    (the shared range check, :class:`~phid_ros.model.bounds.Bounded`)."""
 
     name: str  # PSS/E's
     unit: str
@@ -46,10 +48,6 @@ class ControlParameter:
     absent: float | None = None  # the value at which its term vanishes (a turbine damping of 0)
     within: str | None = None  # the constant whose term this one belongs to: moot where that one is absent
     held: bool = False  # not fitted: the model's structure holds it at its default (a stage left out)
-
-    def outside(self, value: float) -> bool:
-        """Outside the fit's search range."""
-        return not self.low <= value <= self.high
 
     def record_problem(self, value: float) -> str | None:
         """What makes a record's value one the simulation cannot take, or None. Not the fit's

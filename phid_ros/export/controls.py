@@ -88,10 +88,10 @@ def build_control_records(
             if p.limit or v is None:
                 values[p.name], sources[p.name] = p.default, "default (a limit the recordings never reached)"
                 continue
-            if not isinstance(v, (int, float)) or not math.isfinite(float(v)) or p.outside(float(v)):
-                raise ControlExportError(
-                    f"{source}: controls.{kind}.{p.name} = {v!r}: not in {p.low}..{p.high} {p.unit}"
-                )
+            if not isinstance(v, (int, float)) or not math.isfinite(float(v)):
+                raise ControlExportError(f"{source}: controls.{kind}.{p.name} = {v!r}: not a number")
+            if (problem := p.outside(float(v))) is not None:
+                raise ControlExportError(f"{source}: controls.{kind}.{problem} (the fit's search range)")
             values[p.name] = float(v)
             if ident.get(p.name):
                 sources[p.name] = "identified"

@@ -54,7 +54,7 @@ def events_of_file(
     """The file's events, each with its own window (empty when the signals show none). At no
     load a fall of V_t is a de-excitation (a field step) or a lost measurement, never a fault."""
     n = len(signals["v_t"])
-    no_load = bool(np.median(current_of(signals)) < NO_LOAD_CURRENT)
+    no_load = at_no_load(signals)
     found = find_events(signals, dt, quiet_s=QUIET_S, thresholds=thresholds)
     # a fault and a step found on its recovery are one event: keep the first of each quiet span
     events: list[tuple[str, int, int | None]] = []
@@ -76,9 +76,7 @@ def events_of_file(
         if (end - start) * dt < MIN_WINDOW_S or k - start < 2:
             continue
         # the measurement's return is an event of the measurement too
-        lost = (lost_until >= 0 and k <= lost_until + quiet) or (
-            no_load and kind == "fault" and _fell_at_once(v, k, dt)
-        )
+        lost = (lost_until >= 0 and k <= lost_until + quiet) or (no_load and kind == "fault" and fell_at_once(v, k, dt))
         if lost and k >= lost_until:  # lost until the measurement comes back
             before = float(np.median(v[max(0, k - int(round(1.0 / dt))) : k]))
             back = np.flatnonzero(v[k:] >= 0.8 * before)
@@ -87,6 +85,11 @@ def events_of_file(
             kind = "field_step"
         out.append(FileEvent(kind, start, k, end, (k_end + end) // 2, lost))
     return out
+
+
+def at_no_load(signals: Mapping[str, Array]) -> bool:
+    """The stator current is below the no-load threshold over the signals (the breaker open)."""
+    return bool(np.median(current_of(signals)) < NO_LOAD_CURRENT)
 
 
 def _moves_terminal(signals: Mapping[str, Array], k: int, dt: float) -> bool:
@@ -111,8 +114,9 @@ def _last_end(e: tuple[str, int, int | None]) -> int:
     return e[2] if e[2] is not None else e[1]
 
 
-def _fell_at_once(v: Array, k: int, dt: float) -> bool:
-    """V_t lost half its pre-event value within LOST_MEASUREMENT_S of the event."""
+def fell_at_once(v: Array, k: int, dt: float) -> bool:
+    """V_t lost half its pre-event value within LOST_MEASUREMENT_S of the event: at no load, a
+    measurement lost (an open-circuit machine's voltage follows its field flux, never that fast)."""
     span = max(1, int(round(1.0 / dt)))
     before = float(np.median(v[max(0, k - span) : k])) if k > 0 else float(v[0])
     m = max(1, int(round(LOST_MEASUREMENT_S / dt)))

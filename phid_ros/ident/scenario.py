@@ -28,6 +28,10 @@ Array = NDArray[np.float64]
 KINDS = ("torque_step", "voltage_step", "fault", "field_step")
 
 FAULT_VOLTAGE_RATIO = 0.3  # paper, section 3.2.2: V_t < 0.3 V_pf
+# a fault is the collapse of a running machine's terminal voltage: below half its rating there
+# is none to collapse (a de-excited machine, a voltage measurement lost), and the noise about
+# zero crosses any ratio of it (the Mostar day: 100 "faults" after a VT was lost at no load)
+MIN_PREFAULT_VOLTAGE = 0.5
 MIN_TORQUE_STEP = 0.02  # pu of P_m
 MIN_VOLTAGE_STEP = 0.02  # pu of V_t
 MIN_FIELD_STEP = 0.02  # pu of V_f (about 1 % of a loaded machine's field voltage)
@@ -427,7 +431,8 @@ def find_events(
 ) -> list[tuple[str, int, int | None]]:
     """Disturbances in a continuous recording: (kind, event sample, clearing sample or None).
 
-    Faults first (V_t below 0.3 of its mean over the preceding second), then
+    Faults first (V_t below 0.3 of its mean over the preceding second, that mean at least
+    MIN_PREFAULT_VOLTAGE), then
     steps in P_m, then steps in V_t; a lower-priority detection within
     ``quiet_s`` of another event is the same disturbance seen in another signal.
     """
@@ -441,7 +446,7 @@ def find_events(
     v_pf[head:] = (c[head:n] - c[: n - head]) / span_pf
     v_pf[0] = v[0]
     events: list[tuple[str, int, int | None]] = []
-    below = v < FAULT_VOLTAGE_RATIO * v_pf
+    below = (v < FAULT_VOLTAGE_RATIO * v_pf) & (v_pf >= MIN_PREFAULT_VOLTAGE)
     below[:span_pf] = False
     edges = np.diff(below.astype(np.int8), prepend=0)
     starts = np.flatnonzero(edges == 1)

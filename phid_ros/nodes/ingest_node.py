@@ -40,7 +40,10 @@ class IngestNode(Node):
     def process(self) -> None:
         # the input ended: the windows still open are cut with what came (as phid replay does at
         # a recording's end), so an event in its last seconds is published, not held forever
+        lost_before = len(self.pipeline.detector.lost_measurements)
         out = self.pipeline.process(final=self.input.ended(self.values["end_of_data_s"]))
+        for at, _ in self.pipeline.detector.lost_measurements[lost_before:]:
+            self.get_logger().warning(f"V_t measurement lost at no load at stamp {at} ns: no event taken from it")
         done = emit(self.types, out, self.publishers_by_key, common.float_seq, list)
         for p in done:
             self.publishers_by_key[p.key].publish(p.message)

@@ -12,6 +12,12 @@ its end, so the next event is known when the end is decided.
 
 ``phid identify`` and ``phid diagnose`` cut a recording without scenario markers through
 this detector too (:func:`phid_ros.stream.replay.event_windows`): one rule for windows.
+
+At no load (the breaker open) a fall of V_t is no fault, as a test file's events are read
+(:mod:`phid_ros.ident.file_events`): one within 20 ms is the voltage measurement lost (a VT
+fuse), and nothing is detected until V_t is back at 0.8 of its value before (on the Mostar
+day's two such files, V_t at zero with noise made 100 "faults"); a slower one is the field
+taken away, a field step.
 """
 
 from __future__ import annotations
@@ -22,6 +28,7 @@ from datetime import datetime, timezone
 import numpy as np
 from numpy.typing import NDArray
 
+from phid_ros.ident.file_events import QUIET_S, at_no_load, fell_at_once
 from phid_ros.ident.scenario import DEFAULT_THRESHOLDS, StepThresholds, find_events
 from phid_ros.model.channels import CHANNEL_INDEX, CHANNELS, Frame
 from phid_ros.model.conventions import NS, split_stamp
@@ -105,12 +112,18 @@ class Detector:
     _frontier_ns: int | None = None
     _segment: int = 0
     _pending: list[Event] = field(default_factory=list)
+    # the voltage measurement lost at no load: V_t before it, and (once back) until when the
+    # events are the measurement's, not the machine's (None: not lost)
+    _lost_level: float | None = None
+    _lost_until_ns: int | None = None
+    lost_measurements: list[tuple[int, int | None]] = field(default_factory=list)  # (lost at, back at), for the record
 
     def reset(self, segment: int) -> None:
         """A new segment (clock jump): nothing before it can be part of a window after it."""
         self._frontier_ns = None
         self._segment = segment
         self._pending = [e for e in self._pending if e.segment == segment]
+        self._lost_level = self._lost_until_ns = None
 
     def update(self, *, force: bool = False) -> tuple[list[Event], list[EventWindow]]:
         """New events since the last call, and windows whose post-event time has passed.
@@ -131,12 +144,20 @@ class Detector:
         if decided > self._frontier_ns and decided >= due:
             t, x = self.ring.window(self._frontier_ns - int(s.context_s * NS), latest)
             if len(t) > 10:
-                # the batch detector reads V_t and P_m only
-                signals = {c: forward_filled(x[:, CHANNEL_INDEX[c]]) for c in ("v_t", "p_m")}
+                # the batch detector reads V_t and P_m; P and Q say whether the breaker is open
+                signals = {c: forward_filled(x[:, CHANNEL_INDEX[c]]) for c in ("v_t", "p_m", "p_e", "q_e")}
+                no_load = at_no_load(signals)
                 for kind, k, k_cl in find_events(signals, self.period_ns / NS, thresholds=s.thresholds):
-                    if not self._frontier_ns <= t[k] < decided:
+                    if not self._frontier_ns <= t[k] < decided or self._measurement_lost(t, signals["v_t"], k):
                         continue
+                    if no_load and kind == "fault":
+                        if fell_at_once(signals["v_t"], k, self.period_ns / NS):
+                            self._lose_measurement(t, signals["v_t"], k)
+                            continue
+                        kind = "field_step"  # a de-excitation: the field taken away
                     new.append(self._event(kind, t, signals, k, k_cl))
+                if self._lost_level is not None and self._lost_until_ns is None:
+                    self._measurement_back(t, signals["v_t"], decided)
             self._frontier_ns = decided
         self._pending.extend(new)
         windows = []
@@ -149,6 +170,38 @@ class Detector:
                 still.append(ev)
         self._pending = still
         return new, windows
+
+    def _lose_measurement(self, t: NDArray[np.int64], v: NDArray[np.float64], k: int) -> None:
+        span = max(1, int(NS / self.period_ns))
+        self._lost_level = float(np.median(v[max(0, k - span) : k])) if k > 0 else float(v[0])
+        self._lost_until_ns = None
+        self.lost_measurements.append((int(t[k]), None))
+        self._measurement_back(t, v, int(t[-1]) + 1)
+
+    def _measurement_back(self, t: NDArray[np.int64], v: NDArray[np.float64], decided: int) -> None:
+        """Whether V_t came back (0.8 of its level before the loss) after the loss and before
+        ``decided``: then the events of the next QUIET_S (the return's own step) are still the
+        measurement's."""
+        assert self._lost_level is not None
+        lost_at, _ = self.lost_measurements[-1]
+        back = np.flatnonzero((v >= 0.8 * self._lost_level) & (t > lost_at) & (t < decided))
+        if back.size:
+            at = int(t[int(back[0])])
+            self._lost_until_ns = at + int(QUIET_S * NS)
+            self.lost_measurements[-1] = (lost_at, at)
+
+    def _measurement_lost(self, t: NDArray[np.int64], v: NDArray[np.float64], k: int) -> bool:
+        """An event while the measurement is lost, or on its return: none of the machine's."""
+        if self._lost_level is None:
+            return False
+        if self._lost_until_ns is None:
+            self._measurement_back(t, v, int(t[k]) + 1)
+            if self._lost_until_ns is None:
+                return True
+        if int(t[k]) <= self._lost_until_ns:
+            return True
+        self._lost_level = self._lost_until_ns = None  # back, and quiet since
+        return False
 
     def flush(self) -> tuple[list[Event], list[EventWindow]]:
         """End of input: detect what can still be decided, and cut every waiting window as it is.

@@ -197,7 +197,7 @@ def _marked_scenarios(
         whole_kind: str | None = m.kind
         if not m.event_ns:
             pieces, whole_kind = _file_events(m, frame.rows(a, b), thresholds, source, problems)
-        if whole_kind is None:  # the file's one event is a lost measurement
+        if whole_kind is None:  # its one event, or every one, is a lost measurement
             continue
         try:
             if not pieces:
@@ -270,6 +270,8 @@ def _file_events(
         f"{source}: {m.name} holds {len(events)} events, each its own scenario: "
         + "; ".join(e.describe(dt) for e in events)
     )
+    if not kept:  # every event the measurement's: nothing of the machine (whole, it read as a fault)
+        return [], None
     return kept, m.kind
 
 

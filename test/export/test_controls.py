@@ -40,7 +40,10 @@ def test_nothing_named_nothing_written_and_bad_controls_are_one_line_errors() ->
         build_control_records(result(unknown), "r.json")
     out_of_range = copy.deepcopy(CONTROLS)
     out_of_range["governor"]["parameters"]["R"] = 5.0
-    with pytest.raises(ControlExportError, match=r"controls\.governor\.R = 5\.0: not in 0\.01\.\.0\.5 pu"):
+    with pytest.raises(ControlExportError, match=r"controls\.governor\.R=5 pu outside \[0\.01, 0\.5\] \(the fit's"):
+        build_control_records(result(out_of_range), "r.json")
+    out_of_range["governor"]["parameters"]["R"] = "high"
+    with pytest.raises(ControlExportError, match=r"controls\.governor\.R = 'high': not a number"):
         build_control_records(result(out_of_range), "r.json")
     # a fitted constant the data did not determine is refused, as a machine parameter is
     loose = copy.deepcopy(CONTROLS)

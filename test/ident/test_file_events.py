@@ -9,7 +9,7 @@ import pytest
 
 from phid_ros.ident.file_events import events_of_file
 from phid_ros.ident.open_circuit import OpenCircuitError, open_circuit, saturation_seen
-from phid_ros.ident.scenario import make_scenario
+from phid_ros.ident.scenario import DEFAULT_THRESHOLDS, make_scenario
 from phid_ros.model.channels import CHANNELS, Frame
 
 DT = 0.0048  # a trend log's 208 reports/s
@@ -152,3 +152,20 @@ def test_a_voltage_step_from_the_field_is_told_from_one_of_the_network() -> None
     )
     s = make_scenario("AVR step", Frame.of_columns(sig, int(round(DT * 1e9))), kind="voltage_step", k_event=k)
     assert s.kind == "field_step" and any("Q moved with V_t" in note for note in s.notes)
+
+
+def test_a_file_whose_every_event_is_the_measurement_s_is_no_scenario() -> None:
+    """A VT-loss test at no load holds two events, the loss and the return, both the measurement's:
+    the file is left out whole, by name. It was taken whole as the one scenario its label said, a
+    fault (the Mostar day's AVR_RR_PH_Ispad_Q141, once the noise about zero made no more events)."""
+    from phid_ros.io.recording import ScenarioInfo
+    from phid_ros.stream.scenarios import _file_events
+
+    sig = no_load_file([], 30.0)
+    k, back = int(10.0 / DT), int(16.0 / DT)
+    sig["v_t"][k:back] = np.abs(np.random.default_rng(3).normal(0, 0.003, back - k))
+    frame = Frame.of_columns(sig, int(round(DT * 1e9)))
+    problems: list[str] = []
+    pieces, kind = _file_events(ScenarioInfo("Ispad", kind="fault"), frame, DEFAULT_THRESHOLDS, "day.mcap", problems)
+    assert (pieces, kind) == ([], None)
+    assert sum("measurement lost" in p for p in problems) == 2  # the loss and the return, each named
