@@ -65,7 +65,7 @@ def events_of_file(
         if end_of_last is not None and e[1] - end_of_last < quiet:
             continue
         events.append(e)
-    events = [e for e in events if _moves_terminal(signals, e[1], dt)]
+    events = [e for e in events if moves_terminal(signals, e[1], dt)]
     out: list[FileEvent] = []
     v = np.asarray(signals["v_t"], float)
     lost_until = -1
@@ -92,7 +92,7 @@ def at_no_load(signals: Mapping[str, Array]) -> bool:
     return bool(np.median(current_of(signals)) < NO_LOAD_CURRENT)
 
 
-def _moves_terminal(signals: Mapping[str, Array], k: int, dt: float) -> bool:
+def moves_terminal(signals: Mapping[str, Array], k: int, dt: float) -> bool:
     """Whether V_t, Q or P moved at the event by more than their noise allows (a field channel's
     ripple, a static exciter's, can pass the step threshold with nothing happening to the machine)."""
     span = max(5, int(round(0.5 / dt)))

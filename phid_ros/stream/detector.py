@@ -1,14 +1,16 @@
 """Streaming disturbance detection and event windows.
 
 Detection runs the batch detector of :mod:`phid_ros.ident.scenario` (fault:
-V_t < 0.3 V_pf; steps in P_m; sustained steps in V_t) on a sliding analysis
+V_t < 0.3 V_pf; steps in P_m and in V_f, the latter only where V_t, Q or P moved with it;
+sustained steps in V_t) on a sliding analysis
 window, so the online pipeline and ``phid identify`` on a markerless bag find the
 same events at the same samples. An event is accepted once ``settle_s`` of data
 follows it (enough to see a fault clear and a step settle). Its window runs from
 ``pre_s`` before it to ``post_s`` after it, or to the start of the next event's window
 when that comes first (a second disturbance inside a window would break the single-
-event fits of every stage), and is cut from the ring buffer once detection has passed
-its end, so the next event is known when the end is decided.
+event fits of every stage), or to where the recording paused (a day's test files one after
+the other), and is cut from the ring buffer once detection has passed its end, so the next
+event is known when the end is decided.
 
 ``phid identify`` and ``phid diagnose`` cut a recording without scenario markers through
 this detector too (:func:`phid_ros.stream.replay.event_windows`): one rule for windows.
@@ -28,7 +30,7 @@ from datetime import datetime, timezone
 import numpy as np
 from numpy.typing import NDArray
 
-from phid_ros.ident.file_events import QUIET_S, at_no_load, fell_at_once
+from phid_ros.ident.file_events import QUIET_S, at_no_load, fell_at_once, moves_terminal
 from phid_ros.ident.scenario import DEFAULT_THRESHOLDS, StepThresholds, find_events
 from phid_ros.model.channels import CHANNEL_INDEX, CHANNELS, Frame
 from phid_ros.model.conventions import NS, split_stamp
@@ -145,13 +147,17 @@ class Detector:
             t, x = self.ring.window(self._frontier_ns - int(s.context_s * NS), latest)
             if len(t) > 10:
                 # the batch detector reads V_t and P_m; P and Q say whether the breaker is open
-                signals = {c: forward_filled(x[:, CHANNEL_INDEX[c]]) for c in ("v_t", "p_m", "p_e", "q_e")}
+                # (V_f too: an AVR reference step or a manual field step moves V_t by 1 % only)
+                signals = {c: forward_filled(x[:, CHANNEL_INDEX[c]]) for c in ("v_t", "p_m", "p_e", "q_e", "v_f")}
                 no_load = at_no_load(signals)
-                for kind, k, k_cl in find_events(signals, self.period_ns / NS, thresholds=s.thresholds):
+                dt = self.period_ns / NS
+                for kind, k, k_cl in find_events(signals, dt, thresholds=s.thresholds):
                     if not self._frontier_ns <= t[k] < decided or self._measurement_lost(t, signals["v_t"], k):
                         continue
+                    if kind == "field_step" and not moves_terminal(signals, k, dt):
+                        continue  # a static exciter's ripple: the field channel moved, the machine did not
                     if no_load and kind == "fault":
-                        if fell_at_once(signals["v_t"], k, self.period_ns / NS):
+                        if fell_at_once(signals["v_t"], k, dt):
                             self._lose_measurement(t, signals["v_t"], k)
                             continue
                         kind = "field_step"  # a de-excitation: the field taken away
@@ -265,6 +271,9 @@ class Detector:
         elif len(t) < expected:
             w.usable, w.reason = False, f"window has {len(t)} of {expected} samples (ring buffer too short or gap)"
         judged = [i for i, c in enumerate(CHANNELS) if c not in s.not_recorded]
+        if w.usable and len(x):
+            w = self._paused_trimmed(w, judged)
+        x = w.values
         if w.usable and not np.isfinite(x[:, judged]).all():
             finite = np.isfinite(x)
             dead = [c for i, c in enumerate(CHANNELS) if len(x) and not finite[:, i].any() and i in judged]
@@ -273,6 +282,38 @@ class Detector:
             why += [f"{gappy} have gaps"] if gappy else []
             w.usable, w.reason = False, "stale data in the window: " + "; ".join(why)
         return w
+
+    def _paused_trimmed(self, w: EventWindow, judged: list[int]) -> EventWindow:
+        """The window between the recording's pauses around its event (rows where every channel
+        judged is missing: a commissioning day's files one after the other, minutes apart, the
+        next file another test); shortened as a window the data's end cuts, usable when the
+        event keeps half its pre-event time and ``settle_s`` after it. A gap in which some
+        channels go on is a gap, and the window stays stale."""
+        recorded: NDArray[np.bool_] = np.asarray(np.isfinite(w.values[:, judged]).any(axis=1))
+        n = len(w.t_ns)
+        if recorded.all() or not recorded.any():
+            return w
+        k = int(np.searchsorted(w.t_ns, w.event.inception_ns))
+        paused = np.flatnonzero(~recorded)
+        before, after = paused[paused < k], paused[paused >= k]
+        first = int(before[-1]) + 1 if before.size else 0
+        last = int(after[0]) - 1 if after.size else n - 1
+        if first == 0 and last == n - 1:
+            return w
+        s, ev = self.settings, w.event
+        t0, t1 = int(w.t_ns[first]), int(w.t_ns[max(first, last)])
+        rows = slice(first, last + 1)
+        out = EventWindow(t_ns=w.t_ns[rows].copy(), values=w.values[rows].copy(), period_ns=w.period_ns, event=ev)
+        why = []
+        if first:
+            why.append(f"the recording resumed {(t0 - int(w.t_ns[0])) / NS:.1f} s into the window")
+        if last < n - 1:
+            why.append(f"paused {(int(w.t_ns[-1]) - t1) / NS:.1f} s before its end")
+        out.reason = "; ".join(why)
+        if ev.inception_ns - t0 < int(0.5 * s.pre_s * NS) or t1 - ev.inception_ns < int(s.settle_s * NS):
+            out.usable = False
+            out.reason += ": too little of the window left around the event"
+        return out
 
 
 def grid_points(t0: int, t1: int, period_ns: int, anchor: int) -> int:
