@@ -376,6 +376,49 @@ def _add_characterise(sub: Subparsers) -> None:
     p.add_argument("--json", metavar="OUT", help="write the characteristics here")
 
 
+# every command's --help ends with examples to copy and the guide that explains them
+EXAMPLES: dict[str, tuple[tuple[str, ...], str]] = {
+    "simulate": (
+        (
+            "phid simulate --out my_catalogue",
+            "phid simulate --scenario S12 --effect magnetic_saturation=s10=0.08,s12=0.35 --out sat.mcap",
+        ),
+        "simulate.md",
+    ),
+    "import-csv": (("phid import-csv my_set/manifest.json --out my_set.mcap",), "field-recordings.md"),
+    "import-comtrade": (("phid import-comtrade fault.cfg --map unit.yaml --out fault.mcap",), "field-recordings.md"),
+    "import-pmu": (
+        ("phid import-pmu logs/*.csv --map map_noload.yaml --map map_online.yaml --out day.mcap",),
+        "field-recordings.md",
+    ),
+    "identify": (
+        (
+            "phid identify bags/catalogue --truth bags/catalogue.truth.json --report report.html",
+            "phid identify day.mcap --json result.json",
+        ),
+        "method.md",
+    ),
+    "diagnose": (("phid diagnose bags/saturation --report diagnose.html",), "diagnose.md"),
+    "replay": (("phid replay bags/catalogue --out replay_out.mcap --report replay.html",), "online.md"),
+    "track": (("phid track long.mcap --window 300 --hop 60 --report track.html",), "online.md"),
+    "fleet": (("phid fleet units/ --out fleet/ --workers 2",), "fleet.md"),
+    "history": (("phid history G1 --fleet fleet/ --report G1.html",), "fleet.md"),
+    "export": (("phid export result.json --format psse-dyr --model GENSAL --out unit.dyr",), "export.md"),
+    "validate": (("phid validate unit.dyr day.mcap --report mod026.html",), "export.md"),
+    "characterise": (("phid characterise lab.yaml --json lab.json",), "field-recordings.md"),
+    "info": (("phid info day.mcap",), "field-recordings.md"),
+}
+
+
+class _HelpFormatter(argparse.HelpFormatter):
+    """argparse's, except that the examples keep their lines (argparse would run them together)."""
+
+    def _fill_text(self, text: str, width: int, indent: str) -> str:
+        if text.startswith("examples:"):
+            return "".join(indent + line for line in text.splitlines(keepends=True))
+        return super()._fill_text(text, width, indent)
+
+
 def build_parser() -> Parser:
     parser = Parser(prog="phid", description="Port-Hamiltonian generator identification.")
     parser.add_argument("-V", "--version", action="version", version=f"phid_ros {__version__}")
@@ -400,6 +443,9 @@ def build_parser() -> Parser:
         add(sub)
     for name, p in sub.choices.items():
         p.set_defaults(func=command(name))
+        lines, guide = EXAMPLES[name]
+        p.formatter_class = _HelpFormatter
+        p.epilog = "examples:\n" + "".join(f"  {line}\n" for line in lines) + f"guide: docs/guide/{guide}"
         p.add_argument("--wide", action="store_true", help="print tables at full width (default: fit the terminal)")
     return parser
 
