@@ -188,7 +188,12 @@ def print_summary(
             CONCISE_LEGEND,
         )
     elif pipeline.parameters is None:
-        console.print("parameters in force at the end: none (not enough events for a recalibration)")
+        why = (
+            f"{len(outputs.recalibrations)} recalibration(s), none with a complete set: their reasons above"
+            if outputs.recalibrations
+            else "not enough events for a recalibration"
+        )
+        console.print(f"parameters in force at the end: none ({why})", highlight=False)
     if pipeline.recalibrator.last_good is not None and outputs.energy:
         e = outputs.energy[-1]
         n_energy = collector.counts.get(BAG_TOPICS["hamiltonian"][0], 0)

@@ -56,8 +56,11 @@ class PipelineSettings:
     not_recorded: frozenset[str] = frozenset()
 
     def __post_init__(self) -> None:
-        if self.not_recorded != self.detector.not_recorded:  # one declaration for the aligner and the detector
+        # one declaration for the aligner, the detector and the recalibration's policy
+        if self.not_recorded != self.detector.not_recorded:
             self.detector = dataclasses.replace(self.detector, not_recorded=frozenset(self.not_recorded))
+        if self.not_recorded != self.policy.not_recorded:
+            self.policy = dataclasses.replace(self.policy, not_recorded=frozenset(self.not_recorded))
         d = self.detector
         # a window is cut up to lag_s after its end, and detection looks context_s back
         needed = d.pre_s + d.post_s + max(d.context_s, d.lag_s)

@@ -24,6 +24,8 @@ from phid_ros.model.parameters import GeneratorParameters
 from phid_ros.stream.detector import EventWindow
 from phid_ros.stream.store import EventStore
 
+ROTOR_CHANNELS = frozenset({"omega", "delta"})  # what a swing is read from (the encoder's stream)
+
 
 @dataclass
 class RecalibrationPolicy:
@@ -35,10 +37,14 @@ class RecalibrationPolicy:
     max_relative_jump: float = 0.5  # a parameter moving more than this in one run is implausible ...
     jump_sigmas: float = 4.0  # ... if the move also exceeds this many combined standard deviations
 
+    # channels the recorder never carries: without the rotor's speed and angle no swing determines
+    # H and D (the routes say so), and a run is not held back waiting for a swing event
+    not_recorded: frozenset[str] = frozenset()
+
     def ready(self, counts: dict[str, int]) -> tuple[bool, str]:
         swings = counts.get("fault", 0) + counts.get("torque_step", 0)
         steps = counts.get("torque_step", 0) + counts.get("voltage_step", 0) + counts.get("field_step", 0)
-        if swings < self.min_swing_events:
+        if swings < self.min_swing_events and not ROTOR_CHANNELS <= self.not_recorded:
             return False, f"needs {self.min_swing_events} fault or torque-step event(s), has {swings}"
         if steps < self.min_step_events:
             return False, f"needs {self.min_step_events} torque- or voltage-step event(s), has {steps}"

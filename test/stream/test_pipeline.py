@@ -209,3 +209,20 @@ def test_a_recalibration_converts_each_stored_window_once(replayed, monkeypatch)
     s.derived(("probe",), lambda: 1)
     assert replace(s)._derived == {} and s.with_frame(s.frame)._derived == {}
     rec.shutdown()
+
+
+def test_a_recorder_without_the_rotor_does_not_wait_for_a_swing() -> None:
+    """The paper's stage 1 needs a swing (a fault or a torque step) read from the rotor's speed; a
+    trend log has no rotor channel, so H and D are not determinable from it and the recalibration
+    runs on its field steps, saying what it withholds (the Mostar day waited for ever: "not enough
+    events"). With the rotor recorded, the swing is still required."""
+    from phid_ros.stream.recalibration import RecalibrationPolicy
+
+    steps_only = {"field_step": 3}
+    full = PipelineSettings()
+    assert full.policy.ready(steps_only) == (False, "needs 1 fault or torque-step event(s), has 0")
+    trend_log = PipelineSettings(not_recorded=frozenset({"delta", "omega", "p_m", "i_d", "i_q"}))
+    assert trend_log.policy.ready(steps_only) == (True, "ready")
+    assert trend_log.detector.not_recorded == trend_log.policy.not_recorded  # one declaration
+    assert not trend_log.policy.ready({})[0]  # still a step to run on
+    assert not RecalibrationPolicy(not_recorded=frozenset({"omega"})).ready(steps_only)[0]  # the angle is there
