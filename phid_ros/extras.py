@@ -1,12 +1,12 @@
 """The optional parts of phid_ros, and the one error a missing one gives.
 
-``pip install phid_ros`` carries what ``phid simulate``, ``identify``, ``replay``, ``diagnose``
-and ``export`` need. The rest comes with an extra (setup.py's ``extras_require``):
+``pip install phid_ros`` carries what every command but ``phid fleet`` needs, numba and comtrade
+included. The rest comes with an extra (setup.py's ``extras_require``):
 
-- ``[jit]``: numba, the compiled play-in and filters; without it the numpy path gives the
-  same numbers, slower (``sim/kernel.py``).
-- ``[fleet]``: dask, distributed, bokeh and cloudpickle, for ``phid fleet`` and ``--scheduler``.
-- ``[field]``: comtrade, for ``phid import-comtrade``.
+- ``[fleet]``: dask, distributed, bokeh and cloudpickle, for ``phid fleet`` and ``--scheduler``;
+- ``[jit]`` (numba) and ``[field]`` (comtrade): in the core install now, kept for install lines
+  that name them. Where numba is missing anyway the numpy path gives the same numbers, slower
+  (``sim/kernel.py``); where comtrade is, ``phid import-comtrade`` stops with one line.
 
 A command that needs an extra that is not installed stops with one line naming it.
 """
