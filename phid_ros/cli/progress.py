@@ -74,6 +74,16 @@ class ProgressLine:
         if self._rich is not None:
             self._rich.stop()
 
+    def print_above(self, console: Any, *objects: Any, **kwargs: Any) -> None:
+        """``console.print(*objects, **kwargs)`` while the live line runs: on a terminal (stdout and
+        the live line on one screen) it is printed above the line, which is drawn again below it;
+        printed past the live display, a tracking row was lost from the screen altogether. Where
+        stdout is not a terminal (a pipe, a file), ``console`` prints as it would."""
+        if self._rich is not None and sys.__stdout__ is not None and sys.__stdout__.isatty():
+            self._rich.console.print(*objects, **kwargs)
+        else:
+            console.print(*objects, **kwargs)
+
     # -- plain lines -------------------------------------------------------------------------
     def _plain_loop(self) -> None:
         while not self._stop.wait(POLL_S):

@@ -156,9 +156,9 @@ def track_command(args: Any, console: Any) -> int:
             yield part
 
     def show(p: TrackPoint) -> None:
-        console.print(hop_line(start, p), highlight=False)
+        progress.print_above(console, hop_line(start, p), highlight=False)
         for a in p.alarms:
-            console.print(f"{'':>8}alarm: {a}", style="bold red", highlight=False, markup=False)
+            progress.print_above(console, f"{'':>8}alarm: {a}", style="bold red", highlight=False, markup=False)
         progress.update(f"tracking: {(p.t_ns - start) / NS:.0f} s, {100 * parts.fraction:.0f} % of the file")
 
     t0 = time.perf_counter()

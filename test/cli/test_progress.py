@@ -46,3 +46,34 @@ def test_identify_reports_each_stage_on_stderr_in_a_log(tmp_path, capsys, monkey
     shown = [s.split(":")[0] for s in steps if s.startswith("stage")]
     assert shown == ["stage 1", "stage 2", "stage 3"]
     assert "phid [" not in cap.out
+
+
+class _Terminal(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+def test_a_row_printed_during_the_live_line_stands_on_its_own_line(monkeypatch):
+    """phid track's rows on a terminal: printed past the live line they were glued to the
+    spinner's text and erased at its next redraw; printed above it they stay, each on its line.
+    Where stdout is no terminal (a pipe) they go to stdout as before."""
+    import sys
+
+    from rich.console import Console
+
+    screen = _Terminal()
+    monkeypatch.setattr(sys, "__stdout__", _Terminal())
+    results = io.StringIO()
+    console = Console(file=results, markup=False)
+    with ProgressLine("tracking", stream=screen, quiet_s=0) as p:
+        time.sleep(0.3)
+        p.print_above(console, "    300   3.473(11)", highlight=False)
+        time.sleep(0.3)
+    shown = screen.getvalue()
+    # the live line cleared first (the row not after the spinner's text), the row ended by its newline
+    assert "\x1b[2K    300   3.473(11)\n" in shown
+    assert results.getvalue() == ""
+    monkeypatch.setattr(sys, "__stdout__", io.StringIO())  # stdout a pipe: the row is a result
+    with ProgressLine("tracking", stream=_Terminal(), quiet_s=0) as p:
+        p.print_above(console, "    360   3.48(28)", highlight=False)
+    assert results.getvalue() == "    360   3.48(28)\n"
