@@ -13,6 +13,7 @@ One format for COMTRADE and PMU exports (YAML or JSON)::
       load_angle: {name: ROTOR, unit: deg}
       omega: {name: SPEED, unit: Hz}
       v_f: EFD                                          # per unit, or {name, unit: V, base: volts per pu}
+      # (or the terminal phasor as v_re, v_im: its real and imaginary parts, instead of v_t, theta_t)
       i_fd: {name: IFD, unit: A}                        # field current (stands in for E_fd in steady state)
       p_m: {name: PMECH, unit: MW}
     scenarios:                                          # optional, by recording file stem
@@ -50,6 +51,10 @@ QUANTITIES: dict[str, tuple[str, tuple[str, ...], str]] = {
     **{f"i_{p}": ("current", ("A", "kA"), "A") for p in "abc"},
     "v_t": ("voltage", ("V", "kV", "V_ll", "kV_ll", "pu"), "kV_ll"),  # RMS magnitude
     "theta_t": ("angle", ("deg", "rad"), "deg"),
+    # the terminal voltage phasor as its real and imaginary parts (a recorder's or a simulator's
+    # export in its own synchronous frame), instead of v_t and theta_t
+    "v_re": ("voltage", ("V", "kV", "V_ll", "kV_ll", "pu"), "kV_ll"),
+    "v_im": ("voltage", ("V", "kV", "V_ll", "kV_ll", "pu"), "kV_ll"),
     "i_t": ("current", ("A", "kA", "pu"), "A"),
     "phi_i": ("angle", ("deg", "rad"), "deg"),
     "p_e": ("power", ("W", "kW", "MW", "pu"), "MW"),
@@ -111,11 +116,22 @@ class ChannelMap:
         return self.has("i_a", "i_b", "i_c") or self.has("i_t", "phi_i") or self.has("p_e", "q_e")
 
     @property
+    def rectangular(self) -> bool:
+        """The terminal voltage phasor mapped as its real and imaginary parts."""
+        return self.has("v_re", "v_im")
+
+    @property
+    def has_terminal_angle(self) -> bool:
+        """The terminal voltage's angle is recorded (theta_t, or the phasor's two parts)."""
+        return self.has("theta_t") or self.rectangular
+
+    @property
     def open_circuit(self) -> bool:
         """A no-load test's map: the terminal voltage and the field, no stator quantity at all (the
         breaker is open: no recorder writes a stator current, and P = Q = I = 0)."""
         stator = ("i_a", "i_b", "i_c", "i_t", "phi_i", "p_e", "q_e")
-        return self.has("v_t") and not any(self.has(q) for q in stator) and any(self.has(q) for q in FIELD_QUANTITIES)
+        voltage = self.has("v_t") or self.rectangular
+        return voltage and not any(self.has(q) for q in stator) and any(self.has(q) for q in FIELD_QUANTITIES)
 
     def ratio(self, spec: ChannelSpec) -> float:
         """What turns the recorded value into a primary one (1 for primary values)."""
@@ -298,16 +314,23 @@ def require_complete(cmap: ChannelMap, source: str, available: list[str]) -> Non
     identification needs them; the rotor angle, speed, P_m and E_fd widen what it determines);
     else name what is missing and the recording's channels to choose from."""
     needs = []
-    if not (cmap.has("v_a", "v_b", "v_c") or cmap.has("v_t")):
-        needs.append("the terminal voltage (v_a, v_b, v_c waveforms, or v_t)")
+    parts = [q for q in ("v_re", "v_im") if cmap.has(q)]
+    if parts and (cmap.has("v_t") or cmap.has("theta_t") or len(parts) == 1):
+        mapped = ", ".join(q for q in ("v_t", "theta_t", *parts) if cmap.has(q))
+        raise ChannelMapError(
+            f"{cmap.path}: the terminal voltage is mapped as {mapped}: "
+            "map it once, as v_t (with theta_t) or as both parts of its phasor, v_re and v_im"
+        )
+    if not (cmap.has("v_a", "v_b", "v_c") or cmap.has("v_t") or cmap.rectangular):
+        needs.append("the terminal voltage (v_a, v_b, v_c waveforms, or v_t, or v_re and v_im)")
     if not (cmap.has_stator_current or cmap.open_circuit):
         needs.append(
             "the stator current (i_a, i_b, i_c waveforms, or i_t and phi_i, or p_e and q_e; "
             "a no-load test maps v_t and the field, v_f or i_fd, alone)"
         )
-    if cmap.has("i_t", "phi_i") and not cmap.has("theta_t"):
+    if cmap.has("i_t", "phi_i") and not cmap.has_terminal_angle:
         needs.append("theta_t (phi_i is an angle against the same reference)")
-    if cmap.has("delta") and not (cmap.has("theta_t") or cmap.has("v_a", "v_b", "v_c")):
+    if cmap.has("delta") and not (cmap.has_terminal_angle or cmap.has("v_a", "v_b", "v_c")):
         needs.append("theta_t (delta is an angle against the same reference; or map load_angle)")
     if needs:
         raise ChannelMapError(

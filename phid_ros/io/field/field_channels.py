@@ -191,6 +191,8 @@ def _block_phasor(
     value = _values_of(cmap, recorded, slice(s, e + n - 1), n)
     if cmap.has(*WAVEFORMS[:3]):
         return _three_phase(cmap, recorded, fs, n, plan, ("v_a", "v_b", "v_c"), source)[0], value
+    if cmap.rectangular:
+        return value("v_re") + 1j * value("v_im"), value
     v_mag = value("v_t")
     return (v_mag * np.exp(1j * value("theta_t")) if cmap.has("theta_t") else v_mag.astype(complex)), value
 
@@ -203,7 +205,7 @@ def _frequency_before(
     f0 = cmap.f_nominal_hz
     if cmap.has(*WAVEFORMS[:3]):
         return system_frequency(v1, fs, f0, n)
-    if not cmap.has("theta_t"):
+    if not cmap.has_terminal_angle:
         return f0
     m = min(len(t), max(int(0.5 * fs), 10))
     return f0 + float(np.polyfit(t[:m], np.unwrap(np.angle(v1[:m])), 1)[0]) / (2 * np.pi)

@@ -256,3 +256,37 @@ def test_a_no_load_test_imports_as_an_open_circuit_and_each_file_takes_the_map_i
     (tmp_path / "other.yaml").write_text(ON_LINE_MAP.replace("mva: 30", "mva: 40"))
     with pytest.raises(ChannelMapError, match="the maps of one set describe one unit"):
         import_pmu_csv([tmp_path / "noload.csv"], [maps[0], load_channel_map(tmp_path / "other.yaml")])
+
+
+def test_the_voltage_phasor_as_its_real_and_imaginary_parts_reads_as_magnitude_and_angle(export, tmp_path) -> None:
+    """A recorder (or another tool) that exports the terminal phasor as V_re, V_im (the Itaipu
+    record shipped with RaPId): v_re and v_im in the map give the channels the magnitude and angle
+    give, to rounding. Mapped beside v_t, or one part alone, the map is refused in one line."""
+    path, cmap, m = export
+    lines = path.read_text().splitlines()
+    header = lines[0].split(",")
+    k_mag, k_ang = header.index("GEN1:V1_MAG"), header.index("GEN1:V1_ANG")
+    rows = [line.split(",") for line in lines[1:]]
+    for r in rows:
+        v = float(r[k_mag]) * np.exp(1j * np.radians(float(r[k_ang])))
+        r[k_mag], r[k_ang] = repr(float(v.real)), repr(float(v.imag))
+    header[k_mag], header[k_ang] = "GEN1:V1_RE", "GEN1:V1_IM"
+    rect = tmp_path / "S09.csv"
+    rect.write_text("\n".join([",".join(header)] + [",".join(r) for r in rows]) + "\n")
+    text = MAP.replace(
+        '  v_t: {name: "GEN1:V1_MAG", unit: V}\n  theta_t: {name: "GEN1:V1_ANG", unit: deg}\n',
+        '  v_re: {name: "GEN1:V1_RE", unit: V}\n  v_im: {name: "GEN1:V1_IM", unit: V}\n',
+    )
+    (tmp_path / "rect.yaml").write_text(text)
+    want = import_pmu_csv([path], cmap)
+    got = import_pmu_csv([rect], load_channel_map(tmp_path / "rect.yaml"))
+    for name, s in want.streams.items():
+        for c, x in s.channels.items():
+            np.testing.assert_allclose(got.streams[name].channels[c], x, rtol=1e-9, atol=1e-9, err_msg=c)
+    both = text.replace("  v_re:", '  v_t: {name: "GEN1:V1_RE", unit: V}\n  v_re:')
+    (tmp_path / "both.yaml").write_text(both)
+    with pytest.raises(ChannelMapError, match=r"the terminal voltage is mapped as v_t, v_re, v_im: map it once"):
+        import_pmu_csv([rect], load_channel_map(tmp_path / "both.yaml"))
+    (tmp_path / "half.yaml").write_text(text.replace('  v_im: {name: "GEN1:V1_IM", unit: V}\n', ""))
+    with pytest.raises(ChannelMapError, match=r"mapped as v_re: map it once, as v_t \(with theta_t\) or as both"):
+        import_pmu_csv([rect], load_channel_map(tmp_path / "half.yaml"))
