@@ -24,6 +24,8 @@ EXTRAS: dict[str, tuple[str, ...]] = {
     "fleet": ("dask", "distributed", "bokeh", "cloudpickle"),
     "field": ("comtrade",),
 }
+# extras whose modules the core install brings too (kept for the install lines that name them)
+IN_CORE = frozenset({"jit", "field"})
 
 
 class MissingExtraError(PhidError):
