@@ -20,7 +20,7 @@ extras = {
     "fleet": ["dask>=2024.1", "distributed>=2024.1", "bokeh>=3.1", "cloudpickle>=3.0"],
     # COMTRADE (IEEE C37.111) reading for phid import-comtrade: a maintained parser, not ours
     "field": ["comtrade>=0.1"],
-    "docs": ["sphinx>=8.0", "myst-parser>=4.0", "sphinx-argparse>=0.5"],
+    "docs": ["sphinx>=8.0", "myst-parser>=4.0", "sphinx-argparse>=0.5", "furo>=2024.1"],
 }
 extras["all"] = sorted({r for k in ("jit", "fleet", "field") for r in extras[k]})
 # andes: the independent simulator the exported planning records are checked in

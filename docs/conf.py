@@ -32,15 +32,13 @@ myst_heading_anchors = 3
 exclude_patterns = ["_build", "make_screenshots.py", "reference_pages.py"]
 autodoc_typehints = "description"
 autodoc_member_order = "bysource"
-html_theme = "alabaster"
-# alabaster's 940-pixel page left a 660-pixel column that cut every code block (a channel map, a
-# usage line); the body takes the window's width instead
-html_theme_options = {
-    "description": "Port-Hamiltonian identification of synchronous generators",
-    "fixed_sidebar": True,
-    "page_width": "1200px",
-    "body_max_width": "none",
-}
+# furo: the content column takes the window (alabaster's fixed 660-pixel column cut every code
+# block: a channel map, a usage line), a code block scrolls rather than being cut, and the
+# navigation folds away on a narrow screen
+html_theme = "furo"
+html_title = f"phid_ros {release}"
+html_static_path = ["_static"]
+html_css_files = ["wide.css"]
 # no typographic quotes or dashes: "--fix" copied from the command reference must stay two hyphens
 smartquotes = False
 # The guides link to files of the repository (a test, a module, a config file) by path in

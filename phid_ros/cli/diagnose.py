@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import textwrap
 import time
 from typing import Any
 
@@ -119,7 +120,9 @@ def diagnose_command(args: Any, console: Console) -> int:
             DiagnoseOptions.after(res, f_nominal_hz=f_hz, workers=args.workers, scheduler=args.scheduler),
             progress=progress.update,
         )
-    d.problems[:0] = problems + [p for p in res.problems if "kept the label" not in p]
+    first_fit = [p for p in res.problems if "kept the label" not in p]
+    own = list(d.problems)
+    d.problems[:0] = problems + first_fit
     doc = to_json(d, truth, truth_effects)
     doc.update(result_provenance(args.input))
     if gap is not None:
@@ -148,5 +151,13 @@ def diagnose_command(args: Any, console: Console) -> int:
 
         write_report(out, d, doc, source)
 
+    if doc["effects"] and first_fit:
+        # what the fourth-order fit got wrong is what the named effects explain: said as that, not
+        # as warnings after the result, where they read as the diagnosis having failed
+        console.print("the first identification (column 'identified') showed the missing physics as:", highlight=False)
+        for p in first_fit:
+            item = textwrap.fill(p, width=console.width, initial_indent="  - ", subsequent_indent="    ")
+            console.print(item, highlight=False, markup=False, soft_wrap=True)
+        first_fit = []
     summary = f"diagnosed in {doc['seconds']:.1f} s (wall time)"
-    return finish(console, d.problems, summary, args.json, args.report, report)
+    return finish(console, problems + first_fit + own, summary, args.json, args.report, report)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import html
 import math
-from datetime import datetime
+from datetime import datetime, timedelta
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +20,14 @@ from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, SYMBOLS
 
 def _when(ns: int | None) -> datetime | None:
     return None if ns is None else utc_of_stamp(ns)
+
+
+def time_span(times: list[datetime]) -> tuple[datetime, datetime]:
+    """The time axis's limits: the recordings' span and a twentieth either side, at least an hour (one
+    recording alone spanned 2024-2028 by matplotlib's default date range)."""
+    first, last = min(times), max(times)
+    pad = max((last - first) / 20, timedelta(hours=1))
+    return first - pad, last + pad
 
 
 def _figure(rows: list[Row], flagged: list[Change]) -> str:
@@ -52,6 +60,9 @@ def _figure(rows: list[Row], flagged: list[Change]) -> str:
         ax.ticklabel_format(axis="y", useOffset=False)  # "+2.41" above an axis reads as a value
         ax.grid(alpha=0.3)
     axes.flat[0].legend(fontsize=8, loc="best")
+    times = [w for r in ok if (w := _when(r.start_ns)) is not None]
+    if times:
+        axes.flat[0].set_xlim(*time_span(times))
     fig.autofmt_xdate()
     fig.suptitle("identified parameters per recording (red ring: change beyond the threshold)")
     fig.tight_layout()

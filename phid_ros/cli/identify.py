@@ -201,7 +201,7 @@ def identify_command(args: Any, console: Console) -> int:
     def report(out: Any) -> None:
         from phid_ros.cli.report import write_report
 
-        write_report(out, res, truth, source)
+        write_report(out, res, truth, source, controls)
 
     summary = f"identified from {len(scenarios)} scenarios in {res.timing['total']:.3f} s (wall time)"
     return finish(console, res.problems, summary, args.json, args.report, report)

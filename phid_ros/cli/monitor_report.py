@@ -81,8 +81,8 @@ def _events_figure(
     handles = [plt.Line2D([], [], color=c, label=k.replace("_", " ")) for k, c in KIND_COLORS.items()]
     handles.append(plt.Line2D([], [], color="k", ls="--", label="window not usable"))
     if marks:
-        handles.append(plt.Line2D([], [], color="#2e8b57", marker="v", ls="", label="recalibration accepted"))
-        handles.append(plt.Line2D([], [], color="#c0392b", marker="v", ls="", label="recalibration rejected"))
+        handles.append(plt.Line2D([], [], color="#2e8b57", marker="v", ls="", label="recalibration adopted"))
+        handles.append(plt.Line2D([], [], color="#c0392b", marker="v", ls="", label="recalibration not adopted"))
     axes[0].legend(handles=handles, fontsize=7, ncol=3, loc="lower left")
     axes[-1].set_xlabel("time from the start of the recording (s)")
     fig.suptitle("Events over the recording")
@@ -163,6 +163,9 @@ def _health_figure(log: HealthLog) -> str | None:
         fontsize=9,
     )
     ax_count.set_ylabel("count since start")
+    # counts are whole and never negative: all-zero counts let matplotlib centre the axis on 0 (−0.04 … 0.04)
+    ax_count.set_ylim(bottom=0, top=max(1.0, ax_count.get_ylim()[1]))
+    ax_count.yaxis.get_major_locator().set_params(integer=True)
     ax_count.grid(alpha=0.3)
     ax_count.legend(fontsize=7, ncol=4)
     ax_count.set_xlabel("time from the start of the recording (s)")
@@ -253,8 +256,7 @@ def write_replay_report(
         [
             f"{(r.stream_time_ns - start) / NS:.1f}",
             str(len(r.event_ids)),
-            "accepted" if r.accepted else "rejected",
-            r.status,
+            *r.said(),
         ]
         for r in outputs.recalibrations
     ]
@@ -272,7 +274,7 @@ def write_replay_report(
         "previous accepted set.</p>",
         html_table(head, prow) if prow else "<p>No recalibration was accepted.</p>",
         "<h2>Recalibrations</h2>",
-        html_table(["t s", "events", "outcome", "status"], rc_rows),
+        html_table(["t s", "events", "outcome", "why"], rc_rows),
         _figure("Stream health", _health_figure(health), "stream health over time"),
     ]
     intro = f"{span:.1f} s of data &middot; {len(outputs.events)} events &middot; {len(points)} accepted recalibrations"

@@ -28,6 +28,9 @@ HEARTBEAT_S = 30.0  # plain lines: the step again while it lasts longer than thi
 POLL_S = 0.2
 
 
+LIVE_FRAME = 13  # the spinner, the elapsed time (0:00:00) and the spaces between the three columns
+
+
 class ProgressLine:
     """Context manager; ``update(step)`` says what the command is doing now."""
 
@@ -59,7 +62,7 @@ class ProgressLine:
         with self._lock:
             self._step = step
         if self._rich is not None and self._task is not None:
-            self._rich.update(self._task, description=step)
+            self._rich.update(self._task, description=self._fitted(step))
         elif self._thread is not None:
             # a step is shown when it begins, not at the next poll: a step shorter than a poll
             # would otherwise be missing from the log, depending on the machine's speed
@@ -118,4 +121,11 @@ class ProgressLine:
             transient=True,
         )
         self._rich.start()
-        self._task = self._rich.add_task(self._step, total=None)
+        self._task = self._rich.add_task(self._fitted(self._step), total=None)
+
+    def _fitted(self, step: str) -> str:
+        """The step cut to what the line leaves beside the spinner and the elapsed time: rich crops a
+        row that is too long from its right, so at 80 columns a long step hid the elapsed time (and
+        the spinner) and the line read as hung."""
+        room = self._rich.console.width - LIVE_FRAME
+        return step if len(step) <= room else step[: max(1, room - 1)] + "…"

@@ -12,6 +12,7 @@ from phid_ros.io.topics import OUTPUT_TOPICS, output_topic
 from phid_ros.model.conventions import NS
 from phid_ros.stream.messages import LEVELS
 from phid_ros.stream.pipeline import MonitorPipeline, Outputs
+from phid_ros.stream.recalibration import RecalibrationOutcome
 from phid_ros.stream.replay import replay
 
 if TYPE_CHECKING:
@@ -125,6 +126,15 @@ def check_output(out: Path, force: bool) -> None:
         )
 
 
+def recalibration_text(r: RecalibrationOutcome, start: int) -> str:
+    """One recalibration, as the terminal says it (``RecalibrationOutcome.said``)."""
+    outcome, why = r.said()
+    head = f"recalibration at {(r.stream_time_ns - start) / NS:.1f} s with {len(r.event_ids)} event(s): {outcome}"
+    if not why:
+        return head
+    return f"{head}: {why}" if outcome.startswith("no set") else f"{head} ({why})"
+
+
 def print_summary(
     console: Console, start: int, pipeline: MonitorPipeline, outputs: Outputs, collector: OutputCollector
 ) -> None:
@@ -163,12 +173,7 @@ def print_summary(
             highlight=False,
         )
     for r in outputs.recalibrations:
-        console.print(
-            f"recalibration at {(r.stream_time_ns - start) / NS:.1f} s with {len(r.event_ids)} events: "
-            f"{'accepted' if r.accepted else 'rejected'}: {r.status}",
-            highlight=False,
-            markup=False,
-        )
+        console.print(recalibration_text(r, start), highlight=False, markup=False)
     last = next((r for r in reversed(outputs.recalibrations) if r.accepted and r.result is not None), None)
     if last is not None and last.result is not None:
         est = last.result.estimates

@@ -7,14 +7,16 @@ import html
 import io
 import math
 import re
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
 
 from phid_ros.cli.common import figure_backend
 from phid_ros.cli.tables import pct
+from phid_ros.controls.identify import ControlFit
 from phid_ros.ident.pipeline import IdentificationResult
+from phid_ros.ident.results import Estimate
 from phid_ros.ident.scenario import KINDS as KIND_ORDER
 from phid_ros.ident.validation import play_in
 from phid_ros.io.files.outputs import write_text
@@ -116,18 +118,21 @@ VALIDATED = (
     ("p_e", "P_e (pu)", False),
     ("q_e", "Q_e (pu)", False),
 )
+# the identified model is the wide pale line underneath; the thin ones drawn over it stay visible
+# where all agree (they do to a hair on a good fit, and a thick line on top hid the measurement)
 STYLES = {
-    "reference": dict(ls="--", color="#1f5fbf", lw=1.0, zorder=3),
-    "IEEE 115": dict(ls=":", color="#c0392b", lw=1.0, zorder=2),
-    "proposed": dict(ls="-", color="#e67e00", lw=2.2, zorder=5, alpha=0.9),  # drawn last, on top
+    "proposed": dict(ls="-", color="#f5a623", lw=3.2, zorder=2, alpha=0.75),
+    "IEEE 115": dict(ls=":", color="#c0392b", lw=1.2, zorder=3),
+    "reference": dict(ls="--", color="#1f5fbf", lw=1.1, zorder=4),
 }
+MEASURED_STYLE = dict(color="k", lw=0.7, zorder=5)
 
 
 def _validation_figures(res: IdentificationResult, truth: GeneratorParameters | None) -> list[tuple[str, str]]:
     """Figures 4-6 extended: δ, ω, P and Q of each model against the measurement, residuals beneath.
 
-    The proposed (identified) model is the thick line on top; P and Q carry the MOD-026
-    ±0.05 pu band around the measurement.
+    The proposed (identified) model is the wide pale line beneath the others; P and Q carry the
+    MOD-026 ±0.05 pu band around the measurement.
     """
     import matplotlib.pyplot as plt
 
@@ -175,7 +180,7 @@ def _validation_figures(res: IdentificationResult, truth: GeneratorParameters | 
                     label="MOD-026 ±0.05 pu",
                 )
                 rax.axhspan(-MOD026_TOLERANCE_PU, MOD026_TOLERANCE_PU, color="0.88", lw=0)
-            ax.plot(t, meas, color="0.45", lw=0.6, label="measured", zorder=1)
+            ax.plot(t, meas, label="measured", **MEASURED_STYLE)
             for j, (set_name, _) in enumerate(sets):
                 sim = scale(getattr(tr, name)[:, j])
                 ax.plot(t, sim, label=set_name, **STYLES[set_name])
@@ -195,6 +200,16 @@ def _cell(v: float, digits: int = 5) -> str:
     return "—" if v is None or not math.isfinite(v) else f"{v:.{digits}g}"
 
 
+def _note(e: Estimate | None) -> str:
+    """What the reader may do with the value: use it, or not and why, and its estimator's own remark."""
+    if e is None:
+        return "not estimated"
+    said = "identified" if e.identifiable else "withheld: not identifiable from these data"
+    if e.at_bound:
+        said += "; at its search bound"
+    return f"{said}; {e.note}" if e.note else said
+
+
 def _parameter_table(res: IdentificationResult, truth: GeneratorParameters | None) -> str:
     """Table 7's layout: IEEE 115 | proposed ± std | truth and errors, what drove each, and flags."""
     t = truth.as_dict() if truth else {}
@@ -211,10 +226,7 @@ def _parameter_table(res: IdentificationResult, truth: GeneratorParameters | Non
         row += [_cell(v), _cell(e.std if e else math.nan, 2)]
         if truth:
             row += [pct(100 * (v / t[n] - 1)) if math.isfinite(v) else "", _cell(t[n], 4)]
-        row += [
-            ", ".join(e.drivers) if e else "",
-            "missing" if e is None else ("" if e.identifiable else "not identified"),
-        ]
+        row += [", ".join(e.drivers) if e else "", _note(e)]
         rows.append(row)
     head = ["parameter", "unit"]
     if res.baseline:
@@ -255,7 +267,46 @@ def _validation_table(res: IdentificationResult) -> str:
     return html_table(vhead, vrows)
 
 
-def write_report(path: str | Path, res: IdentificationResult, truth: GeneratorParameters | None, source: str) -> Path:
+def _controls_section(controls: Mapping[str, ControlFit | str]) -> str:
+    """The exciter and governor as the terminal names them: the model, each constant (PSS/E's names)
+    with its std and whether the data determine it, and the fit's errors; or why no model is named."""
+    if not controls:
+        return "<p>Not fitted (no control channel in the recording).</p>"
+    parts = []
+    for kind, fit in controls.items():
+        if not isinstance(fit, ControlFit):
+            parts.append(f"<h3>{html.escape(kind)}: none</h3><p>{html.escape(fit)}</p>")
+            continue
+        title = fit.model if fit.named else f"none named (best candidate {fit.model})"
+        errors = f"fit RMSE {fit.fit_rmse:.2e} pu"
+        if fit.heldout_rmse is not None:
+            errors += f", held-out RMSE {fit.heldout_rmse:.2e} pu"
+        if fit.none_heldout_rmse is not None:
+            errors += f" (without any control action {fit.none_heldout_rmse:.2e} pu)"
+        rows = [
+            [
+                n,
+                "—" if v is None else f"{v:.5g}",
+                _cell(fit.uncertainty.get(n) or math.nan, 2),
+                "determined" if fit.identifiable.get(n) else "not determined by these data",
+            ]
+            for n, v in fit.parameters.items()
+        ]
+        table = html_table(["constant", "value", "± std", "note"], rows, text_columns=(3,)) if fit.named else ""
+        parts.append(
+            f"<h3>{html.escape(kind)}: {html.escape(title)}</h3><p>{html.escape(errors)}. {html.escape(fit.why)}</p>"
+            + table
+        )
+    return "".join(parts)
+
+
+def write_report(
+    path: str | Path,
+    res: IdentificationResult,
+    truth: GeneratorParameters | None,
+    source: str,
+    controls: Mapping[str, ControlFit | str] | None = None,
+) -> Path:
     figure_backend()
     figs = []
     f1 = _scenario_figure(res)
@@ -274,6 +325,8 @@ def write_report(path: str | Path, res: IdentificationResult, truth: GeneratorPa
 {_parameter_table(res, truth)}
 <p>err = estimate / truth − 1. IEEE 115: the standard's test-based method (the paper's baseline);
 "(bound)": at its search bound.</p>
+<h2>Excitation and turbine-governor</h2>
+{_controls_section(controls or {})}
 <h2>Validation against the {against}</h2>
 {_validation_table(res)}
 <p>RMSE, MAE and STD of the combined state-trajectory error (Table 9); MOD-026: simulated P and Q within

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from phid_ros.ident.pipeline import IdentificationResult, IdentifyOptions, identify
 from phid_ros.ident.scenario import DEFAULT_THRESHOLDS, ScenarioData, ScenarioError, StepThresholds, make_scenario
 from phid_ros.model.conventions import NS
-from phid_ros.model.parameters import GeneratorParameters
+from phid_ros.model.parameters import SYMBOLS, GeneratorParameters
 from phid_ros.stream.detector import EventWindow
 from phid_ros.stream.store import EventStore
 
@@ -51,6 +51,10 @@ class RecalibrationPolicy:
         return True, "ready"
 
 
+KEPT_LAST_GOOD = "kept last good set: "
+INCOMPLETE = "incomplete result ("
+
+
 @dataclass
 class RecalibrationOutcome:
     accepted: bool
@@ -60,6 +64,21 @@ class RecalibrationOutcome:
     event_ids: list[str]
     stream_time_ns: int
     seconds: float
+
+    def said(self) -> tuple[str, str]:
+        """(outcome, why) in the words of what happened to the set in force, for a reader: the first
+        run on too few events read as a failure ("rejected: ... did not run") when the pipeline was
+        waiting for more; ``status`` keeps the published wording."""
+        if self.accepted:
+            flagged = self.status.removeprefix("ok").removeprefix("; poorly identified: ")
+            names = ", ".join(SYMBOLS.get(n, n) for n in flagged.split(", ")) if flagged else ""
+            return "adopted", f"withheld as poorly identified: {names}" if names else ""
+        why = self.status.removeprefix(KEPT_LAST_GOOD)
+        if self.parameters is None:
+            if why.startswith(INCOMPLETE):
+                why = why.removeprefix(INCOMPLETE).removesuffix(")")
+            return "no set yet, waiting for more events", why
+        return "not adopted, the set in force kept", why
 
 
 def scenario_from_window(
@@ -267,14 +286,14 @@ class Recalibrator:
             missing = [n for n, v in result.parameters.items() if not math.isfinite(v)]
             why = "; ".join(result.problems[:3]) or f"missing {missing}"
             return RecalibrationOutcome(
-                False, f"kept last good set: incomplete result ({why})", self.last_good, result, ids, now, seconds
+                False, f"{KEPT_LAST_GOOD}{INCOMPLETE}{why})", self.last_good, result, ids, now, seconds
             )
         if self.last_good is not None:
             jumps = self._jumps(model, result)
             if jumps:
                 text = ", ".join(f"{n} {100 * j:+.0f} %" for n, j in jumps.items())
                 return RecalibrationOutcome(
-                    False, f"kept last good set: implausible jump ({text})", self.last_good, result, ids, now, seconds
+                    False, f"{KEPT_LAST_GOOD}implausible jump ({text})", self.last_good, result, ids, now, seconds
                 )
         self.last_good = model
         self.last_result = result

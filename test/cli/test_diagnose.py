@@ -30,8 +30,14 @@ def test_diagnose_names_the_hidden_saturation_in_the_shipped_bag(tmp_path, capsy
     assert set(doc["gap_before"]["by_channel"]) == {"omega", "delta", "i_d", "i_q", "p_e", "q_e"}
     page = report.read_text()
     assert page.count("data:image/png;base64,") == 2 and "magnetic_saturation" in page
-    out = capsys.readouterr().out
+    captured = capsys.readouterr()
+    out = captured.out
     assert "missing physics: magnetic_saturation" in out
+    # the first fit's complaints are what the named effect explains: said so under the result, not
+    # as warnings after it (six of them read as the diagnosis having failed)
+    assert "the first identification (column 'identified') showed the missing physics as:" in out
+    assert "  - stage 3: T_d0_prime = 15 s is at its search bound" in out
+    assert "search bound" not in captured.err
     assert "…" not in out and max(len(line) for line in out.splitlines() if line.startswith(" ")) <= 80
     if chromium() is not None:  # rendered as a reader sees it (the other reports: test_reports_and_terminal.py)
         assert_readable(report, figures=2)

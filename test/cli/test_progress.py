@@ -77,3 +77,21 @@ def test_a_row_printed_during_the_live_line_stands_on_its_own_line(monkeypatch):
     with ProgressLine("tracking", stream=_Terminal(), quiet_s=0) as p:
         p.print_above(console, "    360   3.48(28)", highlight=False)
     assert results.getvalue() == "    360   3.48(28)\n"
+
+
+def test_a_long_step_on_an_80_column_terminal_keeps_the_spinner_and_the_elapsed_time(monkeypatch):
+    """diagnose's steps name five candidates: rich cropped the row from its right, so the elapsed time
+    and the spinner vanished and the line read as hung for minutes. Now the step is cut instead."""
+    monkeypatch.setenv("COLUMNS", "80")
+    screen = _Terminal()
+    step = "fitting 5 candidates with the base parameters: " + ", ".join(["magnetic_saturation"] * 5)
+    with ProgressLine("reading", stream=screen, quiet_s=0) as p:
+        p.update(step)
+        time.sleep(0.3)
+    frames = [re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", f) for f in screen.getvalue().split("\r")]
+    drawn = [f.strip("\n") for f in frames if "fitting" in f]
+    assert drawn
+    for line in drawn:
+        assert len(line) <= 80 and re.search(r"\d:\d\d:\d\d$", line), line
+        assert line.split(" ", 1)[1].startswith("fitting 5 candidates with the base parameters: magnetic_saturation")
+        assert "…" in line

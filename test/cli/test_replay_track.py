@@ -99,7 +99,7 @@ def test_replay_aligns_on_the_recordings_own_rate(tmp_path, capsys):
     bag = write_recording(tmp_path / "c100.mcap", Recording(streams, rec.scenarios, rec.metadata))
     assert main(["replay", str(bag), "--out", str(tmp_path / "out.mcap")]) == 0
     text = capsys.readouterr().out
-    assert "stale" not in text and "recalibration at 630.0 s with 16 events: accepted" in text
+    assert "stale" not in text and "recalibration at 630.0 s with 16 event(s): adopted" in text
     h = float(re.search(r"^ H\s+s\s+([0-9.]+)\(", text, re.M).group(1))
     assert h == pytest.approx(3.48, rel=0.005)
 
@@ -119,3 +119,22 @@ def test_the_replay_health_log_stays_bounded_and_keeps_a_short_error() -> None:
     assert 12_345 <= error[1] < 12_345 + 8  # its merged neighbours' later running total
     assert log[-1][1]["pt_ct"][1] == 3 * HEALTH_LOG_MAX - 1  # the running totals reach the end
     assert [t for t, _ in log] == sorted(t for t, _ in log)
+
+
+def test_a_recalibration_is_said_as_what_happened_to_the_set_in_force() -> None:
+    """The main job's first line of results read "rejected: ... did not run" for a pipeline waiting
+    for more events; now waiting, adopted and kept read as such, withheld names as the tables write them."""
+    from phid_ros.cli.replay import recalibration_text
+    from phid_ros.model.parameters import TABLE1
+    from phid_ros.stream.recalibration import RecalibrationOutcome
+
+    def outcome(accepted: bool, status: str, in_force) -> str:
+        return recalibration_text(RecalibrationOutcome(accepted, status, in_force, None, ["a"], 31 * 10**9, 0.1), 10**9)
+
+    waiting = outcome(False, "kept last good set: incomplete result (stage 1 (H, D) did not run: too few)", None)
+    said = "recalibration at 30.0 s with 1 event(s): no set yet, waiting for more events: stage 1 (H, D) did not run"
+    assert waiting == said + ": too few"
+    adopted = outcome(True, "ok; poorly identified: D, X_q_prime", TABLE1)
+    assert adopted.endswith("adopted (withheld as poorly identified: D, X'_q)")
+    kept = outcome(False, "kept last good set: implausible jump (X_d +40 %)", TABLE1)
+    assert kept.endswith("not adopted, the set in force kept (implausible jump (X_d +40 %))")

@@ -1,0 +1,146 @@
+"""What each report's figures and tables say, read from the figures themselves (no browser): every
+axis its quantity and unit, the recording never hidden under a model, no axis that misleads (a
+negative count, a four-year span for one point), the MOD-026 table with error, band and verdict."""
+
+from __future__ import annotations
+
+import math
+from datetime import timedelta
+
+import numpy as np
+import pytest
+
+from phid_ros.cli.common import figure_backend
+
+
+@pytest.fixture
+def drawn(monkeypatch):
+    """The figures a report module made, kept open instead of encoded."""
+    figure_backend()
+    import matplotlib.pyplot as plt
+
+    figs: list = []
+    yield figs, monkeypatch
+    for f in figs:
+        plt.close(f)
+
+
+def _keep(figs, monkeypatch, module) -> None:
+    monkeypatch.setattr(module, "png_data_uri", lambda fig: figs.append(fig) or "data:image/png;base64,")
+
+
+def _unit_validation():
+    from phid_ros.controls.unit_validation import ChannelCheck, ScenarioCheck, UnitValidation
+
+    t = np.linspace(0.0, 10.0, 501)
+    q = 0.2 + 0.1 * (t > 1)
+    e = 2.0 + 0.5 * (t > 1)
+    scenario = ScenarioCheck(
+        "AVR_step@13.3s",
+        "voltage_step",
+        t,
+        {"q_e": q, "v_f": e},
+        {"q_e": q + 0.0123, "v_f": e + 0.31},
+        [
+            ChannelCheck("q_e", "MOD-026", 0.0123, 0.05, True, "GENSAL"),
+            ChannelCheck("v_f", "MOD-026", 0.31, 0.10, False, "ESST5B"),
+        ],
+    )
+    return UnitValidation("GENSAL + ESST5B", [scenario], [])
+
+
+def test_the_mod026_report_gives_error_band_and_verdict_per_check_and_labels_every_axis(drawn, tmp_path):
+    from phid_ros.cli import validate
+
+    figs, monkeypatch = drawn
+    _keep(figs, monkeypatch, validate)
+    report = validate.write_report(tmp_path / "v.html", _unit_validation(), "day.mcap")
+    html = report.read_text()
+    # one header per column (two columns were both headed "check"), the terminal's figures in the rows
+    for header in ("standard", "channel", "max |error| (pu)", "band (pu)", "verdict"):
+        assert f">{header}<" in html
+    assert ">0.0123<" in html and ">0.0500<" in html and ">pass<" in html
+    assert ">0.3100<" in html and ">0.1000<" in html and ">FAIL<" in html
+    [fig] = figs
+    axes = [ax for ax in fig.axes if ax.get_visible()]
+    assert [ax.get_ylabel() for ax in axes] == ["Q (pu)", "E_fd (pu, machine base)"]
+    assert all(ax.get_xlabel() == "t (s)" for ax in axes)
+    assert "max |error| 0.31 pu, band 0.1 pu: FAIL" in axes[1].get_title()
+    for ax in axes:
+        lines = {line.get_label(): line for line in ax.get_lines()}
+        simulated = next(v for k, v in lines.items() if k.startswith("simulated"))
+        assert lines["recorded"].get_zorder() > simulated.get_zorder()  # the recording is never hidden
+    assert fig.get_size_inches()[0] >= 10  # two panels a row at a readable size
+
+
+def test_the_identify_report_has_its_exciter_and_governor_and_a_note_per_parameter():
+    from phid_ros.cli.report import MEASURED_STYLE, STYLES, _controls_section, _note
+    from phid_ros.controls.identify import ControlFit
+    from phid_ros.ident.results import Estimate
+
+    fit = ControlFit(
+        "SEXS",
+        "exciter",
+        {"K": 98.7, "T_E": 0.049, "E_MAX": None},
+        {"K": 1.2, "T_E": 0.002, "E_MAX": None},
+        {"K": True, "T_E": True, "E_MAX": False},
+        0.0012,
+        0.0015,
+        0.21,
+        True,
+        "named: held-out error 0.0015 pu against 0.21 without control action",
+    )
+    html = _controls_section({"exciter": fit, "governor": "the recordings do not show the governor"})
+    assert "exciter: SEXS" in html and ">98.7<" in html and ">0.049<" in html
+    assert "not determined by these data" in html  # E_MAX, never reached
+    assert "held-out RMSE 1.50e-03 pu (without any control action 2.10e-01 pu)" in html
+    assert "governor: none" in html and "do not show the governor" in html
+    assert _note(Estimate(1.4, 0.01)) == "identified"
+    assert _note(Estimate(0.4, 0.3, identifiable=False, note="D: poorly determined")).startswith("withheld")
+    assert _note(None) == "not estimated"
+    # the measurement is drawn over every model, the identified one beneath the thin lines
+    assert MEASURED_STYLE["zorder"] > max(float(s["zorder"]) for s in STYLES.values())  # type: ignore[arg-type]
+    assert STYLES["proposed"]["zorder"] == min(float(s["zorder"]) for s in STYLES.values())  # type: ignore[arg-type]
+
+
+def test_one_recording_in_a_history_spans_hours_not_years(drawn):
+    from phid_ros.cli import history_report
+    from phid_ros.fleet.history import Row
+    from phid_ros.model.parameters import PARAMETER_NAMES, TABLE1
+
+    figs, monkeypatch = drawn
+    _keep(figs, monkeypatch, history_report)
+    row = Row("U1", "/rec/day.mcap", "h", "ok", "0.4.3", start_ns=1_780_000_000 * 10**9, end_ns=1_780_000_600 * 10**9)
+    for name in PARAMETER_NAMES:
+        row.values[name], row.stds[name], row.identifiable[name] = getattr(TABLE1, name), 0.001, True
+    history_report._figure([row], [])
+    [fig] = figs
+    import matplotlib.dates as mdates
+
+    lo, hi = (mdates.num2date(x) for x in fig.axes[0].get_xlim())
+    assert timedelta(hours=1.9) <= hi - lo <= timedelta(hours=2.1)
+
+
+def test_the_stream_health_counts_never_go_below_zero(drawn):
+    from phid_ros.cli import monitor_report
+
+    figs, monkeypatch = drawn
+    _keep(figs, monkeypatch, monitor_report)
+    log = monitor_report.HealthLog()
+    for k in range(5):
+        log.add(float(k), {"pt_ct": ("OK", 0, 0, 0), "pmu": ("OK", 0, 0, 0)})
+    monitor_report._health_figure(log)
+    [fig] = figs
+    count_axis = fig.axes[1]
+    assert count_axis.get_ylim()[0] == 0 and count_axis.get_ylim()[1] >= 1
+    assert all(tick >= 0 and math.isclose(tick, round(tick)) for tick in count_axis.get_yticks())
+
+
+def test_validate_says_why_its_errors_are_not_identify_s():
+    from phid_ros.cli.validate import why_larger_than_identify
+
+    with_controls = why_larger_than_identify(_unit_validation())
+    assert "its ESST5B making E_fd and P_m" in with_controls and "recorded E_fd and P_m" in with_controls
+    machine_only = _unit_validation()
+    machine_only.scenarios[0].checks = machine_only.scenarios[0].checks[:1]
+    assert "making" not in why_larger_than_identify(machine_only)
