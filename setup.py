@@ -45,7 +45,7 @@ setup(
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
         ("share/" + package_name + "/launch", data("launch", "*.py")),
-        ("share/" + package_name + "/config", data("config", "*.yaml")),
+        ("share/" + package_name + "/config", data("config", "*.yaml") + data("config", "*.json")),
         ("share/" + package_name + "/msg_schemas/msg", data("msg_schemas/msg", "*.msg")),
     ],
     python_requires=">=3.11",

@@ -121,7 +121,8 @@ def node_parameters_page() -> str:
         "# Node parameters\n\n"
         "The ROS parameters of the two nodes (`phid_ros/stream/params.py`; `config/phid.yaml` carries the same "
         "defaults). A value outside its range is refused by `ros2 param set` with the reason, and the old value "
-        'kept; "start only" parameters are read once, at start-up.\n'
+        'kept. "while unconfigured" parameters are read on configure: set them while the (lifecycle) node is '
+        "unconfigured; the others change while it runs.\n"
     ]
     for node, table in (("ingest_node", INGEST), ("recalibration_node", RECALIBRATION)):
         rows = [
@@ -130,14 +131,12 @@ def node_parameters_page() -> str:
                 t.type.__name__,
                 repr(t.default) if isinstance(t.default, str) else t.default,
                 _range(t.low, t.high),
-                "yes" if t.runtime else "start only",
+                "while running" if t.runtime else "while unconfigured",
                 t.description,
             )
             for t in table
         ]
-        parts.append(
-            f"\n## `{node}`\n\n" + _table(("parameter", "type", "default", "range", "runtime", "meaning"), rows)
-        )
+        parts.append(f"\n## `{node}`\n\n" + _table(("parameter", "type", "default", "range", "set", "meaning"), rows))
     return "".join(parts)
 
 

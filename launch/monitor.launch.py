@@ -9,9 +9,13 @@ With play_bag set, the launch also runs `ros2 bag play <bag> --clock 200 --rate 
 and the nodes use the bag's clock (use_sim_time is forced on), so the whole pipeline runs on
 recorded time. (On Jazzy `--clock` takes an optional frequency, so the bag must come first.)
 Every node option a user sets at start-up is a launch argument here, passed to the nodes
-typed (a 'true' string is not a bool): reliable_qos, queue_depth, store_path, unit_id,
-sample_rate_hz, encoder_rate_hz, pmu_rate_hz, excitation_rate_hz, hamiltonian_rate_hz,
-min_interval_s.
+typed (a 'true' string is not a bool): autostart, reliable_qos, queue_depth, store_path,
+unit_id, sample_rate_hz, encoder_rate_hz, pmu_rate_hz, excitation_rate_hz,
+hamiltonian_rate_hz, min_interval_s.
+
+Both nodes are managed (lifecycle) nodes. With autostart:=true (the default) each configures
+and activates itself; with autostart:=false they wait unconfigured for
+`ros2 lifecycle set /generator/ingest_node configure` (then activate), or a lifecycle manager.
 
 reliable_qos defaults to `auto`: reliable when this launch plays the bag, best effort (the
 sensor-data convention, config/phid.yaml) otherwise. `ros2 bag play` offers reliable, so a
@@ -28,11 +32,12 @@ from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, ExecuteProcess
 from launch.conditions import IfCondition
 from launch.substitutions import LaunchConfiguration, PythonExpression
-from launch_ros.actions import Node
+from launch_ros.actions import LifecycleNode
 from launch_ros.parameter_descriptions import ParameterValue
 
 # launch argument -> (type, which nodes take it); defaults come from config/phid.yaml
 PASSED = {
+    "autostart": (bool, ("ingest_node", "recalibration_node")),
     "reliable_qos": (bool, ("ingest_node", "recalibration_node")),
     "queue_depth": (int, ("ingest_node", "recalibration_node")),
     "sample_rate_hz": (float, ("ingest_node",)),
@@ -101,7 +106,7 @@ def generate_launch_description() -> LaunchDescription:
             DeclareLaunchArgument("encoder_topic", default_value="encoder", description="speed encoder block topic"),
             DeclareLaunchArgument("pmu_topic", default_value="pmu", description="PMU angle block topic"),
             DeclareLaunchArgument("excitation_topic", default_value="excitation", description="field voltage topic"),
-            Node(
+            LifecycleNode(
                 package="phid_ros",
                 executable="ingest_node",
                 name="ingest_node",
@@ -110,7 +115,7 @@ def generate_launch_description() -> LaunchDescription:
                 remappings=remaps,
                 output="screen",
             ),
-            Node(
+            LifecycleNode(
                 package="phid_ros",
                 executable="recalibration_node",
                 name="recalibration_node",

@@ -18,6 +18,7 @@ import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.executors import ExternalShutdownException
+from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from rclpy.node import Node
 from rclpy.qos import (
     DurabilityPolicy,
@@ -29,7 +30,7 @@ from rclpy.qos import (
 
 from phid_ros.cluster import tune_malloc
 from phid_ros.io.topics import OUTPUT_TOPICS, STREAMS
-from phid_ros.stream.params import Tunable, validate
+from phid_ros.stream.params import Tunable, apply, validate
 
 
 def sensor_qos(reliable: bool, depth: int) -> QoSProfile:
@@ -65,21 +66,19 @@ def latched_qos() -> QoSProfile:
     )
 
 
-def output_publisher(node: Any, key: str, qos: QoSProfile) -> Any:
-    """A publisher of output ``key`` of phid_ros.io.topics.OUTPUT_TOPICS (its topic and type)."""
-    topic, msgtype = OUTPUT_TOPICS[key]
-    return node.create_publisher(node.types[msgtype], topic, qos)
-
-
 def reliable_qos(depth: int = 50) -> QoSProfile:
     return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth, reliability=ReliabilityPolicy.RELIABLE)
 
 
 def declare(node: Node, table: tuple[Tunable, ...]) -> dict[str, Any]:
-    """Declare every tunable with its descriptor; returns the values in force."""
+    """Declare every tunable with its descriptor; returns the values in force. A start-up parameter
+    is not read-only: it may be set while the node is unconfigured and takes effect on configure
+    (``on_set`` refuses it from then until cleanup)."""
     values = {}
     for t in table:
-        d = ParameterDescriptor(description=t.description, read_only=not t.runtime)
+        d = ParameterDescriptor(description=t.description, read_only=False)
+        if not t.runtime:
+            d.additional_constraints = "set while the node is unconfigured; it takes effect on configure"
         if t.type is float and t.low is not None:
             high = math.inf if t.high is None else float(t.high)
             d.floating_point_range = [FloatingPointRange(from_value=float(t.low), to_value=high, step=0.0)]
@@ -92,12 +91,13 @@ def declare(node: Node, table: tuple[Tunable, ...]) -> dict[str, Any]:
     return values
 
 
-def on_set(table: tuple[Tunable, ...], apply: Any) -> Any:
-    """A parameter callback that validates each change (keeping the old value on refusal)."""
+def on_set(table: tuple[Tunable, ...], apply: Any, configured: Any = lambda: True) -> Any:
+    """A parameter callback that validates each change (keeping the old value on refusal); a start-up
+    parameter is refused while ``configured()``. ``apply`` hears each accepted change."""
 
     def callback(params: list[Any]) -> SetParametersResult:
         for p in params:
-            reason = validate(table, p.name, p.value)
+            reason = validate(table, p.name, p.value, running=configured())
             if reason:
                 return SetParametersResult(successful=False, reason=reason)
         for p in params:
@@ -105,6 +105,141 @@ def on_set(table: tuple[Tunable, ...], apply: Any) -> Any:
         return SetParametersResult(successful=True)
 
     return callback
+
+
+SUCCESS, FAILURE = TransitionCallbackReturn.SUCCESS, TransitionCallbackReturn.FAILURE
+
+
+class MonitorNode(LifecycleNode):
+    """A managed node, as robot_localization and nav2 run theirs: it starts unconfigured;
+    configure builds the pipeline from the parameters and creates its topics and services;
+    activate starts the timers and lets data in and outputs out; deactivate stops them (the
+    pipeline and its memory stay); cleanup drops the pipeline (a start-up parameter may change
+    then). With the ``autostart`` parameter (the default) it configures and activates itself.
+
+    A subclass gives ``build()`` (the pipeline, publishers, subscriptions and services, each made
+    with the methods below so that cleanup can take them down) and ``timer_periods()``; a
+    run-time parameter change goes to the pipeline's settings (``apply_change``)."""
+
+    def __init__(self, name: str, table: tuple[Tunable, ...]) -> None:
+        super().__init__(name)
+        self.table = table
+        self.values = declare(self, table)
+        self.types = msg_types()
+        self.pipeline: Any = None
+        self.active = False
+        self.input = InputWatch()
+        self._made: list[tuple[str, Any]] = []  # (kind, entity) made on configure
+        self._timers: list[Any] = []
+        self.add_on_set_parameters_callback(on_set(table, self._changed, lambda: self.pipeline is not None))
+        if self.values["autostart"]:
+            for step, name_ in ((self.trigger_configure, "configure"), (self.trigger_activate, "activate")):
+                if step() != SUCCESS:
+                    self.get_logger().error(f"autostart: {name_} failed; the node stays in its last state")
+                    break
+
+    # -- what a subclass gives -------------------------------------------------------------
+    def build(self) -> None:
+        raise NotImplementedError
+
+    def timer_periods(self) -> list[tuple[float, Any]]:
+        raise NotImplementedError
+
+    def apply_change(self, name: str, value: Any) -> None:
+        """A run-time change to the configured pipeline (already validated)."""
+        self.pipeline.configure(apply(self.pipeline.settings, name, value))
+
+    # -- made on configure, taken down on cleanup ---------------------------------------------
+    def publisher(self, key: str, qos: QoSProfile) -> Any:
+        """A lifecycle publisher of output ``key``: it sends only while the node is active."""
+        topic, msgtype = OUTPUT_TOPICS[key]
+        pub = self.create_lifecycle_publisher(self.types[msgtype], topic, qos)
+        self._made.append(("publisher", pub))
+        return pub
+
+    def subscription(self, msgtype: Any, topic: str, callback: Any, qos: Any) -> Any:
+        """A subscription whose messages are taken only while the node is active."""
+
+        def when_active(msg: Any) -> None:
+            if self.active:
+                callback(msg)
+
+        sub = self.create_subscription(msgtype, topic, when_active, qos)
+        self._made.append(("subscription", sub))
+        return sub
+
+    def service(self, srv_type: Any, name: str, callback: Any) -> Any:
+        def when_active(request: Any, response: Any) -> Any:
+            if not self.active:
+                response.success, response.message = False, "the node is not active (ros2 lifecycle set ... activate)"
+                return response
+            return callback(request, response)
+
+        srv = self.create_service(srv_type, name, when_active)
+        self._made.append(("service", srv))
+        return srv
+
+    # -- transitions ----------------------------------------------------------------------
+    def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
+        # rclpy swallows an exception in a transition (it only returns ERROR): say it here
+        try:
+            self.values = {t.name: self.get_parameter(t.name).value for t in self.table}
+            self.build()
+        except Exception as exc:
+            self.get_logger().error(f"configure failed: {exc}")
+            self._take_down()
+            return FAILURE
+        self.get_logger().info("configured")
+        return SUCCESS
+
+    def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self._timers = [steady_timer(self, period, callback) for period, callback in self.timer_periods()]
+        self.input = InputWatch()
+        self.active = True
+        self.get_logger().info("active")
+        return super().on_activate(state)
+
+    def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self.active = False
+        self._stop_timers()
+        self.get_logger().info("inactive: inputs ignored, nothing published")
+        return super().on_deactivate(state)
+
+    def on_cleanup(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self._take_down()
+        self.get_logger().info("unconfigured: the pipeline and its buffers dropped")
+        return SUCCESS
+
+    def on_shutdown(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self.active = False
+        self._take_down()
+        return SUCCESS
+
+    def _changed(self, name: str, value: Any) -> None:
+        self.values[name] = value
+        if self.pipeline is not None:
+            self.apply_change(name, value)
+
+    def _stop_timers(self) -> None:
+        for t in self._timers:
+            self.destroy_timer(t)
+        self._timers = []
+
+    def _take_down(self) -> None:
+        """Everything configure made, in reverse; the pipeline closed (its store written)."""
+        self.active = False
+        self._stop_timers()
+        for kind, entity in reversed(self._made):
+            if kind == "publisher":
+                self.destroy_lifecycle_publisher(entity)
+            elif kind == "subscription":
+                self.destroy_subscription(entity)
+            else:
+                self.destroy_service(entity)
+        self._made = []
+        if self.pipeline is not None:
+            self.pipeline.close()
+            self.pipeline = None
 
 
 def float_seq(a: Any) -> array.array:
@@ -151,9 +286,9 @@ def now_ns(node: Node) -> int:
     return int(node.get_clock().now().nanoseconds)
 
 
-def subscribe_sensors(node: Any, on_data: Any = None) -> None:
+def subscribe_sensors(node: MonitorNode) -> None:
     """Both nodes' sensor subscriptions: each block goes to ``node.pipeline.ingest_message``, the entry
-    point phid replay feeds too; ``on_data`` (if given) hears that data arrived."""
+    point phid replay feeds too, and tells ``node.input`` that data arrived."""
     from phid_ros.stream import messages as m
 
     values = node.values
@@ -161,8 +296,7 @@ def subscribe_sensors(node: Any, on_data: Any = None) -> None:
     for spec in STREAMS:  # a stream's name is its topic, relative to the node's namespace
 
         def callback(msg: Any, stream: str = spec.name, channels: tuple[str, ...] = spec.channels) -> None:
-            if on_data is not None:
-                on_data()
+            node.input.on_data()
             node.pipeline.ingest_message(  # a zero stamp is counted and dropped by the pipeline
                 stream,
                 m.stamp_ns(msg.header.stamp),
@@ -171,7 +305,7 @@ def subscribe_sensors(node: Any, on_data: Any = None) -> None:
                 receive_ns=now_ns(node),
             )
 
-        node.create_subscription(node.types[spec.msgtype], spec.name, callback, qos)
+        node.subscription(node.types[spec.msgtype], spec.name, callback, qos)
     node.get_logger().info(
         f"ready: {', '.join(s.name for s in STREAMS)} ({'reliable' if values['reliable_qos'] else 'best effort'}, "
         f"depth {values['queue_depth']})"
@@ -183,18 +317,27 @@ def spin_until_shutdown(make_node: Any, args: list[str] | None) -> None:
     tune_malloc()  # as the CLI: the recalibration's arrays would fault their pages in at every run
     rclpy.init(args=args)
     node = make_node()
+    stopped = False
     try:
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
-        pass  # asked to stop: leave quietly, the finally block cleans up
+        stopped = True  # asked to stop: leave quietly, the finally block cleans up
     finally:
         # Ctrl-C in a terminal reaches the node twice (the terminal signals the whole process group,
         # and ros2 launch forwards its own): the second must not cut the cleanup short (seen: a
         # KeyboardInterrupt inside destroy_node, "process has died" in the launch log)
         with _sigint_ignored():
-            node.pipeline.close()
+            try:
+                node.trigger_shutdown()  # the pipeline closed, its store written
+            except Exception:  # the context already gone (Ctrl-C): the same cleanup without the state machine
+                node.on_shutdown(LifecycleState("shuttingdown", 0))
             node.destroy_node()
             rclpy.try_shutdown()
+        if stopped:
+            # and after it: rclpy's shutdown puts Python's handler back, and launch's forwarded SIGINT
+            # came ~0.2 s after the terminal's, while the interpreter was exiting: it died by the
+            # signal ("process has died [exit code -2]") after a clean stop. The process is leaving.
+            _set_sigint(signal.SIG_IGN)
 
 
 @contextlib.contextmanager

@@ -2,40 +2,34 @@
 
 Subscribes (relative, remappable): pt_ct, encoder, pmu, excitation.
 Publishes: events (DisturbanceEvent), event_windows (EventWindow), ~/diagnostics is left to
-the recalibration node, which also watches the streams.
+the recalibration node, which also watches the streams. A managed (lifecycle) node: see
+:class:`phid_ros.nodes.common.MonitorNode`.
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-from rclpy.node import Node
-
 from phid_ros.nodes import common
 from phid_ros.stream.emit import emit
-from phid_ros.stream.params import INGEST, apply, pipeline_settings
+from phid_ros.stream.params import INGEST, pipeline_settings
 from phid_ros.stream.pipeline import MonitorPipeline
 
 
-class IngestNode(Node):
+class IngestNode(common.MonitorNode):
     def __init__(self) -> None:
-        super().__init__("ingest_node")
-        self.values = common.declare(self, INGEST)
+        super().__init__("ingest_node", INGEST)
+
+    def build(self) -> None:
         settings = pipeline_settings(self.values, detect=True)
         settings.auto_recalibrate = False  # recalibration is the other node's job, and so is keeping the windows
         settings.keep_windows = False
         self.pipeline = MonitorPipeline(settings)
-        self.types = common.msg_types()
-        self.publishers_by_key = {
-            key: common.output_publisher(self, key, common.reliable_qos()) for key in ("events", "windows")
-        }
-        self.add_on_set_parameters_callback(common.on_set(INGEST, self._apply))
-        common.steady_timer(self, self.values["process_period_s"], self.process)
-        self.input = common.InputWatch()
-        common.subscribe_sensors(self, self.input.on_data)
+        self.publishers_by_key = {key: self.publisher(key, common.reliable_qos()) for key in ("events", "windows")}
+        common.subscribe_sensors(self)
 
-    def _apply(self, name: str, value: Any) -> None:
-        self.pipeline.configure(apply(self.pipeline.settings, name, value))
+    def timer_periods(self) -> list[tuple[float, Any]]:
+        return [(self.values["process_period_s"], self.process)]
 
     def process(self) -> None:
         # the input ended: the windows still open are cut with what came (as phid replay does at

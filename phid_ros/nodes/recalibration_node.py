@@ -4,13 +4,13 @@ Subscribes (relative, remappable): event_windows (from ingest_node), the four se
 (for the Hamiltonian and stream health) and /phid/scenarios (markers, when a recording has
 them). Publishes: parameters (transient local), hamiltonian, /diagnostics, and with
 tracking_enabled, tracked_parameters. Services (std_srvs/Trigger): ~/recalibrate, ~/reset.
+A managed (lifecycle) node: see :class:`phid_ros.nodes.common.MonitorNode`.
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-from rclpy.node import Node
 from std_srvs.srv import Trigger
 
 from phid_ros.ident.pipeline import prepare as prepare_identification
@@ -19,7 +19,7 @@ from phid_ros.io.topics import OUTPUT_TOPICS, SCENARIO_TOPIC
 from phid_ros.nodes import common
 from phid_ros.stream import messages as m
 from phid_ros.stream.emit import emit
-from phid_ros.stream.params import RECALIBRATION, apply, pipeline_settings
+from phid_ros.stream.params import RECALIBRATION, pipeline_settings
 from phid_ros.stream.pipeline import MonitorPipeline, Outputs
 
 # The Hamiltonian is held until the recalibration that covers it is known, then published at
@@ -28,11 +28,14 @@ from phid_ros.stream.pipeline import MonitorPipeline, Outputs
 HAMILTONIAN_DEPTH = 5000
 
 
-class RecalibrationNode(Node):
+class RecalibrationNode(common.MonitorNode):
+    last_status: str | None = None  # the last recalibration's, for /diagnostics
+
     def __init__(self) -> None:
-        super().__init__("recalibration_node")
         prepare_identification()  # before any callback can wait on a first compile (seconds, once per machine)
-        self.values = common.declare(self, RECALIBRATION)
+        super().__init__("recalibration_node", RECALIBRATION)
+
+    def build(self) -> None:
         settings = pipeline_settings(
             self.values,
             detect=False,
@@ -40,26 +43,26 @@ class RecalibrationNode(Node):
             unit=self.values["unit_id"] or self.get_namespace(),
         )
         self.pipeline = MonitorPipeline(settings)
-        self.types = common.msg_types()
-        self.last_status: str | None = None
         windows, window_type = OUTPUT_TOPICS["windows"]  # the ingest node's output is our input
-        self.create_subscription(self.types[window_type], windows, self._on_window, common.reliable_qos())
-        self.create_subscription(
+        self.subscription(self.types[window_type], windows, self._on_window, common.reliable_qos())
+        self.subscription(
             self.types["phid_msgs/msg/ScenarioMarker"], SCENARIO_TOPIC, self._on_marker, common.reliable_qos()
         )
         self.publishers_by_key = {
-            "parameters": common.output_publisher(self, "parameters", common.latched_qos()),
-            "tracked_parameters": common.output_publisher(self, "tracked_parameters", common.latched_qos()),
-            "hamiltonian": common.output_publisher(self, "hamiltonian", common.reliable_qos(HAMILTONIAN_DEPTH)),
+            "parameters": self.publisher("parameters", common.latched_qos()),
+            "tracked_parameters": self.publisher("tracked_parameters", common.latched_qos()),
+            "hamiltonian": self.publisher("hamiltonian", common.reliable_qos(HAMILTONIAN_DEPTH)),
         }
-        self.diag_pub = common.output_publisher(self, "diagnostics", common.reliable_qos(10))
-        self.create_service(Trigger, "~/recalibrate", self._recalibrate)
-        self.create_service(Trigger, "~/reset", self._reset)
-        self.add_on_set_parameters_callback(common.on_set(RECALIBRATION, self._apply))
-        self.input = common.InputWatch()
-        common.steady_timer(self, 1.0 / self.values["hamiltonian_rate_hz"], self.process)
-        common.steady_timer(self, self.values["diagnostics_period_s"], self.publish_diagnostics)
-        common.subscribe_sensors(self, self.input.on_data)
+        self.diag_pub = self.publisher("diagnostics", common.reliable_qos(10))
+        self.service(Trigger, "~/recalibrate", self._recalibrate)
+        self.service(Trigger, "~/reset", self._reset)
+        common.subscribe_sensors(self)
+
+    def timer_periods(self) -> list[tuple[float, Any]]:
+        return [
+            (1.0 / self.values["hamiltonian_rate_hz"], self.process),
+            (self.values["diagnostics_period_s"], self.publish_diagnostics),
+        ]
 
     # -- callbacks ------------------------------------------------------------------------
     def _on_window(self, msg: Any) -> None:
@@ -77,10 +80,6 @@ class RecalibrationNode(Node):
         self.pipeline.reset()
         response.success, response.message = True, "buffers and event store cleared; parameters kept"
         return response
-
-    def _apply(self, name: str, value: Any) -> None:
-        self.pipeline.configure(apply(self.pipeline.settings, name, value))
-        self.values[name] = value
 
     # -- periodic work ---------------------------------------------------------------------
     def process(self) -> None:

@@ -82,45 +82,73 @@ END_OF_DATA = Tunable(
     3600.0,
 )
 
-INGEST: tuple[Tunable, ...] = SENSORS + (
-    Tunable(
-        "sample_rate_hz",
-        float,
-        1000.0,
-        "rate of the common time grid the streams are aligned on",
-        10.0,
-        100000.0,
-        runtime=False,
-    ),
-    Tunable("ring_seconds", float, 120.0, "length of the ring buffer of aligned samples", 40.0, 3600.0, runtime=False),
-    Tunable("pre_event_s", float, PRE_EVENT_S, "event window before the disturbance", 0.2, 10.0),
-    Tunable("post_event_s", float, POST_EVENT_S, "event window after the disturbance", 2.0, 120.0),
-    Tunable(
-        "process_period_s", float, 0.1, "how often buffered samples are aligned and scanned", 0.01, 5.0, runtime=False
-    ),
-    Tunable("stale_timeout_s", float, 2.0, "a stream silent this long is reported STALE", 0.1, 60.0),
-    END_OF_DATA,
+# both nodes are managed (lifecycle) nodes; a lifecycle manager, or `ros2 lifecycle set`, may
+# drive them instead
+AUTOSTART = Tunable(
+    "autostart",
+    bool,
+    True,
+    "configure and activate at start; false: start unconfigured and wait for the lifecycle transitions",
+    runtime=False,
 )
 
-RECALIBRATION: tuple[Tunable, ...] = SENSORS + (
-    Tunable("hamiltonian_rate_hz", float, 10.0, "rate of the Hamiltonian output", 0.1, 100.0),
-    Tunable("diagnostics_period_s", float, 1.0, "period of /diagnostics", 0.1, 60.0, runtime=False),
-    Tunable("min_interval_s", float, 300.0, "least stream time between automatic recalibrations", 0.0, 86400.0),
-    Tunable("latest_per_kind", int, 10, "events per kind a recalibration uses (the newest)", 1, 100),
-    Tunable("max_relative_jump", float, 0.5, "relative change beyond which a new set is implausible", 0.01, 10.0),
-    Tunable("auto_recalibrate", bool, True, "recalibrate automatically when enough events are stored"),
-    END_OF_DATA,
-    Tunable("store_path", str, "phid_events.sqlite", "event store file (SQLite); ':memory:' keeps none", runtime=False),
-    Tunable(
-        "unit_id",
-        str,
-        "",
-        "the generating unit watched; the store refuses another unit's events (empty: the node namespace)",
-        runtime=False,
-    ),
-    Tunable("tracking_enabled", bool, False, "run the sliding-window tracker too"),
-    Tunable("tracking_window_s", float, 300.0, "tracker window", 30.0, 3600.0, runtime=False),
-    Tunable("tracking_hop_s", float, 60.0, "tracker hop", 1.0, 3600.0, runtime=False),
+INGEST: tuple[Tunable, ...] = (
+    (AUTOSTART,)
+    + SENSORS
+    + (
+        Tunable(
+            "sample_rate_hz",
+            float,
+            1000.0,
+            "rate of the common time grid the streams are aligned on",
+            10.0,
+            100000.0,
+            runtime=False,
+        ),
+        Tunable(
+            "ring_seconds", float, 120.0, "length of the ring buffer of aligned samples", 40.0, 3600.0, runtime=False
+        ),
+        Tunable("pre_event_s", float, PRE_EVENT_S, "event window before the disturbance", 0.2, 10.0),
+        Tunable("post_event_s", float, POST_EVENT_S, "event window after the disturbance", 2.0, 120.0),
+        Tunable(
+            "process_period_s",
+            float,
+            0.1,
+            "how often buffered samples are aligned and scanned",
+            0.01,
+            5.0,
+            runtime=False,
+        ),
+        Tunable("stale_timeout_s", float, 2.0, "a stream silent this long is reported STALE", 0.1, 60.0),
+        END_OF_DATA,
+    )
+)
+
+RECALIBRATION: tuple[Tunable, ...] = (
+    (AUTOSTART,)
+    + SENSORS
+    + (
+        Tunable("hamiltonian_rate_hz", float, 10.0, "rate of the Hamiltonian output", 0.1, 100.0),
+        Tunable("diagnostics_period_s", float, 1.0, "period of /diagnostics", 0.1, 60.0, runtime=False),
+        Tunable("min_interval_s", float, 300.0, "least stream time between automatic recalibrations", 0.0, 86400.0),
+        Tunable("latest_per_kind", int, 10, "events per kind a recalibration uses (the newest)", 1, 100),
+        Tunable("max_relative_jump", float, 0.5, "relative change beyond which a new set is implausible", 0.01, 10.0),
+        Tunable("auto_recalibrate", bool, True, "recalibrate automatically when enough events are stored"),
+        END_OF_DATA,
+        Tunable(
+            "store_path", str, "phid_events.sqlite", "event store file (SQLite); ':memory:' keeps none", runtime=False
+        ),
+        Tunable(
+            "unit_id",
+            str,
+            "",
+            "the generating unit watched; the store refuses another unit's events (empty: the node namespace)",
+            runtime=False,
+        ),
+        Tunable("tracking_enabled", bool, False, "run the sliding-window tracker too"),
+        Tunable("tracking_window_s", float, 300.0, "tracker window", 30.0, 3600.0, runtime=False),
+        Tunable("tracking_hop_s", float, 60.0, "tracker hop", 1.0, 3600.0, runtime=False),
+    )
 )
 
 
@@ -130,7 +158,7 @@ def validate(table: tuple[Tunable, ...], name: str, value: Any, *, running: bool
     if spec is None:
         return f"unknown parameter {name!r}"
     if running and not spec.runtime:
-        return f"{name} cannot change while running; restart the node with the new value"
+        return f"{name} cannot change while the node is configured; deactivate and clean it up, set it, configure again"
     if spec.type is bool:
         ok = isinstance(value, bool)
     elif spec.type is int:

@@ -76,7 +76,9 @@ def test_wiring_topics_qos_services_parameters(ros):
     for node, table in ((ingest, INGEST), (recal, RECALIBRATION)):
         for t in table:
             d = node.descriptors[t.name]
-            assert d.description == t.description and d.read_only == (not t.runtime)
+            # a start-up parameter is set while the node is unconfigured (refused once configured)
+            assert d.description == t.description and not d.read_only
+            assert bool(d.additional_constraints) == (not t.runtime)
             if t.type is float and t.low is not None:
                 assert (d.floating_point_range[0].from_value, d.floating_point_range[0].to_value) == (t.low, t.high)
 
@@ -186,7 +188,7 @@ def test_out_of_range_parameter_is_refused_and_the_old_value_kept(ros):
     assert not result.successful and "outside [0.1, 100.0]" in result.reason
     assert recal.pipeline.settings.hamiltonian_rate_hz == before
     result = recal.set_parameters([Parameter("store_path", "/tmp/x.sqlite")])[-1]
-    assert not result.successful and "cannot change while running" in result.reason
+    assert not result.successful and "cannot change while the node is configured" in result.reason
     ok = recal.set_parameters([Parameter("min_interval_s", 60.0)])[-1]
     assert ok.successful and recal.pipeline.recalibrator.policy.min_interval_s == 60.0
 
@@ -239,7 +241,7 @@ def test_launch_file_names_the_installed_executables_and_config_sections():
 
     root = Path(__file__).resolve().parents[2]
     tree = ast.parse((root / "launch" / "monitor.launch.py").read_text())
-    calls = [n for n in ast.walk(tree) if isinstance(n, ast.Call) and getattr(n.func, "id", "") == "Node"]
+    calls = [n for n in ast.walk(tree) if isinstance(n, ast.Call) and getattr(n.func, "id", "") == "LifecycleNode"]
     executables = {k.value.value for c in calls for k in c.keywords if k.arg == "executable"}
     assert executables == {"ingest_node", "recalibration_node"}
     entry_points = set(re.findall(r'"(\w+) = phid_ros\.nodes\.\w+:main"', (root / "setup.py").read_text()))
@@ -314,3 +316,71 @@ def test_an_event_in_the_last_seconds_of_the_input_is_published_when_the_input_e
     assert abs(last.event.inception_ns - fault.event_ns) < 5 * 10**6 and last.usable
     ingest.process()  # once per stop: nothing more
     assert len(published(ingest, "/generator/event_windows")) == len(after)
+
+
+def test_the_nodes_are_managed_start_unconfigured_without_autostart_and_follow_their_transitions(ros, tmp_path):
+    """Lifecycle as robot_localization and nav2 run it: unconfigured (no topics, no pipeline),
+    configure (topics made, nothing sent), activate (data in, outputs out), deactivate (inputs
+    ignored, outputs silent, memory kept), cleanup (all taken down; a start-up parameter may change),
+    and configure again with the new value."""
+    import rclpy.node
+    from rclpy.lifecycle import TransitionCallbackReturn as R
+    from rclpy.node import Parameter
+
+    rclpy.node.OVERRIDES["ingest_node"] = {"autostart": False}
+    ingest, recal = make_nodes(ros, autostart=False)
+    for n in (ingest, recal):
+        assert n.state == "unconfigured" and n.pipeline is None and not n.publishers and not n.subscriptions
+    # a start-up parameter may change now: it takes effect on configure
+    assert recal.set_parameters([Parameter("store_path", str(tmp_path / "u1.sqlite"))])[-1].successful
+    assert ingest.set_parameters([Parameter("ring_seconds", 60.0)])[-1].successful
+    assert ingest.trigger_configure() == R.SUCCESS and recal.trigger_configure() == R.SUCCESS
+    assert ingest.pipeline.settings.ring_seconds == 60.0 and recal.pipeline.store.path == str(tmp_path / "u1.sqlite")
+    assert {p.topic for p in ingest.publishers} == {"/generator/events", "/generator/event_windows"}
+    assert not ingest.timers  # inactive: nothing runs
+    assert not ingest.set_parameters([Parameter("ring_seconds", 90.0)])[-1].successful  # configured now
+    rec = read_recording(BAGS / "catalogue")
+    play(ros, rec, ingest, recal, until_s=60)  # inactive: the data is not taken
+    assert ingest.pipeline.health["pt_ct"].samples == 0 and published(ingest, "/generator/events") == []
+    assert ingest.trigger_activate() == R.SUCCESS and recal.trigger_activate() == R.SUCCESS
+    assert len(ingest.timers) == 1 and len(recal.timers) == 2
+    play(ros, rec, ingest, recal, until_s=60)
+    events = len(published(ingest, "/generator/events"))
+    assert events >= 1 and ingest.pipeline.health["pt_ct"].samples > 0
+    assert ingest.trigger_deactivate() == R.SUCCESS
+    samples = ingest.pipeline.health["pt_ct"].samples
+    play(ros, rec, ingest, recal, until_s=60)
+    assert ingest.pipeline.health["pt_ct"].samples == samples and not ingest.timers  # ignored, memory kept
+    response = recal.services["/generator/recalibration_node/recalibrate"].call()
+    assert response.success  # recal still active
+    assert recal.trigger_deactivate() == R.SUCCESS
+    response = recal.services["/generator/recalibration_node/recalibrate"].call()
+    assert not response.success and "not active" in response.message
+    recal.pipeline.recalibrator.join()
+    assert ingest.trigger_cleanup() == R.SUCCESS and recal.trigger_cleanup() == R.SUCCESS
+    for n in (ingest, recal):
+        assert n.state == "unconfigured" and n.pipeline is None
+        assert not n.publishers and not n.subscriptions and not n.services and not n.timers
+    assert (tmp_path / "u1.sqlite").exists()  # the store closed, not lost
+    assert ingest.set_parameters([Parameter("ring_seconds", 90.0)])[-1].successful
+    assert ingest.trigger_configure() == R.SUCCESS and ingest.pipeline.settings.ring_seconds == 90.0
+    assert ingest.trigger_shutdown() == R.SUCCESS and ingest.state == "finalized" and ingest.pipeline is None
+
+
+def test_autostart_configures_and_activates_and_a_bad_value_fails_configure_in_one_line(ros):
+    import rclpy.node
+    from rclpy.lifecycle import TransitionCallbackReturn as R
+    from rclpy.node import Parameter
+
+    ingest, recal = make_nodes(ros)
+    assert ingest.state == recal.state == "active" and ingest.timers and recal.timers
+    rclpy.node.OVERRIDES["recalibration_node"] = {"store_path": "/nonexistent/dir/x.sqlite", "autostart": False}
+    from phid_ros.nodes.recalibration_node import RecalibrationNode
+
+    node = RecalibrationNode()
+    assert node.trigger_configure() == R.FAILURE and node.state == "unconfigured" and node.pipeline is None
+    errors = [text for level, text in node.get_logger().records if level == "error"]
+    assert len(errors) == 1 and errors[0].startswith("configure failed:") and "x.sqlite" in errors[0]
+    assert not node.subscriptions and not node.publishers  # nothing half-made is left
+    assert node.set_parameters([Parameter("store_path", ":memory:")])[-1].successful
+    assert node.trigger_configure() == R.SUCCESS

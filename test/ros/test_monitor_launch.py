@@ -134,3 +134,21 @@ class TestTheMonitorEqualsReplay(unittest.TestCase):
             self.assertEqual(int(values["samples"]), SAMPLES, name)
             self.assertEqual(int(values["missing"]), 0, name)
             self.assertEqual(int(values["dropped"]), 0, name)
+        self.layout_names_only_live_topics()
+
+    def layout_names_only_live_topics(self):
+        """The Foxglove layout shipped with the package names an output only where a node publishes
+        it and an input only where a node reads it."""
+        import json
+
+        from phid_ros.io.topics import DEFAULT_NAMESPACE, STREAMS, topic_for
+        from phid_ros.stream.dashboard import layout_topics
+
+        share = Path(get_package_share_directory("phid_ros"))
+        named = layout_topics(json.loads((share / "config" / "foxglove_monitor.json").read_text()))
+        inputs = {topic_for(s.name, DEFAULT_NAMESPACE) for s in STREAMS}
+        for topic in sorted(named):
+            if topic in inputs:
+                self.assertGreaterEqual(self.node.count_subscribers(topic), 1, topic)
+            else:
+                self.assertGreaterEqual(self.node.count_publishers(topic), 1, topic)

@@ -20,6 +20,7 @@ class IntegerRange:
 @dataclass
 class ParameterDescriptor:
     description: str = ""
+    additional_constraints: str = ""
     read_only: bool = False
     floating_point_range: list = field(default_factory=list)
     integer_range: list = field(default_factory=list)

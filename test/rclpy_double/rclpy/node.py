@@ -152,6 +152,19 @@ class Node:
     def get_logger(self) -> Logger:
         return self._logger
 
+    def destroy_subscription(self, sub: Subscription) -> None:
+        self.subscriptions.remove(sub)
+        rclpy.bus.get(sub.topic, []).remove(sub)
+
+    def destroy_publisher(self, pub: Publisher) -> None:
+        self.publishers.remove(pub)
+
+    def destroy_service(self, srv: Service) -> None:
+        del self.services[srv.name]
+
+    def destroy_timer(self, timer: Timer) -> None:
+        self.timers.remove(timer)
+
     def destroy_node(self) -> None:
         for sub in self.subscriptions:
             rclpy.bus.get(sub.topic, []).remove(sub)
