@@ -19,7 +19,7 @@ from phid_ros.cli.main import main  # noqa: E402
 from test.browser import assert_readable, chromium, screenshot  # noqa: E402
 
 BAGS = ROOT / "bags"
-FIGURES = {"identify": 4, "diagnose": 2, "replay": 3, "track": 3, "validate": 18}
+FIGURES = {"identify": 4, "diagnose": 2, "replay": 3, "track": 3, "validate": 18, "history": 1}
 
 
 def make_reports(out: Path) -> None:
@@ -37,6 +37,20 @@ def make_reports(out: Path) -> None:
         assert main(["export", str(out / "unit.json"), "--format", "psse-dyr", "--out", str(out / "unit.dyr")]) == 0
         validate = ["validate", str(out / "unit.dyr"), str(BAGS / "catalogue"), "--report", str(out / "validate.html")]
         assert main(validate) == 0
+    if not (out / "history.html").exists():  # one unit on three days, the third with T'_d0 drifted +8 %
+        unit = out / "fleet_inventory" / "U1"
+        unit.mkdir(parents=True, exist_ok=True)
+        for seed, day, drift in (
+            (1, "2026-01-05", []),
+            (2, "2026-02-05", []),
+            (3, "2026-03-05", ["--drift", "T_d0_prime=0.08@0-30"]),
+        ):
+            bag = unit / f"{day}.mcap"
+            if not bag.exists():
+                simulate = ["simulate", "--ambient", "600", "--seed", str(seed), "--start", f"{day}T06:00:00Z"]
+                assert main([*simulate, *drift, "--out", str(bag)]) == 0
+        assert main(["fleet", str(out / "fleet_inventory"), "--out", str(out / "fleet"), "--workers", "1"]) == 0
+        assert main(["history", "U1", "--fleet", str(out / "fleet"), "--report", str(out / "history.html")]) == 0
     if not (out / "track.html").exists():
         bag = out / "drift.mcap"
         if not bag.exists():

@@ -6,6 +6,7 @@ import html
 import math
 from datetime import datetime, timedelta
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -40,11 +41,30 @@ def _figure(rows: list[Row], flagged: list[Change]) -> str:
         v = np.array([r.values.get(name, math.nan) for r in ok])
         s = np.array([r.stds.get(name, math.nan) for r in ok])
         good = np.array([r.well_identified(name) for r in ok], dtype=bool)
+        # identified, but its std not computed (stage 3's X_d, X_q where stage 2 could not run): the
+        # table prints the value, so the figure draws it, without a band
+        bare = np.array([bool(r.identifiable.get(name)) for r in ok], dtype=bool) & np.isfinite(v) & ~good
         if good.any():
             tg = [x for x, g in zip(t, good) if g]
             ax.fill_between(tg, v[good] - 2 * s[good], v[good] + 2 * s[good], color="C0", alpha=0.25, label="±2σ")
             ax.plot(tg, v[good], "o-", color="C0", label="identified")
-        mark_withheld(ax, [x for x, g in zip(t, good) if not g])
+        if bare.any():
+            tb = [x for x, b in zip(t, bare) if b]
+            ax.plot(tb, v[bare], "o", mfc="none", mec="C0", label="identified, std not computed")
+        mark_withheld(ax, [x for x, g, b in zip(t, good, bare) if not g and not b])
+        if not (good.any() or bare.any()):
+            # nothing to scale the value axis by: say so where the values would be
+            ax.set_yticks([])
+            ax.text(
+                0.5,
+                0.5,
+                "withheld in every recording\n(not identifiable from these data)",
+                ha="center",
+                va="center",
+                transform=ax.transAxes,
+                color="0.35",
+                fontsize=9,
+            )
         for c in flagged:
             if c.parameter == name:
                 ax.plot([_when(c.after.start_ns)], [c.after.values[name]], "o", ms=12, mfc="none", mec="red", mew=2)
@@ -59,13 +79,17 @@ def _figure(rows: list[Row], flagged: list[Change]) -> str:
         ax.set_ylabel(f"{SYMBOLS[name]} ({unit})" if unit else SYMBOLS[name])
         ax.ticklabel_format(axis="y", useOffset=False)  # "+2.41" above an axis reads as a value
         ax.grid(alpha=0.3)
-    axes.flat[0].legend(fontsize=8, loc="best")
+    handles: dict[str, Any] = {}
+    for ax in axes.flat:  # one legend for every kind of mark drawn in any panel
+        for h, label in zip(*ax.get_legend_handles_labels()):
+            handles.setdefault(label, h)
+    fig.legend(list(handles.values()), list(handles), loc="lower center", ncol=len(handles), fontsize=8)
     times = [w for r in ok if (w := _when(r.start_ns)) is not None]
     if times:
         axes.flat[0].set_xlim(*time_span(times))
     fig.autofmt_xdate()
     fig.suptitle("identified parameters per recording (red ring: change beyond the threshold)")
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.04, 1, 1))
     return png_data_uri(fig)
 
 

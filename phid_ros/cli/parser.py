@@ -99,6 +99,15 @@ def _add_block_size(p: argparse.ArgumentParser) -> None:
     )
 
 
+def _utc_stamp(text: str) -> int:
+    from phid_ros.model.conventions import stamp_of_utc
+
+    try:
+        return stamp_of_utc(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def _add_simulate(sub: Subparsers) -> None:
     p = sub.add_parser("simulate", help="simulate the scenario catalogue (or some scenarios) into a bag")
     _add_recording_output(p)
@@ -115,6 +124,13 @@ def _add_simulate(sub: Subparsers) -> None:
     p.add_argument("--seed", type=int, default=0, help="sensor noise seed (default 0)")
     p.add_argument("--noiseless", action="store_true", help="write the true signals, no sensor noise")
     p.add_argument("--f-nominal", type=POSITIVE, default=50.0, help="nominal frequency, Hz (default 50)")
+    p.add_argument(
+        "--start",
+        type=_utc_stamp,
+        metavar="DATE[THH:MM:SSZ]",
+        help="the recording's first stamp, ISO 8601 in UTC (default 2026-01-01T00:00:00Z): recordings of one unit "
+        "on different days, for phid fleet and phid history",
+    )
     _add_block_size(p)
     p.add_argument(
         "--effect",

@@ -92,6 +92,7 @@ class OutputCollector:
                         self.last_status,
                         stream_now_ns=self.pipeline.aligner.stream_now_ns,
                         stale_ns=self.pipeline.aligner.stale_ns,
+                        unit=self.pipeline.settings.unit,
                     ),
                 )
                 self._next_diag += self._diag_period

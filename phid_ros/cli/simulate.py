@@ -21,6 +21,12 @@ def _parse_effects(items: Sequence[str]) -> tuple:
     return tuple(parse_effect(item) for item in items)
 
 
+def _start(args: argparse.Namespace) -> int:
+    from phid_ros.sim.recording import DEFAULT_START_NS
+
+    return DEFAULT_START_NS if args.start is None else int(args.start)
+
+
 def simulate_command(args: argparse.Namespace, console: Console) -> int:
     from phid_ros.io.files.results import truth_path_for, write_json
     from phid_ros.sim.recording import recording_from_runs, truth_document
@@ -52,7 +58,7 @@ def simulate_command(args: argparse.Namespace, console: Console) -> int:
     with ProgressLine(f"simulating {len(scenarios)} scenario(s)") as progress:
         runs = simulate_scenarios(scenarios, cfg)
         progress.update(f"writing {out}")
-        rec = recording_from_runs(runs, cfg)
+        rec = recording_from_runs(runs, cfg, start_ns=_start(args))
         write_output(out, rec, args.block_size)
     truth = write_json(truth_path_for(out), truth_document(cfg, scenarios))
     start, end = rec.span_ns()
@@ -95,7 +101,7 @@ def _simulate_ambient(args: argparse.Namespace, console: Console) -> int:
     from phid_ros.io.topics import STREAMS
     from phid_ros.model.conventions import NS
     from phid_ros.sim.ambient import AmbientSettings, ambient_chunks
-    from phid_ros.sim.recording import DEFAULT_START_NS, recording_metadata, truth_document
+    from phid_ros.sim.recording import recording_metadata, truth_document
     from phid_ros.sim.runner import SimulationConfig
     from phid_ros.sim.sensors import SensorModel
 
@@ -113,7 +119,7 @@ def _simulate_ambient(args: argparse.Namespace, console: Console) -> int:
         try:
             for chunk in ambient_chunks(settings, cfg):
                 first = int(round(chunk.t[0] / cfg.dt))
-                t_ns = DEFAULT_START_NS + (first + np.arange(len(chunk.t), dtype=np.int64)) * dt_ns
+                t_ns = _start(args) + (first + np.arange(len(chunk.t), dtype=np.int64)) * dt_ns
                 streams = {
                     s.name: StreamSamples(t_ns.copy(), dt_ns, {c: chunk.measured[c] for c in s.channels})
                     for s in STREAMS

@@ -47,6 +47,19 @@ def utc_of_stamp(ns: int) -> datetime:
     return datetime.fromtimestamp(sec, tz=timezone.utc) + timedelta(microseconds=nanosec // 1000)
 
 
+def stamp_of_utc(text: str) -> int:
+    """An ISO 8601 date-time (a date alone is its midnight; no zone: UTC) as ns since the Unix epoch.
+    Raises ValueError naming the text when it is none."""
+    try:
+        moment = datetime.fromisoformat(text.strip().replace("Z", "+00:00"))
+    except ValueError:
+        raise ValueError(f"{text!r} is not an ISO 8601 date-time (e.g. 2026-03-01 or 2026-03-01T08:30:00Z)") from None
+    if moment.tzinfo is None:
+        moment = moment.replace(tzinfo=timezone.utc)
+    delta = moment - datetime(1970, 1, 1, tzinfo=timezone.utc)
+    return (delta.days * 86_400 + delta.seconds) * NS + delta.microseconds * 1000
+
+
 def stamp_ns(t: object) -> int:
     """A builtin_interfaces/Time (anything with ``sec`` and ``nanosec``) in ns."""
     return int(t.sec) * NS + int(t.nanosec)  # type: ignore[attr-defined]

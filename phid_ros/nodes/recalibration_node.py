@@ -107,6 +107,7 @@ class RecalibrationNode(common.MonitorNode):
                 stream_now_ns=self.pipeline.aligner.stream_now_ns,
                 stale_ns=self.pipeline.aligner.stale_ns,
                 level=common.byte_level,
+                unit=self.pipeline.settings.unit,
             )
         )
 

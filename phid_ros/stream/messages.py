@@ -150,8 +150,14 @@ def diagnostics_message(
     stream_now_ns: int | None = None,
     stale_ns: int = 2 * NS,
     level: Callable[[int], Any] = int,
+    unit: str = "",
 ) -> Any:
     """diagnostic_msgs/DiagnosticArray: one status per stream, one for recalibration.
+
+    ``unit`` (the pipeline's, or the node's namespace) is each status's ``hardware_id`` and the
+    prefix of its name (``phid/unit3: pt_ct stream``), so that a plant's /diagnostics, shared by
+    every unit's monitor, is grouped per unit (Foxglove's summary by hardware id, an aggregator by
+    name); without one, ``generator`` and ``phid: ...`` as before.
 
     ``now_ns`` is the receiver's clock; ``stream_now_ns`` the newest stamp of any stream, so a
     stream that stopped while the others go on is STALE on a replayed recording too. ``level``
@@ -159,6 +165,9 @@ def diagnostics_message(
     """
     kv = types["diagnostic_msgs/msg/KeyValue"]
     status_cls = types["diagnostic_msgs/msg/DiagnosticStatus"]
+    unit_name = unit.strip("/")
+    hardware_id = unit_name or "generator"
+    prefix = f"{node}/{unit_name}" if unit_name else node
     statuses = []
     for name, h in health.items():
         name_level, message = h.status(now_ns, stream_now_ns=stream_now_ns, stale_ns=stale_ns)
@@ -185,9 +194,9 @@ def diagnostics_message(
         statuses.append(
             status_cls(
                 level=level(LEVELS[name_level]),
-                name=f"{node}: {name} stream",
+                name=f"{prefix}: {name} stream",
                 message=message,
-                hardware_id="generator",
+                hardware_id=hardware_id,
                 values=values,
             )
         )
@@ -196,9 +205,9 @@ def diagnostics_message(
         statuses.append(
             status_cls(
                 level=level(recal_level),
-                name=f"{node}: recalibration",
+                name=f"{prefix}: recalibration",
                 message=recalibration_status,
-                hardware_id="generator",
+                hardware_id=hardware_id,
                 values=[],
             )
         )

@@ -111,3 +111,24 @@ def test_replay_reads_a_csv_set(tmp_path):
     out = tmp_path / "replay.mcap"
     assert main(["replay", str(manifest), "--out", str(out)]) == 0
     assert out.stat().st_size > 0
+
+
+def test_simulate_starts_the_recording_where_start_says(tmp_path, capsys):
+    """Recordings of one unit on different days (phid fleet, phid history) need their own dates."""
+    from phid_ros.io.bags.recordings import read_recording
+    from phid_ros.model.conventions import stamp_of_utc, utc_of_stamp
+
+    out = tmp_path / "s04.mcap"
+    assert (
+        main(["simulate", "--scenario", "S04", "--duration", "2", "--start", "2026-03-01T08:30:00Z", "--out", str(out)])
+        == 0
+    )
+    start = read_recording(out).span_ns()[0]
+    assert utc_of_stamp(start).isoformat() == "2026-03-01T08:30:00+00:00"
+    assert stamp_of_utc("2026-03-01") == stamp_of_utc("2026-03-01T00:00:00+00:00") == 1_772_323_200 * 10**9
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as stop:  # refused as the arguments are read
+        main(["simulate", "--scenario", "S04", "--start", "yesterday", "--out", str(tmp_path / "x.mcap")])
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert "'yesterday' is not an ISO 8601 date-time" in err and not (tmp_path / "x.mcap").exists()

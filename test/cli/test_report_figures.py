@@ -144,3 +144,30 @@ def test_validate_says_why_its_errors_are_not_identify_s():
     machine_only = _unit_validation()
     machine_only.scenarios[0].checks = machine_only.scenarios[0].checks[:1]
     assert "making" not in why_larger_than_identify(machine_only)
+
+
+def test_the_history_draws_what_its_table_prints_and_says_where_nothing_is_identified(drawn):
+    """X_d identified without a computed std (stage 3's, where stage 2 could not run) is printed in the
+    table, so it is drawn (hollow, no band); D withheld in every recording: no value axis, a sentence."""
+    from phid_ros.cli import history_report
+    from phid_ros.fleet.history import Row
+    from phid_ros.model.parameters import PARAMETER_NAMES, TABLE1
+
+    figs, monkeypatch = drawn
+    _keep(figs, monkeypatch, history_report)
+    rows = []
+    for day in (1, 2):
+        row = Row("U1", f"/rec/d{day}.mcap", f"h{day}", "ok", "0.4.3", start_ns=day * 86_400 * 10**9, end_ns=1)
+        for name in PARAMETER_NAMES:
+            row.values[name], row.stds[name], row.identifiable[name] = getattr(TABLE1, name), 0.001, True
+        row.stds["X_d"] = math.nan
+        row.identifiable["D"] = False
+        rows.append(row)
+    history_report._figure(rows, [])
+    [fig] = figs
+    ax_d, ax_xd = fig.axes[1], fig.axes[2]
+    hollow = [line for line in ax_xd.get_lines() if line.get_label() == "identified, std not computed"]
+    assert hollow and list(hollow[0].get_ydata()) == [TABLE1.X_d, TABLE1.X_d]
+    assert not ax_xd.collections  # no ±2σ band without a std
+    assert not list(ax_d.get_yticks()) and "withheld in every recording" in ax_d.texts[0].get_text()
+    assert all(TABLE1.D not in line.get_ydata() for line in ax_d.get_lines())

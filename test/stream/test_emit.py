@@ -70,3 +70,19 @@ def test_a_node_gets_only_its_topics(types: dict) -> None:
     with pytest.raises(ValueError, match="no output topic"):
         emit(types, out, {"diagnostics"})
     assert "diagnostics" not in ALL_KEYS
+
+
+def test_diagnostics_name_their_unit_so_a_plant_s_monitors_group_apart(types: dict) -> None:
+    """Every unit's monitor publishes on the one /diagnostics: each status carries its unit as the
+    hardware id and the name's prefix; without a unit the names stay as they were."""
+    from phid_ros.stream.align import StreamHealth
+    from phid_ros.stream.messages import diagnostics_message
+
+    health = {"pt_ct": StreamHealth("pt_ct", expected_rate_hz=1000.0)}
+    named = diagnostics_message(types, T0, health, "ok", unit="/plant/unit3")
+    assert [(s.name, s.hardware_id) for s in named.status] == [
+        ("phid/plant/unit3: pt_ct stream", "plant/unit3"),
+        ("phid/plant/unit3: recalibration", "plant/unit3"),
+    ]
+    plain = diagnostics_message(types, T0, health, None)
+    assert [(s.name, s.hardware_id) for s in plain.status] == [("phid: pt_ct stream", "generator")]
