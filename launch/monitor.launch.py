@@ -11,7 +11,7 @@ recorded time. (On Jazzy `--clock` takes an optional frequency, so the bag must 
 Every node option a user sets at start-up is a launch argument here, passed to the nodes
 typed (a 'true' string is not a bool): autostart, reliable_qos, queue_depth, store_path,
 unit_id, sample_rate_hz, encoder_rate_hz, pmu_rate_hz, excitation_rate_hz,
-hamiltonian_rate_hz, min_interval_s.
+hamiltonian_rate_hz, min_interval_s, end_of_data_s.
 
 Both nodes are managed (lifecycle) nodes. With autostart:=true (the default) each configures
 and activates itself; with autostart:=false they wait unconfigured for
@@ -48,6 +48,7 @@ PASSED = {
     "unit_id": (str, ("recalibration_node",)),
     "hamiltonian_rate_hz": (float, ("recalibration_node",)),
     "min_interval_s": (float, ("recalibration_node",)),
+    "end_of_data_s": (float, ("ingest_node", "recalibration_node")),
 }
 
 
