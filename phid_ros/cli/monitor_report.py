@@ -241,13 +241,14 @@ def write_replay_report(
     from phid_ros.stream.detector import severity_text, window_status
 
     reasons = {w.event.event_id: window_status(w) for w in outputs.windows}
+    settled = {w.event.event_id: w.settled for w in outputs.windows}
 
     ev_rows = [
         [
             f"{(e.inception_ns - start) / NS:.3f}",
             e.kind,
             e.name or "—",
-            severity_text(e.kind, e.severity),
+            severity_text(e.kind, e.severity, settled.get(e.event_id)),
             reasons.get(e.event_id, "pending"),
         ]
         for e in outputs.events

@@ -146,12 +146,13 @@ def print_summary(
     from phid_ros.stream.detector import severity_text, window_status
 
     usable = {w.event.event_id: window_status(w) for w in outputs.windows}
+    settled = {w.event.event_id: w.settled for w in outputs.windows}
     cols = [
         Col("t s"),
         Col("kind", "left"),
         Col("scenario", "left", keep=5, text=True, breakable=True),
         Col("clearing s", keep=3),
-        Col("severity", "left"),
+        Col("severity", "left", text=True),
         Col("window", "left", text=True),
     ]
     rows = [
@@ -160,7 +161,7 @@ def print_summary(
             e.kind,
             e.name or "—",
             f"{(e.clearing_ns - start) / NS:.3f}" if e.clearing_ns else "",
-            severity_text(e.kind, e.severity),
+            severity_text(e.kind, e.severity, settled.get(e.event_id)),
             usable.get(e.event_id, "pending"),
         ]
         for e in outputs.events

@@ -93,6 +93,8 @@ class EventWindow(Frame):
     event: Event
     usable: bool = True
     reason: str = ""
+    # V_t's and Q's step as a test sheet states it (``settled_steps``), for the reader; not published
+    settled: dict[str, float] = field(default_factory=dict)
 
     def light(self) -> EventWindow:
         """The window without its samples (new empty arrays: a slice would keep them alive)."""
@@ -103,7 +105,30 @@ class EventWindow(Frame):
             event=self.event,
             usable=self.usable,
             reason=self.reason,
+            settled=self.settled,
         )
+
+
+SETTLED = ("v_t", "q_e")
+STEP_KINDS = ("voltage_step", "field_step")
+
+
+def settled_steps(w: EventWindow) -> dict[str, float]:
+    """V_t's and Q's step between the plateau before the event and the last quarter of the window
+    after it: the size a test sheet gives (an AVR step of +5 % and back, a manual field step). The
+    event's severity is its first 0.2 s, before a regulator has settled: on the commissioning day's
+    no-load +10 % step it read +0.051 pu for the sheet's +0.10."""
+    k = int(np.searchsorted(w.t_ns, w.event.inception_ns))
+    after = len(w.t_ns) - k
+    if k < 2 or after < 8:
+        return {}
+    out = {}
+    for name in SETTLED:
+        x = w.channel(name)
+        pre, tail = x[:k], x[k + (3 * after) // 4 :]
+        if np.isfinite(pre).any() and np.isfinite(tail).any():
+            out[name] = float(np.nanmean(tail) - np.nanmean(pre))
+    return out
 
 
 @dataclass
@@ -281,6 +306,8 @@ class Detector:
             why = [f"no data on {', '.join(dead)} (a dead channel)"] if dead else []
             why += [f"{gappy} have gaps"] if gappy else []
             w.usable, w.reason = False, "stale data in the window: " + "; ".join(why)
+        if w.usable and ev.kind in STEP_KINDS:
+            w.settled = settled_steps(w)
         return w
 
     def _paused_trimmed(self, w: EventWindow, judged: list[int]) -> EventWindow:
@@ -332,10 +359,15 @@ def window_status(w: EventWindow) -> str:
     return f"ok, shortened: {w.reason}" if w.reason else "ok"
 
 
-def severity_text(kind: str, severity: float) -> str:
-    """An event's size in its own terms: a fault's dip of V_t, a step's change of P_m or V_t."""
+def severity_text(kind: str, severity: float, settled: dict[str, float] | None = None) -> str:
+    """An event's size in its own terms: a fault's dip of V_t, a step's change of P_m, a voltage or
+    field step's settled change of V_t and Q where its window gave them (else its first 0.2 s)."""
     if kind == "fault":
         return f"V_t -{100 * severity:.0f}%"
+    if settled and kind in STEP_KINDS and "v_t" in settled:
+        # both: a dip that recovers within its window settles near 0, a regulator's step after 0.2 s
+        text = f"ΔV_t {settled['v_t']:+.3f} pu" + (f", ΔQ {settled['q_e']:+.3f}" if "q_e" in settled else "")
+        return text + f" settled ({severity:+.3f} at 0.2 s)"
     return f"{'ΔP_m' if kind == 'torque_step' else 'ΔV_t'} {severity:+.3f} pu"
 
 

@@ -77,7 +77,7 @@ class RecalibrationOutcome:
         if self.parameters is None:
             if why.startswith(INCOMPLETE):
                 why = why.removeprefix(INCOMPLETE).removesuffix(")")
-            return "no set yet, waiting for more events", why
+            return "no set yet (the events so far do not determine every parameter)", why
         return "not adopted, the set in force kept", why
 
 

@@ -132,7 +132,10 @@ def test_a_recalibration_is_said_as_what_happened_to_the_set_in_force() -> None:
         return recalibration_text(RecalibrationOutcome(accepted, status, in_force, None, ["a"], 31 * 10**9, 0.1), 10**9)
 
     waiting = outcome(False, "kept last good set: incomplete result (stage 1 (H, D) did not run: too few)", None)
-    said = "recalibration at 30.0 s with 1 event(s): no set yet, waiting for more events: stage 1 (H, D) did not run"
+    said = (
+        "recalibration at 30.0 s with 1 event(s): no set yet (the events so far do not determine every parameter): "
+        "stage 1 (H, D) did not run"
+    )
     assert waiting == said + ": too few"
     adopted = outcome(True, "ok; poorly identified: D, X_q_prime", TABLE1)
     assert adopted.endswith("adopted (withheld as poorly identified: D, X'_q)")

@@ -112,7 +112,10 @@ def test_replay_prints_units_and_std_and_is_the_same_twice(outputs):
     out = text["replay"]
     assert "T'_d0    s       1.43646(83)" in out or re.search(r"T'_d0\s+s\s+1\.436\d*\(\d+\)", out)
     assert re.search(r"Hamiltonian at the end: [0-9.]+ pu·s", out)
-    assert "V_t -82%" in out and "ΔP_m +0.100 pu" in out and "ΔV_t -0.117 pu" in out
+    assert "V_t -82%" in out and "ΔP_m +0.100 pu" in out
+    # a grid dip that recovers: settled near 0, its size at 0.2 s beside it
+    assert re.search(r"621\.000\s+voltage_step\s+ΔV_t -0\.00\d pu, ΔQ -0\.00\d", out), out
+    assert "settled (-0.117 at 0.2 s)" in out
 
 
 def test_track_prints_each_hop_and_withholds_what_it_cannot_identify(outputs):

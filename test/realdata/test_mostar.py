@@ -7,6 +7,7 @@ tests skip, saying so, where the folder is absent. Their figures are in the chan
 from __future__ import annotations
 
 import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -227,6 +228,14 @@ def test_replay_counts_the_windows_of_a_trend_log_right(
     assert main(["replay", str(day), "--out", str(tmp_path / "out.mcap"), "--wide"]) == 0
     out = capsys.readouterr().out
     assert "events found" in out and "samples (ring buffer too short or gap)" not in out
+    # each step's size in the test sheet's terms (SOURCE.md: AVR +5 % on line, +10 % at no load, the
+    # manual step +1.4 %), where the first 0.2 s said +0.010, +0.051 and +0.008 pu
+    sizes: dict[str, list[str]] = {}
+    for test, size in re.findall(r"^ +[0-9.]+ +field_step +(\w+) +(ΔV_t [-+][0-9.]+ pu, ΔQ [-+][0-9.]+)", out, re.M):
+        sizes.setdefault(test, []).append(size)
+    assert sizes["AVR_MR_PSS_ON"] == ["ΔV_t +0.049 pu, ΔQ +0.418", "ΔV_t -0.049 pu, ΔQ -0.421"], sizes  # step, return
+    assert sizes["AVR_PH_Step10"] == ["ΔV_t +0.100 pu, ΔQ +0.000", "ΔV_t -0.100 pu, ΔQ +0.000"], sizes  # open circuit
+    assert sizes["RR_MR_Step10"] == ["ΔV_t +0.014 pu, ΔQ +0.118", "ΔV_t -0.014 pu, ΔQ -0.119"], sizes
 
 
 def test_every_output_form_of_the_import_is_read_back(day: Path, tmp_path: Path) -> None:

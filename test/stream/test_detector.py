@@ -172,3 +172,26 @@ def test_a_window_ends_where_the_recording_paused() -> None:
     assert int(w.t_ns[-1]) == (k_pause - 1) * period  # the last report before the pause
     assert 0 <= int(w.t_ns[0]) - (w.event.inception_ns - 10**9) < period  # the whole pre-event second
     assert np.isfinite(w.values[:, CHANNELS.index("v_t")]).all()
+
+
+def test_a_step_is_sized_as_its_test_sheet_states_it():
+    """An AVR step whose V_t settles over a second: the first 0.2 s (the event's severity) see a
+    fraction of it, the settled plateaus its whole size, and Q's beside it."""
+    from phid_ros.model.channels import CHANNEL_INDEX
+    from phid_ros.stream.detector import Event, EventWindow, settled_steps, severity_text
+
+    period = 5_000_000  # 200 reports/s
+    t = np.arange(2000, dtype=np.int64) * period
+    k = 400
+    rise = 1 - np.exp(-np.clip((t - t[k]) / 1e9, 0, None) / 0.8)
+    values = np.full((len(t), len(CHANNELS)), np.nan)
+    values[:, CHANNEL_INDEX["v_t"]] = 1.0 + 0.05 * rise
+    values[:, CHANNEL_INDEX["q_e"]] = 0.1 + 0.4 * rise
+    ev = Event("e", "field_step", int(t[k]), 0, 0.011, 1.0, 0)
+    w = EventWindow(t_ns=t, values=values, period_ns=period, event=ev)
+    steps = settled_steps(w)
+    assert abs(steps["v_t"] - 0.05) < 1e-3 and abs(steps["q_e"] - 0.40) < 1e-2
+    assert severity_text("field_step", ev.severity, steps) == "ΔV_t +0.050 pu, ΔQ +0.400 settled (+0.011 at 0.2 s)"
+    assert severity_text("field_step", ev.severity, {}) == "ΔV_t +0.011 pu"  # no window: the first 0.2 s
+    assert severity_text("torque_step", 0.1, steps) == "ΔP_m +0.100 pu"
+    assert settled_steps(EventWindow(t_ns=t[:3], values=values[:3], period_ns=period, event=ev)) == {}
