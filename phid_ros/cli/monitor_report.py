@@ -268,17 +268,17 @@ def write_replay_report(
         html_table(["t s", "kind", "scenario", "severity", "window"], ev_rows),
         _figure(
             "Parameters over time",
-            _parameters_figure(points, PARAMETER_NAMES, "Parameters of each accepted recalibration (±2σ)"),
+            _parameters_figure(points, PARAMETER_NAMES, "Parameters of each adopted recalibration (±2σ)"),
             "parameters over time",
         ),
         f"<p>{html.escape(CONCISE_LEGEND)}. Alarm: a change beyond {DRIFT_SIGMAS:g} combined σ since the "
-        "previous accepted set.</p>",
-        html_table(head, prow) if prow else "<p>No recalibration was accepted.</p>",
+        "previous adopted set.</p>",
+        html_table(head, prow) if prow else "<p>No recalibration was adopted.</p>",
         "<h2>Recalibrations</h2>",
         html_table(["t s", "events", "outcome", "why"], rc_rows),
         _figure("Stream health", _health_figure(health), "stream health over time"),
     ]
-    intro = f"{span:.1f} s of data &middot; {len(outputs.events)} events &middot; {len(points)} accepted recalibrations"
+    intro = f"{span:.1f} s of data &middot; {len(outputs.events)} events &middot; {len(points)} adopted recalibrations"
     return _write(path, _page("phid replay", source, intro, sections))
 
 
