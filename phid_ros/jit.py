@@ -43,3 +43,20 @@ def f64(dims: int, readonly: bool = False) -> Any:
     from numba import types
 
     return types.Array(types.float64, dims, "A", readonly=readonly)
+
+
+def i64(dims: int, readonly: bool = False) -> Any:
+    """An int64 array of any layout, for an explicit signature (see :func:`f64`)."""
+    from numba import types
+
+    return types.Array(types.int64, dims, "A", readonly=readonly)
+
+
+def compile_once(f: Any, *arg_types: Any, cache: bool = True) -> Any:
+    """``f`` compiled for exactly these argument types (any layout, read-only inputs: see
+    :func:`f64`), loaded from numba's cache where it was compiled before.
+
+    Why: left to numba, every combination of layouts and write flags the callers happen to
+    pass compiles its own copy; the play-in met eight, at 10-20 s each, on a first diagnosis.
+    """
+    return njit(tuple(arg_types), **{**OPTIONS, "cache": cache})(f)

@@ -27,14 +27,14 @@ import inspect
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from functools import partial
+from functools import cache, partial
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from phid_ros.jit import available, maybe_jit
+from phid_ros.jit import available, compile_once, f64, i64, maybe_jit
 from phid_ros.model import conventions, equations
 from phid_ros.sim import effects, jitted
 from phid_ros.sim.effects.base import PlantEffect
@@ -398,7 +398,10 @@ def _sources_digest(parts: list[tuple[type[PlantEffect], int]] | None = None) ->
     return _digest(files, repr([(cls.__module__, cls.__qualname__, r) for cls, r in parts]))
 
 
-@_maybe_jit_inlined
+# a call, not inlined: both loops below call it, and inlined its four right-hand sides were
+# optimised twice on a first run (13.8 s against 5.8 s; the same speed once compiled). Never
+# cached on its own: the loops' cached code holds it
+@partial(maybe_jit, cache=False)
 def _column_step(
     xall: Array,
     c: int,
@@ -452,10 +455,11 @@ def _compiled_step(sources: str) -> Any:
     Why: the step compiles equations written in other files, and numba's cache looks only at
     the file of the function it caches; an edited equation would be served from the old code.
     A closure's variables are part of numba's cache key, so the step closes over the digest
-    of those files' text.
+    of those files' text. One signature each (inputs read-only, any layout: the fit's residual
+    matrix is C or Fortran order), so a first diagnosis compiles each once.
     """
+    from numba import types
 
-    @maybe_jit
     def rk4_outputs(
         x0: Array,
         p_m: Array,
@@ -485,7 +489,6 @@ def _compiled_step(sources: str) -> Any:
                     out[q, k, c] = res[q]
         return out
 
-    @maybe_jit
     def rk4_residuals(
         x0: Array,
         p_m: Array,
@@ -531,10 +534,27 @@ def _compiled_step(sources: str) -> Any:
                 for q in range(6):
                     out[row + q * n, i] = (res[order[q]] - meas[k, msource[q, c]]) / sigma[q]
 
-    return rk4_outputs, rk4_residuals
+    scalars = (types.float64, types.int64, types.float64)  # ws, n_steps, h
+    common = (f64(2, True), *(f64(2, True),) * 4, i64(2, True), f64(2, True), i64(1, True), *scalars)
+    layout = (f64(2, True), i64(2, True), i64(1, True), f64(1, True), i64(1, True), i64(1, True))
+    return (
+        compile_once(rk4_outputs, *common),
+        compile_once(rk4_residuals, *common, *layout, types.int64, types.int64, f64(2)),
+    )
 
 
-_rk4_outputs, _rk4_residuals = _compiled_step(_sources_digest())
+@cache
+def _step_kernels() -> tuple[Any, Any]:
+    """(rk4_outputs, rk4_residuals), compiled or loaded from numba's cache on the first play-in."""
+    return _compiled_step(_sources_digest())
+
+
+def _rk4_outputs(*args: Any) -> Array:
+    return _step_kernels()[0](*args)
+
+
+def _rk4_residuals(*args: Any) -> None:
+    _step_kernels()[1](*args)
 
 
 # rows of the paper model's coefficient matrix (the validation play-in: no effects, no resistance)

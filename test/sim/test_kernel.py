@@ -215,8 +215,24 @@ def test_the_kernel_names_no_effect():
 def test_the_compiled_step_is_cached_under_the_text_of_the_equations_it_compiles():
     # numba's cache looks only at the file of the function it caches; the step compiles the
     # equations of model/ and of every compiled effect's module, so their text is part of its cache key
-    cells = [c.cell_contents for c in kernel._rk4_outputs.py_func.__closure__]
-    assert kernel._sources_digest() in cells
+    for step in kernel._step_kernels():
+        assert kernel._sources_digest() in [c.cell_contents for c in step.py_func.__closure__]
+
+
+def test_the_compiled_step_has_one_signature_whatever_the_layouts_it_is_given(windows):
+    """Left to numba, each mix of read-only and writable inputs and a C or Fortran residual matrix
+    compiled its own copy of the step: eight on a first diagnosis, 10-20 s each."""
+    from phid_ros.ident.plant_playin import residual_matrix
+
+    base = {k: spread(v, 0.1) for k, v in TABLE1.as_dict().items()}
+    sigma = {c: 0.01 for c in OUTPUTS}
+    delay = [(REGISTRY["sensor_delay"], VALUES["sensor_delay"]())]  # re-timed inputs: writable, not shared
+    for order in ("C", "F"):
+        residual_matrix(windows, base, [], M, sigma, order=order)
+        residual_matrix(windows, base, delay, M, sigma, order=order)
+    play_in(windows, base, m=M)
+    outputs, residuals = kernel._step_kernels()
+    assert len(outputs.signatures) == 1 and len(residuals.signatures) == 1
 
 
 def test_the_compiled_validation_play_in_equals_numpy(windows, monkeypatch):
