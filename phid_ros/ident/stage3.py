@@ -315,6 +315,8 @@ class Stage3Result:
     seconds: float
     history: list[tuple[int, float]] = field(default_factory=list)  # (evaluations, best J)
     problems: list[str] = field(default_factory=list)
+    # X_d, X_q where this stage refined them (stage 2 could not run), with their std; None otherwise
+    refined: dict[str, Estimate] = field(default_factory=dict)
 
 
 def _penalty(xdp: float, xqp: float, td0: float, tq0: float, xd: float, xq: float) -> float:
@@ -403,15 +405,22 @@ def variable_projection(
     fq = _profile(data, False, sync_q, bounds_q or T_Q0_BOUNDS, counter, constraints)
     theta = (fd.x_prime, fq.x_prime, fd.tau, fq.tau)
     j = objective(data, theta, fd.x_sync, fq.x_sync)
+    held = set(constraints.fixed)
+    xdp, td0, xd = _axis_estimates(data, True, fd, held, sync_free=sync_d is None)
+    xqp, tq0, xq = _axis_estimates(data, False, fq, held, sync_free=sync_q is None)
     result = Stage3Result(
         "fast",
-        *_estimates(data, fd, fq, set(constraints.fixed)),
+        xdp,
+        xqp,
+        td0,
+        tq0,
         X_d=fd.x_sync,
         X_q=fq.x_sync,
         objective=j,
         evaluations=counter[0],
         seconds=time.perf_counter() - t0,
         history=[(counter[0], j)],
+        refined={n: e for n, e in (("X_d", xd), ("X_q", xq)) if e is not None},
     )
     _check_bounds(result)
     return result
@@ -551,31 +560,44 @@ def _estimates(
 
     A held parameter's column leaves the Jacobian: the free one's error bar is recomputed without it.
     """
-    xdp, td0 = _axis_estimates(data, True, fd, held_names)
-    xqp, tq0 = _axis_estimates(data, False, fq, held_names)
+    xdp, td0, _ = _axis_estimates(data, True, fd, held_names)
+    xqp, tq0, _ = _axis_estimates(data, False, fq, held_names)
     return xdp, xqp, td0, tq0
 
 
 def _axis_estimates(
-    data: Stage3Data, d_axis: bool, fit: AxisFit, held_names: set[str] | frozenset[str]
-) -> tuple[Estimate, Estimate]:
-    """(X', T') of one axis with their standard deviations and identifiability."""
+    data: Stage3Data,
+    d_axis: bool,
+    fit: AxisFit,
+    held_names: set[str] | frozenset[str],
+    sync_free: bool = False,
+) -> tuple[Estimate, Estimate, Estimate | None]:
+    """(X', T', X) of one axis with their standard deviations and identifiability; X only where
+    ``sync_free`` (this stage refined it: stage 2 could not run), else None.
+
+    Why X as well: refined here it is estimated jointly with X' and T', so its own error bar comes
+    from the same linearised residual, and theirs widen by what it leaves undetermined. Without
+    it, a refined X_d was published as identified with no std at all."""
     ax = data.d if d_axis else data.q
-    names = ("X_d_prime", "T_d0_prime") if d_axis else ("X_q_prime", "T_q0_prime")
+    names = ("X_d_prime", "T_d0_prime", "X_d") if d_axis else ("X_q_prime", "T_q0_prime", "X_q")
 
-    def resid(xp: float, tau: float) -> Array:
+    def resid(xp: float, tau: float, xs: float) -> Array:
         # the nuisance terms are re-fitted at each perturbation (profile residual)
-        return solve_axis(ax, tau, data.dt, d_axis, fit.x_sync, x_prime=xp, keep_residual=True).residual  # type: ignore[return-value]
+        return solve_axis(ax, tau, data.dt, d_axis, xs, x_prime=xp, keep_residual=True).residual  # type: ignore[return-value]
 
-    r0 = resid(fit.x_prime, fit.tau)
+    r0 = resid(fit.x_prime, fit.tau, fit.x_sync)
     h_x, h_t = 1e-6, 1e-5
-    r_x = resid(fit.x_prime + h_x, fit.tau)
-    r_t = resid(fit.x_prime, fit.tau * (1 + h_t))
-    jac = np.column_stack([(r_x - r0) / h_x, (r_t - r0) / (fit.tau * h_t)])
+    columns = [
+        (resid(fit.x_prime + h_x, fit.tau, fit.x_sync) - r0) / h_x,
+        (resid(fit.x_prime, fit.tau * (1 + h_t), fit.x_sync) - r0) / (fit.tau * h_t),
+    ]
+    if sync_free:
+        columns.append((resid(fit.x_prime, fit.tau, fit.x_sync + h_x) - r0) / h_x)
+    jac = np.column_stack(columns)
     rows_per_scn = ax.mask[:, ax.keep].sum(axis=1).tolist()
     step = max(1, int(round(BLOCK_SECONDS / (data.dt * (ax.keep.step or 1)))))
-    free = [k for k in range(2) if names[k] not in held_names]
-    cov = np.zeros((2, 2))
+    free = [k for k in range(jac.shape[1]) if names[k] not in held_names]
+    cov = np.zeros((jac.shape[1], jac.shape[1]))
     if free:
         cov[np.ix_(free, free)] = cluster_robust_cov(jac[:, free], r0, block_ids(rows_per_scn, step))
     share_x = information_share(jac, rows_per_scn, 0)
@@ -598,7 +620,12 @@ def _axis_estimates(
     tau_est.std_random = STD_CALIBRATION * math.sqrt(max(cov[1, 1], 0.0))
     if att > MAX_ATTENUATION_TAU:
         tau_est.disqualify(f"{names[1]}: the axis is dominated by sensor noise here; not trusted")
-    return xp_est, tau_est
+    sync_est = None
+    if sync_free:
+        sd_s = STD_CALIBRATION * math.sqrt(max(cov[2, 2], 0.0))
+        sync_est = flag(Estimate(fit.x_sync, sd_s, note="refined in stage 3 (stage 2 could not run)"), names[2])
+        sync_est.std_random = sd_s
+    return xp_est, tau_est, sync_est
 
 
 def one_axis(
@@ -607,7 +634,7 @@ def one_axis(
     """Stage 3 on one axis only (the other's channels were not recorded): (X', T', X used)."""
     bounds = T_D0_BOUNDS if d_axis else T_Q0_BOUNDS
     fit = _profile(data, d_axis, x_sync, bounds, [0], constraints)
-    x_prime, tau = _axis_estimates(data, d_axis, fit, set(constraints.fixed))
+    x_prime, tau, _ = _axis_estimates(data, d_axis, fit, set(constraints.fixed))
     lo, hi = bounds
     if not lo * 1.001 < fit.tau < hi * 0.999:
         tau.at_bound = True

@@ -188,8 +188,7 @@ class VariableProjection(_StateConsistency):
             bounds_q=self.bounds_q,
             constraints=self.constraints,
         )
-        note = "refined in stage 3 (stage 2 could not run)"
-        return self.output(r, {"X_d": Estimate(r.X_d, note=note), "X_q": Estimate(r.X_q, note=note)} if missing else {})
+        return self.output(r, dict(r.refined) if missing else {})
 
 
 @register

@@ -91,6 +91,11 @@ def test_state_consistency_without_known_reactances_refines_them_or_says_it_cann
     assert out.estimates["X_d"].value == pytest.approx(TABLE1.X_d, rel=0.01)
     assert out.estimates["X_q"].value == pytest.approx(TABLE1.X_q, rel=0.01)
     assert "stage 2 could not run" in out.estimates["X_d"].note
+    # estimated jointly with X' and T', so with an error bar of its own (it was published with none)
+    for n in ("X_d", "X_q"):
+        est = out.estimates[n]
+        assert 0 < est.std < 0.05 * est.value and est.identifiable, n
+        assert abs(est.value - getattr(TABLE1, n)) < 3 * est.std, n
     with pytest.raises(StageError, match="needs X_d and X_q"):
         GlobalSearch().run(noisy_scenarios, {"X_d": TABLE1.X_d})
     with pytest.raises(StageError, match="needs X_d and X_q"):
