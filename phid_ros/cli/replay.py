@@ -194,6 +194,24 @@ def print_summary(
             prows,
             CONCISE_LEGEND,
         )
+    elif partial := next((r for r in reversed(outputs.recalibrations) if r.determined), None):
+        est = partial.determined
+        prows = [
+            [
+                SYMBOLS[n],
+                SPECS_BY_NAME[n].unit,
+                estimate_text(est[n].value, est[n].std, True) if n in est else "withheld",
+            ]
+            for n in PARAMETER_NAMES
+        ]
+        print_table(
+            console,
+            f"no full set in force at the end; the partial set published at "
+            f"{(partial.stream_time_ns - start) / NS:.1f} s",
+            [Col("param", "left"), Col("unit", "left"), Col("value(std)")],
+            prows,
+            CONCISE_LEGEND,
+        )
     elif pipeline.parameters is None:
         why = (
             f"{len(outputs.recalibrations)} recalibration(s), none with a complete set: their reasons above"

@@ -77,10 +77,12 @@ def window_message(types: Types, w: EventWindow, seq: Seq = numpy_seq) -> Any:
 def parameters_message(
     types: Types, outcome: RecalibrationOutcome, seq: Seq = numpy_seq, bools: Seq = numpy_bools
 ) -> Any | None:
-    """The set in force after a recalibration (the new one, or the last good one kept)."""
+    """The set in force after a recalibration (the new one, or the last good one kept); before
+    any set is in force, the parameters a partial run determined, alone (``names`` lists them:
+    the others are withheld, and ``status`` names them and why)."""
     p = outcome.parameters
     if p is None:
-        return None
+        return partial_message(types, outcome, seq, bools) if outcome.determined else None
     values = p.as_dict()
     res = outcome.result if outcome.accepted else None
     est = res.estimates if res else {}
@@ -98,6 +100,25 @@ def parameters_message(
         event_ids=list(outcome.event_ids),
         objective=float(objective),
         fit_rmse=float(fit),
+        status=outcome.status,
+    )
+
+
+def partial_message(types: Types, outcome: RecalibrationOutcome, seq: Seq = numpy_seq, bools: Seq = numpy_bools) -> Any:
+    """The parameters an incomplete recalibration determined, and only those (see :func:`parameters_message`)."""
+    est = outcome.determined
+    names = [n for n in PARAMETER_NAMES if n in est]
+    res = outcome.result
+    return types["phid_msgs/msg/GeneratorParameters"](
+        header=header(types, outcome.stream_time_ns),
+        names=names,
+        values=seq([est[n].value for n in names]),
+        std_dev=seq([est[n].std for n in names]),
+        identifiable=bools([True for _ in names]),
+        method=res.method if res else "",
+        event_ids=list(outcome.event_ids),
+        objective=float(res.stage3.objective) if res and res.stage3 else math.nan,
+        fit_rmse=math.nan,  # no complete model to validate
         status=outcome.status,
     )
 

@@ -6,7 +6,10 @@ and *with what* (the latest N events per kind). The worker runs the
 identification in one background thread, so ingestion never waits; requests that
 arrive while it runs are coalesced into one more run. A failed run, an
 incomplete or physically invalid set, or an implausible jump from the last good
-set keeps the last good parameters, with the reason in the outcome.
+set keeps the last good parameters, with the reason in the outcome. Before any set is in force,
+an incomplete run's determined parameters are published on their own (a partial set: a plant's
+recorder without the rotor's channels determines some parameters, never all eight), the others
+withheld by name.
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 from phid_ros.ident.pipeline import IdentificationResult, IdentifyOptions, identify
+from phid_ros.ident.results import Estimate
 from phid_ros.ident.scenario import DEFAULT_THRESHOLDS, ScenarioData, ScenarioError, StepThresholds, make_scenario
 from phid_ros.model.conventions import NS
 from phid_ros.model.parameters import SYMBOLS, GeneratorParameters
@@ -53,6 +57,8 @@ class RecalibrationPolicy:
 
 KEPT_LAST_GOOD = "kept last good set: "
 INCOMPLETE = "incomplete result ("
+PARTIAL = "partial set: "
+WITHHELD_WHY = "not determined by these channels and events (phid identify on the same events says why, per parameter)"
 
 
 @dataclass
@@ -64,6 +70,9 @@ class RecalibrationOutcome:
     event_ids: list[str]
     stream_time_ns: int
     seconds: float
+    # with no set in force yet: the parameters this incomplete run determined (identified, with a
+    # finite std), published on their own; the set in force stays None
+    determined: dict[str, Estimate] = field(default_factory=dict)
 
     def said(self) -> tuple[str, str]:
         """(outcome, why) in the words of what happened to the set in force, for a reader: the first
@@ -74,11 +83,25 @@ class RecalibrationOutcome:
             names = ", ".join(SYMBOLS.get(n, n) for n in flagged.split(", ")) if flagged else ""
             return "adopted", f"withheld as poorly identified: {names}" if names else ""
         why = self.status.removeprefix(KEPT_LAST_GOOD)
+        if self.parameters is None and self.determined:
+            names = ", ".join(SYMBOLS.get(n, n) for n in self.determined)
+            withheld = ", ".join(SYMBOLS.get(n, n) for n in SYMBOLS if n not in self.determined)
+            return f"partial set published: {names}", f"withheld {withheld}: {WITHHELD_WHY}"
         if self.parameters is None:
             if why.startswith(INCOMPLETE):
                 why = why.removeprefix(INCOMPLETE).removesuffix(")")
             return "no set yet (the events so far do not determine every parameter)", why
         return "not adopted, the set in force kept", why
+
+
+def determined_only(result: IdentificationResult) -> dict[str, Estimate]:
+    """The parameters ``result`` identified with a finite value and std, in the contract's order:
+    what a partial set publishes. A value flagged not identifiable, or without a std, is withheld."""
+    return {
+        n: e
+        for n, e in result.estimates.items()
+        if e.identifiable and math.isfinite(e.value) and math.isfinite(e.std) and e.std > 0
+    }
 
 
 def scenario_from_window(
@@ -285,9 +308,13 @@ class Recalibrator:
         if model is None:
             missing = [n for n, v in result.parameters.items() if not math.isfinite(v)]
             why = "; ".join(result.problems[:3]) or f"missing {missing}"
-            return RecalibrationOutcome(
-                False, f"{KEPT_LAST_GOOD}{INCOMPLETE}{why})", self.last_good, result, ids, now, seconds
-            )
+            determined = {} if self.last_good is not None else determined_only(result)
+            if determined:
+                withheld = ", ".join(n for n in result.parameters if n not in determined)
+                status = f"{PARTIAL}withheld {withheld}: {WITHHELD_WHY}"
+            else:
+                status = f"{KEPT_LAST_GOOD}{INCOMPLETE}{why})"
+            return RecalibrationOutcome(False, status, self.last_good, result, ids, now, seconds, determined)
         if self.last_good is not None:
             jumps = self._jumps(model, result)
             if jumps:

@@ -154,3 +154,27 @@ def test_a_bag_folder_and_its_own_mcap_count_once(folder, trend_bag, capsys) -> 
     a, b = json.loads(once.read_text()), json.loads(both.read_text())
     assert b["uncertainty"] == a["uncertainty"] and b["identifiable"] == a["identifiable"]
     assert f"{inner}: skipped scenario bagdir/noload: the same data as scenario bagdir/noload" in b["problems"]
+
+
+def test_the_monitor_on_a_trend_log_publishes_what_the_channels_determine(folder, trend_bag, tmp_path, capsys) -> None:
+    """No rotor channels, no set of eight: the recalibration publishes the parameters its events
+    determine (T'_d0 from the no-load step at once; X_d with the on-line steps), the rest withheld by name."""
+    from rosbags.highlevel import AnyReader
+
+    from phid_ros.io.msg_schemas import typestore
+
+    out = tmp_path / "monitor.mcap"
+    assert main(["replay", str(trend_bag), "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "recalibration at 15.0 s with 1 event(s): partial set published: T'_d0 (withheld H, D, X_d, X_q," in text
+    assert "no full set in force at the end; the partial set published at" in text
+    with AnyReader([out], default_typestore=typestore()) as reader:
+        conns = [c for c in reader.connections if c.topic == "/phid/parameters"]
+        msgs = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages(connections=conns)]
+    assert len(msgs) == 2 and all(m.status.startswith("partial set: withheld H, D") for m in msgs)
+    assert list(msgs[0].names) == ["T_d0_prime"]
+    for m in msgs:
+        assert "H" not in m.names and "X_q" not in m.names and all(m.identifiable)
+        for name, value, std in zip(m.names, m.values, m.std_dev):
+            truth = getattr(TABLE1, name)
+            assert abs(value - truth) < max(3 * std, 0.01 * truth), (name, value, std)

@@ -86,3 +86,25 @@ def test_diagnostics_name_their_unit_so_a_plant_s_monitors_group_apart(types: di
     ]
     plain = diagnostics_message(types, T0, health, None)
     assert [(s.name, s.hardware_id) for s in plain.status] == [("phid: pt_ct stream", "generator")]
+
+
+def test_before_any_set_a_partial_run_publishes_what_it_determined_and_only_that(types: dict) -> None:
+    """A recorder without the rotor's channels determines some parameters, never all eight: the
+    message names the determined ones alone, the status names the rest as withheld."""
+    from phid_ros.ident.results import Estimate
+
+    determined = {"X_d": Estimate(2.54, 0.006), "T_d0_prime": Estimate(1.44, 0.005)}
+    status = "partial set: withheld H, D, X_q, X_d_prime, X_q_prime, T_q0_prime: not determined ..."
+    partial = RecalibrationOutcome(False, status, None, None, ["e1"], T0, 0.1, determined)
+    [msg] = [p.message for p in emit(types, Outputs(recalibrations=[partial]))]
+    assert list(msg.names) == ["X_d", "T_d0_prime"]
+    assert list(msg.values) == [2.54, 1.44] and list(msg.std_dev) == [0.006, 0.005]
+    assert list(msg.identifiable) == [True, True] and msg.status == status
+    assert partial.said() == (
+        "partial set published: X_d, T'_d0",
+        "withheld H, D, X_q, X'_d, X'_q, T'_q0: not determined by these channels and events "
+        "(phid identify on the same events says why, per parameter)",
+    )
+    # nothing determined and no set in force: nothing to publish
+    empty = RecalibrationOutcome(False, "kept last good set: incomplete result (...)", None, None, [], T0, 0.1)
+    assert list(emit(types, Outputs(recalibrations=[empty]))) == []
