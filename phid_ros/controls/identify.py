@@ -14,21 +14,34 @@ into 0.2 pu on E_fd, which an output-error fit answers by lowering the gain; V_t
 are low-passed forward and backward at 40 Hz (no lag). At 10 Hz the filter cut into the
 exciter's own band: STEPS's SEXS gave T_E 0.0468 s for 0.05 (at 40 Hz 0.0495).
 
-Faults are left out of the exciter's fit: the field voltage goes to its ceiling, a limit.
-Limits are reported as not determined unless the recorded output reached them.
+Limits: a model's output limits (SEXS's EMAX, ESST5B's VRMAX) are ``null`` unless the recorded
+output reached them. Reached means a flat top: the recorded output sits within its noise of its
+extreme for at least ``MIN_FLAT_S`` while the small-signal fit wants it further. Then the limit is
+fitted from there, the model played through its limits (:meth:`ControlModel.limited`), every
+stepped scenario's reference a constant of that fit (the response is no longer linear in it),
+and the no-load faults join the exciter's fit: a fault drives the field voltage to its ceiling,
+which is what pins it. Without a limit reached, faults stay out of the exciter's fit.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from phid_ros.controls.models import MODELS, ControlInputs, ControlModel, ControlParameter, of_kind
+from phid_ros.controls.models import (
+    MODELS,
+    ControlInputs,
+    ControlModel,
+    ControlParameter,
+    LimitsError,
+    OperatingLevels,
+    of_kind,
+)
 from phid_ros.ident.scenario import ScenarioData
 from phid_ros.ident.uncertainty import block_ids, cluster_robust_cov
 from phid_ros.numerics import lowpass2
@@ -53,6 +66,13 @@ PROFILE_EVALUATIONS = 12
 EQUAL_FIT = 0.01  # two fits whose rms errors differ by less than this share explain the data equally
 NAMED_BELOW = 0.75  # a model is named when its held-out error is below this share of "no control action"
 DETERMINED_STD = 0.10  # relative std at most, for a fitted parameter to be given as determined
+MIN_FLAT_S = 0.012  # a recorded output on a limit: flat at its extreme at least this long
+FLAT_NOISES = 6.0  # "flat": within this many output noises of the extreme (found on a 3-sample mean)
+WANTED_NOISES = 5.0  # ... while the small-signal fit wants it this many noises further
+LIMIT_RANGE = 0.10  # a reached limit is fitted within this share of the extreme it was found at
+REFERENCE_SEARCH = (-0.5, 0.5)  # pu: a limited model's reference step is sized within this
+
+Limits = dict[str, tuple[float, float, float]]  # limit -> (start, low, high), for a fit that frees it
 
 
 @dataclass
@@ -71,6 +91,7 @@ class ControlFit:
     why: str
     references: dict[str, float] = field(default_factory=dict)
     alternatives: dict[str, float] = field(default_factory=dict)  # models that fit as well: their errors
+    limits: Limits = field(default_factory=dict)  # the limits this fit freed (reached in the recordings)
 
     def as_json(self) -> dict[str, Any]:
         """``model`` is null where none is named; ``fitted_model`` is the best candidate either way."""
@@ -102,6 +123,7 @@ class ControlCase:
     inputs: ControlInputs
     output: Array
     stepped: bool  # a reference step of unknown size at the event
+    levels: OperatingLevels | None = None  # an exciter's operating levels: what its limits are against
 
 
 DE_EXCITED = 0.3  # V_t ending below this share of its pre-event value: the field was switched off
@@ -120,12 +142,16 @@ def regulator_out_of_loop(s: ScenarioData) -> str | None:
     return None
 
 
-def _cases(scenarios: Sequence[ScenarioData], kind: str, role: str) -> list[ControlCase]:
+def _cases(
+    scenarios: Sequence[ScenarioData], kind: str, role: str, kinds: Sequence[str] | None = None
+) -> list[ControlCase]:
     _needs, _out, _stepped, fitted_kinds = KINDS[kind]
     picked = (
         control_case(s, kind)
         for s in scenarios
-        if s.role == role and s.kind in fitted_kinds and not (kind == "exciter" and regulator_out_of_loop(s))
+        if s.role == role
+        and s.kind in (fitted_kinds if kinds is None else kinds)
+        and not (kind == "exciter" and regulator_out_of_loop(s))
     )
     return [c for c in picked if c is not None]
 
@@ -159,7 +185,12 @@ def control_case(s: ScenarioData, kind: str, *, output: bool = True) -> ControlC
         step,
         float(np.mean(s["p_m"][pre])) if s.has("p_m") else math.nan,
     )
-    return ControlCase(s.name, x, np.ascontiguousarray(dev[out_channel][::k]), s.kind in stepped_kinds)
+    levels = None
+    if kind == "exciter" and s.has("v_f"):
+        output0 = float(np.mean(s["v_f"][pre]))
+        # the field current at rest is E_fd on the machine's base (the scenarios carry no I_fd)
+        levels = OperatingLevels(float(np.mean(s["v_t"][pre])) + x.v_t, output0, output0)
+    return ControlCase(s.name, x, np.ascontiguousarray(dev[out_channel][::k]), s.kind in stepped_kinds, levels)
 
 
 def fit_stride(dt: float) -> int:
@@ -179,12 +210,127 @@ def _references(cases: Sequence[ControlCase], predicted: Sequence[Array], unit: 
     return out
 
 
-def simulate_cases(model: type[ControlModel], values: dict[str, float], cases: Sequence[ControlCase]) -> list[Array]:
-    """Each case's output with its reference step sized by least squares."""
+def _sized(
+    model: type[ControlModel], values: dict[str, float], cases: Sequence[ControlCase]
+) -> tuple[list[Array], list[Array], list[float]]:
+    """Per case the small-signal response without a reference step, the response to a unit one
+    (empty where the case has none) and the step's size by least squares (0 unstepped)."""
     free = [model.response(values, c.inputs, 0.0) for c in cases]
     unit = [model.response(values, c.inputs, 1.0) - f if c.stepped else np.zeros(0) for c, f in zip(cases, free)]
-    refs = _references(cases, free, unit)
+    return free, unit, _references(cases, free, unit)
+
+
+def simulate_references(
+    model: type[ControlModel], values: dict[str, float], cases: Sequence[ControlCase]
+) -> list[float]:
+    """Each case's reference step as the small-signal model sizes it."""
+    return _sized(model, values, cases)[2]
+
+
+def simulate_cases(model: type[ControlModel], values: dict[str, float], cases: Sequence[ControlCase]) -> list[Array]:
+    """Each case's output with its reference step sized by least squares."""
+    free, unit, refs = _sized(model, values, cases)
     return [f + r * u if c.stepped else f for c, f, u, r in zip(cases, free, unit, refs)]
+
+
+def limited_output(
+    model: type[ControlModel], values: Mapping[str, float], case: ControlCase, reference: float | None = None
+) -> tuple[Array, float]:
+    """The case's output deviation played through the model's limits, and its reference step:
+    ``reference``, or for a stepped case without one the size a bounded search finds (the
+    response is not linear in it). Raises LimitsError where the limits cannot hold the case's
+    operating point."""
+    from scipy.optimize import minimize_scalar
+
+    assert case.levels is not None
+    levels = case.levels
+
+    def played(r: float) -> Array:
+        out = model.limited(values, case.inputs, r, levels)
+        if out is None:
+            raise LimitsError(f"{model.name} simulates no limits")
+        return out
+
+    if reference is None:
+        reference = 0.0
+        if case.stepped:
+            reference = float(
+                minimize_scalar(
+                    lambda r: float(np.sum((played(r) - case.output) ** 2)),
+                    bounds=REFERENCE_SEARCH,
+                    method="bounded",
+                    options={"xatol": 1e-5},
+                ).x
+            )
+    return played(reference), reference
+
+
+def reached_limits(
+    model: type[ControlModel], values: Mapping[str, float], cases: Sequence[ControlCase], noise: float
+) -> Limits:
+    """The output limits the recordings reached (see the module's note), each with where its fit
+    starts and its range: the recorded extreme it sat at, in the limit's own terms.
+
+    Found: a limit hit at speed (a fault drives E_fd to its ceiling within tens of ms) or one the
+    small-signal fit wants past. Not found: a limit crept up to (E_fd sliding to its floor over
+    a second through a long lead-lag) that the small-signal fit, bent by that very case, does
+    not want past; the fit's constants are then flagged as the profile finds them, not freed."""
+    if model.output_limits is None or not any(c.levels is not None for c in cases):
+        return {}
+    lower, upper = model.output_limits
+    found: dict[str, float] = {}
+    rest: dict[str, float] = {}  # the limit's value at each case's operating point: it must hold them all
+    pred = simulate_cases(model, {**model.defaults(), **values}, cases)
+    for c, want in zip(cases, pred):
+        if c.levels is None or c.output.size < 3:
+            continue
+        for sign, name in ((1.0, upper), (-1.0, lower)):
+            at_rest = model.limit_at(name, c.levels.output0, c.levels, 0)
+            rest[name] = at_rest if name not in rest else sign * max(sign * rest[name], sign * at_rest)
+        flat_n = max(3, int(math.ceil(MIN_FLAT_S / c.inputs.dt)))
+        span = float(np.ptp(c.output))
+        tol = max(FLAT_NOISES * noise, 0.002 * span)
+        for sign, name in ((1.0, upper), (-1.0, lower)):
+            y = sign * c.output
+            # the top found on the output averaged over the flat span: a lone noise peak is no top
+            top = np.convolve(y, np.ones(flat_n) / flat_n, mode="same")
+            k = int(np.argmax(top[flat_n:-flat_n])) + flat_n if len(y) > 3 * flat_n else int(np.argmax(top))
+            level = float(top[k])
+            on = top >= level - tol
+            # the run of flat samples around the extreme
+            a = k
+            while a > 0 and on[a - 1]:
+                a -= 1
+            b = k
+            while b + 1 < len(y) and on[b + 1]:
+                b += 1
+            if b - a + 1 < flat_n:
+                continue
+            # a limit is hit: the output arrives at speed and stops dead (a settling output creeps
+            # up to its plateau); or the fit wants it further. Either: a limit, not a plateau
+            hit = a >= 2 and float(level - top[a - 2]) > 3.0 * tol
+            wanted = float(np.mean(sign * want[a : b + 1])) >= level + WANTED_NOISES * max(noise, 1e-9)
+            if not (hit or wanted):
+                continue
+            at = model.limit_at(name, c.levels.output0 + sign * level, c.levels, k)
+            # the limit is one value: the outermost flat top found (a case that sat lower was
+            # held there by something else)
+            if name not in found or sign * at > sign * found[name]:
+                found[name] = at
+    out: Limits = {}
+    for name, at in found.items():
+        sign = 1.0 if name == upper else -1.0
+        # the range in terms of the limit's size or its distance from rest (a floor at 0 pu)
+        scale = max(abs(at), abs(at - rest[name]))
+        near, far = at - sign * LIMIT_RANGE * scale, at + sign * LIMIT_RANGE * scale
+        # never inside an operating point a case rested at (the limit held it), by a margin
+        margin = 0.01 * scale
+        near = sign * max(sign * near, sign * rest[name] + margin)
+        if sign * far <= sign * near:
+            continue
+        lo, hi = sorted((near, far))
+        out[name] = (min(max(at, lo), hi), lo, hi)
+    return out
 
 
 def _no_control(cases: Sequence[ControlCase]) -> list[Array]:
@@ -218,30 +364,57 @@ def fit_model(
     *,
     checked: bool = True,
     start_at: Mapping[str, float] | None = None,
+    limits: Limits | None = None,
+    held_limits: Mapping[str, float] | None = None,
 ) -> ControlFit:
     """``model``'s fitted parameters (log scale, in their ranges; the limits held), their stds
     from the Jacobian, and its error on the held-out cases; started where ``model.start`` says
     from the ``earlier`` models' fits. ``checked``: a constant is given as determined only after
-    a second start and a profile agree (the named model's fit); unchecked fits only compete."""
+    a second start and a profile agree (the named model's fit); unchecked fits only compete.
+    ``limits``: the output limits the recordings reached (:func:`reached_limits`), fitted too,
+    the cases played through them (:meth:`ControlModel.limited`), each stepped case's reference
+    a constant of the fit. ``held_limits``: limits found by such a fit, held at their values while
+    the small-signal constants are fitted and checked on the small-signal tests alone."""
     from scipy.optimize import least_squares
 
-    free = list(model.fitted())
-    values0 = model.defaults()
+    limits = dict(limits or {})
+    held_limits = dict(held_limits or {})
+    through_limits = bool(limits or held_limits)
+    bounded = [replace(q, default=limits[q.name][0], low=limits[q.name][1], high=limits[q.name][2], limit=False)
+               for q in model.parameters if q.name in limits]  # fmt: skip
+    n_model = len(model.fitted()) + len(bounded)
+    stepped = [i for i, c in enumerate(fit) if c.stepped] if through_limits else []
+    references = [
+        ControlParameter(f"reference {fit[i].name}", "pu", 0.0, *REFERENCE_SEARCH, "the case's reference step")
+        for i in stepped
+    ]
+    free = [*model.fitted(), *bounded, *references]
+    values0 = model.defaults() | held_limits
     log = [p.low > 0 for p in free]
 
     def values_at(x: Array) -> dict[str, float]:
         v = dict(values0)
-        for p, xi, lg in zip(free, x, log):
+        for p, xi, lg in zip(free[:n_model], x, log):
             v[p.name] = float(np.exp(xi)) if lg else float(xi)
         return model.completed(v)
 
+    def predicted(x: Array) -> list[Array]:
+        values = values_at(x)
+        if not through_limits:
+            return simulate_cases(model, values, fit)
+        refs = dict(zip(stepped, (float(r) for r in x[n_model:])))
+        return [limited_output(model, values, c, refs.get(i, 0.0))[0] for i, c in enumerate(fit)]
+
     def residual(x: Array) -> Array:
-        pred = simulate_cases(model, values_at(x), fit)
-        return np.concatenate([c.output - p for c, p in zip(fit, pred)])
+        return np.concatenate([c.output - p for c, p in zip(fit, predicted(x))])
 
     lo = np.array([math.log(p.low) if lg else p.low for p, lg in zip(free, log)])
     hi = np.array([math.log(p.high) if lg else p.high for p, lg in zip(free, log)])
     first = {**model.defaults(), **start_at} if start_at else model.start(earlier or {})
+    first |= {q.name: q.default for q in bounded if not (start_at and q.name in start_at)}
+    if stepped:  # the references start where the small-signal model sizes them
+        lin = simulate_references(model, model.completed({**values0, **first}), [fit[i] for i in stepped])
+        first |= {q.name: min(max(r, q.low), q.high) for q, r in zip(references, lin)}
     x0 = np.array([math.log(max(first[p.name], p.low)) if lg else first[p.name] for p, lg in zip(free, log)])
     # least_squares' trust region does not leave a bound it starts on (IEEET1's T_R stayed at 0
     # and T_A took both lags, +40 %): every start is moved inside by 2 % of its range
@@ -291,7 +464,7 @@ def fit_model(
     raw = [float(np.exp(xi)) if lg else float(xi) for xi, lg in zip(sol.x, log)]
     raw_other = [float(np.exp(xi)) if lg else float(xi) for xi, lg in zip(other.x, log)]
     stds, determined = [], []
-    for i in range(len(free)):
+    for i in range(n_model):  # the references are the cases' own, not the model's: not judged
         sd = raw[i] * float(std_x[i]) if log[i] else float(std_x[i])
         scale = DETERMINED_STD * max(abs(raw[i]), 1e-9)
         ok = not at_bound[i] and math.isfinite(sd) and sd <= scale
@@ -302,23 +475,26 @@ def fit_model(
     params: dict[str, float | None] = {}
     std: dict[str, float | None] = {}
     ident: dict[str, bool] = {}
-    for i, p in enumerate(free):
+    for i, p in enumerate(free[:n_model]):
         # where the model's completion moved a value to another name (IEEEG1's commuting lags,
         # put in order), its std and verdict go with it
-        j = next((k for k, v in enumerate(raw) if v == values[p.name]), i)
+        j = next((k for k, v in enumerate(raw[:n_model]) if v == values[p.name]), i)
         params[p.name], std[p.name], ident[p.name] = values[p.name], stds[j], bool(determined[j])
     for p in model.parameters:
-        if p.limit:  # never reached in a linear fit: the data say nothing of it
+        if p.limit and p.name in held_limits:  # found by the fit with the faults (the caller's verdict)
+            params[p.name], std[p.name], ident[p.name] = held_limits[p.name], None, False
+        elif p.limit and p.name not in limits:  # never reached: the data say nothing of it
             params[p.name], std[p.name], ident[p.name] = None, None, False
         elif p.held:  # the model's structure sets it (a stage left out, a share that completes another)
             params[p.name], std[p.name], ident[p.name] = values[p.name], None, False
-    pred = simulate_cases(model, values, fit)
-    refs = _references(
-        fit,
-        [model.response(values, c.inputs, 0.0) for c in fit],
-        [model.response(values, c.inputs, 1.0) - model.response(values, c.inputs, 0.0) for c in fit],
-    )
-    held_rmse = _rmse(held, simulate_cases(model, values, held)) if held else None
+    pred = predicted(sol.x)
+    if through_limits:
+        refs = [float(sol.x[n_model + stepped.index(i)]) if i in stepped else 0.0 for i in range(len(fit))]
+        held_pred = [limited_output(model, values, c)[0] for c in held]
+    else:
+        refs = simulate_references(model, values, fit)
+        held_pred = simulate_cases(model, values, held)
+    held_rmse = _rmse(held, held_pred) if held else None
     return ControlFit(
         model.name,
         model.kind,
@@ -331,7 +507,33 @@ def fit_model(
         False,
         "",
         {c.name: r for c, r in zip(fit, refs) if c.stepped},
+        limits=limits,
     )
+
+
+def _with_reached_limits(
+    model: type[ControlModel],
+    small_signal: ControlFit,
+    fit: Sequence[ControlCase],
+    faults: Sequence[ControlCase],
+    held: Sequence[ControlCase],
+) -> ControlFit:
+    """``small_signal`` refitted with the output limits the recordings reached, the faults joining
+    the fit; as it was where none is reached (or the limits found cannot hold a case's operating
+    point)."""
+    cases = [*fit, *faults]
+    limits = reached_limits(model, _known(small_signal), cases, _output_noise(fit))
+    if not limits:
+        return small_signal
+    try:
+        return fit_model(model, cases, held, checked=False, start_at=_known(small_signal), limits=limits)
+    except LimitsError:
+        return small_signal
+
+
+def _limit_values(f: ControlFit) -> dict[str, float]:
+    """The values of the limits ``f`` freed (found reached)."""
+    return {n: float(v) for n in f.limits if (v := f.parameters.get(n)) is not None}
 
 
 def _known(f: ControlFit) -> dict[str, float]:
@@ -362,7 +564,7 @@ def _without_unseen_terms(
         if p.absent is None or p.held or p.limit:
             continue
         trial = _holding(model, p.name)
-        f = fit_model(trial, fit, held, checked=False, start_at=_known(fitted))
+        f = fit_model(trial, fit, held, checked=False, start_at=_known(fitted), held_limits=_limit_values(fitted))
         if f.fit_rmse <= (1.0 + EQUAL_FIT) * fitted.fit_rmse:
             model, fitted = trial, f
     return model
@@ -418,6 +620,8 @@ def identify_controls(
     out: dict[str, ControlFit | str] = {}
     for kind in KINDS:
         fit, held = _cases(scenarios, kind, "identify"), _cases(scenarios, kind, "validate")
+        # a fault drives the field voltage to its ceiling: fitted only where a limit is (see the module)
+        faults = _cases(scenarios, kind, "identify", ("fault",)) if kind == "exciter" else []
         if not fit:
             out[kind] = f"not identified: no scenario with {' and '.join(KINDS[kind][0])} to fit"
             continue
@@ -438,11 +642,22 @@ def identify_controls(
             earlier = {f.model: {k: v for k, v in f.parameters.items() if v is not None} for f in fits}
             given = (starts or {}).get(kind)
             own = dict(given) if given and set(given) >= {p.name for p in m.fitted()} else None
-            fits.append(fit_model(m, fit, held, earlier, checked=False, start_at=own))
+            fits.append(
+                _with_reached_limits(
+                    m, fit_model(m, fit, held, earlier, checked=False, start_at=own), fit, faults, held
+                )
+            )
         chosen, alike = _simplest_best(fits)
         if _judged(chosen) < NAMED_BELOW * none:
+            # the limits as the fit with the faults found them; the small-signal constants fitted
+            # and checked on the small-signal tests, played through those limits (a fault's
+            # switching, which the smoothed inputs blur, would weigh in every constant's profile)
             model = _without_unseen_terms(MODELS[chosen.model], chosen, fit, held)
-            best = fit_model(model, fit, held, checked=True, start_at=_known(chosen))
+            best = fit_model(model, fit, held, checked=True, start_at=_known(chosen), held_limits=_limit_values(chosen))
+            for n in chosen.limits:
+                best.parameters[n], best.uncertainty[n] = chosen.parameters[n], chosen.uncertainty[n]
+                best.identifiable[n] = chosen.identifiable[n]
+            best.limits = chosen.limits
         else:  # no model is named: none of its constants is given as determined, and none is checked
             best = chosen
             best.identifiable = dict.fromkeys(best.identifiable, False)

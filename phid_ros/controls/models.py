@@ -27,6 +27,7 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
+from phid_ros.jit import maybe_jit
 from phid_ros.model.bounds import Bounded
 from phid_ros.numerics import first_order_coefficients, first_order_response
 
@@ -132,14 +133,23 @@ def nonwindup_lag(u: Array, tau: float, dt: float, lo: Array, hi: Array, x0: flo
     if tau <= 1e-6:
         return np.clip(u, lo, hi)
     a, b0, b1 = first_order_coefficients(tau, dt)
+    f64 = np.float64
+    return _nonwindup_lag_loop(np.asarray(u, f64), a, b0, b1, np.asarray(lo, f64), np.asarray(hi, f64), float(x0))
+
+
+def _nonwindup_lag_steps(u: Array, a: float, b0: float, b1: float, lo: Array, hi: Array, x0: float) -> Array:
     y = np.empty(len(u))
     x = x0
-    prev = float(u[0]) if len(u) else 0.0
+    prev = u[0] if len(u) else 0.0
     for k in range(len(u)):
-        x = min(max(a * x + b0 * prev + b1 * float(u[k]), float(lo[k])), float(hi[k]))
+        x = min(max(a * x + b0 * prev + b1 * u[k], lo[k]), hi[k])
         y[k] = x
-        prev = float(u[k])
+        prev = u[k]
     return y
+
+
+# compiled where numba is (a limited exciter's fit plays this loop at every evaluation of every case)
+_nonwindup_lag_loop = maybe_jit(_nonwindup_lag_steps)
 
 
 def nonwindup_lead_lag(u: Array, t_lead: float, t_lag: float, dt: float, lo: float, hi: float, x0: float) -> Array:
@@ -187,6 +197,8 @@ class ControlModel(ABC):
     outside_path: ClassVar[tuple[str, ...]] = ()
     # limits :meth:`limited` simulates (said apart from the ones the play-in leaves out)
     simulated_limits: ClassVar[tuple[str, ...]] = ()
+    # (lower, upper): the limits that bound the output itself, which a recorded flat top pins
+    output_limits: ClassVar[tuple[str, str] | None] = None
     simulated_limits_how: ClassVar[str] = ""
 
     @classmethod
@@ -240,6 +252,13 @@ class ControlModel(ABC):
         return None
 
     @classmethod
+    def limit_at(cls, name: str, output: float, levels: OperatingLevels, k: int) -> float:
+        """The value of limit ``name`` that puts the output's bound at ``output`` at sample ``k``
+        (a recorded flat top where the output sat on it): the output itself for a limit on the
+        output, divided by V_T for a static exciter's ceiling (see ESST5B)."""
+        return output
+
+    @classmethod
     def defaults(cls) -> dict[str, float]:
         return {p.name: p.default for p in cls.parameters}
 
@@ -287,6 +306,26 @@ class SEXS(ControlModel):
         tb = values["TB"]
         e = reference * x.reference_step - x.v_t
         return values["K"] * lag(lead_lag(e, values["TA/TB"] * tb, tb, x.dt), values["TE"], x.dt)
+
+    simulated_limits = ("EMIN", "EMAX")
+    simulated_limits_how = "E_fd within EMIN..EMAX on a non-windup T_E lag (PSS/E SEXS)"
+    output_limits = ("EMIN", "EMAX")
+
+    @classmethod
+    def limited(
+        cls, values: Mapping[str, float], x: ControlInputs, reference: float, levels: OperatingLevels
+    ) -> Array | None:
+        v = values
+        if not v["EMIN"] <= levels.output0 <= v["EMAX"]:
+            raise LimitsError(
+                f"E_fd at rest {levels.output0:.3f} lies outside EMIN..EMAX {v['EMIN']:g}..{v['EMAX']:g}: the "
+                "limits do not hold the recorded operating point"
+            )
+        tb = v["TB"]
+        e = reference * x.reference_step - x.v_t
+        u = levels.output0 + v["K"] * lead_lag(e, v["TA/TB"] * tb, tb, x.dt)
+        lo, hi = np.full(len(u), v["EMIN"]), np.full(len(u), v["EMAX"])
+        return nonwindup_lag(u, v["TE"], x.dt, lo, hi, levels.output0) - levels.output0
 
 
 @register
@@ -450,7 +489,13 @@ class ESST5B(ControlModel):
         first = lead_lag(e, v["TC1"], v["TB1"], x.dt)
         return v["KR"] * lag(lead_lag(first, v["TC2"], v["TB2"], x.dt), v["T1"], x.dt)
 
+    @classmethod
+    def limit_at(cls, name: str, output: float, levels: OperatingLevels, k: int) -> float:
+        # E_fd's bound is V_T VRMAX - K_C I_FD (V_T VRMIN): with K_C not reached, V_R's limit is E_fd / V_T
+        return output / float(levels.v_t[k]) if name in ("VRMAX", "VRMIN") else output
+
     simulated_limits = ("KC", "VRMAX", "VRMIN")
+    output_limits = ("VRMIN", "VRMAX")
     simulated_limits_how = (
         "V_R within VRMIN..VRMAX after the lead-lags, E_fd within VRMIN V_T..VRMAX V_T - K_C I_FD on a "
         "non-windup T_1 lag, the first lead-lag non-windup (IEEE 421.5 ST5B); I_FD held at its pre-event value"

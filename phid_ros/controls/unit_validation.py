@@ -25,20 +25,21 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import minimize_scalar
 
 from phid_ros.controls.identify import (
     KINDS,
     ControlCase,
     control_case,
     fit_stride,
+    limited_output,
     regulator_out_of_loop,
     simulate_cases,
+    simulate_references,
     zero_phase,
 )
 from phid_ros.controls.models import MODELS, ControlModel, LimitsError, OperatingLevels
@@ -177,9 +178,6 @@ class Control:
     values: dict[str, float]
 
 
-REFERENCE_SEARCH = (-0.5, 0.5)  # pu: a limited exciter's reference step is sized within this
-
-
 def _control_output(
     s: ScenarioData, kind: str, control: Control, level: float, notes: list[str]
 ) -> tuple[Array, float] | None:
@@ -198,32 +196,11 @@ def _control_output(
     except LimitsError as exc:
         notes.append(f"{model.name}'s limits not simulated: {exc}")
         limited = False
-    if levels is not None and limited:
-
-        def played(r: float) -> Array:
-            out = model.limited(values, case.inputs, r, levels)
-            assert out is not None
-            return out
-
-        reference = 0.0
-        if case.stepped:
-            reference = float(
-                minimize_scalar(
-                    lambda r: float(np.sum((played(r) - case.output) ** 2)),
-                    bounds=REFERENCE_SEARCH,
-                    method="bounded",
-                    options={"xatol": 1e-5},
-                ).x
-            )
-        pred = played(reference)
+    if limited:
+        pred, reference = limited_output(model, values, replace(case, levels=levels))
     else:
         [pred] = simulate_cases(model, values, [case])
-        reference = 0.0
-        if case.stepped:
-            free = model.response(values, case.inputs, 0.0)
-            unit = model.response(values, case.inputs, 1.0) - free
-            denom = float(unit @ unit)
-            reference = float(unit @ (pred - free)) / denom if denom > 0 else 0.0
+        [reference] = simulate_references(model, values, [case])
     k = fit_stride(s.dt)
     coarse = np.arange(0, s.n, k) * s.dt
     return interpolant(coarse, pred)(np.arange(s.n) * s.dt), reference

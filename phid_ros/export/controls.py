@@ -2,9 +2,9 @@
 
 Each named control model (:mod:`phid_ros.controls.models`) becomes a record of its PSS/E
 constants in their declared order, each with where its value came from: identified, or a stated
-default where the recordings do not determine it. A small-signal test never reaches an output
-limit, so limits are always stated defaults (the model's declared ones), said so in the record's
-comment; a constant fitted but not determined is refused, as a machine parameter is, unless
+default where the recordings do not determine it. A limit the recordings reached (an exciter's
+ceiling in a fault) is written as identified; one never reached is the model's declared default,
+said so in the record's comment; a constant fitted but not determined is refused, as a machine parameter is, unless
 ``--allow-flagged``, except at the value where its block is absent (a turbine damping D_t of 0).
 """
 
@@ -85,7 +85,7 @@ def build_control_records(
             if parent is not None and parent.absent is not None and _is_absent(params.get(parent.name), parent):
                 values[p.name], sources[p.name] = p.default, f"default: moot ({parent.name} absent)"
                 continue
-            if p.limit or v is None:
+            if v is None or (p.limit and not ident.get(p.name)):
                 values[p.name], sources[p.name] = p.default, "default (a limit the recordings never reached)"
                 continue
             if not isinstance(v, (int, float)) or not math.isfinite(float(v)):

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from phid_ros.controls.identify import ControlFit, controls_json, identify_controls
-from phid_ros.controls.models import MODELS, SEXS, TGOV1, ControlInputs
+from phid_ros.controls.models import MODELS, SEXS, TGOV1, ControlInputs, OperatingLevels
 from phid_ros.model.channels import Frame
 
 EXCITER = {**SEXS.defaults(), "TA/TB": 0.2, "TB": 5.0, "K": 100.0, "TE": 0.05}
@@ -27,13 +27,14 @@ TRUTH = {
 GAINS = {"K", "KA", "KR", "R"}
 
 
-def switched_in(noisy, clean, seed: int = 0, exciter: str = "SEXS", governor: str = "TGOV1"):
+def switched_in(noisy, clean, seed: int = 0, exciter: str = "SEXS", governor: str = "TGOV1", limits=None):
     """The catalogue with an exciter answering the true V_t and a governor the true speed (its load
     reference stepped where the scenario stepped P_m), the outputs recorded with the simulator's
-    sensor noise (0.005 pu on E_fd, 0.002 on P_m); the inputs as the sensors recorded them."""
+    sensor noise (0.005 pu on E_fd, 0.002 on P_m); the inputs as the sensors recorded them.
+    ``limits``: the exciter's limits (e.g. ``{"EMAX": 3.2}``), played through them (``limited``)."""
     rng = np.random.default_rng(seed)
     exc, gov = MODELS[exciter], MODELS[governor]
-    e_values = {**exc.defaults(), **TRUTH[exciter]}
+    e_values = {**exc.defaults(), **TRUTH[exciter], **(limits or {})}
     g_values = gov.completed({**gov.defaults(), **TRUTH[governor]})
     out = []
     for n, c in zip(noisy, clean, strict=True):
@@ -43,7 +44,13 @@ def switched_in(noisy, clean, seed: int = 0, exciter: str = "SEXS", governor: st
         x = ControlInputs(c.dt, dev["v_t"], dev["omega"], step, float(np.mean(c["p_m"][pre])))
         p_ref = float(np.mean(dev["p_m"][-1000:])) if c.kind == "torque_step" else 0.0
         cols = n.frame.columns()
-        cols["v_f"] = float(np.mean(c["v_f"][pre])) + exc.response(e_values, x, 0.0) + 0.005 * rng.standard_normal(c.n)
+        e_fd0 = float(np.mean(c["v_f"][pre]))
+        if limits:
+            levels = OperatingLevels(float(np.mean(c["v_t"][pre])) + dev["v_t"], e_fd0, e_fd0)
+            e_fd = exc.limited(e_values, x, 0.0, levels)
+        else:
+            e_fd = exc.response(e_values, x, 0.0)
+        cols["v_f"] = e_fd0 + e_fd + 0.005 * rng.standard_normal(c.n)
         p_m = gov.response(g_values, x, p_ref)
         cols["p_m"] = float(np.mean(c["p_m"][pre])) + p_m + 0.002 * rng.standard_normal(c.n)
         out.append(n.with_frame(Frame.of_columns(cols, n.frame.period_ns, n.start_ns)))
@@ -192,3 +199,30 @@ def test_hygov_on_load_reference_tests_as_long_as_mod_027_s_gives_its_droop_and_
     for name, ok in governor.identifiable.items():  # nothing wrong given as determined
         if ok:
             assert governor.parameters[name] == pytest.approx(TRUTH["HYGOV"][name], rel=0.10), name
+
+
+def test_an_exciter_ceiling_reached_is_identified_and_nothing_given_as_determined_is_wrong(
+    noisy_scenarios, clean_scenarios
+):
+    """SEXS with E_MAX 3.2 (E_fd at rest 2.86): the faults, the torque-up steps and the grid
+    voltage dips all drive the field voltage to the ceiling (unlimited, up to 21 pu). Before, no
+    limit was modelled and the small-signal fit answered with K 51 (truth 100). Now the limit is
+    found on the recorded flat tops, fitted with the model played through it (the faults joining
+    that fit) and given as determined; the gain comes back within 5 %; a constant the limited
+    recordings no longer determine to 10 % is flagged, not given. E_MIN, never reached, stays null."""
+    recording = switched_in(noisy_scenarios, clean_scenarios, limits={"EMAX": 3.2, "EMIN": -20.0})
+    assert max(float(np.max(s["v_f"])) for s in recording if s.kind == "fault") == pytest.approx(3.2, abs=0.03)
+    f = identify_controls(recording, {"exciter": ["SEXS"], "governor": ["TGOV1"]})["exciter"]
+    assert isinstance(f, ControlFit) and f.named and f.model == "SEXS", f
+    assert set(f.limits) == {"EMAX"}
+    assert f.parameters["EMAX"] == pytest.approx(3.2, rel=0.01) and f.identifiable["EMAX"]
+    assert f.uncertainty["EMAX"] is not None and 0 < f.uncertainty["EMAX"] < 0.03
+    assert f.parameters["K"] == pytest.approx(100.0, rel=0.05)
+    truth = {**TRUTH["SEXS"], "EMAX": 3.2}
+    for name, ok in f.identifiable.items():
+        if ok:
+            assert f.parameters[name] == pytest.approx(truth[name], rel=0.10), name
+    assert f.parameters["EMIN"] is None and not f.identifiable["EMIN"]
+    # the unlimited exciter on the same scenarios: nothing flat at the top, so no limit is freed
+    plain = identify_controls(switched_in(noisy_scenarios, clean_scenarios), {"exciter": ["SEXS"]})["exciter"]
+    assert isinstance(plain, ControlFit) and plain.limits == {} and plain.parameters["EMAX"] is None

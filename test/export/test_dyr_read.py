@@ -45,7 +45,9 @@ def test_an_exported_unit_reads_back_as_the_same_machine_exciter_and_governor(tm
     assert damper.name == "subtransient_dynamics" and values["x_qpp"] == 0.5 and values["t_q0pp"] == 0.03
     said = unit.not_simulated()
     # every record constant the small-signal play-in leaves out is said, with its value
-    assert said[0].startswith("SEXS EMIN = ") and said[1].startswith("TGOV1 VMAX = ") and len(said) == 2
+    # (SEXS's E_MIN, E_MAX are played, as PSS/E's SEXS limits E_fd: said as how, not left out)
+    assert said[0] == "SEXS: E_fd within EMIN..EMAX on a non-windup T_E lag (PSS/E SEXS)"
+    assert said[1].startswith("TGOV1 VMAX = ") and len(said) == 2
 
 
 def test_the_damping_comes_back_in_phid_s_form(tmp_path: Path) -> None:
