@@ -82,7 +82,9 @@ def print_controls(console: Console, found: dict[str, ControlFit | str]) -> None
         Col("constants (± in the JSON)", "left", text=True),
         Col("RMSE pu"),
     ]
-    print_table(console, "excitation and turbine-governor (limits never reached: not determined)", cols, rows)
+    reached = [f"{f.model} {', '.join(f.limits)}" for f in found.values() if isinstance(f, ControlFit) and f.limits]
+    limits = f"limits reached: {'; '.join(reached)}; the others" if reached else "limits"
+    print_table(console, f"excitation and turbine-governor ({limits} never reached: not determined)", cols, rows)
 
 
 def print_validation(console: Console, res: IdentificationResult) -> None:

@@ -108,6 +108,7 @@ class ControlFit:
             "why": self.why,
             "reference_steps": self.references,
             "fit_as_well": self.alternatives,
+            "limits_reached": sorted(self.limits),  # fitted from the recordings' flat tops
         }
 
 
@@ -526,9 +527,14 @@ def _with_reached_limits(
     if not limits:
         return small_signal
     try:
-        return fit_model(model, cases, held, checked=False, start_at=_known(small_signal), limits=limits)
+        limited = fit_model(model, cases, held, checked=False, start_at=_known(small_signal), limits=limits)
     except LimitsError:
         return small_signal
+    # judged on the cases the other models' fits are (the step tests), not on the faults too
+    values = model.completed({**model.defaults(), **_known(limited)})
+    refs = limited.references
+    limited.fit_rmse = _rmse(fit, [limited_output(model, values, c, refs.get(c.name, 0.0))[0] for c in fit])
+    return limited
 
 
 def _limit_values(f: ControlFit) -> dict[str, float]:
