@@ -15,12 +15,13 @@ are low-passed forward and backward at 40 Hz (no lag). At 10 Hz the filter cut i
 exciter's own band: STEPS's SEXS gave T_E 0.0468 s for 0.05 (at 40 Hz 0.0495).
 
 Limits: a model's output limits (SEXS's EMAX, ESST5B's VRMAX) are ``null`` unless the recorded
-output reached them. Reached means a flat top: the recorded output sits within its noise of its
-extreme for at least ``MIN_FLAT_S`` while the small-signal fit wants it further. Then the limit is
-fitted from there, the model played through its limits (:meth:`ControlModel.limited`), every
-stepped scenario's reference a constant of that fit (the response is no longer linear in it),
-and the no-load faults join the exciter's fit: a fault drives the field voltage to its ceiling,
-which is what pins it. Without a limit reached, faults stay out of the exciter's fit.
+output reached them. Reached means a flat top: the recorded output sits within a few noise levels
+of its extreme for at least ``MIN_FLAT_S``, having arrived there at speed or with the small-signal
+fit wanting it further. Then the limit is fitted from there, the model played through its limits
+(:meth:`ControlModel.limited`), every stepped scenario's reference a constant of that fit (the
+response is no longer linear in it), and the faults join the exciter's fit: a fault drives the
+field voltage to its ceiling, which is what pins it. A limit that fit leaves where it never binds
+is dropped with it. Without a limit reached, faults stay out of the exciter's fit.
 """
 
 from __future__ import annotations
@@ -530,10 +531,20 @@ def _with_reached_limits(
         limited = fit_model(model, cases, held, checked=False, start_at=_known(small_signal), limits=limits)
     except LimitsError:
         return small_signal
-    # judged on the cases the other models' fits are (the step tests), not on the faults too
     values = model.completed({**model.defaults(), **_known(limited)})
     refs = limited.references
-    limited.fit_rmse = _rmse(fit, [limited_output(model, values, c, refs.get(c.name, 0.0))[0] for c in fit])
+    played = [limited_output(model, values, c, refs.get(c.name, 0.0))[0] for c in cases]
+    # a limit the fit put where it never binds was no limit (a fast step onto a flat plateau looks
+    # like one): its value would carry no information, and its std none either
+    noise = _output_noise(fit)
+    assert model.output_limits is not None  # limits are found only where a model declares them
+    for name in limited.limits:
+        far = {**values, name: 1e9 if name == model.output_limits[1] else -1e9}
+        free = [limited_output(model, far, c, refs.get(c.name, 0.0))[0] for c in cases]
+        if max(float(np.max(np.abs(a - b))) for a, b in zip(played, free)) < WANTED_NOISES * max(noise, 1e-9):
+            return small_signal
+    # judged on the cases the other models' fits are (the step tests), not on the faults too
+    limited.fit_rmse = _rmse(fit, played[: len(fit)])
     return limited
 
 
