@@ -20,6 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from phid_ros.errors import PhidError
+from phid_ros.io.topics import RECORDER_CHANNELS
 from phid_ros.model.channels import CHANNELS, SAME_PERIOD, Frame  # the one channel table, shared by every layer
 from phid_ros.model.conventions import NS, seconds_to_ns, terminal_to_dq
 from phid_ros.numerics import interpolant
@@ -84,6 +85,9 @@ class ScenarioData:
     steady_start: int | None = None
     # who held the field: "avr", "manual" (a field-current regulator: the AVR not in the loop), or ""
     regulator: str = ""
+    # a recorder's own channels on the frame's samples (the field current, the regulator's and the
+    # stabiliser's outputs: :data:`phid_ros.io.topics.RECORDER_STREAMS`), where it kept them
+    recorded: dict[str, Array] = field(default_factory=dict)
     # what the stages derive from this scenario alone, kept for the next identification that reads
     # it (a recalibration every few minutes re-reads the same stored windows); not an init field,
     # so a scenario made from this one (dataclasses.replace, with_frame) starts without it
@@ -108,6 +112,10 @@ class ScenarioData:
     def has(self, *channels: str) -> bool:
         """Whether the recording carried every one of ``channels`` (v_d, v_q: V_t, theta_t and delta)."""
         for c in channels:
+            if c in RECORDER_CHANNELS:
+                if c not in self.recorded or not np.isfinite(self.recorded[c]).all():
+                    return False
+                continue
             needs = ("v_t", "theta_t", "delta") if c in ("v_d", "v_q") else (c,)
             if any(n in self.absent for n in needs):
                 return False
@@ -150,6 +158,8 @@ class ScenarioData:
             return self.v_d
         if name == "v_q":
             return self.v_q
+        if name in RECORDER_CHANNELS:
+            return self.recorded[name]
         return self.frame.channel(name)
 
     def with_frame(self, frame: Frame) -> ScenarioData:
@@ -168,6 +178,7 @@ class ScenarioData:
             self.absent,
             self.steady_start,
             self.regulator,
+            self.recorded,
         )
 
     def rows(self, a: int, b: int) -> ScenarioData:
@@ -186,6 +197,7 @@ class ScenarioData:
             self.absent,
             None if self.steady_start is None else min(max(self.steady_start - a, 0), b - a - 1),
             self.regulator,
+            {c: x[a:b] for c, x in self.recorded.items()},
         )
 
 
@@ -320,8 +332,10 @@ def make_scenario(
     thresholds: StepThresholds = DEFAULT_THRESHOLDS,
     measurement_window_s: float = 0.0,
     regulator: str = "",
+    recorded: Mapping[str, Array] | None = None,
 ) -> ScenarioData:
     """Check a window and build its :class:`ScenarioData`; classify it where the input does not say.
+    ``recorded``: a recorder's own channels on the frame's samples (kept where any is finite).
 
     A step the input labels (manifest ``kind``) is located however small it is; only an
     unlabelled window must show a step above ``thresholds`` to count as a disturbance.
@@ -389,6 +403,7 @@ def make_scenario(
         measurement_window_s=measurement_window_s,
         absent=absent,
         regulator=regulator,
+        recorded={c: x for c, x in (recorded or {}).items() if len(x) == n and np.isfinite(x).any()},
     )
 
 
@@ -500,6 +515,10 @@ def resampled(s: ScenarioData, period_ns: int) -> ScenarioData:
     def at(k: int) -> int:
         return int(round(k * old_dt / new_dt))
 
+    recorded = {
+        c: interpolant(t_old, sosfiltfilt(sos, x) if np.isfinite(x).all() else x)(t_new) for c, x in s.recorded.items()
+    }
+
     out = ScenarioData(
         s.name,
         s.kind,
@@ -514,6 +533,7 @@ def resampled(s: ScenarioData, period_ns: int) -> ScenarioData:
         s.absent,
         None if s.steady_start is None else at(s.steady_start),
         s.regulator,
+        recorded,
     )
     return out
 

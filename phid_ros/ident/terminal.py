@@ -137,6 +137,7 @@ def with_channels(s: ScenarioData, channels: dict[str, Array], note: str) -> Sce
         s.absent - set(channels),
         s.steady_start,
         s.regulator,
+        s.recorded,
     )
 
 

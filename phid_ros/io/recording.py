@@ -21,11 +21,12 @@ from numpy.typing import NDArray
 from phid_ros.errors import BagError
 from phid_ros.io.msg_schemas import typestore
 from phid_ros.io.topics import (
+    ALL_STREAMS_BY_NAME,
     DEFAULT_NAMESPACE,
+    RECORDER_STREAMS,
     SCENARIO_MSGTYPE,
     SCENARIO_TOPIC,
     STREAMS,
-    STREAMS_BY_NAME,
     StreamSpec,
     topic_for,
 )
@@ -117,6 +118,14 @@ class Recording:
     metadata: dict[str, str] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)  # what the reader noticed (a truncated file, ...)
 
+    def sensor_streams(self) -> dict[str, StreamSamples]:
+        """The sensor streams (the online pipeline's), without a recorder's own."""
+        return {name: s for name, s in self.streams.items() if name in STREAM_NAMES}
+
+    def recorder_streams(self) -> dict[str, StreamSamples]:
+        """A recorder's own streams (:data:`~phid_ros.io.topics.RECORDER_STREAMS`)."""
+        return {name: s for name, s in self.streams.items() if name not in STREAM_NAMES}
+
     @property
     def f_nominal_hz(self) -> float:
         return float(self.metadata.get("f_nominal_hz", 50.0))
@@ -184,7 +193,7 @@ def iter_recording_messages(
     store = typestore()
     streams: list[Iterator[tuple[int, str, str, object]]] = []
     in_order = True
-    for spec in STREAMS:
+    for spec in (*STREAMS, *RECORDER_STREAMS):
         stream = rec.streams.get(spec.name)
         if stream is None:
             continue
@@ -231,7 +240,7 @@ def _stream_messages(
 def stream_of_topic(topic: str) -> str | None:
     """The stream a topic carries (by its last name component), or None."""
     last = topic.rstrip("/").rsplit("/", 1)[-1]
-    return last if last in STREAMS_BY_NAME else None
+    return last if last in ALL_STREAMS_BY_NAME else None
 
 
 @dataclass
@@ -309,7 +318,7 @@ class _Assembler:
 
     def _stream(self, name: str) -> StreamSamples:
         groups = self.groups[name]
-        spec = STREAMS_BY_NAME[name]
+        spec = ALL_STREAMS_BY_NAME[name]
         order = np.concatenate([g.order for g in groups])
         seq = np.concatenate([g.seq for g in groups])
         periods = np.concatenate([g.period_ns for g in groups])
@@ -371,7 +380,7 @@ def expected_type(topic: str) -> str | None:
     if topic == SCENARIO_TOPIC:
         return SCENARIO_MSGTYPE
     name = stream_of_topic(topic)
-    return STREAMS_BY_NAME[name].msgtype if name else None
+    return ALL_STREAMS_BY_NAME[name].msgtype if name else None
 
 
 def is_phid_topic(topic: str) -> bool:
@@ -397,7 +406,7 @@ def recording_from_messages(
         name = stream_of_topic(topic)
         if name is None:
             continue  # other plant data in the same bag is not ours to judge
-        spec = STREAMS_BY_NAME[name]
+        spec = ALL_STREAMS_BY_NAME[name]
         _check_type(source, topic, msgtype, spec.msgtype)
         index = counts.get(name, 0)
         counts[name] = index + 1
@@ -458,7 +467,7 @@ def recording_from_raw(
         present = ", ".join(sorted({t for t, _ in routes})) or "none"
         raise BagError(f"{source}: none of the phid sensor topics found (topics present: {present})")
     for name, msgs in raws.items():
-        spec = STREAMS_BY_NAME[name]
+        spec = ALL_STREAMS_BY_NAME[name]
         groups, seq_of = stack_by_length(msgs, seqs[name])
         rest: list[tuple[int, bytes]] = []
         for rows, idx in groups:
@@ -513,7 +522,7 @@ def _route(source: str, topic: str, msgtype: str, raws: dict[str, list], topics:
     name = stream_of_topic(topic)
     if name is None:
         return None
-    _check_type(source, topic, msgtype, STREAMS_BY_NAME[name].msgtype)
+    _check_type(source, topic, msgtype, ALL_STREAMS_BY_NAME[name].msgtype)
     if topics.setdefault(name, topic) != topic:
         raise BagError(f"{source}: stream {name} arrives on two topics, {topics[name]} and {topic}")
     return raws.setdefault(name, [])

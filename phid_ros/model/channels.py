@@ -83,6 +83,11 @@ PLAUSIBLE: dict[str, tuple[float, float]] = {
     "theta_t": (-1e6, 1e6),
     "delta": (-1e6, 1e6),
     "v_f": (-30.0, 30.0),
+    # a recorder's, beside the channels (:data:`phid_ros.io.topics.RECORDER_STREAMS`): the field
+    # current as v_f, the regulator's and the stabiliser's outputs in the controller's own units
+    "i_fd": (-30.0, 30.0),
+    "v_r": (-100.0, 100.0),
+    "v_s": (-10.0, 10.0),
 }
 
 # What a channel's typical magnitude says it was recorded in, when it is not per unit.
@@ -99,6 +104,7 @@ _UNIT_GUESSES: dict[str, tuple[tuple[float, float, str], ...]] = {
         (400.0, 4000.0, "rpm: divide by the synchronous speed"),
     ),
     "v_f": ((30.0, 1e7, "V: divide by the field voltage base"),),
+    "i_fd": ((30.0, 1e7, "A: divide by the field current base"),),
 }
 
 

@@ -37,9 +37,10 @@ def sensor_blocks(rec: Recording, block_size: int = DEFAULT_BLOCK_SIZE) -> list[
     the aligner as a jump and a wild stamp as one wild block. Recordings without that
     order (CSV imports, simulations) have monotonic stamps; their blocks go by stamp.
     """
-    recorded = all(s.msg_seq is not None and s.msg_offsets is not None for s in rec.streams.values())
+    sensors = rec.sensor_streams()  # a recorder's own streams are not the pipeline's
+    recorded = all(s.msg_seq is not None and s.msg_offsets is not None for s in sensors.values())
     keys, ends, names, starts, stops = [], [], [], [], []
-    for i, (name, s) in enumerate(rec.streams.items()):
+    for i, (name, s) in enumerate(sensors.items()):
         if recorded:
             a = np.asarray(s.msg_offsets, dtype=np.int64)
             b = np.append(a[1:], len(s))
@@ -59,7 +60,7 @@ def sensor_blocks(rec: Recording, block_size: int = DEFAULT_BLOCK_SIZE) -> list[
         return []
     # stable: messages of equal key keep the streams' order, then their own (as a sort by key would)
     order = np.argsort(np.concatenate(keys), kind="stable")
-    stream_names = list(rec.streams)
+    stream_names = list(sensors)
     return [
         (end, stream_names[i], a, b)
         for end, i, a, b in zip(*(np.concatenate(x)[order].tolist() for x in (ends, names, starts, stops)), strict=True)

@@ -57,7 +57,7 @@ def aligned_frame(
     check_streams(rec, source)
     period = rec.streams["pt_ct"].period_ns
     al = Aligner(period, stale_ns=2 * NS)
-    for name, stream in rec.streams.items():
+    for name, stream in rec.sensor_streams().items():
         if stream.channels and all(np.isnan(x).all() for x in stream.channels.values()):
             continue  # a stream the recorder did not carry (a field import's): its columns stay NaN
         # one ingest per run of uniform stamps: vectorised, and a gap or duplicate starts a new run
@@ -88,6 +88,30 @@ def aligned_frame(
         if h.gaps and _gap_in_windows(t, values[:, CHANNEL_INDEX[STREAMS_BY_NAME[name].channels[0]]], windows):
             notes.append(f"{source}: stream {name}: {h.gaps} gap(s); windows over a gap are skipped")
     return Frame(t, values, period), notes
+
+
+def recorder_columns(rec: Recording, t_ns: np.ndarray) -> dict[str, np.ndarray]:
+    """A recorder's own channels on the frame's stamps ``t_ns``: each sample the recorded one
+    at that stamp, or linearly between two neighbours a period apart; NaN elsewhere (outside
+    the stream, across its gaps). Only the channels with a finite sample come out."""
+    out: dict[str, np.ndarray] = {}
+    for stream in rec.recorder_streams().values():
+        if not len(stream):
+            continue
+        order = np.argsort(stream.t_ns, kind="stable")
+        ts = stream.t_ns[order]
+        k = np.clip(np.searchsorted(ts, t_ns, side="right") - 1, 0, len(ts) - 1)
+        k1 = np.minimum(k + 1, len(ts) - 1)
+        span = (ts[k1] - ts[k]).astype(np.float64)
+        inside = (t_ns >= ts[k]) & (t_ns <= ts[k1]) & (span <= 1.5 * stream.period_ns)
+        inside |= t_ns == ts[k]
+        w = np.where(span > 0, (t_ns - ts[k]) / np.where(span > 0, span, 1.0), 0.0)
+        for c, x in stream.channels.items():
+            xs = x[order]
+            if not np.isfinite(xs).any():
+                continue
+            out[c] = np.where(inside, xs[k] + w * (xs[k1] - xs[k]), np.nan)
+    return out
 
 
 def check_streams(rec: Recording, source: str) -> None:
@@ -187,6 +211,7 @@ def _marked_scenarios(
     frame, notes = aligned_frame(rec, source, marked, health)
     problems += notes
     t = frame.t_ns
+    kept = recorder_columns(rec, t)
     window_s = float(rec.metadata.get(MEASUREMENT_WINDOW_KEY, 0.0))
     for m in rec.scenarios:
         a = int(np.searchsorted(t, m.start_ns))
@@ -213,6 +238,7 @@ def _marked_scenarios(
                         thresholds=thresholds,
                         measurement_window_s=window_s,
                         regulator=m.regulator,
+                        recorded={c: x[a:b] for c, x in kept.items()},
                     )
                 )
         except ScenarioError as exc:
@@ -230,6 +256,7 @@ def _marked_scenarios(
                     thresholds=thresholds,
                     measurement_window_s=window_s,
                     regulator=m.regulator,
+                    recorded={c: x[a + e.start : a + e.end] for c, x in kept.items()},
                 )
             except ScenarioError as exc:
                 problems.append(f"{source}: skipped {exc}")

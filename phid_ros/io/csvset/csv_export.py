@@ -17,7 +17,7 @@ from phid_ros.errors import PhidError
 from phid_ros.io.csvset.csv_import import CSV_COLUMNS
 from phid_ros.io.files.outputs import atomic_output, write_text
 from phid_ros.io.recording import MEASUREMENT_WINDOW_KEY, Recording
-from phid_ros.io.topics import STREAMS
+from phid_ros.io.topics import ALL_STREAMS_BY_NAME, STREAMS
 from phid_ros.model.channels import CHANNELS
 from phid_ros.model.conventions import NS
 
@@ -45,7 +45,7 @@ def write_csv_set(folder: str | Path, rec: Recording) -> Path:
     if len(set(names)) != len(names):
         twice = sorted({n for n in names if names.count(n) > 1})
         raise PhidError(f"{out}: two scenarios would be written to {twice[0]}; rename the recordings")
-    t_ns, values = _common_samples(rec)
+    t_ns, values, header = _common_samples(rec)
     out.mkdir(parents=True, exist_ok=True)
     entries = []
     for sc in rec.scenarios:
@@ -55,7 +55,7 @@ def write_csv_set(folder: str | Path, rec: Recording) -> Path:
         rows = np.column_stack([t, values[a:b]])
         name = f"{sc.name}.csv"
         with atomic_output(out / name) as tmp:
-            np.savetxt(tmp, rows, delimiter=",", header=",".join(CSV_COLUMNS), comments="", fmt="%.9g")
+            np.savetxt(tmp, rows, delimiter=",", header=",".join(header), comments="", fmt="%.9g")
         entry = {"file": name, "kind": sc.kind, "role": sc.role, "generator_damping": sc.generator_damping}
         if sc.regulator:
             entry["regulator"] = sc.regulator
@@ -70,16 +70,19 @@ def write_csv_set(folder: str | Path, rec: Recording) -> Path:
     return write_text(out / MANIFEST, json.dumps(manifest, indent=2) + "\n")
 
 
-def _common_samples(rec: Recording) -> tuple[np.ndarray, np.ndarray]:
-    """The stamps every stream shares and the channels on them (n, len(CHANNELS))."""
+def _common_samples(rec: Recording) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
+    """The stamps every stream shares, the channels on them (n, columns) and the columns' header:
+    the CHANNELS, then a recorder's own channels where the recording kept them."""
     first = rec.streams[STREAMS[0].name]
-    values = np.empty((len(first.t_ns), len(CHANNELS)))
-    for spec in STREAMS:
+    kept = [c for s in rec.recorder_streams().values() for c in s.channels]
+    names = (*CHANNELS, *kept)
+    values = np.empty((len(first.t_ns), len(names)))
+    for spec in (*STREAMS, *(ALL_STREAMS_BY_NAME[n] for n in rec.recorder_streams())):
         s = rec.streams[spec.name]
         if not np.array_equal(s.t_ns, first.t_ns):
             raise PhidError(
                 f"stream {spec.name}: its stamps differ from {STREAMS[0].name}'s; a CSV row needs one clock"
             )
         for c in spec.channels:
-            values[:, CHANNELS.index(c)] = s.channels[c]
-    return first.t_ns, values
+            values[:, names.index(c)] = s.channels[c]
+    return first.t_ns, values, (CSV_COLUMNS[0], *names)

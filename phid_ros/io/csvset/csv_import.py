@@ -33,11 +33,14 @@ from phid_ros.io.recording import (
     ScenarioInfo,
     StreamSamples,
 )
-from phid_ros.io.topics import STREAMS
+from phid_ros.io.topics import RECORDER_CHANNELS, RECORDER_STREAMS, STREAMS
 from phid_ros.model.channels import CHANNELS, SAME_PERIOD, unit_problem
 from phid_ros.model.conventions import NS
 
 CSV_COLUMNS: tuple[str, ...] = ("t",) + CHANNELS
+# a recorder's own channels (the field current, the regulator's and stabiliser's outputs): read
+# where a file has them, written where the recording kept them
+OPTIONAL_COLUMNS: tuple[str, ...] = RECORDER_CHANNELS
 KINDS = ("torque_step", "voltage_step", "fault", "field_step", "unknown")
 ROLES = ("identify", "validate")
 DEFAULT_START_NS = 1_767_225_600 * NS  # 2026-01-01T00:00:00Z
@@ -128,7 +131,8 @@ def read_scenario_csv(path: Path, *, strict: bool = False) -> tuple[dict[str, ND
     if len(set(header)) != len(header):
         dup = sorted({h for h in header if header.count(h) > 1})
         raise CsvImportError(f"{path}: duplicate column(s) {dup}")
-    extra = [h for h in header if h not in CSV_COLUMNS]
+    extra = [h for h in header if h not in CSV_COLUMNS and h not in OPTIONAL_COLUMNS]
+    columns = CSV_COLUMNS + tuple(c for c in OPTIONAL_COLUMNS if c in header)
     missing = [c for c in CSV_COLUMNS if c not in header]
     if missing:
         hints = []
@@ -138,7 +142,7 @@ def read_scenario_csv(path: Path, *, strict: bool = False) -> tuple[dict[str, ND
         raise CsvImportError(f"{path}: missing column(s) {', '.join(hints)}; required: {', '.join(CSV_COLUMNS)}")
     if extra and strict:
         raise CsvImportError(f"{path}: unknown column(s) {extra}; allowed: {', '.join(CSV_COLUMNS)}")
-    idx = [header.index(c) for c in CSV_COLUMNS]
+    idx = [header.index(c) for c in columns]
     # loadtxt with usecols would accept a row with extra fields, shifting nothing but
     # hiding a broken export; check the field count of every line first (C-speed count)
     lines = body.splitlines()
@@ -151,7 +155,7 @@ def read_scenario_csv(path: Path, *, strict: bool = False) -> tuple[dict[str, ND
     try:
         data = np.loadtxt(io.StringIO(body), delimiter=",", usecols=idx, ndmin=2, dtype=float)
     except ValueError:
-        _raise_parse_error(path, header, idx, body)
+        _raise_parse_error(path, header, idx, body, columns)
     if data.shape[0] < 2:
         raise CsvImportError(f"{path}: needs at least two data rows, found {data.shape[0]}")
     finite = np.isfinite(data)
@@ -162,7 +166,7 @@ def read_scenario_csv(path: Path, *, strict: bool = False) -> tuple[dict[str, ND
         r, j = np.argwhere(~finite)[0]
         count = int((~finite.all(axis=1)).sum())
         raise CsvImportError(
-            f"{path}: line {r + 2}, column {CSV_COLUMNS[j]!r} is {data[r, j]} "
+            f"{path}: line {r + 2}, column {columns[j]!r} is {data[r, j]} "
             f"({count} row(s) with NaN/Inf); clean or drop them before import"
         )
     t = data[:, 0]
@@ -177,7 +181,7 @@ def read_scenario_csv(path: Path, *, strict: bool = False) -> tuple[dict[str, ND
             f"{path}: non-uniform sampling (period {period:g} s, deviation up to {jitter:g} s); "
             "resample to a uniform grid first"
         )
-    return {c: data[:, j] for j, c in enumerate(CSV_COLUMNS)}, extra
+    return {c: data[:, j] for j, c in enumerate(columns)}, extra
 
 
 def _decimal_comma_body(path: Path, body: str) -> str:
@@ -199,7 +203,7 @@ def _decimal_comma_body(path: Path, body: str) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _raise_parse_error(path: Path, header: list[str], idx: list[int], body: str) -> None:
+def _raise_parse_error(path: Path, header: list[str], idx: list[int], body: str, columns: tuple[str, ...]) -> None:
     """Slow path, only after a parse failure: find the first bad line and say what is wrong."""
     for r, row in enumerate(csv.reader(io.StringIO(body))):
         if not row or not any(c.strip() for c in row):
@@ -208,7 +212,7 @@ def _raise_parse_error(path: Path, header: list[str], idx: list[int], body: str)
             raise CsvImportError(f"{path}: line {r + 2} has {len(row)} fields, header has {len(header)}")
         for j, i in enumerate(idx):
             if not is_number(row[i]):
-                raise CsvImportError(f"{path}: line {r + 2}, column {CSV_COLUMNS[j]!r}: not a number ({row[i]!r})")
+                raise CsvImportError(f"{path}: line {r + 2}, column {columns[j]!r}: not a number ({row[i]!r})")
     raise CsvImportError(f"{path}: cannot parse as CSV of numbers")
 
 
@@ -362,6 +366,18 @@ def recording_from_tables(
         )
         for spec in STREAMS
     }
+    # a recorder's own channels (the field current, the regulator's and the stabiliser's outputs):
+    # a stream of their own on the same clock, NaN in a file that did not keep one
+    for spec in RECORDER_STREAMS:
+        if any(c in tab.columns for tab in tables for c in spec.channels):
+            streams[spec.name] = StreamSamples(
+                t_all,
+                period_ns,
+                {
+                    c: np.concatenate([tab.columns.get(c, np.full(len(tab.t), np.nan)) for tab in tables])
+                    for c in spec.channels
+                },
+            )
     metadata = {"f_nominal_hz": str(float(f_nominal_hz)), "source": source}
     if base_mva is not None:
         metadata["base_mva"] = str(base_mva)

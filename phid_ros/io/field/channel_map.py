@@ -16,6 +16,8 @@ One format for COMTRADE and PMU exports (YAML or JSON)::
       # (or the terminal phasor as v_re, v_im: its real and imaginary parts, instead of v_t, theta_t)
       i_fd: {name: IFD, unit: A}                        # field current (stands in for E_fd in steady state)
       p_m: {name: PMECH, unit: MW}
+      v_r: UREG                                         # the regulator's output, the controller's units
+      v_s: VPSS                                         # the stabiliser's output, as recorded
     scenarios:                                          # optional, by recording file stem
       trip_0412: {kind: fault, role: identify, event_time_s: 0.1}
 
@@ -39,7 +41,7 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -65,6 +67,9 @@ QUANTITIES: dict[str, tuple[str, tuple[str, ...], str]] = {
     "omega": ("speed", ("pu", "Hz", "rpm"), "pu"),
     "v_f": ("field", ("pu", "V"), "pu"),  # E_fd; in V with its base, or calibrated at no load
     "i_fd": ("field", ("pu", "A"), "pu"),  # I_fd; likewise
+    # an excitation controller's own signals, as it records them (:data:`phid_ros.io.topics.RECORDER_STREAMS`)
+    "v_r": ("controller", ("pu",), "pu"),  # the voltage regulator's output
+    "v_s": ("controller", ("pu",), "pu"),  # the power system stabiliser's output
 }
 FIELD_QUANTITIES = ("v_f", "i_fd")
 WAVEFORMS = ("v_a", "v_b", "v_c", "i_a", "i_b", "i_c")
@@ -152,7 +157,7 @@ class ChannelMap:
         kind = QUANTITIES[spec.quantity][0]
         if kind == "field" and spec.base is not None:
             return x / spec.base
-        if spec.unit == "pu" or kind in ("speed", "field"):
+        if spec.unit == "pu" or kind in ("speed", "field", "controller"):
             return x
         if kind == "angle":
             return x * SCALE[spec.unit]
@@ -260,30 +265,52 @@ def load_channel_map(path: str | Path) -> ChannelMap:
     return cmap
 
 
-def check_recording(cmap: ChannelMap, source: str, available: list[str]) -> None:
+def check_recording(cmap: ChannelMap, source: str, available: list[str]) -> ChannelMap:
     """The map against one recording's channels: what the identification needs is mapped, and
-    every mapped channel is there; the message lists the recording's channels to choose from."""
-    require_complete(cmap, source, available)
-    for q, spec in cmap.channels.items():
+    every mapped channel is there; the message lists the recording's channels to choose from.
+    Returns the map as this recording is read through it: a controller's own signal (``v_r``,
+    ``v_s``) that this file did not keep is left out (a stabiliser's output is in the tests
+    it was switched on for), not a reason to refuse the file."""
+    kept = {q: spec for q, spec in cmap.channels.items() if spec.name in available or QUANTITIES[q][0] != "controller"}
+    fitted = replace(cmap, channels=kept) if len(kept) < len(cmap.channels) else cmap
+    require_complete(fitted, source, available)
+    for q, spec in fitted.channels.items():
         if spec.name not in available:
             raise ChannelMapError(
                 f"{cmap.path}: channel {spec.name!r} for {q} is not in {source} (channels: {', '.join(available)})"
             )
+    return fitted
+
+
+STATOR_QUANTITIES = ("i_a", "i_b", "i_c", "i_t", "phi_i", "p_e", "q_e")
 
 
 def choose_map(cmaps: Sequence[ChannelMap], source: str, available: list[str]) -> ChannelMap:
     """The map among ``cmaps`` that fits a recording (:func:`check_recording`), the one naming the
     most channels where several do: a unit's folder has a no-load map (V_t and the field) and an
-    on-line one, and an on-line test fits both. Where none fits, the fullest map's complaint."""
+    on-line one, and an on-line test fits both. Where none fits, the fullest map's complaint.
+
+    A no-load map is never taken for a recording that holds a column another map names as a
+    stator quantity: that is an on-line test the fuller map failed on, and read as an open
+    circuit its P, Q and I would be zeros."""
     ranked = sorted(cmaps, key=lambda m: -len(m.channels))
     first: ChannelMapError | None = None
+    stator = {spec.name: (m, q) for m in cmaps for q, spec in m.channels.items() if q in STATOR_QUANTITIES}
     for cmap in ranked:
         try:
-            check_recording(cmap, source, available)
+            fitted = check_recording(cmap, source, available)
         except ChannelMapError as exc:
             first = first or exc
             continue
-        return cmap
+        held = next((name for name in available if name in stator), None) if cmap.open_circuit else None
+        if held is not None:
+            other, q = stator[held]
+            raise ChannelMapError(
+                f"{source}: holds {held!r}, which {other.path} maps as {q}, but fits only the no-load map "
+                f"{cmap.path} (it would be read as an open circuit, P = Q = I = 0): "
+                + (str(first) if first is not None else "the on-line map does not fit it")
+            )
+        return fitted
     assert first is not None
     raise first
 

@@ -37,6 +37,7 @@ from phid_ros.io.field.phasors import (
     system_frequency,
 )
 from phid_ros.io.recording import MEASUREMENT_WINDOW_KEY, REGULATORS, Recording
+from phid_ros.io.topics import RECORDER_CHANNELS
 from phid_ros.model.channels import NO_LOAD_CURRENT, current_of
 from phid_ros.model.conventions import terminal_to_dq
 
@@ -56,7 +57,8 @@ def identification_channels(
     A channel the map does not name comes out NaN (not recorded): the identification runs what
     the others determine. Without a terminal angle (a trend log's V_t, P, Q) the terminal
     voltage is the reference, theta_t is 0 and the frequency the nominal one. A field current
-    (``i_fd``) comes out beside the CHANNELS, for :func:`calibrate_field`.
+    (``i_fd``), the regulator's and the stabiliser's outputs (``v_r``, ``v_s``) come out beside the
+    CHANNELS: a recorder's own channels (:data:`~phid_ros.io.topics.RECORDER_STREAMS`).
 
     The recording is converted a block at a time (:func:`phasors.blocks`: each block's phasors
     from the samples around it, so the outcome is the whole recording's at once): only the
@@ -76,7 +78,7 @@ def identification_channels(
     step = int(fs // MIN_OUTPUT_RATE_HZ) if waveforms and fs >= 2 * MIN_OUTPUT_RATE_HZ else 1
     t = (np.arange(0, m, step, dtype=np.float64) + (n - 1) / 2) / fs
     names = ["v_t", "theta_t", "omega", "delta", "v_f", "p_m", "p_e", "q_e", "i_d", "i_q"]
-    out = {c: np.full(len(t), np.nan) for c in names + (["i_fd"] if cmap.has("i_fd") else [])}
+    out = {c: np.full(len(t), np.nan) for c in names + [c for c in RECORDER_CHANNELS if cmap.has(c)]}
     currents: list[tuple[Array, Array]] = []  # (|P + jQ| / V_t, recorded I_t) where both are, for the check
     f_sys = f0
     for s, e, lo, hi in blocks(m, n) if waveforms else blocks(m, 1, 4 * phasors.BLOCK):
@@ -113,7 +115,7 @@ def identification_channels(
             block["delta"] = delta
         if cmap.has("omega"):
             block["omega"] = _speed(cmap, value("omega"), f_sys)
-        block.update({q: value(q) for q in ("v_f", "p_m", "i_fd") if cmap.has(q)})
+        block.update({q: value(q) for q in ("v_f", "p_m", *RECORDER_CHANNELS) if cmap.has(q)})
         if cmap.has("p_e", "q_e"):
             block["p_e"], block["q_e"] = value("p_e"), value("q_e")
         else:

@@ -256,7 +256,12 @@ def read_pmu_csv(
         date_col = cmap.date_column
         if date_col is not None and date_col not in columns:
             raise PmuImportError(f"{p}: no date column {date_col!r} (map: date); columns: {', '.join(header)}")
-        check_recording(cmap, p.name, [h for h in header if h not in (time_col, date_col)])
+        read = check_recording(cmap, p.name, [h for h in header if h not in (time_col, date_col)])
+        mapped = next((m for m in maps if m.path == cmap.path), cmap).channels  # as the map names them
+        left = [f"{q} ({spec.name})" for q, spec in mapped.items() if q not in read.channels]
+        if left:
+            notes.append(f"{p.name}: no {', '.join(left)} in this file: imported without it")
+        cmap = read
         wanted = sorted({c.name for c in cmap.channels.values() if c.name in columns})
         clock, values = _read_columns(p, fh, delimiter, euro, header, time_col, date_col, wanted)
     t, start_ns = clock.seconds()

@@ -290,3 +290,58 @@ def test_the_voltage_phasor_as_its_real_and_imaginary_parts_reads_as_magnitude_a
     (tmp_path / "half.yaml").write_text(text.replace('  v_im: {name: "GEN1:V1_IM", unit: V}\n', ""))
     with pytest.raises(ChannelMapError, match=r"mapped as v_re: map it once, as v_t \(with theta_t\) or as both"):
         import_pmu_csv([rect], load_channel_map(tmp_path / "half.yaml"))
+
+
+def test_a_controllers_own_signals_travel_to_the_scenarios_and_an_on_line_test_is_never_read_as_no_load(
+    tmp_path,
+) -> None:
+    """The regulator's and the stabiliser's outputs and the field current go into the bag on a
+    stream of their own and come back on each scenario's samples (to the recorded digits); the
+    stabiliser's output, kept only in the test it was on for, is left out of the others with a
+    note. An on-line file the on-line map does not fit is refused, not read as an open circuit."""
+    from phid_ros.api import cut_scenarios
+    from phid_ros.io.bags.recordings import write_recording
+
+    n = 1200
+    t = np.arange(n) * 0.005
+    step = (t >= 3.0).astype(float)
+    v_s = 0.01 * np.sin(2 * np.pi * 1.3 * t) * (t >= 1.0)
+    v_r = 1.2 + 3.0 * step * np.exp(-np.maximum(t - 3.0, 0.0) / 0.05)
+    online = {"UG": 1.0 + 0.03 * step, "UF": 0.6 + 0.1 * step, "P": np.full(n, 0.5), "Q": 0.2 + 0.1 * step}
+    _trend_log(tmp_path / "pss_on.csv", {**online, "IF": 0.8 + 0.1 * step, "UREG": v_r, "VPSS": v_s})
+    _trend_log(tmp_path / "pss_off.csv", {**online, "Q": online["Q"] + 0.05, "IF": 0.8 + 0.1 * step, "UREG": v_r})
+    extra = "  i_fd: {name: IF, unit: pu}\n  v_r: UREG\n  v_s: VPSS\n"
+    (tmp_path / "online.yaml").write_text(
+        ON_LINE_MAP + extra + "scenarios:\n  pss_on: {kind: field_step}\n  pss_off: {kind: field_step}\n"
+    )
+    (tmp_path / "noload.yaml").write_text(NO_LOAD_MAP + "  i_fd: {name: IF, unit: pu}\n  v_r: UREG\n")
+    maps = [load_channel_map(tmp_path / "noload.yaml"), load_channel_map(tmp_path / "online.yaml")]
+    rec = import_pmu_csv([tmp_path / "pss_on.csv", tmp_path / "pss_off.csv"], maps)
+    assert set(rec.recorder_streams()) == {"field_controller"}
+    assert any("pss_off.csv: no v_s (VPSS) in this file: imported without it" in w for w in rec.warnings)
+    assert not any("no stator quantity mapped" in w for w in rec.warnings)  # both read on line
+    write_recording(tmp_path / "set.mcap", rec)
+    scs = {s.name: s for s in cut_scenarios(tmp_path / "set.mcap").scenarios}
+    on, off = scs["pss_on"], scs["pss_off"]
+    assert on.has("v_s", "v_r", "i_fd") and off.has("v_r", "i_fd") and not off.has("v_s")
+    # on the scenario's samples, as written (six decimals in the file)
+    k = np.arange(on.n)
+    assert np.allclose(on["v_s"], np.round(v_s[k], 6), atol=1e-12)
+    assert np.allclose(on["v_r"], np.round(v_r[k], 6), atol=1e-12)
+    assert np.allclose(off["i_fd"], np.round(0.8 + 0.1 * step[k], 6), atol=1e-12)
+    assert on.k_event == 600
+    # a CSV set written from the import reads back with them (as %.9g writes them)
+    from phid_ros.io.csvset.csv_export import write_csv_set
+    from phid_ros.io.csvset.csv_import import import_csv_set
+
+    back, _ = import_csv_set(write_csv_set(tmp_path / "set", rec))
+    mine, theirs = rec.streams["field_controller"].channels, back.streams["field_controller"].channels
+    for c in ("i_fd", "v_r", "v_s"):
+        assert np.allclose(theirs[c], mine[c], rtol=1e-8, atol=1e-15, equal_nan=True)
+    assert np.isnan(theirs["v_s"][n:]).all() and np.isfinite(theirs["v_s"][:n]).all()
+    # an on-line file without the on-line map's E_fd column fits only the no-load map: refused
+    _trend_log(tmp_path / "no_ef.csv", {c: x for c, x in online.items() if c != "UF"} | {"IF": np.full(n, 0.8)})
+    (tmp_path / "noload_if.yaml").write_text(NO_LOAD_MAP.replace("  v_f: {name: UF, unit: pu}\n", "") + extra[:29])
+    maps = [load_channel_map(tmp_path / "noload_if.yaml"), load_channel_map(tmp_path / "online.yaml")]
+    with pytest.raises(ChannelMapError, match=r"no_ef.csv: holds 'P', which .*online.yaml maps as p_e, but fits only"):
+        import_pmu_csv([tmp_path / "no_ef.csv"], maps)
