@@ -13,6 +13,7 @@ from phid_ros.cli.common import finish, load_truth, step_thresholds, warn
 from phid_ros.cli.progress import ProgressLine
 from phid_ros.cli.tables import Col, fmt, pct, print_table
 from phid_ros.controls.identify import ControlFit
+from phid_ros.controls.models import MODELS
 from phid_ros.ident.constraints import parse_constraints
 from phid_ros.ident.pipeline import IdentificationResult, IdentifyOptions
 from phid_ros.io.files.results import write_json
@@ -66,14 +67,18 @@ def _without(cols: list[Col], rows: list[list[str]], names: tuple[str, ...]) -> 
 
 
 def print_controls(console: Console, found: dict[str, ControlFit | str]) -> None:
-    """The exciter and governor: the model named and its constants (PSS/E's names), or why none."""
+    """The exciter, governor and stabiliser: the model named and its constants (PSS/E's names; not
+    those its structure holds, a torsional filter left out), or why none."""
     rows = []
     for kind, f in found.items():
         if not isinstance(f, ControlFit):
             rows.append([kind, "none", f, ""])
             continue
+        held = {p.name for p in MODELS[f.model].parameters if p.held}
         constants = ", ".join(
-            f"{n} {v:.4g}" + ("" if f.identifiable[n] else " n.d.") for n, v in f.parameters.items() if v is not None
+            f"{n} {v:.4g}" + ("" if f.identifiable[n] else " n.d.")
+            for n, v in f.parameters.items()
+            if v is not None and n not in held
         )
         rows.append([kind, f.model if f.named else "none", constants if f.named else f.why, f"{f.fit_rmse:.2e}"])
     cols = [
@@ -84,7 +89,8 @@ def print_controls(console: Console, found: dict[str, ControlFit | str]) -> None
     ]
     reached = [f"{f.model} {', '.join(f.limits)}" for f in found.values() if isinstance(f, ControlFit) and f.limits]
     limits = f"limits reached: {'; '.join(reached)}; the others" if reached else "limits"
-    print_table(console, f"excitation and turbine-governor ({limits} never reached: not determined)", cols, rows)
+    title = "excitation, turbine-governor and stabiliser"
+    print_table(console, f"{title} ({limits} never reached: not determined)", cols, rows)
 
 
 def print_validation(console: Console, res: IdentificationResult) -> None:

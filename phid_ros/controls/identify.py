@@ -58,7 +58,10 @@ KINDS = {
     # kind: (channels it needs, output channel, scenario kinds with a reference step, kinds fitted)
     "exciter": (("v_t", "v_f"), "v_f", ("field_step",), ("voltage_step", "torque_step", "field_step")),
     "governor": (("omega", "p_m"), "p_m", ("torque_step",), ("voltage_step", "torque_step", "field_step", "fault")),
+    # a stabiliser from its recorded output (a recorder's own channel) against the electrical power
+    "stabiliser": (("p_e", "v_s"), "v_s", (), ("voltage_step", "torque_step", "field_step")),
 }
+SWITCHED_OFF_S = 1.0  # a stabiliser output held at exactly one value this long: the stabiliser was off
 SIMPLEST_WITHIN = 1.05  # a model with more constants is chosen only where it errs 5 % less than a simpler one
 MAX_EVALUATIONS = 200
 SECOND_START = 0.15  # the second fit starts this share of each constant's range away from the first's end
@@ -170,8 +173,15 @@ def control_case(s: ScenarioData, kind: str, *, output: bool = True) -> ControlC
         needs = tuple(c for c in needs if c != out_channel)
     if not s.has(*needs):
         return None
+    if kind == "stabiliser" and s.has(out_channel):
+        on = switched_on(s[out_channel], s.dt)
+        if on is None or (on > 0 and on >= s.k_event - int(round(SWITCHED_OFF_S / s.dt))):
+            return None  # off through the event (or switched on just before it): nothing to fit
+        s = s.rows(on, s.n) if on else s
     pre = s.pre_slice()
-    dev = {c: np.asarray(s[c], float) - float(np.mean(s[c][pre])) for c in (*needs, "omega", "v_t") if s.has(c)}
+    # an exciter's error takes the recorded stabiliser output where there is one (V_REF - V_C + V_S)
+    channels = (*needs, "omega", "v_t", "p_e", *(("v_s",) if kind == "exciter" else ()))
+    dev = {c: np.asarray(s[c], float) - float(np.mean(s[c][pre])) for c in channels if s.has(c)}
     if not all(np.all(np.isfinite(dev[c])) for c in needs):
         return None
     if out_channel not in dev:
@@ -186,13 +196,28 @@ def control_case(s: ScenarioData, kind: str, *, output: bool = True) -> ControlC
         zero_phase(dev["omega"], s.dt)[::k] if "omega" in dev else zero,
         step,
         float(np.mean(s["p_m"][pre])) if s.has("p_m") else math.nan,
+        zero_phase(dev["p_e"], s.dt)[::k] if "p_e" in dev else None,
+        zero_phase(dev["v_s"], s.dt)[::k] if "v_s" in dev else None,
     )
     levels = None
     if kind == "exciter" and s.has("v_f"):
         output0 = float(np.mean(s["v_f"][pre]))
         # the field current at rest is E_fd on the machine's base (the scenarios carry no I_fd)
         levels = OperatingLevels(float(np.mean(s["v_t"][pre])) + x.v_t, output0, output0)
+    elif kind == "stabiliser" and s.has(out_channel):
+        levels = OperatingLevels(float(np.mean(s["v_t"][pre])) + x.v_t, float(np.mean(s[out_channel][pre])), 0.0)
     return ControlCase(s.name, x, np.ascontiguousarray(dev[out_channel][::k]), s.kind in stepped_kinds, levels)
+
+
+def switched_on(output: Array, dt: float) -> int | None:
+    """Where a recorded stabiliser output starts to move: 0 unless it sits at exactly one value
+    (a switched-off stabiliser's 0) for its first ``SWITCHED_OFF_S``; None if it never moves."""
+    y = np.asarray(output, float)
+    moved = np.flatnonzero(y != y[0])
+    if not moved.size:
+        return None
+    first = int(moved[0])
+    return first if first * dt >= SWITCHED_OFF_S else 0
 
 
 def fit_stride(dt: float) -> int:
@@ -628,7 +653,7 @@ def identify_controls(
     candidates: Mapping[str, Sequence[str]] | None = None,
     starts: Mapping[str, Mapping[str, float]] | None = None,
 ) -> dict[str, ControlFit | str]:
-    """For each kind (exciter, governor): the named model's fit, or why none is named.
+    """For each kind (exciter, governor, stabiliser): the named model's fit, or why none is named.
 
     ``candidates`` restricts a kind to the models named (a plant engineer who knows the unit's
     exciter is static says EXST1); the default is every registered model of the kind.
@@ -654,6 +679,9 @@ def identify_controls(
             continue
         allowed = (candidates or {}).get(kind)
         models = [m for m in of_kind(kind) if allowed is None or m.name in allowed]
+        if not models:
+            out[kind] = f"not identified: no {kind} model among the candidates {sorted(allowed or [])}"
+            continue
         fits: list[ControlFit] = []
         for m in models:  # in registration order: a model may start where a simpler one ended
             earlier = {f.model: {k: v for k, v in f.parameters.items() if v is not None} for f in fits}

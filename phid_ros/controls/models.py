@@ -70,6 +70,15 @@ class ControlInputs:
     speed: Array  # rotor speed deviation, pu
     reference_step: Array  # the unit step at the scenario's reference change (zeros if none)
     p_m0: float = float("nan")  # mechanical power before the event, pu (a hydro turbine's operating point)
+    p_e: Array | None = None  # electrical power deviation, pu (a stabiliser's input), where recorded
+    v_s: Array | None = None  # a stabiliser's output deviation, pu, where recorded (joins the regulator's error)
+
+
+def regulator_error(x: ControlInputs, reference: float, sensed: Array) -> Array:
+    """An exciter's error at its summing point, IEEE 421.5's V_REF - V_C + V_S: the reference step,
+    the sensed terminal voltage and, where recorded, the stabiliser's output."""
+    e = reference * x.reference_step - sensed
+    return e if x.v_s is None else e + x.v_s
 
 
 def lag(u: Array, tau: float, dt: float) -> Array:
@@ -188,7 +197,7 @@ class ControlModel(ABC):
     """A control system's small-signal path; subclass and :func:`register` to add one."""
 
     name: ClassVar[str]
-    kind: ClassVar[str]  # "exciter" (output E_fd) or "governor" (output P_m)
+    kind: ClassVar[str]  # "exciter" (output E_fd), "governor" (output P_m) or "stabiliser" (output V_S)
     description: ClassVar[str]
     parameters: ClassVar[tuple[ControlParameter, ...]]
     # integers a .dyr record carries before the constants (PSS/E's ICONs), with the values phid writes
@@ -304,7 +313,7 @@ class SEXS(ControlModel):
     @classmethod
     def response(cls, values: Mapping[str, float], x: ControlInputs, reference: float) -> Array:
         tb = values["TB"]
-        e = reference * x.reference_step - x.v_t
+        e = regulator_error(x, reference, x.v_t)
         return values["K"] * lag(lead_lag(e, values["TA/TB"] * tb, tb, x.dt), values["TE"], x.dt)
 
     simulated_limits = ("EMIN", "EMAX")
@@ -322,7 +331,7 @@ class SEXS(ControlModel):
                 "limits do not hold the recorded operating point"
             )
         tb = v["TB"]
-        e = reference * x.reference_step - x.v_t
+        e = regulator_error(x, reference, x.v_t)
         u = levels.output0 + v["K"] * lead_lag(e, v["TA/TB"] * tb, tb, x.dt)
         lo, hi = np.full(len(u), v["EMIN"]), np.full(len(u), v["EMAX"])
         return nonwindup_lag(u, v["TE"], x.dt, lo, hi, levels.output0) - levels.output0
@@ -399,7 +408,7 @@ class EXST1(ControlModel):
         loop = np.polymul(np.polymul(first_order(v["TA"]), first_order(v["TB"])), first_order(v["TF"]))
         den = np.polyadd(loop, v["KA"] * v["KF"] * np.polymul([1.0, 0.0], first_order(v["TC"])))
         num = v["KA"] * np.polymul(first_order(v["TC"]), first_order(v["TF"]))
-        return transfer(reference * x.reference_step - sensed, num, den, x.dt)
+        return transfer(regulator_error(x, reference, sensed), num, den, x.dt)
 
 
 @register
@@ -438,7 +447,7 @@ class IEEET1(ControlModel):
         loop = np.polymul(np.polymul(first_order(v["TA"]), [v["TE"], v["KE"]]), first_order(v["TF"]))
         den = np.polyadd(loop, [v["KA"] * v["KF"], 0.0])
         num = v["KA"] * first_order(v["TF"])
-        return transfer(reference * x.reference_step - sensed, num, den, x.dt)
+        return transfer(regulator_error(x, reference, sensed), num, den, x.dt)
 
 
 @register
@@ -485,7 +494,7 @@ class ESST5B(ControlModel):
     @classmethod
     def response(cls, values: Mapping[str, float], x: ControlInputs, reference: float) -> Array:
         v = values
-        e = reference * x.reference_step - lag(x.v_t, v["TR"], x.dt)
+        e = regulator_error(x, reference, lag(x.v_t, v["TR"], x.dt))
         first = lead_lag(e, v["TC1"], v["TB1"], x.dt)
         return v["KR"] * lag(lead_lag(first, v["TC2"], v["TB2"], x.dt), v["T1"], x.dt)
 
@@ -514,7 +523,7 @@ class ESST5B(ControlModel):
                 f"outside VRMIN..VRMAX {v['VRMIN']:g}..{v['VRMAX']:g}: the record's limits do not hold the recorded "
                 "operating point"
             )
-        e = reference * x.reference_step - lag(x.v_t, v["TR"], x.dt)
+        e = regulator_error(x, reference, lag(x.v_t, v["TR"], x.dt))
         # K_R, the second lead-lag, then the first with its non-windup limit, and the limiter
         w = v_r0 + v["KR"] * lead_lag(e, v["TC2"], v["TB2"], x.dt)
         v_r = nonwindup_lead_lag(w, v["TC1"], v["TB1"], x.dt, v["VRMIN"], v["VRMAX"], v_r0)
@@ -659,3 +668,73 @@ class HYGOV(ControlModel):
         num = v["At"] * np.polymul(gate_num, [-(q0 - v["qNL"]) * v["TW"], 1.0])
         den = np.polymul(np.polymul(gate_den, first_order(v["Tg"])), first_order(g0 * v["TW"] / 2))
         return transfer(u, num, den, x.dt) - v["Dturb"] * g0 * x.speed
+
+
+@register
+class IEEEST(ControlModel):
+    """IEEE stabiliser (PSS/E IEEEST) on the electrical power (input code 3): P_e through the
+    filter (1 + sA_5 + s^2 A_6)/((1 + sA_1 + s^2 A_2)(1 + sA_3 + s^2 A_4)), two lead-lags
+    (1 + sT_1)/(1 + sT_2), (1 + sT_3)/(1 + sT_4), K_S and the washout sT_5/(1 + sT_6), its output
+    V_S within LSMIN..LSMAX, added at the voltage regulator's summing point.
+
+    Fitted from a recorded stabiliser output against the recorded P_e. The torsional filter
+    (A_1..A_6, for a steam unit's shaft modes) is held out at 0, a wire; the washout's gain is
+    T_5/T_6, which K_S carries, so T_5 = T_6; the output's enabling band VCU/VCL at 0 (not used)."""
+
+    name = "IEEEST"
+    kind = "stabiliser"
+    icons = (("MODE", 3), ("BUSR", 0))  # the input: the machine's electrical power; its own bus
+    description = "IEEE stabiliser on the electrical power (PSS/E IEEEST, input code 3)"
+    outside_path = ("VCU", "VCL")
+    parameters = (
+        *(
+            ControlParameter(
+                n, "s" if n in ("A1", "A3", "A5") else "s2", 0.0, 0.0, 0.0, "torsional filter (held out)", held=True
+            )
+            for n in ("A1", "A2", "A3", "A4", "A5", "A6")
+        ),
+        ControlParameter("T1", "s", 0.2, 0.0, 5.0, "first lead time constant", absent=0.0),
+        ControlParameter("T2", "s", 0.05, 0.002, 5.0, "first lag time constant"),
+        ControlParameter("T3", "s", 0.2, 0.0, 5.0, "second lead time constant", absent=0.0),
+        ControlParameter("T4", "s", 0.05, 0.002, 5.0, "second lag time constant"),
+        ControlParameter("T5", "s", 3.0, 3.0, 3.0, "washout numerator (T_6: K_S carries the gain)", held=True),
+        ControlParameter("T6", "s", 3.0, 0.3, 30.0, "washout time constant"),
+        ControlParameter("KS", "pu", -1.0, -100.0, 100.0, "stabiliser gain (pu of V_S per pu of P_e)"),
+        ControlParameter("LSMAX", "pu", 0.1, 0.005, 0.5, "maximum stabiliser output", limit=True),
+        ControlParameter("LSMIN", "pu", -0.1, -0.5, -0.005, "minimum stabiliser output", limit=True),
+        ControlParameter("VCU", "pu", 0.0, 0.0, 0.0, "output enabled below this V_T (0: not used)", held=True),
+        ControlParameter("VCL", "pu", 0.0, 0.0, 0.0, "output enabled above this V_T (0: not used)", held=True),
+    )
+    simulated_limits = ("LSMAX", "LSMIN")
+    output_limits = ("LSMIN", "LSMAX")
+    simulated_limits_how = "V_S within LSMIN..LSMAX (PSS/E IEEEST)"
+
+    @classmethod
+    def completed(cls, values: Mapping[str, float]) -> dict[str, float]:
+        # the two lead-lags commute: put in one order, so a fit has one answer: a lag without lead
+        # first (the lead a fit finds absent is T_1's), then the longer lag
+        first, second = (values["T1"], values["T2"]), (values["T3"], values["T4"])
+        if (first[0] > 0, -first[1]) > (second[0] > 0, -second[1]):
+            first, second = second, first
+        return {**values, "T1": first[0], "T2": first[1], "T3": second[0], "T4": second[1], "T5": values["T6"]}
+
+    @classmethod
+    def response(cls, values: Mapping[str, float], x: ControlInputs, reference: float) -> Array:
+        v = cls.completed(values)
+        if x.p_e is None:
+            return np.full(len(x.v_t), np.nan)  # no electrical power: the model does not apply
+        led = lead_lag(lead_lag(x.p_e, v["T1"], v["T2"], x.dt), v["T3"], v["T4"], x.dt)
+        if any(v[a] for a in ("A1", "A2", "A3", "A4", "A5", "A6")):
+            num = np.array([v["A6"], v["A5"], 1.0])
+            den = np.polymul([v["A2"], v["A1"], 1.0], [v["A4"], v["A3"], 1.0])
+            led = transfer(led, np.trim_zeros(num, "f"), np.trim_zeros(den, "f"), x.dt)
+        # K_S sT_5/(1 + sT_6) = K_S (T_5/T_6) (1 - 1/(1 + sT_6))
+        return v["KS"] * v["T5"] / v["T6"] * (led - lag(led, v["T6"], x.dt))
+
+    @classmethod
+    def limited(
+        cls, values: Mapping[str, float], x: ControlInputs, reference: float, levels: OperatingLevels
+    ) -> Array | None:
+        v = values
+        out = cls.response(values, x, reference) + levels.output0
+        return np.clip(out, v["LSMIN"], v["LSMAX"]) - levels.output0

@@ -40,6 +40,7 @@ from phid_ros.controls.identify import (
     regulator_out_of_loop,
     simulate_cases,
     simulate_references,
+    switched_on,
     zero_phase,
 )
 from phid_ros.controls.models import MODELS, ControlModel, LimitsError, OperatingLevels
@@ -178,16 +179,46 @@ class Control:
     values: dict[str, float]
 
 
+def _with_stabiliser(s: ScenarioData, case: ControlCase, stabiliser: Control | None, notes: list[str]) -> ControlCase:
+    """The exciter's case with the unit's stabiliser played in at its summing point, from the
+    recorded P_e, where the recording shows the stabiliser on (its output recorded and moving:
+    from where it started to); the recorded output where the unit names none; without a recorded
+    output, as the case is (a stabiliser not known to be on is not played, and that is said)."""
+    if not s.has("v_s"):
+        if stabiliser is not None:
+            notes.append(f"stabiliser {stabiliser.model.name} not played in: the recording does not say it was on")
+        return case
+    if stabiliser is None:
+        notes.append("the recorded stabiliser output played in at the regulator's summing point")
+        return case
+    on = switched_on(s["v_s"], s.dt)
+    x = case.inputs
+    if on is None or x.p_e is None:
+        notes.append(f"stabiliser {stabiliser.model.name} not played in: it was off (its output held still)")
+        return replace(case, inputs=replace(x, v_s=np.zeros(len(x.v_t))))
+    k_on = on // fit_stride(s.dt)
+    p_e = np.where(np.arange(len(x.p_e)) >= k_on, x.p_e - x.p_e[k_on], 0.0)  # from rest when switched on
+    v_s = stabiliser.model.response(stabiliser.values, replace(x, p_e=p_e), 0.0)
+    lo, hi = stabiliser.values.get("LSMIN"), stabiliser.values.get("LSMAX")
+    if lo is not None and hi is not None:
+        v_s = np.clip(v_s, lo, hi)
+    notes.append(f"stabiliser {stabiliser.model.name} played in from the recorded P_e (on from {on * s.dt:.1f} s)")
+    return replace(case, inputs=replace(x, v_s=v_s))
+
+
 def _control_output(
-    s: ScenarioData, kind: str, control: Control, level: float, notes: list[str]
+    s: ScenarioData, kind: str, control: Control, level: float, notes: list[str], stabiliser: Control | None = None
 ) -> tuple[Array, float] | None:
     """The control's output deviation (pu) on the scenario's samples, and the reference step it
     was given; None where the recording lacks the input the kind needs. A model that simulates
     its limits (:meth:`ControlModel.limited`) is played from ``level``, its output's pre-event
-    value, and its reference step sized by a bounded search (the response is not linear in it)."""
+    value, and its reference step sized by a bounded search (the response is not linear in it).
+    An exciter's error takes the ``stabiliser`` (:func:`_with_stabiliser`)."""
     case: ControlCase | None = control_case(s, kind, output=False)
     if case is None:
         return None
+    if kind == "exciter":
+        case = _with_stabiliser(s, case, stabiliser, notes)
     model, values = control.model, control.values
     v_t0 = float(np.mean(s["v_t"][s.pre_slice()]))
     levels = OperatingLevels(v_t0 + case.inputs.v_t, level, level) if kind == "exciter" else None
@@ -244,7 +275,8 @@ def validate_unit(
             if control is not None and kind == "exciter" and s.has("v_f") and (why := regulator_out_of_loop(s)):
                 mine.append(f"exciter {control.model.name} not played in: {why}; E_fd as recorded")
                 control = None
-            response = _control_output(s, kind, control, level, mine) if control is not None else None
+            stabiliser = controls.get("stabiliser")
+            response = _control_output(s, kind, control, level, mine, stabiliser) if control is not None else None
             if control is not None and response is not None:
                 put[channel], by[channel] = level + response[0], control.model.name
                 if response[1]:

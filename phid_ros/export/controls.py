@@ -36,6 +36,11 @@ class ControlRecord:
     def defaults(self) -> list[str]:
         return [n for n, s in self.sources.items() if s.startswith("default")]
 
+    @property
+    def absent(self) -> list[str]:
+        """Constants at the value where their term vanishes: the data show no such term."""
+        return [n for n, s in self.sources.items() if s.startswith("default: absent")]
+
     def comment(self) -> str:
         return comment_text(self._comment_parts())
 
@@ -43,8 +48,11 @@ class ControlRecord:
         parts = [f"phid_ros export: {self.kind} identified from the recordings"]
         if self.flagged:
             parts.append("NOT IDENTIFIED: " + ", ".join(self.flagged))
-        if self.defaults:
-            parts.append("defaults (not reached in the recordings): " + ", ".join(self.defaults))
+        unreached = [n for n in self.defaults if n not in self.absent]
+        if unreached:
+            parts.append("defaults (not reached in the recordings): " + ", ".join(unreached))
+        if self.absent:
+            parts.append("absent (the recordings show no such term): " + ", ".join(self.absent))
         return parts
 
 

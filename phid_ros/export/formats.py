@@ -77,7 +77,7 @@ ANDES_NAMES = {
 
 # ANDES's names where they are not PSS/E's (its SEXS, TGOV1, EXST1, IEEET1, IEEEG1, HYGOV)
 ANDES_CONTROL_NAMES = {"TA/TB": "TATB", "SWITCH": "Switch", "TW": "Tw", "Dturb": "Dt"}
-ANDES_CONTROL_MODELS = ("SEXS", "TGOV1", "EXST1", "IEEET1", "IEEEG1", "HYGOV")
+ANDES_CONTROL_MODELS = ("SEXS", "TGOV1", "EXST1", "IEEET1", "IEEEG1", "HYGOV", "IEEEST")
 
 
 def _num(v: float) -> str:
@@ -148,6 +148,18 @@ def andes_json(rec: MachineRecord) -> str:
                 "export this unit as psse-dyr"
             )
         ctl: dict[str, object] = {"idx": f"{c.model}_{rec.bus}_{rec.machine_id}", "u": 1, "syn": row["idx"]}
+        if c.kind == "stabiliser":
+            # ANDES wires a stabiliser to its exciter (the output joins the exciter's input), and
+            # takes its ICONs as fields: MODE, and no remote bus
+            exciter = next((e for e in rec.controls if e.kind == "exciter"), None)
+            if exciter is None:
+                raise ExportError(
+                    f"controls.{c.kind}: ANDES's {c.model} acts through the unit's exciter, and none is named; "
+                    "export this unit as psse-dyr"
+                )
+            del ctl["syn"]
+            ctl["avr"] = f"{exciter.model}_{rec.bus}_{rec.machine_id}"
+            ctl.update({k: v for k, v in MODELS[c.model].icons if k != "BUSR"})
         ctl["name"] = f"{c.model}_{rec.bus}_{rec.machine_id}" + (
             f" NOT IDENTIFIED: {', '.join(c.flagged)}" if c.flagged else ""
         )

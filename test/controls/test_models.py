@@ -18,7 +18,7 @@ def inputs(n: int = 20_000, dt: float = 1e-3, v_t: float = 0.0, speed: float = 0
 def test_every_model_declares_its_constants_in_range_and_is_registered_by_kind() -> None:
     assert {m.name for m in of_kind("exciter")} >= {"SEXS"} and {m.name for m in of_kind("governor")} >= {"TGOV1"}
     for model in MODELS.values():
-        assert model.kind in ("exciter", "governor") and model.description
+        assert model.kind in ("exciter", "governor", "stabiliser") and model.description
         names = [p.name for p in model.parameters]
         assert len(names) == len(set(names)), model.name
         for p in model.parameters:
@@ -56,7 +56,7 @@ EXCITER_GAIN["ESST5B"] = lambda v: v["KR"]
 GOVERNOR_GAIN = {"TGOV1": lambda v: 1 / v["R"], "IEEEG1": lambda v: v["K"], "HYGOV": lambda v: v["At"] / v["R"]}
 
 
-@pytest.mark.parametrize("name", sorted(MODELS))
+@pytest.mark.parametrize("name", sorted(m for m in MODELS if MODELS[m].kind != "stabiliser"))
 def test_every_model_settles_at_its_steady_state_gain_and_follows_its_reference_fully(name: str) -> None:
     """A voltage 0.01 pu below the reference: E_fd settles at the regulator's gain times 0.01; a
     speed 0.001 pu high: P_m at -gain * 0.001 (1/R, K, A_t/R); a load-reference step of 0.1 pu
@@ -178,3 +178,26 @@ def test_esst5b_ceiling_follows_v_t_and_the_rectifier_loading_and_lets_go_at_onc
     assert efd[int(1.52 / dt)] < 0.5 * (efd[int(1.45 / dt)] + 1.2)  # down within 20 ms of the return
     with pytest.raises(LimitsError, match="V_R at rest 3.36"):
         ESST5B.limited(values, x, 0.05, OperatingLevels(v_t, 2.8, 2.8))
+
+
+def test_ieeest_is_its_block_diagram_on_the_electrical_power() -> None:
+    """K_S sT_5/(1 + sT_6) (1 + sT_1)/(1 + sT_2) (1 + sT_3)/(1 + sT_4) on a step of P_e is the
+    whole transfer function as scipy simulates it (not ours); T_5 follows T_6; the two lead-lags,
+    which commute, come in one order (a lag without lead first)."""
+    from scipy.signal import lsim
+
+    from phid_ros.controls.models import IEEEST
+
+    v = IEEEST.completed({**IEEEST.defaults(), "T1": 0.3, "T2": 0.1, "T3": 0.0, "T4": 0.02, "T6": 2.0, "KS": -0.5})
+    assert (v["T1"], v["T2"], v["T3"], v["T4"], v["T5"]) == (0.0, 0.02, 0.3, 0.1, 2.0)
+    dt, n = 0.001, 20000
+    p_e = 0.1 * (np.arange(n) >= 1000)
+    x = ControlInputs(dt, np.zeros(n), np.zeros(n), np.zeros(n), p_e=p_e)
+    y = IEEEST.response(v, x, 0.0)
+    num = np.polymul(np.polymul([v["KS"] * v["T5"], 0.0], [v["T1"], 1.0]), [v["T3"], 1.0])
+    den = np.polymul(np.polymul([v["T6"], 1.0], [v["T2"], 1.0]), [v["T4"], 1.0])
+    _, ref, _ = lsim((num, den), p_e, np.arange(n) * dt)
+    assert y[999] == 0.0 and np.max(np.abs(y - ref)) < 1e-3 * np.max(np.abs(ref))
+    assert y[1050] < -0.05  # the lead: more than K_S x 0.1 at first, washed out after
+    # without P_e recorded the model does not apply
+    assert np.isnan(IEEEST.response(v, ControlInputs(dt, np.zeros(10), np.zeros(10), np.zeros(10)), 0.0)).all()

@@ -196,3 +196,59 @@ def test_a_unit_identified_from_its_staged_tests_exported_and_simulated_in_andes
             at = None if full is not None else ch[channel][idx]
             check, _, _ = channel_check(channel, s[channel], s.dt, idx, pre, full, at)
             assert check.passed, (sc.name, channel, check)
+
+
+def test_a_stabiliser_goes_out_with_its_exciter_and_andes_plays_it_as_phid_does(tmp_path: Path) -> None:
+    """IEEEST on the electrical power, exported beside the machine and SEXS: ANDES's PSS/E reader
+    and its JSON reader take the same unit (the stabiliser wired to the exciter), and through a
+    torque step ANDES's stabiliser output equals phid's IEEEST fed ANDES's own electrical power
+    (the two implementations of one block diagram), to 1 % of its peak."""
+    from phid_ros.controls.models import IEEEST, ControlInputs
+
+    params = TABLE1.replace(X_q_prime=TABLE1.X_d_prime)
+    stabiliser = {"T1": 0.0, "T2": 0.02, "T3": 0.2, "T4": 0.04, "T6": 2.0, "KS": -0.2}
+    pss = IEEEST.completed({**IEEEST.defaults(), **stabiliser})
+    controls = {
+        "exciter": CONTROLS["exciter"],
+        "stabiliser": {
+            "model": "IEEEST",
+            "parameters": {**pss, "LSMAX": None, "LSMIN": None},
+            "identifiable": {n: n in stabiliser and n != "T1" for n in pss},
+        },
+    }
+    result = {
+        "parameters": params.as_dict(),
+        "identifiable": {n: True for n in PARAMETER_NAMES},
+        "f_nominal_hz": 50.0,
+        "controls": controls,
+    }
+    rec = build_record(result, source="result.json", mva=MACHINE_MVA, bus=1, machine_id="1")
+    assert [c.model for c in rec.controls] == ["SEXS", "IEEEST"]
+    dyr = psse_dyr(rec)
+    assert "1 'IEEEST' '1' 3 0 0 0 0 0 0 0 0 0.02 0.2 0.04 2 2 -0.2 0.1 -0.1 0 0 /" in dyr, dyr
+    runs, vsout = {}, {}
+    for fmt in ("psse-dyr", "andes"):
+        path = tmp_path / ("unit.dyr" if fmt == "psse-dyr" else "unit.json")
+        path.write_text(dyr if fmt == "psse-dyr" else andes_json(rec))
+        cfg = SimulationConfig(params=params)
+        if fmt == "psse-dyr":
+            s = system(dyr=path, cfg=cfg)
+        else:
+            import andes
+
+            s = system(cfg=cfg)
+            andes.io.json.read(s, str(path))
+        assert (s.GENROU.n, s.SEXS.n, s.IEEEST.n) == (1, 1, 1)
+        runs[fmt] = run(s, TORQUE_STEP, dt=0.01)
+        ts = s.dae.ts
+        vsout[fmt] = np.interp(runs[fmt]["t"], ts.t, ts.y[:, s.IEEEST.vsout.a[0]])
+    a = runs["psse-dyr"]
+    assert np.allclose(vsout["psse-dyr"], vsout["andes"], atol=1e-9)
+    peak = float(np.max(np.abs(vsout["andes"])))
+    assert peak > 0.005  # the torque step moved the stabiliser
+    x = ControlInputs(
+        0.01, np.zeros(len(a["t"])), np.zeros(len(a["t"])), np.zeros(len(a["t"])), p_e=a["p_e"] - a["p_e"][0]
+    )
+    mine = IEEEST.response(pss, x, 0.0)
+    err = float(np.max(np.abs(mine - vsout["andes"])))
+    assert err < 0.01 * peak, err

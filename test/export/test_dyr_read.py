@@ -79,16 +79,16 @@ def test_comments_continuations_and_several_units(tmp_path: Path) -> None:
         "  3.48 0.0 2.54 2.41 0.5 0.5\n"
         "  0.5 0.15 0.0 0.0 / machine one\n"
         "2 'GENROU' '2' 5.0 0.05 0.6 0.05 4.0 0.0 1.8 1.7 0.3 0.55 0.25 0.15 0.1 0.4 /\n"
-        "2 'IEEEST' '2' 1 2 3 / a stabiliser phid does not model\n"
+        "2 'PSS2A' '2' 1 2 3 / a stabiliser phid does not model\n"
         "2 'TGOV1' '2' 0.05 0.5 1.0 0.0 2.0 6.0 0.0 /\n"
     )
-    assert [r.model for r in read_records(path)] == ["GENROU", "GENROU", "IEEEST", "TGOV1"]
+    assert [r.model for r in read_records(path)] == ["GENROU", "GENROU", "PSS2A", "TGOV1"]
     with pytest.raises(DyrError, match=r"two\.dyr: 2 machines \(bus 1 id '1', bus 2 id '2'\): name one with --bus"):
         read_unit(path)
     one = read_unit(path, bus=1)
     assert one.constants["H"] == 3.48 and one.controls == {}
     two = read_unit(path, bus=2, machine_id="2")
-    assert list(two.controls) == ["governor"] and two.ignored == ["IEEEST (line 6)"]
+    assert list(two.controls) == ["governor"] and two.ignored == ["PSS2A (line 6)"]
     assert ("magnetic_saturation", 0.1, 0.4, "genrou") in [
         (cls.name, v["s10"], v["s12"], v["form"]) for cls, v in two.effects() if "s10" in v
     ]
