@@ -36,7 +36,8 @@ def noisy_set(
         ch = simulate(sc)
         t = ch.pop("t")
         for c, x in ch.items():
-            ch[c] = x + noise * NOISE[c] * rng.standard_normal(x.size)
+            # a recorder's own channels (a stabiliser's output) come as the controller computed them
+            ch[c] = x + noise * NOISE.get(c, 0.0) * rng.standard_normal(x.size)
         tables.append(
             ScenarioTable(sc.name, sc.kind, sc.role, sc.generator_damping, t, ch, sc.t_event, f"{source}:{sc.name}")
         )

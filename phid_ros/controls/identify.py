@@ -62,6 +62,7 @@ KINDS = {
     "stabiliser": (("p_e", "v_s"), "v_s", (), ("voltage_step", "torque_step", "field_step")),
 }
 SWITCHED_OFF_S = 1.0  # a stabiliser output held at exactly one value this long: the stabiliser was off
+EVENT_MARGIN_S = 0.05  # ... unless it starts to move this close to the event, or after: it answered the event
 SIMPLEST_WITHIN = 1.05  # a model with more constants is chosen only where it errs 5 % less than a simpler one
 MAX_EVALUATIONS = 200
 SECOND_START = 0.15  # the second fit starts this share of each constant's range away from the first's end
@@ -174,7 +175,7 @@ def control_case(s: ScenarioData, kind: str, *, output: bool = True) -> ControlC
     if not s.has(*needs):
         return None
     if kind == "stabiliser" and s.has(out_channel):
-        on = switched_on(s[out_channel], s.dt)
+        on = switched_on(s)
         if on is None or (on > 0 and on >= s.k_event - int(round(SWITCHED_OFF_S / s.dt))):
             return None  # off through the event (or switched on just before it): nothing to fit
         s = s.rows(on, s.n) if on else s
@@ -209,15 +210,18 @@ def control_case(s: ScenarioData, kind: str, *, output: bool = True) -> ControlC
     return ControlCase(s.name, x, np.ascontiguousarray(dev[out_channel][::k]), s.kind in stepped_kinds, levels)
 
 
-def switched_on(output: Array, dt: float) -> int | None:
-    """Where a recorded stabiliser output starts to move: 0 unless it sits at exactly one value
-    (a switched-off stabiliser's 0) for its first ``SWITCHED_OFF_S``; None if it never moves."""
-    y = np.asarray(output, float)
+def switched_on(s: ScenarioData) -> int | None:
+    """Where the scenario's recorded stabiliser output (``v_s``) was switched on: 0 unless it sits
+    at exactly one value (a switched-off stabiliser's 0) for its first ``SWITCHED_OFF_S`` and
+    starts to move before the event; None if it never moves (off throughout). An output that is
+    still until the event and moves with it was on, answering it (a noiseless simulation's)."""
+    y = np.asarray(s["v_s"], float)
     moved = np.flatnonzero(y != y[0])
     if not moved.size:
         return None
     first = int(moved[0])
-    return first if first * dt >= SWITCHED_OFF_S else 0
+    answering = first >= s.k_event - int(round(EVENT_MARGIN_S / s.dt))
+    return first if first * s.dt >= SWITCHED_OFF_S and not answering else 0
 
 
 def fit_stride(dt: float) -> int:

@@ -191,7 +191,7 @@ def _with_stabiliser(s: ScenarioData, case: ControlCase, stabiliser: Control | N
     if stabiliser is None:
         notes.append("the recorded stabiliser output played in at the regulator's summing point")
         return case
-    on = switched_on(s["v_s"], s.dt)
+    on = switched_on(s)
     x = case.inputs
     if on is None or x.p_e is None:
         notes.append(f"stabiliser {stabiliser.model.name} not played in: it was off (its output held still)")

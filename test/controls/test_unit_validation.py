@@ -259,3 +259,40 @@ def test_a_controller_s_field_base_is_calibrated_on_the_no_load_plateaus() -> No
     assert field_on_machine_base([on_line_only], curve, "test curve") == ([on_line_only], [])
     machine_base = s.with_frame(Frame.of_columns({**sig, "v_f": curve(v)}, int(dt * 1e9)))
     assert field_on_machine_base([machine_base], curve, "test curve")[1] == []
+
+
+PSS_RECORD = "1 'IEEEST' 1 3 0 0 0 0 0 0 0 0 0.02 0.2 0.04 2.0 2.0 {ks} 0.1 -0.1 0 0 /\n"
+
+
+def test_a_unit_s_stabiliser_is_played_in_where_the_recording_shows_it_on(tmp_path: Path) -> None:
+    """ANDES's GENROU + SEXS + IEEEST (on P_e) through the staged tests, the stabiliser's output
+    recorded beside the sensors: the unit's own record, its stabiliser played from the recorded
+    P_e at the exciter's summing point, passes MOD-026 on every test; the record without a
+    stabiliser takes the recorded output into the exciter's error as recorded; a stabiliser of
+    the opposite sign plays E_fd worse on the grid-voltage step (measured: 0.021 pu against 0.48)."""
+    pytest.importorskip("andes")
+    from test.andes_plant import run, staged_config, system
+    from test.plants import noisy_set
+
+    def staged_with_output(sc):
+        s = system(dyr=tmp_path / "unit.dyr", cfg=staged_config())
+        ch = run(s, sc, dt=0.002)
+        ts = s.dae.ts
+        ch["v_s"] = np.interp(ch["t"], ts.t, ts.y[:, s.IEEEST.vsout.a[0]])
+        return ch
+
+    unit = UNIT + PSS_RECORD.format(ks=-0.2)
+    (tmp_path / "unit.dyr").write_text(unit)
+    manifest = noisy_set(tmp_path / "tests", TESTS, staged_with_output, mva=1000.0, source="andes", description="pss")
+    code, doc = validate(tmp_path, unit, manifest)
+    assert code == 0 and doc["mod026_pass"], checks(doc)
+    notes = [n for s in doc["scenarios"] for n in s.get("notes", [])]
+    assert sum("stabiliser IEEEST played in from the recorded P_e" in n for n in notes) == len(TESTS), notes
+    _, without = validate(tmp_path, UNIT, manifest)
+    said = [n for s in without["scenarios"] for n in s.get("notes", [])]
+    assert sum("the recorded stabiliser output played in" in n for n in said) == len(TESTS)
+    assert checks(without)[("grid_voltage_-5%", "v_f")]["passed"]
+    _, flipped = validate(tmp_path, UNIT + PSS_RECORD.format(ks=0.2), manifest)
+    mine, theirs = checks(doc), checks(flipped)
+    key = ("grid_voltage_-5%", "v_f")
+    assert theirs[key]["max_error"] > 1.5 * mine[key]["max_error"], (mine[key], theirs[key])
