@@ -223,17 +223,20 @@ def identify_unit(
     identify`` and ``phid fleet`` both do. ``options.f_nominal_hz`` is taken from the recordings."""
     from dataclasses import replace
 
-    from phid_ros.controls.identify import controls_json, identify_controls
+    from phid_ros.controls.identify import controls_json, identify_controls, on_machine_field_base
 
     options = replace(options, f_nominal_hz=unit.recording.f_nominal_hz)
     cut = [(c.scenarios, c.problems, p) for p, c in zip(unit.paths, unit.cuts)]
     scenarios, res = identify_cut(cut, options, truth, progress)
-    doc = res.to_json(truth)
     if progress:
-        progress("identifying the exciter and the governor")
+        progress("identifying the exciter, the governor and the stabiliser")
     t0 = time.perf_counter()
-    controls = identify_controls(scenarios, dict(candidates or {}), dict(control_starts or {}))
+    on_base, base_note = on_machine_field_base(scenarios)
+    if base_note:
+        res.problems.append(base_note)
+    controls = identify_controls(on_base, dict(candidates or {}), dict(control_starts or {}))
     res.timing["controls"] = round(time.perf_counter() - t0, 6)
+    doc = res.to_json(truth)
     doc["controls"] = controls_json(controls)
     doc.update(result_provenance(*unit.paths))
     doc["f_nominal_hz"] = options.f_nominal_hz  # what phid export needs to write a planning model

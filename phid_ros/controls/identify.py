@@ -647,6 +647,30 @@ def _simplest_best(fits: Sequence[ControlFit]) -> tuple[ControlFit, list[Control
     return chosen, [f for f in close if f is not chosen]
 
 
+def on_machine_field_base(scenarios: Sequence[ScenarioData]) -> tuple[list[ScenarioData], str | None]:
+    """The scenarios with the recorded E_fd put on the machine's base where the no-load tests show
+    it recorded on another (an excitation controller's own per unit: V_t settles at 2.68 x E_fd,
+    outside what saturation explains), and the note saying so; as they are otherwise. The base is
+    the air-gap line's (the machine's saturation is not known here), as ``phid validate`` takes
+    it from a record without saturation: an exciter's gain fitted on it plays back on the same
+    base."""
+    from phid_ros.ident.determinable import FIELD_GAIN_BAND
+    from phid_ros.ident.open_circuit import field_base
+    from phid_ros.ident.terminal import with_channels
+
+    base = field_base(scenarios)
+    if base is None or FIELD_GAIN_BAND[0] <= base.scale <= FIELD_GAIN_BAND[1]:
+        return list(scenarios), None
+    k = base.scale
+    note = (
+        f"the exciter fitted with E_fd on the machine's base: 1 pu = {1 / k:.4g} as recorded, from "
+        f"{len(base.v_t)} no-load plateau(s) at V_t {base.v_t.min():.3f}-{base.v_t.max():.3f} pu on the air-gap "
+        f"line (within {100 * base.scatter:.1f} %; the saturation not known here): every E_fd multiplied by {k:.4g}"
+    )
+    out = [with_channels(s, {"v_f": k * np.asarray(s["v_f"], float)}, note) if s.has("v_f") else s for s in scenarios]
+    return out, note
+
+
 def controls_json(found: dict[str, ControlFit | str]) -> dict[str, Any]:
     """identify's JSON ``controls``: per kind the fit, or ``{"model": null, "why": ...}``."""
     return {k: f.as_json() if isinstance(f, ControlFit) else {"model": None, "why": f} for k, f in found.items()}

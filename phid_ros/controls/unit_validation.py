@@ -144,28 +144,16 @@ def field_on_machine_base(
     curve (``curve`` says which): the recorded value's ratio to it, fitted through the origin
     over every plateau, is the base, applied to every scenario of the set (on line as well).
     Without a no-load test nothing is changed."""
-    from phid_ros.ident.terminal import at_no_load
+    from phid_ros.ident.open_circuit import field_base
 
-    pts: list[tuple[float, float]] = []
-    for s in scenarios:
-        if not s.has("v_f") or not at_no_load(s):
-            continue
-        for sl in (s.pre_slice(), s.steady_slice()):
-            v = float(np.mean(s["v_t"][sl])) if sl.stop - (sl.start or 0) >= 10 else 0.0
-            if v > 0.2:  # a de-excited machine's remanence is no point of the curve
-                pts.append((v, float(np.mean(s["v_f"][sl]))))
-    if not pts:
+    base = field_base(scenarios, open_circuit)
+    if base is None or abs(base.scale - 1.0) <= FIELD_BASE_TOLERANCE:
         return list(scenarios), []
-    v_t, recorded = np.array([p[0] for p in pts]), np.array([p[1] for p in pts])
-    machine = open_circuit(v_t)
-    k = float(machine @ recorded / (recorded @ recorded))
-    if abs(k - 1.0) <= FIELD_BASE_TOLERANCE:
-        return list(scenarios), []
-    scatter = float(np.max(np.abs(k * recorded / machine - 1.0)))
+    k, v_t = base.scale, base.v_t
     note = (
         f"E_fd (v_f) is recorded on another base: 1 pu of the machine's = {1 / k:.4g} as recorded, from "
-        f"{len(pts)} no-load plateau(s) at V_t {v_t.min():.3f}-{v_t.max():.3f} pu on the record's open-circuit "
-        f"curve ({curve}; points within {100 * scatter:.1f} %): every scenario's E_fd multiplied by {k:.4g}"
+        f"{len(v_t)} no-load plateau(s) at V_t {v_t.min():.3f}-{v_t.max():.3f} pu on the record's open-circuit "
+        f"curve ({curve}; points within {100 * base.scatter:.1f} %): every scenario's E_fd multiplied by {k:.4g}"
     )
     out = [with_channels(s, {"v_f": k * np.asarray(s["v_f"], float)}, note) if s.has("v_f") else s for s in scenarios]
     return out, [note]

@@ -16,7 +16,7 @@ standard deviations are cluster-robust on 1 s blocks.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -144,6 +144,32 @@ def no_load_plateaus(scs: Sequence[ScenarioData]) -> list[tuple[float, float, st
                 continue
             out.append((float(np.mean(v)), float(np.mean(e)), s.name))
     return out
+
+
+@dataclass
+class FieldBase:
+    """The recorded E_fd's base against the machine's, from the no-load plateaus: the machine's
+    E_fd is ``scale`` x the recorded one."""
+
+    scale: float
+    v_t: Array  # the plateaus' V_t
+    recorded: Array  # and their recorded E_fd
+    scatter: float  # the plateaus' largest relative distance from the fitted curve
+
+
+def field_base(scs: Sequence[ScenarioData], open_circuit: Callable[[Array], Array] | None = None) -> FieldBase | None:
+    """The scale that puts the recorded E_fd on the machine's base: at a no-load plateau the
+    machine's E_fd is ``open_circuit(V_t)`` (a record's open-circuit curve; the air-gap line,
+    E_fd = V_t, without one), fitted through the origin over every plateau of the no-load tests
+    among ``scs``. None without a no-load test."""
+    tests = [s for s in scs if s.has("v_t", "v_f") and at_no_load(s)]
+    pts = no_load_plateaus(tests)
+    if not pts:
+        return None
+    v_t, recorded = np.array([p[0] for p in pts]), np.array([p[1] for p in pts])
+    machine = open_circuit(v_t) if open_circuit is not None else v_t
+    k = float(machine @ recorded / (recorded @ recorded))
+    return FieldBase(k, v_t, recorded, float(np.max(np.abs(k * recorded / machine - 1.0))))
 
 
 def saturation_seen(scs: Sequence[ScenarioData]) -> str | None:

@@ -279,3 +279,34 @@ def test_a_stabiliser_whose_output_is_recorded_is_named_with_its_gain_and_nothin
     # the same with the stabiliser off everywhere: nothing to fit
     dark = with_stabiliser(noisy_scenarios, clean_scenarios, frozenset(s.name for s in noisy_scenarios))
     assert "no scenario" in str(identify_controls(dark, {"exciter": [], "governor": []})["stabiliser"])
+
+
+def test_an_exciter_recorded_on_a_controller_s_field_base_is_fitted_on_the_machine_s(noisy_scenarios, clean_scenarios):
+    """E_fd recorded per unit of an excitation controller's own base (V_t settles at 2.68 x E_fd at
+    no load, as on the Mostar day) is put on the machine's base from the no-load plateaus before
+    the exciter's fit, and said: SEXS's gain comes back at 100, not 100 / 2.68, so a record
+    exported from it plays back on the base ``phid validate`` puts E_fd on."""
+    from dataclasses import replace
+
+    from phid_ros.controls.identify import on_machine_field_base
+    from phid_ros.ident.terminal import with_channels
+
+    controller = 2.68
+    recording = switched_in(noisy_scenarios, clean_scenarios)
+    on_controller = [with_channels(s, {"v_f": np.asarray(s["v_f"]) / controller}, "controller base") for s in recording]
+    s = recording[0]  # an open circuit at rest: P = Q = 0, V_t on its plateau, E_fd on the controller's base
+    level = np.full(s.n, 1.0) + 0.002 * np.random.default_rng(5).standard_normal(s.n)
+    no_load = replace(
+        with_channels(s, {"v_t": level, "p_e": np.zeros(s.n), "q_e": np.zeros(s.n), "v_f": level / controller}, "ocv"),
+        name="no_load",
+        kind="field_step",
+        role="identify",
+    )
+    calibrated, note = on_machine_field_base([*on_controller, no_load])
+    assert note is not None and "every E_fd multiplied by 2.68" in note, note
+    f = identify_controls(calibrated, {"exciter": ["SEXS"], "governor": ["TGOV1"]})["exciter"]
+    assert isinstance(f, ControlFit) and f.named and f.parameters["K"] == pytest.approx(100.0, rel=0.05)
+    # on the machine's own base (the no-load E_fd equal to V_t) nothing is changed, nor without a no-load test
+    own = with_channels(no_load, {"v_f": level}, "machine base")
+    assert on_machine_field_base([*recording, own]) == ([*recording, own], None)
+    assert on_machine_field_base(recording) == (recording, None)

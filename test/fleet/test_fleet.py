@@ -109,7 +109,7 @@ def test_six_recordings_five_rows_one_failure_drift_flagged_rerun_does_nothing_k
 
     assert main(["identify", ok[0].recording, "--no-baseline", "--json", str(out / "one.json")]) == 0
     cli = json.loads((out / "one.json").read_text())
-    assert set(ok[0].controls) == {"exciter", "governor"}
+    assert set(ok[0].controls) == {"exciter", "governor", "stabiliser"}
     assert json.dumps(ok[0].controls, sort_keys=True) == json.dumps(cli["controls"], sort_keys=True)
 
     flagged = changes(rows)
