@@ -128,8 +128,13 @@ class ControlCase:
     name: str
     inputs: ControlInputs
     output: Array
-    stepped: bool  # a reference step of unknown size at the event
+    stepped: bool  # a reference step at the event
     levels: OperatingLevels | None = None  # an exciter's operating levels: what its limits are against
+    reference: float | None = None  # the step's size where the test sheet says it (signed); fitted otherwise
+
+    def known_reference(self) -> float:
+        """The reference step this case is played with when it is not fitted: the test sheet's, 0 unstepped."""
+        return self.reference if self.stepped and self.reference is not None else 0.0
 
 
 DE_EXCITED = 0.3  # V_t ending below this share of its pre-event value: the field was switched off
@@ -207,7 +212,13 @@ def control_case(s: ScenarioData, kind: str, *, output: bool = True) -> ControlC
         levels = OperatingLevels(float(np.mean(s["v_t"][pre])) + x.v_t, output0, output0)
     elif kind == "stabiliser" and s.has(out_channel):
         levels = OperatingLevels(float(np.mean(s["v_t"][pre])) + x.v_t, float(np.mean(s[out_channel][pre])), 0.0)
-    return ControlCase(s.name, x, np.ascontiguousarray(dev[out_channel][::k]), s.kind in stepped_kinds, levels)
+    stepped = s.kind in stepped_kinds
+    reference = None
+    if stepped and s.reference_step is not None:
+        # the test sheet's size, signed by the event's own direction (a step up, then the return)
+        moved = float(np.mean(s["v_t"][s.steady_slice()])) - float(np.mean(s["v_t"][pre]))
+        reference = math.copysign(s.reference_step, moved)
+    return ControlCase(s.name, x, np.ascontiguousarray(dev[out_channel][::k]), stepped, levels, reference)
 
 
 def switched_on(s: ScenarioData) -> int | None:
@@ -233,8 +244,8 @@ def _references(cases: Sequence[ControlCase], predicted: Sequence[Array], unit: 
     """Each stepped case's reference size by least squares (the response is linear in it)."""
     out = []
     for c, p, u in zip(cases, predicted, unit):
-        if not c.stepped:
-            out.append(0.0)
+        if not c.stepped or c.reference is not None:
+            out.append(c.known_reference())
             continue
         denom = float(u @ u)
         out.append(float(u @ (c.output - p)) / denom if denom > 0 else 0.0)
@@ -283,8 +294,8 @@ def limited_output(
         return out
 
     if reference is None:
-        reference = 0.0
-        if case.stepped:
+        reference = case.known_reference()
+        if case.stepped and case.reference is None:
             reference = float(
                 minimize_scalar(
                     lambda r: float(np.sum((played(r) - case.output) ** 2)),
@@ -414,7 +425,7 @@ def fit_model(
     bounded = [replace(q, default=limits[q.name][0], low=limits[q.name][1], high=limits[q.name][2], limit=False)
                for q in model.parameters if q.name in limits]  # fmt: skip
     n_model = len(model.fitted()) + len(bounded)
-    stepped = [i for i, c in enumerate(fit) if c.stepped] if through_limits else []
+    stepped = [i for i, c in enumerate(fit) if c.stepped and c.reference is None] if through_limits else []
     references = [
         ControlParameter(f"reference {fit[i].name}", "pu", 0.0, *REFERENCE_SEARCH, "the case's reference step")
         for i in stepped
@@ -434,7 +445,7 @@ def fit_model(
         if not through_limits:
             return simulate_cases(model, values, fit)
         refs = dict(zip(stepped, (float(r) for r in x[n_model:])))
-        return [limited_output(model, values, c, refs.get(i, 0.0))[0] for i, c in enumerate(fit)]
+        return [limited_output(model, values, c, refs.get(i, c.known_reference()))[0] for i, c in enumerate(fit)]
 
     def residual(x: Array) -> Array:
         return np.concatenate([c.output - p for c, p in zip(fit, predicted(x))])
@@ -520,7 +531,9 @@ def fit_model(
             params[p.name], std[p.name], ident[p.name] = values[p.name], None, False
     pred = predicted(sol.x)
     if through_limits:
-        refs = [float(sol.x[n_model + stepped.index(i)]) if i in stepped else 0.0 for i in range(len(fit))]
+        refs = [
+            float(sol.x[n_model + stepped.index(i)]) if i in stepped else c.known_reference() for i, c in enumerate(fit)
+        ]
         held_pred = [limited_output(model, values, c)[0] for c in held]
     else:
         refs = simulate_references(model, values, fit)

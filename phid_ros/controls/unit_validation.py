@@ -268,7 +268,9 @@ def validate_unit(
             if control is not None and response is not None:
                 put[channel], by[channel] = level + response[0], control.model.name
                 if response[1]:
-                    mine.append(f"{kind} reference step {response[1]:+.4g} (sized on the recorded {channel})")
+                    said = s.reference_step is not None and s.kind in KINDS[kind][2]
+                    how = "the test sheet's" if said else f"sized on the recorded {channel}"
+                    mine.append(f"{kind} reference step {response[1]:+.4g} ({how})")
             elif control is not None:
                 mine.append(f"{kind} {control.model.name} not played in: the recording lacks {KINDS[kind][0][0]}")
             if control is not None and s.kind in KINDS[kind][2] and not s.has(channel):

@@ -88,6 +88,8 @@ class ScenarioData:
     # a recorder's own channels on the frame's samples (the field current, the regulator's and the
     # stabiliser's outputs: :data:`phid_ros.io.topics.RECORDER_STREAMS`), where it kept them
     recorded: dict[str, Array] = field(default_factory=dict)
+    # the test sheet's reference step, pu, unsigned (the event's own direction signs it), where it says
+    reference_step: float | None = None
     # what the stages derive from this scenario alone, kept for the next identification that reads
     # it (a recalibration every few minutes re-reads the same stored windows); not an init field,
     # so a scenario made from this one (dataclasses.replace, with_frame) starts without it
@@ -179,6 +181,7 @@ class ScenarioData:
             self.steady_start,
             self.regulator,
             self.recorded,
+            self.reference_step,
         )
 
     def rows(self, a: int, b: int) -> ScenarioData:
@@ -198,6 +201,7 @@ class ScenarioData:
             None if self.steady_start is None else min(max(self.steady_start - a, 0), b - a - 1),
             self.regulator,
             {c: x[a:b] for c, x in self.recorded.items()},
+            self.reference_step,
         )
 
 
@@ -333,6 +337,7 @@ def make_scenario(
     measurement_window_s: float = 0.0,
     regulator: str = "",
     recorded: Mapping[str, Array] | None = None,
+    reference_step: float | None = None,
 ) -> ScenarioData:
     """Check a window and build its :class:`ScenarioData`; classify it where the input does not say.
     ``recorded``: a recorder's own channels on the frame's samples (kept where any is finite).
@@ -404,6 +409,7 @@ def make_scenario(
         absent=absent,
         regulator=regulator,
         recorded={c: x for c, x in (recorded or {}).items() if len(x) == n and np.isfinite(x).any()},
+        reference_step=reference_step,
     )
 
 
@@ -534,6 +540,7 @@ def resampled(s: ScenarioData, period_ns: int) -> ScenarioData:
         None if s.steady_start is None else at(s.steady_start),
         s.regulator,
         recorded,
+        s.reference_step,
     )
     return out
 

@@ -138,6 +138,7 @@ def with_channels(s: ScenarioData, channels: dict[str, Array], note: str) -> Sce
         s.steady_start,
         s.regulator,
         s.recorded,
+        s.reference_step,
     )
 
 

@@ -81,6 +81,8 @@ class ScenarioInfo:
     end_ns: int = 0
     description: str = ""
     regulator: str = ""  # who held the field in the test: "avr", "manual", or "" (not said)
+    # the size of the test's reference step (pu of the reference, + and back), where the test sheet says
+    reference_step: float | None = None
 
 
 # channels the recorder never carried (a trend log has no rotor angle), comma-separated: the
@@ -98,17 +100,29 @@ REGULATORS = ("avr", "manual")
 _REGULATOR_TAG = re.compile(r"(?:^|; )regulator: (avr|manual)$")
 
 
-def with_regulator(description: str, regulator: str) -> str:
-    """A marker's description with the scenario's regulator said at its end."""
-    if not regulator:
-        return description
-    return f"{description}; regulator: {regulator}" if description else f"regulator: {regulator}"
+# the test sheet's reference step travels the same way, "reference step: 0.05", before the regulator
+_REFERENCE_TAG = re.compile(r"(?:^|; )reference step: ([0-9.eE+-]+)(?=$|; regulator: )")
+
+
+def with_test_sheet(description: str, regulator: str, reference_step: float | None = None) -> str:
+    """A marker's description with what the test sheet says of the scenario at its end: the
+    reference step's size, then who held the field."""
+    tags = ([f"reference step: {reference_step!r}"] if reference_step is not None else []) + (
+        [f"regulator: {regulator}"] if regulator else []
+    )
+    return "; ".join([description, *tags] if description else tags)
 
 
 def regulator_in(description: str) -> str:
     """The regulator a marker's description says, or ""."""
     m = _REGULATOR_TAG.search(description)
     return m.group(1) if m else ""
+
+
+def reference_step_in(description: str) -> float | None:
+    """The reference step a marker's description says, or None."""
+    m = _REFERENCE_TAG.search(description)
+    return float(m.group(1)) if m else None
 
 
 @dataclass
@@ -215,7 +229,7 @@ def iter_recording_messages(
             event=ns_to_time(sc.event_ns),
             clearing=ns_to_time(sc.clearing_ns),
             end=ns_to_time(sc.end_ns),
-            description=with_regulator(sc.description, sc.regulator),
+            description=with_test_sheet(sc.description, sc.regulator, sc.reference_step),
         )
         markers.append((sc.start_ns, SCENARIO_TOPIC, SCENARIO_MSGTYPE, msg))
     markers.sort(key=lambda item: item[0])
@@ -543,4 +557,5 @@ def scenario_from_message(msg: Any) -> ScenarioInfo:
         end_ns=stamp_ns(m.end),
         description=m.description,
         regulator=regulator_in(m.description),
+        reference_step=reference_step_in(m.description),
     )

@@ -239,6 +239,7 @@ def _marked_scenarios(
                         measurement_window_s=window_s,
                         regulator=m.regulator,
                         recorded={c: x[a:b] for c, x in kept.items()},
+                        reference_step=m.reference_step,
                     )
                 )
         except ScenarioError as exc:
@@ -257,6 +258,7 @@ def _marked_scenarios(
                     measurement_window_s=window_s,
                     regulator=m.regulator,
                     recorded={c: x[a + e.start : a + e.end] for c, x in kept.items()},
+                    reference_step=m.reference_step,
                 )
             except ScenarioError as exc:
                 problems.append(f"{source}: skipped {exc}")

@@ -310,3 +310,36 @@ def test_an_exciter_recorded_on_a_controller_s_field_base_is_fitted_on_the_machi
     own = with_channels(no_load, {"v_f": level}, "machine base")
     assert on_machine_field_base([*recording, own]) == ([*recording, own], None)
     assert on_machine_field_base(recording) == (recording, None)
+
+
+def test_a_reference_step_the_test_sheet_gives_is_played_as_given_not_fitted(tmp_path) -> None:
+    """ANDES's GENROU + SEXS (K 100) + TGOV1 through staged tests, one of them a V_ref step of
+    +0.02 pu: with the manifest's ``reference_step: 0.02`` the exciter's fit takes that step as
+    given (signed by the event's direction) and still finds K; validate says whose step it played.
+    A reference step outside (0, 0.5) pu is refused in one line naming the manifest entry."""
+    pytest.importorskip("andes")
+    import json
+
+    from phid_ros.api import cut_scenarios, validate_record
+    from phid_ros.errors import CsvImportError
+    from test.andes_plant import write_staged_unit
+
+    dyr, manifest = write_staged_unit(tmp_path / "staged")
+    doc = json.loads(manifest.read_text())
+    for entry in doc["scenarios"]:
+        if entry["file"] == "vref_step.csv":
+            entry["reference_step"] = 0.02
+    manifest.write_text(json.dumps(doc))
+    scenarios = cut_scenarios(manifest).scenarios
+    assert {s.name: s.reference_step for s in scenarios}["vref_step"] == 0.02
+    f = identify_controls(scenarios, {"exciter": ["SEXS"], "governor": ["TGOV1"]})["exciter"]
+    assert isinstance(f, ControlFit) and f.named and f.references == {"vref_step": 0.02}
+    assert f.parameters["K"] == pytest.approx(100.0, rel=0.05)
+    v = validate_record(dyr, manifest)
+    notes = next(sc for sc in v.result.scenarios if sc.scenario == "vref_step").notes
+    assert "exciter reference step +0.02 (the test sheet's)" in notes, notes
+    entry = next(e for e in doc["scenarios"] if e["file"] == "vref_step.csv")
+    entry["reference_step"] = 5
+    manifest.write_text(json.dumps(doc))
+    with pytest.raises(CsvImportError, match=r"scenarios\[1\]: reference_step must be the step's size in pu"):
+        cut_scenarios(manifest)

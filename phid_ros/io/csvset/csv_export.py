@@ -59,6 +59,8 @@ def write_csv_set(folder: str | Path, rec: Recording) -> Path:
         entry = {"file": name, "kind": sc.kind, "role": sc.role, "generator_damping": sc.generator_damping}
         if sc.regulator:
             entry["regulator"] = sc.regulator
+        if sc.reference_step is not None:
+            entry["reference_step"] = sc.reference_step
         if sc.event_ns:  # the marker's event time, so a small labelled step is not searched for
             entry["event_time_s"] = (sc.event_ns - int(t_ns[a])) / NS
         entries.append(entry)

@@ -66,6 +66,7 @@ class ScenarioTable:
     notes: list[str] = field(default_factory=list)  # what the importer did to it (resampled, ...)
     start_ns: int | None = None  # when the file says it began (a COMTRADE .cfg's start time)
     regulator: str = ""  # who held the field: "avr", "manual" (io.recording.REGULATORS) or not said
+    reference_step: float | None = None  # the test sheet's reference step, pu (+ and back)
 
 
 def _open_text(path: Path) -> TextIO:
@@ -233,6 +234,18 @@ def is_number(s: str) -> bool:
     return True
 
 
+def reference_step_of(value: Any, where: str) -> float | None:
+    """A test sheet's ``reference_step`` (a map's or a manifest's): the size of a reference step,
+    pu, positive and below 0.5 (a +5 % AVR step is 0.05; its return is the same step back)."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < 0.5:
+        raise CsvImportError(
+            f"{where}: reference_step must be the step's size in pu, above 0 and below 0.5, got {value!r}"
+        )
+    return float(value)
+
+
 def _manifest_entry(entry: Any, k: int, manifest: Path) -> tuple[Path, str, str, bool, float | None, str]:
     where = f"{manifest}: scenarios[{k}]"
     if not isinstance(entry, dict) or "file" not in entry:
@@ -282,6 +295,7 @@ def import_csv_set(
     tables: list[ScenarioTable] = []
     for k, entry in enumerate(scenarios):
         path, kind, role, damping, event_s, regulator = _manifest_entry(entry, k, manifest)
+        step = reference_step_of(entry.get("reference_step"), f"{manifest}: scenarios[{k}]")
         cols, extra = read_scenario_csv(path, strict=strict)
         if extra:
             warnings.append(f"{path}: ignored extra column(s) {extra}")
@@ -292,7 +306,7 @@ def import_csv_set(
                 f"t = {t[0]:g} .. {t[-1]:g} s"
             )
         table = ScenarioTable(_scenario_name(path), kind, role, damping, t, cols, event_s, str(path))
-        table.regulator = regulator
+        table.regulator, table.reference_step = regulator, step
         tables.append(table)
     rec = recording_from_tables(tables, float(f_nom), base_mva, f"import-csv {manifest.name}", start_ns=start_ns)
     window = meta.get(MEASUREMENT_WINDOW_KEY)
@@ -350,6 +364,7 @@ def recording_from_tables(
                 end_ns=int(stamps[-1]),
                 description=f"imported from {Path(tab.source).name}",
                 regulator=tab.regulator,
+                reference_step=tab.reference_step,
             )
         )
         cursor = int(stamps[-1]) + int(GAP_BETWEEN_SCENARIOS_S * NS)

@@ -17,7 +17,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from phid_ros.io.csvset.csv_import import KINDS, ROLES, ScenarioTable, recording_from_tables
+from phid_ros.errors import CsvImportError
+from phid_ros.io.csvset.csv_import import KINDS, ROLES, ScenarioTable, recording_from_tables, reference_step_of
 from phid_ros.io.field import phasors
 from phid_ros.io.field.channel_map import (
     FIELD_QUANTITIES,
@@ -259,6 +260,10 @@ def scenario_table(path: Path, cmap: ChannelMap, t: Array, channels: dict[str, A
         raise ChannelMapError(f"{cmap.path}: scenarios.{path.stem}: regulator must be one of {REGULATORS}")
     table = ScenarioTable(path.stem, kind, role, damping, t, channels, ev, str(path))
     table.regulator = regulator
+    try:
+        table.reference_step = reference_step_of(meta.get("reference_step"), f"{cmap.path}: scenarios.{path.stem}")
+    except CsvImportError as exc:
+        raise ChannelMapError(str(exc)) from None
     if cmap.open_circuit:
         table.notes.append(
             f"{path.name}: no stator quantity mapped ({cmap.path}): imported as a no-load test, breaker open, "

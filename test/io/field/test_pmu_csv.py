@@ -296,7 +296,8 @@ def test_a_controllers_own_signals_travel_to_the_scenarios_and_an_on_line_test_i
     tmp_path,
 ) -> None:
     """The regulator's and the stabiliser's outputs and the field current go into the bag on a
-    stream of their own and come back on each scenario's samples (to the recorded digits); the
+    stream of their own and come back on each scenario's samples (to the recorded digits), as does
+    the test sheet's reference step (a map's ``reference_step``) through the markers; the
     stabiliser's output, kept only in the test it was on for, is left out of the others with a
     note. An on-line file the on-line map does not fit is refused, not read as an open circuit."""
     from phid_ros.api import cut_scenarios
@@ -312,7 +313,9 @@ def test_a_controllers_own_signals_travel_to_the_scenarios_and_an_on_line_test_i
     _trend_log(tmp_path / "pss_off.csv", {**online, "Q": online["Q"] + 0.05, "IF": 0.8 + 0.1 * step, "UREG": v_r})
     extra = "  i_fd: {name: IF, unit: pu}\n  v_r: UREG\n  v_s: VPSS\n"
     (tmp_path / "online.yaml").write_text(
-        ON_LINE_MAP + extra + "scenarios:\n  pss_on: {kind: field_step}\n  pss_off: {kind: field_step}\n"
+        ON_LINE_MAP
+        + extra
+        + "scenarios:\n  pss_on: {kind: field_step, reference_step: 0.05}\n  pss_off: {kind: field_step}\n"
     )
     (tmp_path / "noload.yaml").write_text(NO_LOAD_MAP + "  i_fd: {name: IF, unit: pu}\n  v_r: UREG\n")
     maps = [load_channel_map(tmp_path / "noload.yaml"), load_channel_map(tmp_path / "online.yaml")]
@@ -330,6 +333,7 @@ def test_a_controllers_own_signals_travel_to_the_scenarios_and_an_on_line_test_i
     assert np.allclose(on["v_r"], np.round(v_r[k], 6), atol=1e-12)
     assert np.allclose(off["i_fd"], np.round(0.8 + 0.1 * step[k], 6), atol=1e-12)
     assert on.k_event == 600
+    assert (on.reference_step, off.reference_step) == (0.05, None)  # the test sheet's, through the bag
     # a CSV set written from the import reads back with them (as %.9g writes them)
     from phid_ros.io.csvset.csv_export import write_csv_set
     from phid_ros.io.csvset.csv_import import import_csv_set
@@ -339,6 +343,7 @@ def test_a_controllers_own_signals_travel_to_the_scenarios_and_an_on_line_test_i
     for c in ("i_fd", "v_r", "v_s"):
         assert np.allclose(theirs[c], mine[c], rtol=1e-8, atol=1e-15, equal_nan=True)
     assert np.isnan(theirs["v_s"][n:]).all() and np.isfinite(theirs["v_s"][:n]).all()
+    assert [s.reference_step for s in back.scenarios] == [0.05, None]
     # an on-line file without the on-line map's E_fd column fits only the no-load map: refused
     _trend_log(tmp_path / "no_ef.csv", {c: x for c, x in online.items() if c != "UF"} | {"IF": np.full(n, 0.8)})
     (tmp_path / "noload_if.yaml").write_text(NO_LOAD_MAP.replace("  v_f: {name: UF, unit: pu}\n", "") + extra[:29])
