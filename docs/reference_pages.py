@@ -86,15 +86,15 @@ def effects_page() -> str:
 
 
 def controls_page() -> str:
-    from phid_ros.controls.models import MODELS
+    from phid_ros.controls.models import KINDS_IN_ORDER, MODELS
 
     parts = [
         "# Control models\n\n"
-        "The exciter and turbine-governor models `phid identify --exciter/--governor` fits and `phid export` "
-        "writes (`phid_ros/controls/models.py`, registered by name), with PSS/E's names for their constants. "
-        "A limit is determined only where the data reached it.\n"
+        "The exciter, turbine-governor and stabiliser models `phid identify --exciter/--governor/--stabiliser` "
+        "fits and `phid export` writes (`phid_ros/controls/models.py`, registered by name), with PSS/E's names "
+        "for their constants. A limit is determined only where the data reached it.\n"
     ]
-    for kind in ("exciter", "governor"):
+    for kind in KINDS_IN_ORDER:
         for name, cls in sorted((n, c) for n, c in MODELS.items() if c.kind == kind):
             parts.append(f"\n## `{name}`: {cls.description}\n\n{_summary(cls)}\n")
             rows = [

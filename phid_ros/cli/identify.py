@@ -13,7 +13,7 @@ from phid_ros.cli.common import finish, load_truth, step_thresholds, warn
 from phid_ros.cli.progress import ProgressLine
 from phid_ros.cli.tables import Col, fmt, pct, print_table
 from phid_ros.controls.identify import ControlFit
-from phid_ros.controls.models import MODELS
+from phid_ros.controls.models import KINDS_IN_ORDER, MODELS
 from phid_ros.ident.constraints import parse_constraints
 from phid_ros.ident.pipeline import IdentificationResult, IdentifyOptions
 from phid_ros.io.files.results import write_json
@@ -136,7 +136,7 @@ def print_validation(console: Console, res: IdentificationResult) -> None:
 def start_from_dyr(args: Any) -> dict[str, dict[str, float]]:
     """``--start-from UNIT.dyr``: the user's existing model as the starts of the searches that
     take one (the machine's, as --start does; the controls' fits), and its control models as the
-    candidates unless --exciter/--governor name others. Returns the controls' starts by kind."""
+    candidates unless --exciter/--governor/--stabiliser name others. Returns the controls' starts by kind."""
     from phid_ros.export.dyr_read import read_unit
 
     unit = read_unit(args.start_from)
@@ -173,7 +173,7 @@ def identify_command(args: Any, console: Console) -> int:
             step_thresholds=step_thresholds(args),
             constraints=constraints,
         )
-        candidates = {k: names for k in ("exciter", "governor") if (names := getattr(args, k, None))}
+        candidates = {k: names for k in KINDS_IN_ORDER if (names := getattr(args, k, None))}
         found = identify_unit(
             unit, options, truth, candidates=candidates, control_starts=control_starts, progress=progress.update
         )

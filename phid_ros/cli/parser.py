@@ -12,7 +12,7 @@ from collections.abc import Callable, Mapping
 
 from phid_ros import __version__
 from phid_ros.cli.commands import command
-from phid_ros.controls.models import of_kind
+from phid_ros.controls.models import KINDS_IN_ORDER, of_kind
 from phid_ros.fleet.history import DRIFT_SIGMAS
 from phid_ros.io.recording import DEFAULT_BLOCK_SIZE
 
@@ -231,9 +231,9 @@ def _add_identify(sub: Subparsers) -> None:
         "--start-from",
         metavar="UNIT.dyr",
         help="the unit's existing PSS/E record: its machine constants start the searches (as --start), "
-        "its exciter and governor models are the candidates and their constants start the fits",
+        "its exciter, governor and stabiliser models are the candidates and their constants start the fits",
     )
-    for kind in ("exciter", "governor"):
+    for kind in KINDS_IN_ORDER:
         names = [m.name for m in of_kind(kind)]
         p.add_argument(
             f"--{kind}",

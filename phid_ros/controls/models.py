@@ -279,6 +279,7 @@ class ControlModel(ABC):
 
 
 MODELS: dict[str, type[ControlModel]] = {}
+KINDS_IN_ORDER = ("exciter", "governor", "stabiliser")  # every kind a model is of, as the unit's records go
 
 
 def register(cls: type[ControlModel]) -> type[ControlModel]:

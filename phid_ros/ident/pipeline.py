@@ -324,6 +324,9 @@ def identify(
 
 
 MIN_FILES_LEFT_OUT = 3  # test files at least, for each to be left out in turn
+# and at most: each costs an identification, and with more independent tests the fit's residuals
+# already carry their spread (a commissioning day has a handful of files, a catalogue 15 scenarios)
+MAX_FILES_LEFT_OUT = 10
 LEFT_OUT_STDS = 2.0  # an estimate moving by more than this many stds with one file left out is withheld
 
 
@@ -336,16 +339,16 @@ def _each_test_file_left_out(
     res: IdentificationResult, ident: list[ScenarioData], opt: IdentifyOptions, say: Say
 ) -> None:
     """Each parameter given as identified from a recorder's channels, identified again with each
-    test file left out in turn: one that moves by more than ``LEFT_OUT_STDS`` of the two stds
-    (in quadrature) is withheld, with the file that moves it. The std of one fit does not see
-    what the choice of tests moves (on a real commissioning day, X_d moved 16 % with the cut
-    while its std said 1-3 %). A file whose absence leaves a parameter undetermined says nothing
-    of it."""
+    test file left out in turn (``MIN_FILES_LEFT_OUT`` to ``MAX_FILES_LEFT_OUT`` files): one
+    that moves by more than ``LEFT_OUT_STDS`` of the two stds (in quadrature) is withheld, with
+    the file that moves it. The std of one fit does not see what the choice of tests moves (on a
+    real commissioning day, X_d moved 16 % with the cut while its std said 1-3 %). A file whose
+    absence leaves a parameter undetermined says nothing of it."""
     given = [n for n, e in res.estimates.items() if e.identifiable and n not in opt.constraints.fixed]
     files: dict[str, list[ScenarioData]] = {}
     for s in ident:
         files.setdefault(file_of(s), []).append(s)
-    if not given or len(files) < MIN_FILES_LEFT_OUT:
+    if not given or not MIN_FILES_LEFT_OUT <= len(files) <= MAX_FILES_LEFT_OUT:
         return
     say(f"each of {len(files)} test files left out in turn: does an estimate move?")
     for name_of_file, members in files.items():

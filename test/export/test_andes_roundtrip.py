@@ -99,6 +99,32 @@ def test_table1_machine_fault_difference_is_the_q_axis_damper(tmp_path: Path) ->
     assert 0.1 < rms_delta < 1.0, rms_delta
 
 
+def unit_record(params: GeneratorParameters, controls: dict) -> MachineRecord:
+    """The record ``phid export`` writes of an identification with every machine parameter and
+    these ``controls`` (identify's JSON form)."""
+    result = {
+        "parameters": params.as_dict(),
+        "identifiable": {n: True for n in PARAMETER_NAMES},
+        "f_nominal_hz": 50.0,
+        "controls": controls,
+    }
+    return build_record(result, source="result.json", mva=MACHINE_MVA, bus=1, machine_id="1")
+
+
+def loaded(tmp_path: Path, rec: MachineRecord, fmt: str, cfg: SimulationConfig):
+    """ANDES's single-machine case with the record written in ``fmt`` and read by ANDES's own
+    reader for it (its PSS/E .dyr reader, or its JSON reader)."""
+    path = tmp_path / ("unit.dyr" if fmt == "psse-dyr" else "unit.json")
+    path.write_text(psse_dyr(rec) if fmt == "psse-dyr" else andes_json(rec))
+    if fmt == "psse-dyr":
+        return system(dyr=path, cfg=cfg)
+    import andes
+
+    s = system(cfg=cfg)
+    andes.io.json.read(s, str(path))
+    return s
+
+
 CONTROLS = {
     "exciter": {
         "model": "SEXS",
@@ -118,27 +144,12 @@ def test_the_exciter_and_governor_go_out_beside_the_machine_in_both_formats(tmp_
     take the same unit (SEXS, TGOV1 wired to the GENROU), and a fault in each simulates the same;
     the field voltage goes to its ceiling (the stated default EMAX) and back."""
     params = TABLE1.replace(X_q_prime=TABLE1.X_d_prime)
-    result = {
-        "parameters": params.as_dict(),
-        "identifiable": {n: True for n in PARAMETER_NAMES},
-        "f_nominal_hz": 50.0,
-        "controls": CONTROLS,
-    }
-    rec = build_record(result, source="result.json", mva=MACHINE_MVA, bus=1, machine_id="1")
+    rec = unit_record(params, CONTROLS)
     assert [c.model for c in rec.controls] == ["SEXS", "TGOV1"]
     assert rec.controls[0].sources["EMAX"].startswith("default") and rec.controls[1].sources["Dt"].startswith("default")
     runs = {}
     for fmt in ("psse-dyr", "andes"):
-        path = tmp_path / ("unit.dyr" if fmt == "psse-dyr" else "unit.json")
-        path.write_text(psse_dyr(rec) if fmt == "psse-dyr" else andes_json(rec))
-        cfg = SimulationConfig(params=params)
-        if fmt == "psse-dyr":
-            s = system(dyr=path, cfg=cfg)
-        else:
-            import andes
-
-            s = system(cfg=cfg)
-            andes.io.json.read(s, str(path))
+        s = loaded(tmp_path, rec, fmt, SimulationConfig(params=params))
         assert (s.GENROU.n, s.SEXS.n, s.TGOV1.n) == (1, 1, 1)
         assert (s.SEXS.K.v[0], s.SEXS.TE.v[0], s.TGOV1.R.v[0], s.TGOV1.T3.v[0]) == (100.0, 0.05, 0.05, 6.0)
         runs[fmt] = run(s, FAULT, dt=0.01)
@@ -216,28 +227,13 @@ def test_a_stabiliser_goes_out_with_its_exciter_and_andes_plays_it_as_phid_does(
             "identifiable": {n: n in stabiliser and n != "T1" for n in pss},
         },
     }
-    result = {
-        "parameters": params.as_dict(),
-        "identifiable": {n: True for n in PARAMETER_NAMES},
-        "f_nominal_hz": 50.0,
-        "controls": controls,
-    }
-    rec = build_record(result, source="result.json", mva=MACHINE_MVA, bus=1, machine_id="1")
+    rec = unit_record(params, controls)
     assert [c.model for c in rec.controls] == ["SEXS", "IEEEST"]
     dyr = psse_dyr(rec)
     assert "1 'IEEEST' '1' 3 0 0 0 0 0 0 0 0 0.02 0.2 0.04 2 2 -0.2 0.1 -0.1 0 0 /" in dyr, dyr
     runs, vsout = {}, {}
     for fmt in ("psse-dyr", "andes"):
-        path = tmp_path / ("unit.dyr" if fmt == "psse-dyr" else "unit.json")
-        path.write_text(dyr if fmt == "psse-dyr" else andes_json(rec))
-        cfg = SimulationConfig(params=params)
-        if fmt == "psse-dyr":
-            s = system(dyr=path, cfg=cfg)
-        else:
-            import andes
-
-            s = system(cfg=cfg)
-            andes.io.json.read(s, str(path))
+        s = loaded(tmp_path, rec, fmt, SimulationConfig(params=params))
         assert (s.GENROU.n, s.SEXS.n, s.IEEEST.n) == (1, 1, 1)
         runs[fmt] = run(s, TORQUE_STEP, dt=0.01)
         ts = s.dae.ts
