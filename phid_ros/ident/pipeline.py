@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -351,10 +351,11 @@ def _each_test_file_left_out(
     if not given or not MIN_FILES_LEFT_OUT <= len(files) <= MAX_FILES_LEFT_OUT:
         return
     say(f"each of {len(files)} test files left out in turn: does an estimate move?")
+    sub_opt = _with_q_axis_of(res, opt)
     for name_of_file, members in files.items():
         rest = [s for s in ident if s not in members]
-        sub = IdentificationResult({}, opt.method, rest, constraints=opt.constraints)
-        determinable.identify_by_channels(sub, rest, opt, lambda _step: None)
+        sub = IdentificationResult({}, opt.method, rest, constraints=sub_opt.constraints)
+        determinable.identify_by_channels(sub, rest, sub_opt, lambda _step: None)
         for n in given:
             e, o = res.estimates[n], sub.estimates.get(n)
             if not e.identifiable or o is None or not (math.isfinite(o.value) and math.isfinite(o.std)):
@@ -365,6 +366,19 @@ def _each_test_file_left_out(
                     f"{n} {e.value:.4g} ± {e.std:.2g} moves to {o.value:.4g} ± {o.std:.2g} with {name_of_file}'s "
                     f"tests left out (more than {LEFT_OUT_STDS:g} stds): the tests do not agree on it"
                 )
+
+
+def _with_q_axis_of(res: IdentificationResult, opt: IdentifyOptions) -> IdentifyOptions:
+    """The options with the q axis the whole set's d-axis residual chose held (a subset's own
+    search costs most of its fit and only steers the rotor angle's reconstruction): its X'_q and
+    T'_q0, or at rest (X'_q = X_q: the static reconstruction)."""
+    chosen = res.route_details.get("q_axis_search")
+    x_q = opt.constraints.fixed.get("X_q")
+    if not isinstance(chosen, dict) or x_q is None:
+        return opt
+    q = (chosen["X_q_prime"], chosen["T_q0_prime"]) if chosen["X_q_prime"] is not None else (x_q, 1.0)
+    fixed = {**opt.constraints.fixed, "X_q_prime": float(q[0]), "T_q0_prime": float(q[1])}
+    return replace(opt, constraints=replace(opt.constraints, fixed=fixed))
 
 
 def _stage1(res: IdentificationResult, ident: list[ScenarioData], opt: IdentifyOptions, say: Say) -> None:
