@@ -162,7 +162,7 @@ def pmu_lines(cols: dict[str, object]) -> list[str]:
     """The export's lines: a header, then one report per row."""
     return [",".join(cols)] + [
         ",".join(v if isinstance(v, str) else repr(float(v)) for v in row)
-        for row in zip(*cols.values())  # type: ignore[call-overload]
+        for row in zip(*cols.values())
     ]
 
 
