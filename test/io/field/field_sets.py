@@ -161,8 +161,7 @@ def phasor_columns(m: dict[str, np.ndarray], step: int, pmu: str) -> dict[str, o
 def pmu_lines(cols: dict[str, object]) -> list[str]:
     """The export's lines: a header, then one report per row."""
     return [",".join(cols)] + [
-        ",".join(v if isinstance(v, str) else repr(float(v)) for v in row)
-        for row in zip(*cols.values())
+        ",".join(v if isinstance(v, str) else repr(float(v)) for v in row) for row in zip(*cols.values())
     ]
 
 
