@@ -156,7 +156,8 @@ def identify_command(args: Any, console: Console) -> int:
 
     refuse_inputs([args.json, args.report], [*args.input, args.truth, getattr(args, "start_from", None)])
     control_starts = start_from_dyr(args) if getattr(args, "start_from", None) else {}
-    constraints = parse_constraints(args.fix, args.bounds, args.start)  # a typo said before the reading
+    # a typo said before the reading
+    constraints = parse_constraints(args.fix, args.bounds, args.start, args.saturation)
     t_start = time.perf_counter()
     with ProgressLine(f"reading {' + '.join(args.input)}") as progress:
         # read part by part where the recording allows: only the scenarios' windows are kept

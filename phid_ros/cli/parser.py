@@ -228,6 +228,12 @@ def _add_identify(sub: Subparsers) -> None:
         help="starting value for the searches that take one (--method paper), repeatable",
     )
     p.add_argument(
+        "--saturation",
+        metavar="S10,S12",
+        help="the machine's open-circuit saturation S(1.0),S(1.2) from its datasheet, held: the field "
+        "current's base where every no-load test is above the knee (e.g. --saturation 0.1,0.4)",
+    )
+    p.add_argument(
         "--start-from",
         metavar="UNIT.dyr",
         help="the unit's existing PSS/E record: its machine constants start the searches (as --start), "

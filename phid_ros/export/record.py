@@ -204,7 +204,8 @@ def build_record(
         sources[f] = origin + (" NOT IDENTIFIED" if name in flagged else "")
     warnings: list[str] = []
     _fill_subtransient(values, sources, effects.get("subtransient_dynamics"), warnings)
-    _fill_saturation(values, sources, effects.get("magnetic_saturation"), warnings, model)
+    held_curve = (result.get("constraints") or {}).get("saturation")
+    _fill_saturation(values, sources, effects.get("magnetic_saturation"), warnings, model, held_curve)
     ra = effects.get("stator_resistance")
     values["ra"], sources["ra"] = (float(ra["r_a"]), "diagnosis: stator_resistance r_a") if ra else (0.0, "default")
     if model == "GENSAL":
@@ -360,8 +361,17 @@ def _fill_saturation(
     effect: Mapping[str, Any] | None,
     warnings: list[str],
     model: str,
+    held: Mapping[str, Any] | None = None,
 ) -> None:
-    if effect:
+    if held:  # the datasheet's curve the identification held (--saturation): the record's, as given
+        values["S10"], sources["S10"] = float(held["S10"]), "held by the user (--saturation)"
+        values["S12"], sources["S12"] = float(held["S12"]), "held by the user (--saturation)"
+        if effect:
+            warnings.append(
+                f"the diagnosis found S(1.0) = {float(effect['s10']):.4g}, S(1.2) = {float(effect['s12']):.4g}; "
+                "the record keeps the curve the identification held (--saturation)"
+            )
+    elif effect:
         values["S10"], sources["S10"] = float(effect["s10"]), "diagnosis: magnetic_saturation s10"
         values["S12"], sources["S12"] = float(effect["s12"]), "diagnosis: magnetic_saturation s12"
         # a diagnosis from before the planning forms had S(1.0) exp(b (E'_q - 1)) on E'_q

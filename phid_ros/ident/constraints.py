@@ -27,9 +27,12 @@ class Constraints:
     fixed: dict[str, float] = field(default_factory=dict)
     bounds: dict[str, tuple[float, float]] = field(default_factory=dict)
     start: dict[str, float] = field(default_factory=dict)
+    # the machine's open-circuit saturation S(1.0), S(1.2) from its datasheet (--saturation): what
+    # gives the field current's base where the no-load tests are all above the knee
+    saturation: tuple[float, float] | None = None
 
     def __bool__(self) -> bool:
-        return bool(self.fixed or self.bounds or self.start)
+        return bool(self.fixed or self.bounds or self.start or self.saturation)
 
     @overload
     def limits(self, name: str, default: tuple[float, float]) -> tuple[float, float]: ...
@@ -54,7 +57,14 @@ class Constraints:
         return b is not None and not b[0] <= value <= b[1]
 
     def as_dict(self) -> dict[str, object]:
-        return {"fixed": self.fixed, "bounds": {k: list(v) for k, v in self.bounds.items()}, "start": self.start}
+        out: dict[str, object] = {
+            "fixed": self.fixed,
+            "bounds": {k: list(v) for k, v in self.bounds.items()},
+            "start": self.start,
+        }
+        if self.saturation is not None:
+            out["saturation"] = {"S10": self.saturation[0], "S12": self.saturation[1]}
+        return out
 
 
 NONE = Constraints()
@@ -105,8 +115,23 @@ def _in_range(name: str, v: float, where: str) -> None:
         raise ParameterError(f"{where}: {name}={v:g} {spec.unit} lies outside its physical range {spec.range_text()}")
 
 
-def parse_constraints(fix: Sequence[str] = (), bounds: Sequence[str] = (), start: Sequence[str] = ()) -> Constraints:
-    """``NAME=VALUE`` (fix, start) and ``NAME=LO:HI`` (bounds) as the command line gives them."""
+def parse_saturation(text: str) -> tuple[float, float]:
+    """``S10,S12`` (--saturation): the open-circuit curve's S(1.0) and S(1.2), S(1.2) > S(1.0) > 0
+    (the planning models' quadratic form through the two needs both)."""
+    parts = text.split(",")
+    if len(parts) != 2:
+        raise ParameterError(f"--saturation {text!r}: expected S10,S12 (S(1.0) and S(1.2)), e.g. 0.1,0.4")
+    s10, s12 = (_number(p.strip(), "--saturation") for p in parts)
+    if not 0 < s10 < s12:
+        raise ParameterError(f"--saturation {text}: needs S(1.2) > S(1.0) > 0 (got S(1.0) = {s10:g}, S(1.2) = {s12:g})")
+    return s10, s12
+
+
+def parse_constraints(
+    fix: Sequence[str] = (), bounds: Sequence[str] = (), start: Sequence[str] = (), saturation: str | None = None
+) -> Constraints:
+    """``NAME=VALUE`` (fix, start), ``NAME=LO:HI`` (bounds) and ``S10,S12`` (saturation) as the
+    command line gives them."""
     fixed: dict[str, float] = {}
     for name, text in _pairs(fix, "--fix"):
         fixed[name] = _number(text, f"--fix {name}")
@@ -131,4 +156,4 @@ def parse_constraints(fix: Sequence[str] = (), bounds: Sequence[str] = (), start
     for small, large in (("X_d_prime", "X_d"), ("X_q_prime", "X_q")):
         if small in fixed and large in fixed and not fixed[small] < fixed[large]:
             raise ParameterError(f"--fix: {small}={fixed[small]:g} must be below {large}={fixed[large]:g}")
-    return Constraints(fixed, lims, starts)
+    return Constraints(fixed, lims, starts, parse_saturation(saturation) if saturation is not None else None)

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from phid_ros.errors import StageError
-from phid_ros.ident import open_circuit, stage1, stage2, stage3, terminal
+from phid_ros.ident import field_circuit, open_circuit, stage1, stage2, stage3, terminal
 from phid_ros.ident.results import Estimate
 from phid_ros.ident.scenario import ScenarioData
 from phid_ros.model.parameters import PARAMETER_NAMES
@@ -91,6 +91,13 @@ ROUTES: tuple[Route, ...] = (
         (*TERMINAL, "v_f"),
         "stage 3's d axis on the rotor angle reconstructed from V_t, P, Q",
         loaded=True,
+    ),
+    Route(
+        "field_circuit",
+        ("T_d0_prime",),
+        ("v_t", "v_f", "i_fd"),
+        "no-load events: the field circuit, E_fd - X_ad I_fd integrated per V_t moved",
+        no_load=True,
     ),
     Route(
         "open_circuit",
@@ -284,6 +291,10 @@ def identify_by_channels(
                         e.disqualify(off)
         except StageError as exc:
             res.problems.append(f"open circuit (T'_d0) did not run: {exc}")
+    fc = ROUTES_BY_KEY["field_circuit"]
+    if "T_d0_prime" not in held and fc.scenarios(ident):
+        say(f"T'_d0: {fc.how}")
+        _field_circuit(res, fc, fc.scenarios(ident), opt, put)
     # -- the q axis's transient ----------------------------------------------------------------
     r = route_of("X_q_prime", "T_q0_prime")
     if r is not None and "X_q" in known:
@@ -310,6 +321,38 @@ def field_base_off(gain: float) -> str | None:
         f"E_fd is not on the machine's base: at no load V_t settles at {gain:.3f} x the recorded E_fd (1 on the "
         "air-gap line, a little less when saturated); state the field's base in the map (v_f: {base: ...})"
     )
+
+
+def _field_circuit(
+    res: IdentificationResult,
+    route: Route,
+    scs: list[ScenarioData],
+    opt: IdentifyOptions,
+    put: Callable[[Mapping[str, Estimate], Route], None],
+) -> None:
+    """T'_d0 by the field circuit, in place of the terminal voltage's routes where it is
+    identified (it reads neither the dampers' nor the saturation's dynamics, and the field base
+    from the file's own plateaus), and where neither is."""
+    try:
+        f = field_circuit.field_circuit(scs, opt.constraints.saturation)
+    except StageError as exc:
+        res.problems.append(f"field circuit (T'_d0) did not run: {exc}")
+        return
+    res.route_details["field_circuit"] = {
+        "T_d0_prime": f.T_d0_prime.value,
+        "T_d0_prime_std": f.T_d0_prime.std,
+        "field_current_base": f.base.scale,  # X_ad I_fd per unit of the recorded I_f (a bound if not determined)
+        "field_current_base_determined": f.base.determined,
+        "field_current_base_source": f.base.source,
+        "events": [
+            {"scenario": e.scenario, "delta_v": e.delta_v, "k_e": e.k_e, "T_d0_prime": f.base.scale * e.time_per_base}
+            for e in f.events
+        ],
+        "plateaus": [{"v_t": v, "i_fd": i, "scenario": n} for v, i, n in f.plateaus],
+    }
+    current = res.estimates.get("T_d0_prime")
+    if f.T_d0_prime.identifiable or current is None or not current.identifiable:
+        put({"T_d0_prime": f.T_d0_prime}, route)
 
 
 def _one_axis(

@@ -104,6 +104,38 @@ def test_nothing_wrong_is_published_as_identified(day: Path) -> None:
     assert any("E_fd is not on the machine's base" in (res.estimates[n].note or "") for n in ("X_d", "T_d0_prime"))
 
 
+def test_t_d0_from_the_field_circuit_with_the_datasheet_s_curve(day: Path) -> None:
+    """The field current, recorded in every file, carries T'_d0 at no load whatever the dampers and
+    the regulator did (E_fd - X_ad I_fd integrated per V_t moved). Its base needs the open-circuit
+    curve: every no-load plateau here is above the knee, so without one only a bound is said; with
+    the datasheet's S(1.0) 0.1, S(1.2) 0.4 (held) T'_d0 is identified. The four events (the +10 %
+    step, its return, two de-excitations) put it at 4.6-5.2 s, above the datasheet's 3.77 s, and
+    even S = 0 (no saturation at all, which the plateaus rule out) gives at least 4.3 s."""
+    cut = cut_scenarios(day)
+    bare = IdentifyOptions(baseline=False, validate=False, constraints=Constraints(fixed={"X_q": 0.62}))
+    _, res = identify_cut([(cut.scenarios, cut.problems, str(day))], bare)
+    t_d0 = res.estimates["T_d0_prime"]
+    assert not t_d0.identifiable and "T'_d0 is at least 4.3" in t_d0.note and "--saturation" in t_d0.note
+    held = Constraints(fixed={"X_q": 0.62}, saturation=(0.1, 0.4))
+    _, res = identify_cut(
+        [(cut.scenarios, cut.problems, str(day))], IdentifyOptions(baseline=False, validate=False, constraints=held)
+    )
+    t_d0 = res.estimates["T_d0_prime"]
+    assert t_d0.identifiable and 4.5 < t_d0.value < 5.0 and t_d0.std < 0.05 * t_d0.value
+    assert res.determined_by["T_d0_prime"].startswith("no-load events: the field circuit")
+    fc = res.route_details["field_circuit"]
+    assert [e["scenario"] for e in fc["events"]] == [
+        "AVR_PH_Step10@13.3s",
+        "AVR_PH_Step10@19.6s",
+        "AVR_PH_Stop_INV",
+        "RR_PH_Stop_INV",
+    ]
+    assert all(4.4 < e["T_d0_prime"] < 5.4 for e in fc["events"])
+    # E_fd on the machine's base, c k_e: the published fit's gain between simulated and recorded E_fd is 2.89
+    for e in fc["events"]:
+        assert fc["field_current_base"] * e["k_e"] == pytest.approx(2.89, rel=0.05)
+
+
 def test_info_lists_the_events_and_what_is_left_out(day: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from phid_ros.cli.main import main
 

@@ -18,6 +18,7 @@ import numpy as np
 
 from phid_ros.model.conventions import dq_to_terminal
 from phid_ros.model.parameters import GeneratorParameters
+from phid_ros.sim.effects.magnetic_saturation import saturation_curve, saturation_factor
 from phid_ros.sim.network import Network
 from phid_ros.sim.plant import OperatingPoint
 from phid_ros.sim.runner import ScenarioRun, SimulationConfig, simulate_scenarios
@@ -58,7 +59,23 @@ scenarios:
 """
 
 
-def _trend_rows(run: ScenarioRun, rng: np.random.Generator, day: str, t0: float) -> list[str]:
+def field_current(
+    run: ScenarioRun, params: GeneratorParameters, saturation: tuple[float, float] | None = None
+) -> np.ndarray:
+    """X_ad I_fd of the fourth-order model (7): E'_q + (X_d - X'_d) i_d, E_fd at every steady state,
+    and S(E'_q) E'_q more on a saturated machine (GENSAL's form, the quadratic curve through
+    ``saturation`` = (S(1.0), S(1.2)))."""
+    e_q = run.states["e_q"]
+    out = e_q + (params.X_d - params.X_d_prime) * run.truth["i_d"]
+    if saturation is not None:
+        a, b = saturation_curve("quadratic", *saturation)
+        out = out + saturation_factor(False, a, b, e_q) * e_q
+    return out
+
+
+def _trend_rows(
+    run: ScenarioRun, rng: np.random.Generator, day: str, t0: float, params: GeneratorParameters
+) -> list[str]:
     m = run.measured
     n = run.n_analysis
     t_sim = run.t[:n]
@@ -79,7 +96,7 @@ def _trend_rows(run: ScenarioRun, rng: np.random.Generator, day: str, t0: float)
         "Q": q * MVA,
         "IT": np.hypot(p, q) / v * I_BASE,
         "UF": at(m["v_f"]) * FIELD_BASE_V,
-        "IF": at(run.truth["v_f"]) * FIELD_BASE_A,  # steady-state E_fd = I_fd (per unit); only its base matters
+        "IF": at(field_current(run, params)) * FIELD_BASE_A,
     }
     rows = []
     for k, tk in enumerate(t):
@@ -115,7 +132,7 @@ def trend_log_set(
     ]:
         header = "Date;Time;" + ";".join(("UT", "P", "Q", "IT", "UF", "IF"))
         path = folder / f"{run.scenario.name}.csv"
-        path.write_text("\n".join([header, *_trend_rows(run, rng, day, t0)]) + "\n", encoding="utf-8")
+        path.write_text("\n".join([header, *_trend_rows(run, rng, day, t0, params)]) + "\n", encoding="utf-8")
         paths.append(path)
         entries.append(f"  {run.scenario.name}: {{kind: {run.scenario.kind}, event_time_s: {run.scenario.t_event}}}")
     cmap = folder / "map.yaml"

@@ -1,0 +1,231 @@
+"""T'_d0 from the field circuit at no load: what the recorded field current says beside V_t.
+
+At no load the planning models' d axis (PSS/E's GENSAL and GENROU) reads
+
+    T'_d0 dE'_q/dt = E_fd - X_ad I_fd,        E'_q = V_t at every steady state,
+
+so over an event, from the plateau before it to the one after,
+
+    T'_d0 (V_t1 - V_t0) = integral of (E_fd - X_ad I_fd) dt,
+
+whatever the dampers and the regulator did in between (the dampers' currents start and end at
+zero) and whatever the saturation (it lies in X_ad I_fd, which is measured, not modelled). An
+excitation controller records both field channels on its own bases: X_ad I_fd = c I_f, and
+E_fd = c k_e U_f, where k_e = I_f / U_f at the event's own plateaus (the field winding's
+resistance at that test's temperature: on a real commissioning day U_f per I_f drifts by 14 %
+between tests, I_f per V_t does not) and c is the field current's base,
+
+    c = V_t (1 + S(V_t)) / I_f        at any no-load plateau (IEEE 115's air-gap line: S = 0).
+
+c needs the open-circuit curve: it is determined when the plateaus lie on the air-gap line, or
+from the machine's S(1.0), S(1.2) (its datasheet, held); when the plateaus are saturated and no
+curve is given, S >= 0 still bounds c, and with it T'_d0, from below, which is said.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from phid_ros.errors import StageError
+from phid_ros.ident.characteristics import LINEAR_PART
+from phid_ros.ident.open_circuit import SATURATION_GAP
+from phid_ros.ident.results import Estimate
+from phid_ros.ident.scenario import ScenarioData
+from phid_ros.ident.terminal import at_no_load
+from phid_ros.sim.effects.magnetic_saturation import saturation_curve, saturation_factor
+
+MIN_VOLTAGE_CHANGE = 0.02  # pu of V_t between the plateaus: less carries too little of T'_d0
+PLATEAU_FLOOR = 0.2  # pu of V_t: a de-excited machine's remanence is no point of the curve
+LEAD_SECONDS = 0.5  # the integral starts this long before the event, on the plateau
+FROM_SHARE = 1.0 / 3.0  # of V_t's change: from where the integral is fitted (the dampers settled)
+SETTLED = 0.98  # of V_t's change: where the transient is over
+TAIL_SECONDS = 1.0  # the fit goes on this long after it
+
+
+class FieldCircuitError(StageError):
+    """No no-load event with V_t, E_fd and I_fd to integrate."""
+
+
+@dataclass
+class FieldCurrentBase:
+    """The recorded I_f's base on the machine's: X_ad I_fd = ``scale`` x the recorded I_f."""
+
+    scale: float  # c; for a lower bound only, the smallest c the plateaus allow
+    determined: bool  # False: the plateaus are saturated and no curve was given (``scale`` a bound)
+    source: str
+    scatter: float  # the plateaus' largest relative distance from the curve used
+
+
+def field_current_base(
+    v_t: Sequence[float], i_f: Sequence[float], saturation: tuple[float, float] | None
+) -> FieldCurrentBase:
+    """c from no-load plateaus (V_t, I_f as recorded): on the given curve (S(1.0), S(1.2), the
+    quadratic form) or, without one, on the air-gap line when the plateaus' I_f per V_t agrees
+    within SATURATION_GAP; otherwise the bound S >= 0 gives."""
+    v, i = np.asarray(v_t, float), np.asarray(i_f, float)
+    if saturation is not None:
+        a, b = saturation_curve("quadratic", *saturation)
+        each = v * (1.0 + saturation_factor(False, a, b, v)) / i
+        c = float(np.mean(each))
+        return FieldCurrentBase(
+            c,
+            True,
+            f"the held open-circuit curve S(1.0) = {saturation[0]:g}, S(1.2) = {saturation[1]:g} through "
+            f"{len(v)} no-load plateau(s) at V_t {v.min():.3f}-{v.max():.3f} pu",
+            float(np.max(np.abs(each / c - 1.0))),
+        )
+    per_volt = i / v
+    linear = v <= LINEAR_PART[1]  # below the knee (IEEE 115's linear part): on the air-gap line
+    if per_volt.max() / per_volt.min() - 1.0 <= SATURATION_GAP or linear.any():
+        on_line = linear if linear.any() else np.ones(len(v), dtype=bool)
+        c = float(np.mean(v[on_line] / i[on_line]))
+        return FieldCurrentBase(
+            c,
+            True,
+            f"the air-gap line through {int(on_line.sum())} no-load plateau(s) at V_t "
+            f"{v[on_line].min():.3f}-{v[on_line].max():.3f} pu",
+            float(np.max(np.abs(v[on_line] / i[on_line] / c - 1.0))),
+        )
+    k = int(np.argmin(per_volt))  # S >= 0: c is at least V_t / I_f at every plateau
+    return FieldCurrentBase(
+        float(v[k] / i[k]),
+        False,
+        f"not determined: the no-load plateaus are on the saturated part of the open-circuit curve (I_f per "
+        f"V_t {per_volt.min():.4g} at {v[int(np.argmin(per_volt))]:.3f} pu, {per_volt.max():.4g} at "
+        f"{v[int(np.argmax(per_volt))]:.3f} pu) and no plateau is on the air-gap line",
+        math.nan,
+    )
+
+
+@dataclass
+class FieldEvent:
+    scenario: str
+    before: tuple[float, float]  # (V_t, I_f as recorded) on the plateau before the event
+    after: tuple[float, float]  # and after it
+    delta_v: float  # V_t after minus before
+    k_e: float  # the recorded I_f per U_f at this event's plateaus
+    time_per_base: float  # integral / delta_v = T'_d0 / c
+
+
+@dataclass
+class FieldCircuitResult:
+    T_d0_prime: Estimate
+    base: FieldCurrentBase
+    events: list[FieldEvent]
+    plateaus: list[tuple[float, float, str]]  # (V_t, I_f, scenario)
+
+
+def field_events(scenarios: Sequence[ScenarioData]) -> list[ScenarioData]:
+    """The identification scenarios at no load with V_t, E_fd and I_fd whose V_t moves between plateaus."""
+    out = []
+    for s in scenarios:
+        if s.role != "identify" or not s.has("v_t", "v_f", "i_fd") or not at_no_load(s):
+            continue
+        pre, post = s.pre_slice(), s.steady_slice()
+        if len(s["v_t"][pre]) < 10 or len(s["v_t"][post]) < 10:
+            continue
+        if abs(float(np.mean(s["v_t"][post]) - np.mean(s["v_t"][pre]))) >= MIN_VOLTAGE_CHANGE:
+            out.append(s)
+    return out
+
+
+def _plateau(s: ScenarioData, sl: slice) -> tuple[float, float, float]:
+    return tuple(float(np.mean(s[c][sl])) for c in ("v_t", "v_f", "i_fd"))  # type: ignore[return-value]
+
+
+def departure(s: ScenarioData) -> int:
+    """The first sample at which V_t or I_f leaves the level it held at the window's start: a
+    de-excitation is placed where V_t has fallen far, a second after the field went."""
+    k = s.k_event
+    ref = slice(0, max(k // 2, 10))
+    out = k
+    for c in ("v_t", "i_fd"):
+        x = s[c]
+        level, noise = float(np.median(x[ref])), float(np.std(np.diff(x[ref]))) / math.sqrt(2)
+        band = max(6.0 * noise, 0.005 * abs(level))
+        off = np.flatnonzero(np.abs(x[: k + 1] - level) > band)
+        # the last run of samples off the level that reaches the event
+        if off.size and off[-1] == k:
+            gaps = np.flatnonzero(np.diff(off) > 1)
+            out = min(out, int(off[gaps[-1] + 1] if gaps.size else off[0]))
+    return out
+
+
+def one_event(s: ScenarioData) -> FieldEvent:
+    """T'_d0 / c for one event: the field circuit's integral from the plateau before against the
+    V_t it has moved by, over the event's transient."""
+    lead = int(round(LEAD_SECONDS / s.dt))
+    k0 = departure(s)
+    pre, post = slice(0, max(k0 - lead, 10)), s.steady_slice()
+    v0, u0, i0 = _plateau(s, pre)
+    v1, u1, i1 = _plateau(s, post)
+    # the field winding's resistance at this test's temperature, both plateaus' (after a
+    # de-excitation, where U_f = I_f = 0, the one before)
+    k_e = (u0 * i0 + u1 * i1) / (u0 * u0 + u1 * u1)
+    a = pre.stop
+    g = k_e * s["v_f"][a:] - s["i_fd"][a:]
+    integral = np.concatenate(([0.0], np.cumsum(0.5 * (g[1:] + g[:-1])) * s.dt))
+    moved = s["v_t"][a:] - v0
+    # T'_d0 (V_t(t) - V_t0) = the integral to t at every t once the dampers have settled: fitted
+    # over the transient from a third of the way to where V_t settles (and a second on), not
+    # integrated along the whole plateau, where a recorder's slow drift would add up
+    delta = v1 - v0
+    share = moved / delta
+    settled = np.flatnonzero(share >= SETTLED)
+    end = min((int(settled[0]) if settled.size else len(g) - 1) + int(round(TAIL_SECONDS / s.dt)), len(g))
+    use = np.flatnonzero(share[:end] >= FROM_SHARE)
+    x, y = moved[use], integral[use]
+    slope = float(x @ y / (x @ x)) if use.size else float(integral[end - 1] / delta)
+    return FieldEvent(s.name, (v0, i0), (v1, i1), delta, k_e, slope)
+
+
+def _file_of(name: str) -> str:
+    return name.partition("@")[0]
+
+
+def field_circuit(scenarios: Sequence[ScenarioData], saturation: tuple[float, float] | None) -> FieldCircuitResult:
+    scs = field_events(scenarios)
+    if not scs:
+        raise FieldCircuitError("no no-load event with V_t, E_fd and I_fd recorded and V_t moving between two plateaus")
+    events = [one_event(s) for s in scs]
+    plateaus = [(v, i, e.scenario) for e in events for v, i in (e.before, e.after) if v >= PLATEAU_FLOOR]
+    base = field_current_base([p[0] for p in plateaus], [p[1] for p in plateaus], saturation)
+    # the events of one test file share its temperature and its recorder's offsets: one figure per file
+    files: dict[str, list[float]] = {}
+    for e in events:
+        files.setdefault(_file_of(e.scenario), []).append(e.time_per_base)
+    per_file = np.array([np.mean(v) for v in files.values()])
+    mean = float(np.mean(per_file))
+    if len(per_file) > 1:
+        spread = float(np.std(per_file, ddof=1) / math.sqrt(len(per_file)))
+    else:  # one file: its events' own agreement is all there is
+        each = np.array([e.time_per_base for e in events])
+        spread = float(np.std(each, ddof=1) / math.sqrt(len(each))) if len(each) > 1 else math.nan
+    tau = base.scale * mean
+    sd = base.scale * spread
+    if base.determined and math.isfinite(base.scatter):
+        sd = math.hypot(sd, tau * base.scatter)  # the curve's misfit to the plateaus is c's own error
+    values = ", ".join(f"{base.scale * e.time_per_base:.3g} s" for e in events)
+    est = Estimate(tau, sd, drivers=[e.scenario for e in events][:3])
+    est.add_note(
+        f"T'_d0 from the field circuit at no load (the integral of E_fd - X_ad I_fd over each event per V_t it "
+        f"moved; {len(events)} event(s) in {len(files)} file(s): {values}); the field current's base: {base.source}"
+    )
+    if not base.determined:
+        est.disqualify(
+            f"T'_d0 is at least {tau:.3g} s (on the air-gap line through the least saturated plateau; S >= 0) and "
+            "grows with the saturation at the plateaus: give the machine's open-circuit curve (--saturation "
+            "S10,S12, its datasheet's S(1.0), S(1.2)) or record a no-load plateau below the knee"
+        )
+    elif not math.isfinite(sd) or sd <= 0:
+        est.disqualify("T'_d0 from one event in one file: no spread to judge it by")
+    if saturation is not None and base.scatter > SATURATION_GAP:
+        est.disqualify(
+            f"the held open-circuit curve (S(1.0) = {saturation[0]:g}, S(1.2) = {saturation[1]:g}) misses the "
+            f"no-load plateaus by up to {100 * base.scatter:.1f} %: is it this machine's?"
+        )
+    return FieldCircuitResult(est, base, events, plateaus)

@@ -1,0 +1,94 @@
+"""T'_d0 from the field circuit at no load: E_fd - X_ad I_fd integrated per V_t moved.
+
+On the project's own simulator, no-load field steps recorded as an excitation controller does
+(E_fd and I_fd on bases of their own, a few hundred reports per second, sensor noise): on the
+air-gap line, on a saturated machine with and without its curve, and with a plateau below the knee.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from phid_ros.ident.field_circuit import field_circuit, field_current_base
+from phid_ros.ident.scenario import ScenarioData, resampled, scenario_from_simulation
+from phid_ros.ident.terminal import with_channels
+from phid_ros.model.parameters import TABLE1
+from phid_ros.sim.effects.magnetic_saturation import MagneticSaturation
+from phid_ros.sim.runner import simulate_scenarios
+from phid_ros.sim.scenarios import Scenario
+from test.io.field.field_sets import NO_LOAD, field_current
+
+E_FD_BASE, I_FD_BASE = 0.37, 0.52  # the controller's field bases: 1 pu of the machine's reads as these
+CURVE = (0.1, 0.4)  # S(1.0), S(1.2)
+REPORT_NS = 4_807_692  # 208 reports per second
+
+
+def no_load_steps(steps: dict[str, float], saturation: tuple[float, float] | None, seed: int = 0) -> list[ScenarioData]:
+    """No-load field steps (name -> E_fd multiplier), as a controller's trend log carries them."""
+    effects = () if saturation is None else (MagneticSaturation(s10=saturation[0], s12=saturation[1], form="gensal"),)
+    cfg = dataclasses.replace(NO_LOAD, params=TABLE1, effects=effects)
+    runs = simulate_scenarios([Scenario(n, "field_step", m, duration=15.0) for n, m in steps.items()], cfg)
+    rng = np.random.default_rng(seed)
+    out = []
+    for run in runs:
+        s = scenario_from_simulation(run, run.measured)
+        n = s.n
+        i_fd = field_current(run, TABLE1, saturation)[:n] + rng.normal(0.0, 0.002, n)
+        s = with_channels(s, {"v_f": s["v_f"] * E_FD_BASE}, "E_fd on the controller's base")
+        s = dataclasses.replace(s, recorded={"i_fd": i_fd * I_FD_BASE})
+        out.append(resampled(s, REPORT_NS))
+    return out
+
+
+def test_on_the_air_gap_line() -> None:
+    scs = no_load_steps({"up": 1.1, "down": 0.9}, None)
+    r = field_circuit(scs, None)
+    assert r.base.determined and "air-gap line" in r.base.source
+    assert r.base.scale == pytest.approx(1 / I_FD_BASE, rel=0.01)
+    assert [e.scenario for e in r.events] == ["up", "down"]
+    assert r.T_d0_prime.identifiable
+    assert r.T_d0_prime.value == pytest.approx(TABLE1.T_d0_prime, rel=0.015)
+    assert abs(r.T_d0_prime.value - TABLE1.T_d0_prime) <= 2 * r.T_d0_prime.std + 0.01
+    for e in r.events:  # each event alone, and the field's resistance read from its plateaus
+        assert r.base.scale * e.time_per_base == pytest.approx(TABLE1.T_d0_prime, rel=0.02)
+        assert e.k_e == pytest.approx(I_FD_BASE / E_FD_BASE, rel=0.01)
+
+
+def test_a_saturated_machine_needs_its_curve() -> None:
+    scs = no_load_steps({"up": 1.1, "down": 0.9}, CURVE)
+    bare = field_circuit(scs, None)
+    # every plateau above the knee: the base is not determined, and T'_d0 is bounded from below
+    assert not bare.base.determined and not bare.T_d0_prime.identifiable
+    assert bare.T_d0_prime.value < TABLE1.T_d0_prime
+    assert "at least" in bare.T_d0_prime.note and "--saturation" in bare.T_d0_prime.note
+    held = field_circuit(scs, CURVE)
+    assert held.base.determined and held.base.scatter < 0.005
+    assert held.T_d0_prime.identifiable
+    assert held.T_d0_prime.value == pytest.approx(TABLE1.T_d0_prime, rel=0.02)
+    # another machine's curve does not reproduce the plateaus, and says so
+    other = field_circuit(scs, (0.02, 0.08))
+    assert other.base.scatter > 0.03 and not other.T_d0_prime.identifiable
+    assert "misses the no-load plateaus by up to 3.9 %" in other.T_d0_prime.note
+
+
+def test_a_plateau_below_the_knee_gives_the_air_gap_line() -> None:
+    scs = no_load_steps({"up": 1.1, "deep": 0.6}, CURVE)
+    r = field_circuit(scs, None)
+    assert r.base.determined and "air-gap line through 1 no-load plateau" in r.base.source
+    assert r.T_d0_prime.identifiable
+    assert r.T_d0_prime.value == pytest.approx(TABLE1.T_d0_prime, rel=0.02)
+
+
+def test_the_base_from_plateaus() -> None:
+    # I_f = V (1 + S(V)) / c on the quadratic curve through S(1.0) 0.1, S(1.2) 0.4: c found back
+    from phid_ros.sim.effects.magnetic_saturation import saturation_curve, saturation_factor
+
+    a, b = saturation_curve("quadratic", *CURVE)
+    v = np.array([1.0, 1.1])
+    i = v * (1 + saturation_factor(False, a, b, v)) / 2.5
+    assert field_current_base(v, i, CURVE).scale == pytest.approx(2.5, rel=1e-9)
+    bound = field_current_base(v, i, None)
+    assert not bound.determined and bound.scale == pytest.approx(1.0 / 1.1 * 2.5, rel=1e-9)
