@@ -185,3 +185,15 @@ def test_a_result_path_with_a_newline_stays_in_the_records_comment() -> None:
     assert "GENCLS" in dyr and not any(line.startswith("1 'GENCLS'") for line in dyr.splitlines())
     assert len(dyr.splitlines()) == len(psse_dyr(build_record(result(), source="r.json", mva=1000.0)).splitlines())
     assert not any(line.startswith("1 'GENCLS'") for line in pslf_dyd(rec).splitlines())
+
+
+def test_the_saturation_held_in_the_identification_is_the_record_s() -> None:
+    # phid identify --saturation 0.1,0.4: the datasheet's curve the field base was read on
+    doc = {**result(), "constraints": {"fixed": {}, "saturation": {"S10": 0.1, "S12": 0.4}}}
+    rec = build_record(doc, source="r.json", mva=1000.0)
+    assert (rec.values["S10"], rec.values["S12"]) == (0.1, 0.4)
+    assert rec.sources["S10"] == "held by the user (--saturation)" and "S10" not in rec.defaults
+    diag = diagnosis(("magnetic_saturation", {"s10": 0.07, "s12": 0.45}))
+    rec = build_record(doc, source="r.json", mva=1000.0, diagnosis=diag, diagnosis_source="d.json")
+    assert (rec.values["S10"], rec.values["S12"]) == (0.1, 0.4)
+    assert any("keeps the curve the identification held" in w for w in rec.warnings)

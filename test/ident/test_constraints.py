@@ -87,3 +87,11 @@ def test_the_paper_method_holds_and_starts(scenarios) -> None:
 def test_bad_constraints_are_named(kw, message) -> None:
     with pytest.raises(ParameterError, match=message):
         parse_constraints(**kw)
+
+
+def test_the_datasheet_s_saturation() -> None:
+    c = parse_constraints(saturation="0.1, 0.4")
+    assert c.saturation == (0.1, 0.4) and c and c.as_dict()["saturation"] == {"S10": 0.1, "S12": 0.4}
+    for bad, says in (("0.4,0.1", "needs S(1.2) > S(1.0) > 0"), ("0.1", "expected S10,S12"), ("a,0.4", "not a number")):
+        with pytest.raises(ParameterError, match=re.escape(says)):
+            parse_constraints(saturation=bad)
