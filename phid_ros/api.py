@@ -231,7 +231,7 @@ def identify_unit(
     if progress:
         progress("identifying the exciter, the governor and the stabiliser")
     t0 = time.perf_counter()
-    on_base, base_note = on_machine_field_base(scenarios)
+    on_base, base_note = on_machine_field_base(scenarios, options.constraints.saturation)
     if base_note:
         res.problems.append(base_note)
     controls = identify_controls(on_base, dict(candidates or {}), dict(control_starts or {}))
@@ -287,7 +287,8 @@ def validate_record(
         raise PhidError(f"{source}: not recorded: {', '.join(missing)}; the play-in needs V_t and checks P and Q")
     c = unit.constants
     curve = f"S(1.0) = {c['S10']:g}, S(1.2) = {c['S12']:g}" if c["S10"] or c["S12"] else "unsaturated"
-    scenarios, base_notes = field_on_machine_base(scenarios, unit.open_circuit_field, curve)
+    saturation = (c["S10"], c["S12"]) if c["S12"] > c["S10"] > 0 else None
+    scenarios, base_notes = field_on_machine_base(scenarios, unit.open_circuit_field, curve, saturation)
     # PSS/E's D is phid's less P_m0 (the record's swing equation divides P_m by the speed)
     p_m0 = float(np.median([np.mean(s["p_e"][s.pre_slice()]) for s in scenarios]))
     params = unit.parameters(p_m0)

@@ -163,8 +163,10 @@ _nonwindup_lag_loop = maybe_jit(_nonwindup_lag_steps)
 
 def nonwindup_lead_lag(u: Array, t_lead: float, t_lag: float, dt: float, lo: float, hi: float, x0: float) -> Array:
     """(1 + s t_lead)/(1 + s t_lag) from rest at ``x0`` with a non-windup limit on its output
-    (IEEE 421.5: at a limit the lag's state is set so the output sits on it, and the output
-    leaves the limit as soon as the input allows)."""
+    (IEEE 421.5): at a limit the output sits on it and the lag's state does not move further
+    beyond it, so the output leaves the limit as soon as the input allows. Setting the state so
+    that the output sits exactly on the limit instead drove it far the other way behind a large
+    lead (T_C/T_B 0.077 under a gain of 505: a +10 % reference step sent E_fd to the floor)."""
     if t_lag <= 1e-6:
         return np.clip(u, lo, hi)
     r = t_lead / t_lag
@@ -174,12 +176,13 @@ def nonwindup_lead_lag(u: Array, t_lead: float, t_lag: float, dt: float, lo: flo
     prev = float(u[0]) if len(u) else 0.0
     for k in range(len(u)):
         uk = float(u[k])
-        x = a * x + b0 * prev + b1 * uk
-        out = r * uk + (1.0 - r) * x
-        if out > hi or out < lo:
-            out = min(max(out, lo), hi)
-            if abs(1.0 - r) > 1e-12:
-                x = (out - r * uk) / (1.0 - r)
+        moved = a * x + b0 * prev + b1 * uk
+        out = r * uk + (1.0 - r) * moved
+        if out > hi:
+            out, moved = hi, min(moved, x) if 1.0 - r > 0 else max(moved, x)
+        elif out < lo:
+            out, moved = lo, max(moved, x) if 1.0 - r > 0 else min(moved, x)
+        x = moved
         y[k] = out
         prev = uk
     return y

@@ -44,6 +44,7 @@ from phid_ros.controls.identify import (
     zero_phase,
 )
 from phid_ros.controls.models import MODELS, ControlModel, LimitsError, OperatingLevels
+from phid_ros.ident.field_circuit import ON_BASE
 from phid_ros.ident.plant_playin import play_in as plant_play_in
 from phid_ros.ident.scenario import ScenarioData
 from phid_ros.ident.terminal import with_channels, with_rotor_angle
@@ -131,23 +132,32 @@ class UnitValidation:
         }
 
 
-FIELD_BASE_TOLERANCE = 0.05  # a recorded E_fd within this of the machine's base is taken as it is
-
-
 def field_on_machine_base(
-    scenarios: Sequence[ScenarioData], open_circuit: Callable[[Array], Array], curve: str
+    scenarios: Sequence[ScenarioData],
+    open_circuit: Callable[[Array], Array],
+    curve: str,
+    saturation: tuple[float, float] | None = None,
 ) -> tuple[list[ScenarioData], list[str]]:
     """The recorded E_fd put on the machine's base where the recording's no-load tests show
     another (an excitation controller's own per unit: U_f 0.37 at V_t = 1.0), and the notes.
 
-    At a no-load plateau the machine's E_fd is ``open_circuit(V_t)``, the record's open-circuit
-    curve (``curve`` says which): the recorded value's ratio to it, fitted through the origin
-    over every plateau, is the base, applied to every scenario of the set (on line as well).
-    Without a no-load test nothing is changed."""
+    Where the field current is recorded, file by file as identify does
+    (:func:`phid_ros.ident.field_circuit.machine_field` on the record's curve, ``saturation``:
+    its S(1.0), S(1.2)). Otherwise at a no-load plateau the machine's E_fd is
+    ``open_circuit(V_t)``, the record's open-circuit curve (``curve`` says which): the recorded
+    value's ratio to it, fitted through the origin over every plateau, is the base, applied to
+    every scenario of the set (on line as well). Without a no-load test nothing is changed."""
+    from phid_ros.ident.field_circuit import machine_field
     from phid_ros.ident.open_circuit import field_base
 
+    by_current = machine_field(scenarios, saturation)
+    if by_current is not None:
+        if by_current.on_base():
+            return list(scenarios), []
+        note = f"{by_current.note} (the record's curve: {curve})"
+        return by_current.applied(scenarios, note), [note]
     base = field_base(scenarios, open_circuit)
-    if base is None or abs(base.scale - 1.0) <= FIELD_BASE_TOLERANCE:
+    if base is None or abs(base.scale - 1.0) <= ON_BASE:
         return list(scenarios), []
     k, v_t = base.scale, base.v_t
     note = (

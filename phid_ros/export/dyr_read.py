@@ -30,7 +30,7 @@ from phid_ros.errors import ParameterError, PhidError
 from phid_ros.export.formats import PSSE_ORDER
 from phid_ros.model.parameters import GeneratorParameters
 from phid_ros.sim.effects import PlantEffect
-from phid_ros.sim.effects.magnetic_saturation import MagneticSaturation, saturation_curve, saturation_factor
+from phid_ros.sim.effects.magnetic_saturation import MagneticSaturation, no_load_field
 from phid_ros.sim.effects.subtransient_dynamics import SubtransientDynamics
 
 
@@ -110,12 +110,8 @@ class Unit:
     def open_circuit_field(self, v_t: Array) -> Array:
         """E_fd that holds the open-circuit machine at ``v_t`` (pu): V_t (1 + S(V_t)) on the
         record's saturation curve (at no load both models saturate on V_t: E'_q, the air-gap flux)."""
-        v = np.asarray(v_t, float)
-        if not self._saturated():
-            return v
         c = self.constants
-        a, b = saturation_curve("quadratic", c["S10"], c["S12"])
-        return np.asarray(v * (1.0 + saturation_factor(False, a, b, v)), dtype=float)
+        return np.asarray(no_load_field(v_t, c["S10"], c["S12"]), dtype=float)
 
     def _dampers(self) -> bool:
         c = self.constants

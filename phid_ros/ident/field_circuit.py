@@ -34,9 +34,9 @@ from phid_ros.errors import StageError
 from phid_ros.ident.characteristics import LINEAR_PART
 from phid_ros.ident.open_circuit import SATURATION_GAP
 from phid_ros.ident.results import Estimate
-from phid_ros.ident.scenario import ScenarioData
-from phid_ros.ident.terminal import at_no_load
-from phid_ros.sim.effects.magnetic_saturation import saturation_curve, saturation_factor
+from phid_ros.ident.scenario import ScenarioData, file_of
+from phid_ros.ident.terminal import at_no_load, with_channels
+from phid_ros.sim.effects.magnetic_saturation import no_load_field
 
 MIN_VOLTAGE_CHANGE = 0.02  # pu of V_t between the plateaus: less carries too little of T'_d0
 PLATEAU_FLOOR = 0.2  # pu of V_t: a de-excited machine's remanence is no point of the curve
@@ -44,6 +44,8 @@ LEAD_SECONDS = 0.5  # the integral starts this long before the event, on the pla
 FROM_SHARE = 1.0 / 3.0  # of V_t's change: from where the integral is fitted (the dampers settled)
 SETTLED = 0.98  # of V_t's change: where the transient is over
 TAIL_SECONDS = 1.0  # the fit goes on this long after it
+ON_BASE = 0.05  # a recorded E_fd within this of the machine's base is taken as it is
+FIELD_FLOOR = 0.05  # of U_f as recorded: a de-excited plateau says nothing of the winding's resistance
 
 
 class FieldCircuitError(StageError):
@@ -68,13 +70,12 @@ def field_current_base(
     within SATURATION_GAP; otherwise the bound S >= 0 gives."""
     v, i = np.asarray(v_t, float), np.asarray(i_f, float)
     if saturation is not None:
-        a, b = saturation_curve("quadratic", *saturation)
-        each = v * (1.0 + saturation_factor(False, a, b, v)) / i
+        each = no_load_field(v, *saturation) / i
         c = float(np.mean(each))
         return FieldCurrentBase(
             c,
             True,
-            f"the held open-circuit curve S(1.0) = {saturation[0]:g}, S(1.2) = {saturation[1]:g} through "
+            f"the open-circuit curve S(1.0) = {saturation[0]:g}, S(1.2) = {saturation[1]:g} through "
             f"{len(v)} no-load plateau(s) at V_t {v.min():.3f}-{v.max():.3f} pu",
             float(np.max(np.abs(each / c - 1.0))),
         )
@@ -183,10 +184,6 @@ def one_event(s: ScenarioData) -> FieldEvent:
     return FieldEvent(s.name, (v0, i0), (v1, i1), delta, k_e, slope)
 
 
-def _file_of(name: str) -> str:
-    return name.partition("@")[0]
-
-
 def field_circuit(scenarios: Sequence[ScenarioData], saturation: tuple[float, float] | None) -> FieldCircuitResult:
     scs = field_events(scenarios)
     if not scs:
@@ -197,7 +194,7 @@ def field_circuit(scenarios: Sequence[ScenarioData], saturation: tuple[float, fl
     # the events of one test file share its temperature and its recorder's offsets: one figure per file
     files: dict[str, list[float]] = {}
     for e in events:
-        files.setdefault(_file_of(e.scenario), []).append(e.time_per_base)
+        files.setdefault(e.scenario.rsplit("@", 1)[0], []).append(e.time_per_base)
     per_file = np.array([np.mean(v) for v in files.values()])
     mean = float(np.mean(per_file))
     if len(per_file) > 1:
@@ -225,7 +222,70 @@ def field_circuit(scenarios: Sequence[ScenarioData], saturation: tuple[float, fl
         est.disqualify("T'_d0 from one event in one file: no spread to judge it by")
     if saturation is not None and base.scatter > SATURATION_GAP:
         est.disqualify(
-            f"the held open-circuit curve (S(1.0) = {saturation[0]:g}, S(1.2) = {saturation[1]:g}) misses the "
+            f"the open-circuit curve (S(1.0) = {saturation[0]:g}, S(1.2) = {saturation[1]:g}) misses the "
             f"no-load plateaus by up to {100 * base.scatter:.1f} %: is it this machine's?"
         )
     return FieldCircuitResult(est, base, events, plateaus)
+
+
+@dataclass
+class MachineField:
+    """The recorded E_fd on the machine's base, test file by test file: E_fd = ``scale[file]``
+    x the recorded U_f, where the scale is c (the field current's base, from the no-load
+    plateaus) times that file's own I_f per U_f (its field winding's resistance at its temperature)."""
+
+    scale: dict[str, float]
+    base: FieldCurrentBase
+    note: str
+
+    def on_base(self) -> bool:
+        """Whether the recorded E_fd is already on the machine's base (every file within 5 %)."""
+        return all(abs(k - 1.0) <= ON_BASE for k in self.scale.values())
+
+    def applied(self, scenarios: Sequence[ScenarioData], note: str) -> list[ScenarioData]:
+        """The scenarios with E_fd on the machine's base, ``note`` added to each changed."""
+        return [
+            with_channels(s, {"v_f": self.scale[file_of(s)] * np.asarray(s["v_f"], float)}, note)
+            if s.has("v_f") and file_of(s) in self.scale
+            else s
+            for s in scenarios
+        ]
+
+
+def _steady_parts(s: ScenarioData) -> list[slice]:
+    """The scenario's plateau before its event (up to where V_t or I_f leaves it) and after it."""
+    k0 = departure(s) - int(round(LEAD_SECONDS / s.dt))
+    return [p for p in (slice(0, k0), s.steady_slice()) if p.stop - p.start >= 10]
+
+
+def machine_field(scenarios: Sequence[ScenarioData], saturation: tuple[float, float] | None) -> MachineField | None:
+    """E_fd's base per test file from the recorded field current, or None where a scenario with
+    E_fd lacks I_fd or no no-load plateau is there. ``saturation``: the machine's S(1.0), S(1.2)
+    (a record's, or held from the datasheet); without it the air-gap line, or the bound S >= 0
+    gives where every plateau is saturated (said in the note)."""
+    with_field = [s for s in scenarios if s.has("v_f")]
+    if not with_field or not all(s.has("i_fd") for s in with_field):
+        return None
+    plateaus = [_plateau(s, part) for s in with_field if at_no_load(s) for part in _steady_parts(s)]
+    plateaus = [p for p in plateaus if p[0] >= PLATEAU_FLOOR]
+    if not plateaus:
+        return None
+    base = field_current_base([p[0] for p in plateaus], [p[2] for p in plateaus], saturation)
+    means: dict[str, list[tuple[float, float]]] = {}
+    for s in with_field:
+        for part in _steady_parts(s):
+            _, u, i = _plateau(s, part)
+            if abs(u) > FIELD_FLOOR:
+                means.setdefault(file_of(s), []).append((u, i))
+    resistance = {f: float(sum(u * i for u, i in pts) / sum(u * u for u, _ in pts)) for f, pts in means.items()}
+    scale = {f: base.scale * k for f, k in resistance.items()}
+    ks = np.array(list(resistance.values()))
+    note = (
+        f"E_fd put on the machine's base from the field current: X_ad I_fd = {base.scale:.4g} x I_f as recorded "
+        f"({base.source}), and each test file's own I_f per U_f at its plateaus ({ks.min():.4g}-{ks.max():.4g}: "
+        f"the field winding's resistance at that test's temperature): E_fd = {min(scale.values()):.4g}-"
+        f"{max(scale.values()):.4g} x U_f as recorded"
+    )
+    if not base.determined:
+        note += " (on the air-gap line through the least saturated plateau: the curve is not known here)"
+    return MachineField(scale, base, note)

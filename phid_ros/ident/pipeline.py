@@ -20,7 +20,7 @@ from phid_ros.errors import StageError
 from phid_ros.ident import consistency, determinable, stage1, stage2, stage3, validation
 from phid_ros.ident.constraints import NONE, Constraints, at_user_bound, held
 from phid_ros.ident.results import Estimate
-from phid_ros.ident.scenario import DEFAULT_THRESHOLDS, ScenarioData, StepThresholds
+from phid_ros.ident.scenario import DEFAULT_THRESHOLDS, ScenarioData, StepThresholds, file_of
 from phid_ros.ident.stages import (
     DifferentialDamping,
     Ieee115CurveFits,
@@ -328,11 +328,6 @@ MIN_FILES_LEFT_OUT = 3  # test files at least, for each to be left out in turn
 # already carry their spread (a commissioning day has a handful of files, a catalogue 15 scenarios)
 MAX_FILES_LEFT_OUT = 10
 LEFT_OUT_STDS = 2.0  # an estimate moving by more than this many stds with one file left out is withheld
-
-
-def file_of(s: ScenarioData) -> str:
-    """The test file a scenario was cut from: an event's scenario is named ``FILE@13.3s``."""
-    return s.name.rsplit("@", 1)[0]
 
 
 def _each_test_file_left_out(

@@ -205,6 +205,11 @@ class ScenarioData:
         )
 
 
+def file_of(s: ScenarioData) -> str:
+    """The test file a scenario was cut from: an event's scenario is named ``FILE@13.3s``."""
+    return s.name.rsplit("@", 1)[0]
+
+
 def _largest_step(x: Array, span: int) -> tuple[int, float]:
     """Sample and size of the largest mean shift between ``span`` samples before and after."""
     c = np.concatenate(([0.0], np.cumsum(x)))

@@ -201,3 +201,27 @@ def test_ieeest_is_its_block_diagram_on_the_electrical_power() -> None:
     assert y[1050] < -0.05  # the lead: more than K_S x 0.1 at first, washed out after
     # without P_e recorded the model does not apply
     assert np.isnan(IEEEST.response(v, ControlInputs(dt, np.zeros(10), np.zeros(10), np.zeros(10)), 0.0)).all()
+
+
+def test_a_non_windup_lead_lag_leaves_its_limit_where_the_input_allows_and_goes_no_further() -> None:
+    """ESST5B's first lead-lag as the Mostar unit's published record has it (T_C1 1.701 s, T_B1
+    21.98 s) behind a gain of 505: a reference step drives its input far past the ceiling for a few
+    tens of ms, then back. The output sits on the ceiling, then returns to the linear answer of an
+    input that came back: it never crosses to the floor (setting the state so that the output sat
+    exactly on the ceiling drove it to -8.4 once the input fell back)."""
+    from phid_ros.controls.models import lead_lag, nonwindup_lead_lag
+
+    dt, t_c, t_b = 0.001, 1.701, 21.98
+    n = 3000
+    u = np.full(n, 2.2)
+    u[1000:1040] = 2.2 + 505 * 0.1  # the forcing: 40 ms at 50 pu over rest
+    y = nonwindup_lead_lag(u, t_c, t_b, dt, -8.384, 2.237, 2.2)
+    assert np.all(y >= 2.2 - 1e-9) and np.all(y <= 2.237 + 1e-12)
+    assert np.all(y[1000:1040] == 2.237)
+    # after the forcing the state has not moved beyond where it was: the output is back at rest
+    assert y[-1] == pytest.approx(2.2, abs=2e-3)
+    # never limited: the linear lead-lag
+    small = np.full(n, 1.0)
+    small[500:] = 1.1
+    free = nonwindup_lead_lag(small, t_c, t_b, dt, -8.384, 2.237, 1.0)
+    assert np.allclose(free, 1.0 + lead_lag(small - 1.0, t_c, t_b, dt), atol=1e-12)

@@ -67,6 +67,7 @@ def test_an_estimate_that_moves_with_one_test_file_left_out_is_withheld_naming_i
     from phid_ros.ident import determinable, pipeline
     from phid_ros.ident.constraints import Constraints
     from phid_ros.ident.results import Estimate
+    from phid_ros.ident.scenario import file_of
 
     @dataclass
     class Stand:  # what the check reads of a scenario: its name and its role
@@ -77,7 +78,7 @@ def test_an_estimate_that_moves_with_one_test_file_left_out_is_withheld_naming_i
     scenarios = [Stand("A@10.0s"), Stand("A@16.0s"), Stand("B"), Stand("C@1.0s"), Stand("D")]
 
     def by_channels(res, ident, opt, say):
-        files = {pipeline.file_of(s) for s in ident}
+        files = {file_of(s) for s in ident}
         res.estimates["X_d"] = Estimate(1.38 if "B" not in files else (1.20 if len(files) == 4 else 1.205), 0.01)
         res.estimates["T_d0_prime"] = Estimate(3.9, 0.2) if "A" in files else Estimate(math.nan, math.nan)
         res.estimates["X_q"] = Estimate(0.62, 0.0)

@@ -39,6 +39,17 @@ def saturation_factor(exponential: bool, c1: Value, c2: Value, psi: Value) -> Va
     return c2 * over * over / psi
 
 
+def no_load_field(v_t: Any, s10: float, s12: float) -> Any:
+    """E_fd (X_ad I_fd) that holds the open-circuit machine at ``v_t``: V_t (1 + S(V_t)) on the
+    quadratic curve through S(1.0), S(1.2) (at no load both forms saturate on V_t: E'_q, the
+    air-gap flux); V_t on the air-gap line where the two do not make a curve (S(1.2) > S(1.0) > 0)."""
+    v = np.asarray(v_t, float)
+    if not s12 > s10 > 0:
+        return v
+    a, b = saturation_curve("quadratic", s10, s12)
+    return v * (1.0 + saturation_factor(False, a, b, v))
+
+
 def flux_magnitude(psi_d: Value, psi_q: Value) -> Value:
     """|psi''|, on which GENROU saturates."""
     return np.sqrt(psi_d * psi_d + psi_q * psi_q)
