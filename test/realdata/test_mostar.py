@@ -104,13 +104,14 @@ def test_nothing_wrong_is_published_as_identified(day: Path) -> None:
     assert any("E_fd is not on the machine's base" in (res.estimates[n].note or "") for n in ("X_d", "T_d0_prime"))
 
 
-def test_t_d0_from_the_field_circuit_with_the_datasheet_s_curve(day: Path) -> None:
+def test_t_d0_from_the_field_circuit_with_the_datasheet_s_curve(day: Path, tmp_path: Path) -> None:
     """The field current, recorded in every file, carries T'_d0 at no load whatever the dampers and
     the regulator did (E_fd - X_ad I_fd integrated per V_t moved). Its base needs the open-circuit
     curve: every no-load plateau here is above the knee, so without one only a bound is said; with
     the datasheet's S(1.0) 0.1, S(1.2) 0.4 (held) T'_d0 is identified. The four events (the +10 %
     step, its return, two de-excitations) put it at 4.6-5.2 s, above the datasheet's 3.77 s, and
-    even S = 0 (no saturation at all, which the plateaus rule out) gives at least 4.3 s."""
+    even S = 0 (no saturation at all, which the plateaus rule out) gives at least 4.3 s. Played in
+    against the de-excitations, this T'_d0 follows the recorded decay where 3.77 s does not."""
     cut = cut_scenarios(day)
     bare = IdentifyOptions(baseline=False, validate=False, constraints=Constraints(fixed={"X_q": 0.62}))
     _, res = identify_cut([(cut.scenarios, cut.problems, str(day))], bare)
@@ -134,6 +135,25 @@ def test_t_d0_from_the_field_circuit_with_the_datasheet_s_curve(day: Path) -> No
     # E_fd on the machine's base, c k_e: the published fit's gain between simulated and recorded E_fd is 2.89
     for e in fc["events"]:
         assert fc["field_current_base"] * e["k_e"] == pytest.approx(2.89, rel=0.05)
+    # the arbiter: the published record played against the two de-excitations (no regulator in the
+    # loop: the machine alone on the recorded E_fd), as published and with this T'_d0 in it
+    from phid_ros.api import validate_record
+
+    def de_excitation_q(t_d0: float) -> list[float]:
+        dyr = tmp_path / f"published_{t_d0:g}.dyr"
+        dyr.write_text(
+            f"1 'GENSAL' 1 {t_d0:g} 0.0552 0.0823 2.3362 0.0 1.12 0.642 0.354 0.24 0.1 0.1 0.4 /\n"
+            "1 'ESST5B' 1 0.0127 505.3 0.00518 0.982 2.237 -8.384 1.701 21.98 0.0263 0.00511 1 1 1 1 1 1 1 1 /\n"
+        )
+        checks = validate_record(dyr, day).result.scenarios
+        return [
+            next(c.max_error for c in sc.checks if c.channel == "q_e")
+            for sc in checks
+            if sc.scenario in ("AVR_PH_Stop_INV", "RR_PH_Stop_INV")
+        ]
+
+    published, ours = de_excitation_q(3.77), de_excitation_q(t_d0.value)
+    assert all(o < 0.5 * p for o, p in zip(ours, published)), (ours, published)
 
 
 def test_info_lists_the_events_and_what_is_left_out(day: Path, capsys: pytest.CaptureFixture[str]) -> None:
