@@ -24,7 +24,12 @@ def export_command(args: argparse.Namespace, console: Console) -> int:
     if mva is None:
         raise ExportError(f"{args.result}: the result does not say the machine's MVA base; give it with --mva")
     out = Path(args.out) if args.out else Path(args.result).with_suffix(SUFFIX[args.format])
-    refuse_inputs([out], [args.result, args.diagnosis])
+    refuse_inputs([out], [args.result, args.diagnosis, args.base])
+    existing = None
+    if args.base:
+        from phid_ros.export.dyr_read import read_unit
+
+        existing = read_unit(args.base, args.bus if args.bus != 1 else None, args.id if args.id != "1" else None)
     rec = build_record(
         result,
         source=str(args.result),
@@ -36,11 +41,14 @@ def export_command(args: argparse.Namespace, console: Console) -> int:
         diagnosis=diagnosis,
         diagnosis_source=str(args.diagnosis or ""),
         allow_flagged=args.allow_flagged,
+        existing=existing,
     )
     if args.f_nominal is not None:
         rec.f_nominal_hz = args.f_nominal
     if rec.flagged:
         warn(f"writing parameters that are NOT identified (--allow-flagged): {', '.join(rec.flagged)}")
+    if rec.kept:
+        warn(f"kept from {rec.kept_from} (the recordings did not determine them): {', '.join(rec.kept)}")
     for w in rec.warnings:
         warn(w)
     written = dict(rec.values)

@@ -352,6 +352,13 @@ def _add_export(sub: Subparsers) -> None:
         help="phid diagnose --json of the same unit: the base parameters of its refit, and X''/T'' "
         "(subtransient_dynamics), S(1.0)/S(1.2) (magnetic_saturation), r_a (stator_resistance) where named",
     )
+    p.add_argument(
+        "--base",
+        metavar="UNIT.dyr",
+        help="the unit's existing PSS/E record: what the recordings did not determine is kept from it (its "
+        "machine constants, dampers, saturation, and its control models of a kind identify named none of), "
+        "what they determined replaces it; each kept field is named in the record's comment",
+    )
     p.add_argument("--out", metavar="OUT", help="the record's file (default: RESULT with .dyr, .dyd or .json)")
     p.add_argument("--mva", type=POSITIVE, help="the machine's MVA base (default: the result's base_mva)")
     p.add_argument("--kv", type=POSITIVE, default=20.0, help="the terminal bus's base kV (default 20)")

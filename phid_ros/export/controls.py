@@ -31,6 +31,7 @@ class ControlRecord:
     values: dict[str, float]
     sources: dict[str, str]
     flagged: list[str] = field(default_factory=list)
+    kept_from: str = ""  # the existing record it was kept from (phid export --base), not identified
 
     @property
     def defaults(self) -> list[str]:
@@ -45,6 +46,8 @@ class ControlRecord:
         return comment_text(self._comment_parts())
 
     def _comment_parts(self) -> list[str]:
+        if self.kept_from:
+            return [f"phid_ros export: {self.kind} kept from {self.kept_from} (the recordings named none)"]
         parts = [f"phid_ros export: {self.kind} identified from the recordings"]
         if self.flagged:
             parts.append("NOT IDENTIFIED: " + ", ".join(self.flagged))

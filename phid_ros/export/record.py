@@ -19,12 +19,15 @@ import os
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from phid_ros.errors import PhidError
 from phid_ros.export.controls import ControlRecord, build_control_records, comment_text
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME
 from phid_ros.sim.effects import leakage_default
+
+if TYPE_CHECKING:
+    from phid_ros.export.dyr_read import Unit
 
 MODELS = ("GENROU", "GENSAL")
 
@@ -89,6 +92,9 @@ class MachineRecord:
     # does not say (written before phid 0.3)
     p_m0: float | None = None
     controls: list[ControlRecord] = field(default_factory=list)  # the exciter's, the governor's
+    # fields taken from the unit's existing record (--base) where the recordings did not determine them
+    kept: list[str] = field(default_factory=list)
+    kept_from: str = ""
 
     @property
     def fields(self) -> list[str]:
@@ -112,6 +118,8 @@ class MachineRecord:
         parts = [f"phid_ros export of {self.origin}", f"{self.mva:g} MVA base"]
         if self.flagged:
             parts.append("NOT IDENTIFIED: " + ", ".join(self.flagged))
+        if self.kept:
+            parts.append(f"kept from {self.kept_from} (not determined by the recordings): " + ", ".join(self.kept))
         if self.defaults:
             parts.append("defaults: " + ", ".join(self.defaults))
         return comment_text(parts)
@@ -122,7 +130,8 @@ def _number(doc: Mapping[str, Any], key: str, source: str) -> float:
     if v is None and key in doc:  # a recorder's channel set did not determine it
         raise ExportError(
             f"{source}: parameter {key} was not determined from the recording's channels (null): a planning "
-            f"record needs all eight; hold it at a datasheet value (phid identify --fix {key}=...)"
+            f"record needs all eight; hold it at a datasheet value (phid identify --fix {key}=...) or keep "
+            "the unit's existing record's (phid export --base UNIT.dyr)"
         )
     if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(float(v)):
         raise ExportError(f"{source}: parameter {key} is {v!r}, not a finite number")
@@ -172,8 +181,15 @@ def build_record(
     diagnosis: Mapping[str, Any] | None = None,
     diagnosis_source: str = "",
     allow_flagged: bool = False,
+    existing: Unit | None = None,
 ) -> MachineRecord:
-    """The record for an identification result (and the effects its diagnosis named)."""
+    """The record for an identification result (and the effects its diagnosis named).
+
+    ``existing``: the unit's record as it stands (``phid export --base UNIT.dyr``): each machine
+    constant the recordings did not determine is taken from it instead of being flagged or
+    defaulted (said in its source and the record's comment), its dampers and saturation where
+    neither a diagnosis nor a held curve gives them, and its control models of a kind identify
+    named none of. What the recordings determined replaces it."""
     model = model.upper()
     if model not in MODELS:
         raise ExportError(f"model must be one of {MODELS}, got {model!r}")
@@ -193,7 +209,17 @@ def build_record(
     effects = _effects(diagnosis, diagnosis_source)
     _same_recording(result, source, diagnosis, diagnosis_source)
     held = (result.get("constraints") or {}).get("fixed") or {}
+    point = result.get("operating_point") or {}
+    p_m0 = point.get("p_m_pu") if isinstance(point, Mapping) else None
+    p_m0 = float(p_m0) if isinstance(p_m0, (int, float)) and math.isfinite(p_m0) else None
+    kept: list[str] = []
+    if existing is not None:  # a value the recordings did not give at all (null) is the record's
+        before = existing.parameters(p_m0 or 0.0)
+        filled = {n: v if v is not None else getattr(before, n) for n, v in params.items()}
+        result = {**result, "parameters": filled}
     chosen = _base_values(result, diagnosis, source, diagnosis_source, held)
+    if existing is not None:
+        kept = _keep_existing(chosen, existing, p_m0)
     flagged = [n for n in PARAMETER_NAMES if not chosen[n][2]]
     _physical(chosen, source if diagnosis is None else f"{source} and {diagnosis_source}")
     f_nominal = float(result.get("f_nominal_hz", 50.0))
@@ -206,6 +232,8 @@ def build_record(
     _fill_subtransient(values, sources, effects.get("subtransient_dynamics"), warnings)
     held_curve = (result.get("constraints") or {}).get("saturation")
     _fill_saturation(values, sources, effects.get("magnetic_saturation"), warnings, model, held_curve)
+    if existing is not None:
+        kept += _keep_existing_effects(values, sources, existing, effects, held_curve)
     ra = effects.get("stator_resistance")
     values["ra"], sources["ra"] = (float(ra["r_a"]), "diagnosis: stator_resistance r_a") if ra else (0.0, "default")
     if model == "GENSAL":
@@ -226,8 +254,6 @@ def build_record(
             f"{'it' if len(flagged) == 1 else 'them'} "
             "(--allow-flagged writes them anyway, marked in the record's comment)"
         )
-    point = result.get("operating_point") or {}
-    p_m0 = point.get("p_m_pu") if isinstance(point, Mapping) else None
     rec = MachineRecord(
         model,
         values,
@@ -240,9 +266,25 @@ def build_record(
         source,
         flagged=flagged,
         warnings=warnings,
-        p_m0=float(p_m0) if isinstance(p_m0, (int, float)) and math.isfinite(p_m0) else None,
+        p_m0=p_m0,
+        kept=[f for f in (BASE_FIELDS.get(n, n) for n in kept) if f in values],
+        kept_from=existing.source if existing is not None else "",
     )
     rec.controls = build_control_records(result, source, allow_flagged=allow_flagged)
+    if existing is not None:
+        named = {c.kind for c in rec.controls}
+        rec.controls += [
+            ControlRecord(
+                c.model,
+                kind,
+                dict(c.values),
+                {n: f"kept from {existing.source}" for n in c.values},
+                [],
+                existing.source,
+            )
+            for kind, c in existing.controls.items()
+            if kind not in named
+        ]
     if rec.p_m0 is not None and rec.values["D"] < rec.p_m0:
         warnings.append(
             f"D = {rec.values['D']:.3g} is below P_m0 = {rec.p_m0:.3g}, the damping PSS/E's torque form adds by "
@@ -326,6 +368,44 @@ def _base_values(
         else:
             out[name] = (_number(params, name, source), f"identified ({name})", ident_ok)
     return out
+
+
+def _keep_existing(chosen: dict[str, tuple[float, str, bool]], existing: Unit, p_m0: float | None) -> list[str]:
+    """The base parameters the recordings did not determine (and the user did not hold), taken from
+    the existing record: the names so taken. Its D is PSS/E's torque form: phid's adds P_m0."""
+    params = existing.parameters(p_m0 or 0.0)
+    kept = []
+    for name in PARAMETER_NAMES:
+        value, origin, identified = chosen[name]
+        if identified or origin.startswith("held"):
+            continue
+        chosen[name] = (
+            float(getattr(params, name)),
+            f"kept from {existing.source} (not determined by the recordings)",
+            True,
+        )
+        kept.append(name)
+    return kept
+
+
+def _keep_existing_effects(
+    values: dict[str, float],
+    sources: dict[str, str],
+    existing: Unit,
+    effects: Mapping[str, Any],
+    held_curve: Any,
+) -> list[str]:
+    """The existing record's dampers (X'', T''_d0, T''_q0, X_l) and saturation where neither a
+    diagnosis nor a held curve gives them: the fields so taken."""
+    c = existing.constants
+    fields = []
+    if not effects.get("subtransient_dynamics"):
+        fields += ["Xd2", "Td20", "Tq20", "Xl"]
+    if not effects.get("magnetic_saturation") and not held_curve:
+        fields += ["S10", "S12"]
+    for f in fields:
+        values[f], sources[f] = float(c[f]), f"kept from {existing.source}"
+    return fields
 
 
 def _fill_subtransient(

@@ -197,3 +197,45 @@ def test_the_saturation_held_in_the_identification_is_the_record_s() -> None:
     rec = build_record(doc, source="r.json", mva=1000.0, diagnosis=diag, diagnosis_source="d.json")
     assert (rec.values["S10"], rec.values["S12"]) == (0.1, 0.4)
     assert any("keeps the curve the identification held" in w for w in rec.warnings)
+
+
+def test_what_the_recordings_did_not_determine_is_kept_from_the_unit_s_record(tmp_path) -> None:
+    """phid export --base UNIT.dyr: a commissioning day that determined T'_d0 and the exciter, not
+    H, X_d, X'_d (a trend log without the rotor's channels): the record is the unit's existing one
+    with T'_d0 replaced; its dampers and saturation stay; its governor stays (none identified)."""
+    from phid_ros.export.dyr_read import read_unit
+
+    dyr = tmp_path / "unit.dyr"
+    dyr.write_text(
+        "1 'GENSAL' 1 3.77 0.0552 0.0823 2.3362 0.0 1.12 0.642 0.354 0.24 0.1 0.1 0.4 /\n"
+        "1 'SEXS' 1 0.1 10.0 200.0 0.05 0.0 4.0 /\n"
+        "1 'HYGOV' 1 0.05 0.3 5.0 0.05 0.2 5.0 1.0 0.0 1.0 1.2 1.0 0.0 /\n"
+    )
+    unit = read_unit(dyr)
+    doc = result(H=False, D=False, X_d=False, X_d_prime=False, X_q_prime=False, T_q0_prime=False)
+    doc["parameters"] = {**doc["parameters"], "H": None, "T_d0_prime": 4.78, "X_q": 0.62}
+    doc["operating_point"] = {"p_m_pu": 0.6}
+    doc["constraints"] = {"fixed": {"X_q": 0.62}}
+    doc["controls"] = {
+        "exciter": {
+            "model": "SEXS",
+            "parameters": {"TA/TB": 0.09, "TB": 24.0, "K": 600.0, "TE": 0.004, "EMIN": -3.4, "EMAX": 4.7},
+            "identifiable": {"TA/TB": True, "TB": True, "K": True, "TE": True, "EMIN": True, "EMAX": True},
+        },
+        "governor": {"model": None, "why": "no scenario with omega and p_m"},
+    }
+    with pytest.raises(ExportError, match=r"H was not determined .*\(phid export --base UNIT\.dyr\)"):
+        build_record(doc, source="r.json", model="GENSAL", mva=30.0)
+    rec = build_record(doc, source="r.json", model="GENSAL", mva=30.0, existing=unit)
+    v, src = rec.values, rec.sources
+    assert (v["Td10"], v["H"], v["Xd"], v["Xd1"], v["Xq"]) == (4.78, 2.3362, 1.12, 0.354, 0.62)
+    assert src["H"].startswith(f"kept from {dyr}") and src["Td10"] == "identified (T_d0_prime)"
+    assert src["Xq"].startswith("held by the user")
+    assert v["D"] == pytest.approx(0.6) and rec.torque_form_damping() == pytest.approx(0.0)  # PSS/E's D back
+    assert (v["Xd2"], v["Td20"], v["Tq20"], v["Xl"], v["S10"], v["S12"]) == (0.24, 0.0552, 0.0823, 0.1, 0.1, 0.4)
+    assert not rec.flagged and rec.kept == ["H", "D", "Xd", "Xd1", "Xd2", "Td20", "Tq20", "Xl", "S10", "S12"]
+    assert f"kept from {dyr} (not determined by the recordings): H, D, Xd" in rec.comment()
+    exciter, governor = rec.controls
+    assert (exciter.model, exciter.values["K"]) == ("SEXS", 600.0)  # the identified one replaces the record's
+    assert governor.model == "HYGOV" and governor.values == unit.controls["governor"].values
+    assert governor.comment() == f"phid_ros export: governor kept from {dyr} (the recordings named none)"

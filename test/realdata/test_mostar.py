@@ -6,6 +6,7 @@ tests skip, saying so, where the folder is absent. Their figures are in the chan
 
 from __future__ import annotations
 
+import json
 import os
 import re
 from pathlib import Path
@@ -44,6 +45,33 @@ def day(tmp_path_factory: pytest.TempPathFactory) -> Path:
     rec = import_pmu_csv(sorted(DAY.glob("*.csv")), maps)
     out = tmp_path_factory.mktemp("mostar") / "day.mcap"
     write_recording(out, rec)
+    return out
+
+
+@pytest.fixture(scope="module")
+def sheet_day(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The day imported with what the test sheet and the controller add to the folder's maps: the
+    regulator's and the stabiliser's outputs mapped, the manual test said manual (the map's own
+    comment calls RR_* manual), the reference steps as stepped (+5 % on line, +10 % at no load)."""
+    folder = tmp_path_factory.mktemp("mostar_sheet")
+    online = (
+        (DAY / "map_online.yaml")
+        .read_text()
+        .replace("RR_MR_Step10: {kind: field_step}", "RR_MR_Step10: {kind: field_step, regulator: manual}")
+        .replace("AVR_MR_PSS_ON: {kind: voltage_step}", "AVR_MR_PSS_ON: {kind: voltage_step, reference_step: 0.05}")
+        .replace(
+            "  v_f: {name: SFS_Meas_UfRel, unit: pu}\n",
+            "  v_f: {name: SFS_Meas_UfRel, unit: pu}\n  v_r: SFS_Reg_Uc\n  v_s: SFS_PSS_VSL\n",
+        )
+    )
+    noload = (DAY / "map_noload.yaml").read_text().replace(
+        "  v_f: {name: SFS_Meas_UfRel, unit: pu}\n", "  v_f: {name: SFS_Meas_UfRel, unit: pu}\n  v_r: SFS_Reg_Uc\n"
+    ) + "scenarios:\n  AVR_PH_Step10: {reference_step: 0.1}\n"
+    (folder / "map_online.yaml").write_text(online)
+    (folder / "map_noload.yaml").write_text(noload)
+    maps = [load_channel_map(folder / "map_noload.yaml"), load_channel_map(folder / "map_online.yaml")]
+    out = folder / "day.mcap"
+    write_recording(out, import_pmu_csv(sorted(DAY.glob("*.csv")), maps))
     return out
 
 
@@ -370,3 +398,41 @@ def test_the_controller_s_own_channels_give_the_stabiliser_and_an_exciter_on_the
                 sa, sb = pss.uncertainty[name], other.uncertainty[name]
                 assert a is not None and b is not None and sa is not None and sb is not None
                 assert abs(a - b) <= 2 * (sa + sb), (name, a, sa, b, sb)
+
+
+def test_identify_export_on_the_unit_s_record_validate_beats_the_published_fit(
+    sheet_day: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The whole chain as a plant engineer runs it, with the sheet's facts and the datasheet's
+    saturation: identify (X_q held) gives T'_d0 from the field circuit, an exciter and the
+    stabiliser; export writes them into the unit's existing record (the published fit: what the
+    day did not determine, H, X_d, X'_d, the dampers, kept from it and said); validate plays it. No
+    check is worse than the published fit's validated the same way, the on-line AVR step's Q is
+    within MOD-026's 0.05 pu, and the no-load step and its return pass on Q and E_fd."""
+    from phid_ros.cli.main import main
+
+    published = tmp_path / "published.dyr"
+    published.write_text(
+        "1 'GENSAL' 1 3.77 0.0552 0.0823 2.3362 0.0 1.12 0.642 0.354 0.24 0.1 0.1 0.4 /\n"
+        "1 'ESST5B' 1 0.0127 505.3 0.00518 0.982 2.237 -8.384 1.701 21.98 0.0263 0.00511 1 1 1 1 1 1 1 1 /\n"
+    )
+    result, ours = tmp_path / "unit.json", tmp_path / "unit.dyr"
+    fixes = ["--fix", "X_q=0.62", "--saturation", "0.1,0.4"]
+    assert main(["identify", str(sheet_day), *fixes, "--no-baseline", "--json", str(result)]) == 0
+    args = ["--format", "psse-dyr", "--model", "GENSAL", "--base", str(published), "--allow-flagged"]
+    assert main(["export", str(result), *args, "--out", str(ours)]) == 0
+    assert "kept from" in capsys.readouterr().err
+    text = ours.read_text()
+    assert f"kept from {published} (not determined by the recordings): H, D, Xd, Xd1" in text
+    checks = {}
+    for name, dyr in (("published", published), ("ours", ours)):
+        out = tmp_path / f"{name}.json"
+        assert main(["validate", str(dyr), str(sheet_day), "--json", str(out)]) in (0, 1)  # 1: a check failed
+        doc = json.loads(out.read_text())["validation"]["scenarios"]
+        checks[name] = {(sc["scenario"], c["channel"]): c["max_error"] for sc in doc for c in sc["checks"]}
+    assert checks["ours"].keys() == checks["published"].keys()
+    worse = {k: (v, checks["published"][k]) for k, v in checks["ours"].items() if v > checks["published"][k] + 1e-3}
+    assert not worse, worse
+    assert checks["ours"][("AVR_MR_PSS_ON@43.7s", "q_e")] <= 0.05
+    for event in ("AVR_PH_Step10@13.3s", "AVR_PH_Step10@19.6s"):
+        assert checks["ours"][(event, "q_e")] <= 0.05
