@@ -45,9 +45,10 @@ from phid_ros.controls.identify import (
 )
 from phid_ros.controls.models import MODELS, ControlModel, LimitsError, OperatingLevels
 from phid_ros.ident.field_circuit import ON_BASE
+from phid_ros.ident.plant_playin import open_circuit_voltage
 from phid_ros.ident.plant_playin import play_in as plant_play_in
 from phid_ros.ident.scenario import ScenarioData
-from phid_ros.ident.terminal import with_channels, with_rotor_angle
+from phid_ros.ident.terminal import at_no_load, with_channels, with_rotor_angle
 from phid_ros.ident.validation import MOD026_TOLERANCE_PU, STEP_SECONDS, play_in, play_in_stride
 from phid_ros.model.parameters import PARAMETER_NAMES, GeneratorParameters
 from phid_ros.numerics import interpolant
@@ -66,7 +67,11 @@ CHANNELS: dict[str, tuple[str, str, float | None]] = {
     "v_f": ("MOD-026", "E_fd", None),
     "p_e": ("MOD-027", "P", MOD026_TOLERANCE_PU),
     "p_m": ("MOD-027", "P_m", None),
+    # at no load (breaker open) the machine's own terminal voltage, simulated on open circuit from
+    # the played field: there is no P or Q to check
+    "v_t": ("MOD-026", "V_t", None),
 }
+AT_NO_LOAD = ("v_t",)  # the channels a no-load test checks, in place of P and Q
 
 
 @dataclass
@@ -302,13 +307,20 @@ def validate_unit(
         made.append(by)
         per_notes.append(mine)
         skipped.append(unchecked)
-    trajectories = _machine_play_in(played, params, f_nominal_hz, effects, notes) if played else []
+    kept = _simulable(effects, play_in_stride(played[0].dt) * played[0].dt, notes) if played else []
+    trajectories = _machine_play_in(played, params, f_nominal_hz, kept) if played else []
+    base = {name: getattr(params, name) for name in PARAMETER_NAMES}
     out: list[ScenarioCheck] = []
     for s, p, traj, by, mine, unchecked in zip(scenarios, played, trajectories, made, per_notes, skipped):
         idx = np.arange(0, s.n, play_in_stride(s.dt))
         pre = slice(0, max(1, int(np.searchsorted(idx, s.k_event))))
         skip = switching_spans(s, idx, f_nominal_hz)
         simulated = {"p_e": traj.p_e[:, 0], "q_e": traj.q_e[:, 0], "v_f": p["v_f"][idx], "p_m": p["p_m"][idx]}
+        no_load = at_no_load(s)
+        if no_load:
+            oc_idx, v_open = open_circuit_voltage(p, base, kept, f_nominal_hz, STEP_SECONDS)
+            simulated["v_t"] = np.interp(idx, oc_idx, v_open)
+            mine.append("no load: the machine's V_t simulated on open circuit from the played E_fd (no P, Q to check)")
         if not (np.isfinite(simulated["p_e"]).all() and np.isfinite(simulated["q_e"]).all()):
             mine.append("the machine's play-in diverged (not a number): every check of it fails")
         recorded: dict[str, Array] = {}
@@ -316,6 +328,8 @@ def validate_unit(
         for channel, (standard, _label, _fixed) in CHANNELS.items():
             if not s.has(channel) or standard in unchecked:
                 continue
+            if (channel in AT_NO_LOAD) != no_load and channel not in ("v_f", "p_m"):
+                continue  # P, Q on line; V_t on open circuit
             if channel in ("v_f", "p_m") and by.get(channel) == "recorded":
                 continue  # played in, not simulated: nothing to check
             full = np.asarray(p[channel], float) if channel in ("v_f", "p_m") else None
@@ -339,19 +353,11 @@ class _Played:
     q_e: Array
 
 
-def _machine_play_in(
-    played: Sequence[ScenarioData],
-    params: GeneratorParameters,
-    f_nominal_hz: float,
-    effects: Sequence[tuple[type[PlantEffect], Mapping[str, Any]]],
-    notes: list[str],
-) -> list[Any]:
-    """The machine's P and Q at every play-in step: the fourth-order play-in, or the plant's with
-    the effects (on the same grid: the validation's step; an effect with a time constant the
-    step cannot integrate is left out, in ``notes``)."""
-    if not effects:
-        return play_in(played, [params], f_nominal_hz)
-    h = play_in_stride(played[0].dt) * played[0].dt
+def _simulable(
+    effects: Sequence[tuple[type[PlantEffect], Mapping[str, Any]]], h: float, notes: list[str]
+) -> list[tuple[type[PlantEffect], Mapping[str, Any]]]:
+    """The effects the play-in's step ``h`` can integrate; one with a shorter time constant is left
+    out, in ``notes``."""
     kept = []
     for cls, values in effects:
         short = {k: float(v) for k, v in values.items() if k.startswith("t_") and float(v) < MIN_STEPS_PER_CONSTANT * h}
@@ -363,9 +369,19 @@ def _machine_play_in(
             )
             continue
         kept.append((cls, values))
-    if not kept:
+    return kept
+
+
+def _machine_play_in(
+    played: Sequence[ScenarioData],
+    params: GeneratorParameters,
+    f_nominal_hz: float,
+    effects: Sequence[tuple[type[PlantEffect], Mapping[str, Any]]],
+) -> list[Any]:
+    """The machine's P and Q at every play-in step: the fourth-order play-in, or the plant's with
+    the effects (on the same grid: the validation's step)."""
+    if not effects:
         return play_in(played, [params], f_nominal_hz)
-    effects = kept
     base = {name: getattr(params, name) for name in PARAMETER_NAMES}
     runs = plant_play_in(played, base, effects, 1, f_nominal_hz, step=STEP_SECONDS)
     return [_Played(r.sim["p_e"], r.sim["q_e"]) for r in runs]

@@ -78,6 +78,15 @@ ROUTES: tuple[Route, ...] = (
         "stage 2 by the paper's (37): X_d from several operating points without E_fd",
     ),
     Route(
+        "field_circuit_online",
+        ("X_d", "X_d_prime"),
+        (*TERMINAL, "v_f", "i_fd"),
+        "the field circuit on line: E'_q's course from E_fd - X_ad I_fd (T'_d0 from no load), the rotor angle "
+        "reconstructed with X_q; X_d from the field current",
+        held=("X_q",),
+        loaded=True,
+    ),
+    Route(
         "steady_terminal",
         ("X_d",),
         (*TERMINAL, "v_f"),
@@ -109,6 +118,7 @@ ROUTES: tuple[Route, ...] = (
     Route("q_axis", ("X_q_prime", "T_q0_prime"), ANGLE, "stage 3, q axis"),
 )
 ROUTES_BY_KEY = {r.key: r for r in ROUTES}
+FIELD_CURRENT_HOWS = {ROUTES_BY_KEY[k].how for k in ("field_circuit", "field_circuit_online")}
 
 
 @dataclass(frozen=True)
@@ -214,10 +224,58 @@ def identify_by_channels(
             put({"H": out.H, "D": out.D}, r)
         except StageError as exc:
             res.problems.append(f"stage 1 (H, D) did not run: {exc}")
+    no_load_done = False
+
+    def t_d0_at_no_load() -> None:
+        """T'_d0 from the no-load tests, once: V_t's route, then the field circuit's where the field
+        current is recorded (taken where identified, or where neither is)."""
+        nonlocal no_load_done
+        if no_load_done or "T_d0_prime" in held:
+            return
+        no_load_done = True
+        oc = ROUTES_BY_KEY["open_circuit"]
+        if oc.scenarios(ident):
+            say(f"T'_d0: {oc.how}")
+            try:
+                o = open_circuit.open_circuit(oc.scenarios(ident))
+                res.problems.extend(o.problems)
+                res.route_details["open_circuit"] = {
+                    "T_d0_prime": o.T_d0_prime.value,
+                    "T_d0_prime_std": o.T_d0_prime.std,
+                    "field_gain": o.field_gain,  # V_t per unit E_fd at no load: 1 on the air-gap line
+                    "scenarios": o.scenarios,
+                    "rms_pu": o.rms_pu,
+                }
+                current = res.estimates.get("T_d0_prime")
+                better = (
+                    current is None
+                    or not current.identifiable
+                    or o.T_d0_prime.std / o.T_d0_prime.value < current.std / current.value
+                )
+                if (better and o.T_d0_prime.identifiable) or (
+                    not o.T_d0_prime.identifiable and (current is None or not current.identifiable)
+                ):
+                    put({"T_d0_prime": o.T_d0_prime}, oc)  # withheld, with why: the user sees the route's figures
+            except StageError as exc:
+                res.problems.append(f"open circuit (T'_d0) did not run: {exc}")
+        fc = ROUTES_BY_KEY["field_circuit"]
+        if fc.scenarios(ident):
+            say(f"T'_d0: {fc.how}")
+            _field_circuit(res, fc, fc.scenarios(ident), opt, put)
+
     # -- X_d, X_q ------------------------------------------------------------------------------
     r = chosen["X_d"].route
     x_q_for_angle: float | None = held.get("X_q")
-    if r is not None and r.key in ("steady_states", "steady_states_paper"):
+    on_line = (
+        r is not None
+        and r.key == "field_circuit_online"
+        and _field_circuit_online(res, r, ident, opt, put, say, t_d0_at_no_load)
+    )
+    if r is not None and r.key == "field_circuit_online" and not on_line:  # no no-load test: E_fd's steady states
+        r = ROUTES_BY_KEY["steady_terminal"]
+    if on_line:
+        pass
+    elif r is not None and r.key in ("steady_states", "steady_states_paper"):
         say(f"X_d, X_q: {r.how}")
         try:
             out2 = stage2.identify_reactances(r.scenarios(ident), use_field_voltage=r.key == "steady_states")
@@ -254,47 +312,25 @@ def identify_by_channels(
     known = {n: e.value for n, e in res.estimates.items() if n in ("X_d", "X_q") and math.isfinite(e.value)}
     known.update({n: v for n, v in held.items() if n in ("X_d", "X_q")})
     r = route_of("X_d_prime", "T_d0_prime") or chosen["T_d0_prime"].route
-    if r is not None and r.key == "d_axis" and "X_d" in known:
+    if on_line:
+        pass  # X'_d from the field circuit on line, T'_d0 from it at no load
+    elif r is not None and r.key == "d_axis" and "X_d" in known:
         say(f"X'_d, T'_d0: {r.how}")
         _one_axis(res, r, r.scenarios(ident), True, known["X_d"], opt, put)
     elif r is not None and r.key == "d_axis_terminal" and "X_d" in known and x_q_for_angle is not None:
         say(f"X'_d, T'_d0: {r.how}")
         _d_axis_terminal(res, r, r.scenarios(ident), known["X_d"], x_q_for_angle, opt, put)
+    t_d0_at_no_load()
     oc = ROUTES_BY_KEY["open_circuit"]
-    if "T_d0_prime" not in held and oc.scenarios(ident):
-        say(f"T'_d0: {oc.how}")
-        try:
-            o = open_circuit.open_circuit(oc.scenarios(ident))
-            res.problems.extend(o.problems)
-            res.route_details["open_circuit"] = {
-                "T_d0_prime": o.T_d0_prime.value,
-                "T_d0_prime_std": o.T_d0_prime.std,
-                "field_gain": o.field_gain,  # V_t per unit E_fd at no load: 1 on the air-gap line
-                "scenarios": o.scenarios,
-                "rms_pu": o.rms_pu,
-            }
-            current = res.estimates.get("T_d0_prime")
-            better = (
-                current is None
-                or not current.identifiable
-                or o.T_d0_prime.std / o.T_d0_prime.value < current.std / current.value
-            )
-            if (better and o.T_d0_prime.identifiable) or (
-                not o.T_d0_prime.identifiable and (current is None or not current.identifiable)
-            ):
-                put({"T_d0_prime": o.T_d0_prime}, oc)  # withheld, with why: the user sees the route's figures
-            off = field_base_off(o.field_gain)
-            if off is not None:
-                for name in ("X_d", "X_d_prime", "T_d0_prime"):
-                    e = res.estimates.get(name)
-                    if e is not None and not (name == "T_d0_prime" and e is o.T_d0_prime):
-                        e.disqualify(off)
-        except StageError as exc:
-            res.problems.append(f"open circuit (T'_d0) did not run: {exc}")
-    fc = ROUTES_BY_KEY["field_circuit"]
-    if "T_d0_prime" not in held and fc.scenarios(ident):
-        say(f"T'_d0: {fc.how}")
-        _field_circuit(res, fc, fc.scenarios(ident), opt, put)
+    gain = res.route_details.get("open_circuit", {}).get("field_gain")
+    off = field_base_off(gain) if gain is not None else None
+    if off is not None:
+        for name in ("X_d", "X_d_prime", "T_d0_prime"):
+            e = res.estimates.get(name)
+            # the no-load V_t route says it itself; the field circuit's routes read E_fd on the base
+            # the field current gives
+            if e is not None and how.get(name) not in FIELD_CURRENT_HOWS | {oc.how}:
+                e.disqualify(off)
     # -- the q axis's transient ----------------------------------------------------------------
     r = route_of("X_q_prime", "T_q0_prime")
     if r is not None and "X_q" in known:
@@ -353,6 +389,39 @@ def _field_circuit(
     current = res.estimates.get("T_d0_prime")
     if f.T_d0_prime.identifiable or current is None or not current.identifiable:
         put({"T_d0_prime": f.T_d0_prime}, route)
+
+
+def _field_circuit_online(
+    res: IdentificationResult,
+    route: Route,
+    ident: list[ScenarioData],
+    opt: IdentifyOptions,
+    put: Callable[[Mapping[str, Estimate], Route], None],
+    say: Say,
+    t_d0_at_no_load: Callable[[], None],
+) -> bool:
+    """X_d and X'_d by the field circuit on line, T'_d0 first from the no-load tests (or held);
+    False where the set has no no-load test to give the field current's base and T'_d0 (the
+    caller takes E_fd's steady states then)."""
+    held = opt.constraints.fixed
+    field = field_circuit.machine_field(ident, opt.constraints.saturation)
+    no_load = [s for s in ident if s.has("v_t", "v_f") and terminal.at_no_load(s)]
+    if field is None or ("T_d0_prime" not in held and not no_load):
+        return False
+    say(f"X_d, X'_d: {route.how}")
+    if "T_d0_prime" in held:
+        t_d0 = Estimate(held["T_d0_prime"], 0.0)
+    else:
+        t_d0_at_no_load()
+        t_d0 = res.estimates.get("T_d0_prime") or Estimate(math.nan, math.nan, identifiable=False)
+    try:
+        out = field_circuit.on_line(route.scenarios(ident), field, t_d0, held["X_q"], opt.constraints.saturation)
+    except StageError as exc:
+        res.problems.append(f"the field circuit on line (X_d, X'_d) did not run: {exc}")
+        return False
+    put({"X_d": out.X_d, "X_d_prime": out.X_d_prime}, route)
+    res.route_details["field_circuit_online"] = {"events": out.events, "field_base_note": field.note}
+    return True
 
 
 def _one_axis(

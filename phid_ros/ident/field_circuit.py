@@ -35,7 +35,7 @@ from phid_ros.ident.characteristics import LINEAR_PART
 from phid_ros.ident.open_circuit import SATURATION_GAP
 from phid_ros.ident.results import Estimate
 from phid_ros.ident.scenario import ScenarioData, file_of
-from phid_ros.ident.terminal import at_no_load, with_channels
+from phid_ros.ident.terminal import at_no_load, with_channels, with_rotor_angle
 from phid_ros.sim.effects.magnetic_saturation import no_load_field
 
 MIN_VOLTAGE_CHANGE = 0.02  # pu of V_t between the plateaus: less carries too little of T'_d0
@@ -184,6 +184,21 @@ def one_event(s: ScenarioData) -> FieldEvent:
     return FieldEvent(s.name, (v0, i0), (v1, i1), delta, k_e, slope)
 
 
+def by_file(values: Sequence[tuple[str, float]]) -> tuple[float, float, int]:
+    """(mean, its std, files) of per-event figures (scenario name, value): the events of one test
+    file share its temperature and its recorder's offsets, so each file is one figure and the std
+    is their spread; with one file, its events' own agreement is all there is (NaN with one event)."""
+    files: dict[str, list[float]] = {}
+    for name, v in values:
+        files.setdefault(file_of(name), []).append(v)
+    per_file = np.array([np.mean(v) for v in files.values()])
+    if len(per_file) > 1:
+        return float(np.mean(per_file)), float(np.std(per_file, ddof=1) / math.sqrt(len(per_file))), len(files)
+    each = np.array([v for _, v in values])
+    spread = float(np.std(each, ddof=1) / math.sqrt(len(each))) if len(each) > 1 else math.nan
+    return float(np.mean(each)), spread, 1
+
+
 def field_circuit(scenarios: Sequence[ScenarioData], saturation: tuple[float, float] | None) -> FieldCircuitResult:
     scs = field_events(scenarios)
     if not scs:
@@ -191,17 +206,7 @@ def field_circuit(scenarios: Sequence[ScenarioData], saturation: tuple[float, fl
     events = [one_event(s) for s in scs]
     plateaus = [(v, i, e.scenario) for e in events for v, i in (e.before, e.after) if v >= PLATEAU_FLOOR]
     base = field_current_base([p[0] for p in plateaus], [p[1] for p in plateaus], saturation)
-    # the events of one test file share its temperature and its recorder's offsets: one figure per file
-    files: dict[str, list[float]] = {}
-    for e in events:
-        files.setdefault(e.scenario.rsplit("@", 1)[0], []).append(e.time_per_base)
-    per_file = np.array([np.mean(v) for v in files.values()])
-    mean = float(np.mean(per_file))
-    if len(per_file) > 1:
-        spread = float(np.std(per_file, ddof=1) / math.sqrt(len(per_file)))
-    else:  # one file: its events' own agreement is all there is
-        each = np.array([e.time_per_base for e in events])
-        spread = float(np.std(each, ddof=1) / math.sqrt(len(each))) if len(each) > 1 else math.nan
+    mean, spread, n_files = by_file([(e.scenario, e.time_per_base) for e in events])
     tau = base.scale * mean
     sd = base.scale * spread
     if base.determined and math.isfinite(base.scatter):
@@ -210,7 +215,7 @@ def field_circuit(scenarios: Sequence[ScenarioData], saturation: tuple[float, fl
     est = Estimate(tau, sd, drivers=[e.scenario for e in events][:3])
     est.add_note(
         f"T'_d0 from the field circuit at no load (the integral of E_fd - X_ad I_fd over each event per V_t it "
-        f"moved; {len(events)} event(s) in {len(files)} file(s): {values}); the field current's base: {base.source}"
+        f"moved; {len(events)} event(s) in {n_files} file(s): {values}); the field current's base: {base.source}"
     )
     if not base.determined:
         est.disqualify(
@@ -289,3 +294,106 @@ def machine_field(scenarios: Sequence[ScenarioData], saturation: tuple[float, fl
     if not base.determined:
         note += " (on the air-gap line through the least saturated plateau: the curve is not known here)"
     return MachineField(scale, base, note)
+
+
+# on line, the fit spans this long before and after the event (s): its transient, then the plateau;
+# and the other windows whose answers the std carries (what the cut moves)
+WINDOW = (2.0, 6.0)
+OTHER_WINDOWS = ((1.0, 4.0), (4.0, 10.0))
+
+
+@dataclass
+class OnLineResult:
+    X_d: Estimate
+    X_d_prime: Estimate
+    events: list[dict[str, float | str]]
+
+
+def _on_line_event(
+    s: ScenarioData,
+    field: MachineField,
+    t_d0: float,
+    x_q: float,
+    saturation: tuple[float, float] | None,
+    window: tuple[float, float] = WINDOW,
+) -> tuple[float, float]:
+    """(X'_d, X_d) from one on-line event: E'_q's course from the field circuit, E'_q = V_q + X'_d I_d
+    for X'_d, then X_ad I_fd = E'_q (1 + S(E'_q)) + (X_d - X'_d) I_d (GENSAL's form) for X_d."""
+    r = with_rotor_angle(s, x_q, "held")
+    v_q, i_d = r["v_q"], r["i_d"]
+    x_ad_i_fd = field.base.scale * s["i_fd"]
+    g = field.scale[file_of(s)] * s["v_f"] - x_ad_i_fd
+    course = np.concatenate(([0.0], np.cumsum(0.5 * (g[1:] + g[:-1])) * s.dt)) / t_d0
+    # a short window about the event: a long one carries the recorder's drift into E'_q's course
+    a = max(s.k_event - int(round(window[0] / s.dt)), 0)
+    b = min(s.k_event + int(round(window[1] / s.dt)), s.n)
+    sl = slice(a, b)
+    # V_q - course = E'_q(start) - X'_d I_d
+    design = np.column_stack([np.ones(b - a), -i_d[sl]])
+    (e0, x_dp), *_ = np.linalg.lstsq(design, v_q[sl] - course[sl], rcond=None)
+    e_q = e0 + course[sl]
+    s10, s12 = saturation if saturation is not None else (0.0, 0.0)
+    held_up = x_ad_i_fd[sl] - no_load_field(e_q, s10, s12)
+    x_d = float(x_dp) + float(held_up @ i_d[sl] / (i_d[sl] @ i_d[sl]))
+    return float(x_dp), x_d
+
+
+def on_line(
+    scenarios: Sequence[ScenarioData],
+    field: MachineField,
+    t_d0: Estimate,
+    x_q: float,
+    saturation: tuple[float, float] | None,
+) -> OnLineResult:
+    """X'_d and X_d from on-line events where the field current is recorded, the rotor angle
+    reconstructed with ``x_q`` (held) and T'_d0 known (the no-load field circuit's, or held).
+
+    T'_d0 dE'_q/dt = E_fd - X_ad I_fd holds on line as at no load, so the field channels give
+    E'_q's course through an event; the stator gives E'_q = V_q + X'_d I_d once the dampers have
+    settled: X'_d, each event's E'_q at its start free. The field current then gives X_d through
+    X_ad I_fd = E'_q (1 + S(E'_q)) + (X_d - X'_d) I_d. What the on-line tests fix is T'_d0 X'_d
+    (the course's size per I_d), so T'_d0's std is carried into both."""
+    scs = [s for s in scenarios if s.role == "identify" and s.has("v_t", "p_e", "q_e", "v_f", "i_fd")]
+    scs = [s for s in scs if not at_no_load(s) and file_of(s) in field.scale]
+    if not scs:
+        raise FieldCircuitError("no on-line event with V_t, P, Q, E_fd and I_fd recorded")
+    if not (math.isfinite(t_d0.value) and t_d0.value > 0):
+        raise FieldCircuitError("T'_d0 is not known: the on-line field circuit needs it")
+
+    def fit(tau: float, window: tuple[float, float] = WINDOW) -> list[tuple[str, float, float]]:
+        return [(s.name, *_on_line_event(s, field, tau, x_q, saturation, window)) for s in scs]
+
+    each = fit(t_d0.value)
+    x_dp, sd_dp, n_files = by_file([(n, a) for n, a, _ in each])
+    x_d, sd_d, _ = by_file([(n, b) for n, _, b in each])
+    # what the window's choice and T'_d0's std move the answers by (the largest of each), in
+    # quadrature with the files' spread
+    groups = [[fit(t_d0.value, w) for w in OTHER_WINDOWS]]
+    if math.isfinite(t_d0.std) and t_d0.std > 0:
+        groups.append([fit(t_d0.value + k * t_d0.std) for k in (-1.0, 1.0)])
+    for group in groups:
+        sd_dp = math.hypot(sd_dp, max(abs(by_file([(n, a) for n, a, _ in alt])[0] - x_dp) for alt in group))
+        sd_d = math.hypot(sd_d, max(abs(by_file([(n, b) for n, _, b in alt])[0] - x_d) for alt in group))
+    drivers = [n for n, _, _ in each][:3]
+    where = (
+        f"{len(each)} on-line event(s) in {n_files} file(s) ("
+        + ", ".join(f"{n}: X'_d {a:.3g}, X_d {b:.3g}" for n, a, b in each)
+        + f"), T'_d0 = {t_d0.value:.4g} s, X_q = {x_q:g} pu (held)"
+    )
+    est_dp = Estimate(x_dp, sd_dp, drivers=drivers)
+    est_dp.add_note(
+        f"X'_d from the field circuit on line: E'_q's course from E_fd - X_ad I_fd, = V_q + X'_d I_d; {where}"
+    )
+    curve = "S(1.0) = {:g}, S(1.2) = {:g}".format(*saturation) if saturation else "the air-gap line"
+    est_d = Estimate(x_d, sd_d, drivers=drivers)
+    est_d.add_note(
+        f"X_d from the field current on line: X_ad I_fd = E'_q (1 + S(E'_q)) + (X_d - X'_d) I_d on {curve}; {where}"
+    )
+    for e in (est_dp, est_d):
+        if not t_d0.identifiable:
+            e.disqualify("T'_d0, which it rests on, is not identified")
+        elif not field.base.determined:
+            e.disqualify("the field current's base is not determined (the open-circuit curve is not known)")
+        elif not (math.isfinite(e.std) and e.std > 0):
+            e.disqualify("one event in one file: no spread to judge it by")
+    return OnLineResult(est_d, est_dp, [{"scenario": n, "X_d_prime": a, "X_d": b} for n, a, b in each])

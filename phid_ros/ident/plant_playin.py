@@ -35,6 +35,7 @@ from phid_ros.model.parameters import PARAMETER_NAMES
 from phid_ros.numerics import rk4
 from phid_ros.sim import kernel
 from phid_ros.sim.effects import PlantEffect
+from phid_ros.sim.network import terminal_dq
 from phid_ros.sim.plant import Plant
 
 Array = NDArray[np.float64]
@@ -290,6 +291,42 @@ def _numpy_outputs(
     i_d, i_q, v_d, v_q = plant._currents(x[0], eq_i, ed_i, v_t, theta, zero, zero, xd_i, xq_i)
     p_e, q_e = electrical_power(v_d, v_q, i_d, i_q)
     return {"omega": x[1], "delta": x[0], "i_d": i_d, "i_q": i_q, "p_e": p_e, "q_e": q_e}
+
+
+OPEN_BREAKER_X = 1e6  # pu: the network behind an open breaker (no current, the source irrelevant)
+
+
+def open_circuit_voltage(
+    scenario: ScenarioData,
+    base: Mapping[str, Any],
+    effects: Sequence[tuple[type[PlantEffect], Mapping[str, Any]]] = (),
+    f_nominal_hz: float = DEFAULT_F_NOMINAL_HZ,
+    step: float = STEP_SECONDS,
+) -> tuple[Array, Array]:
+    """(sample index, V_t) of the machine on open circuit driven by the scenario's V_f: a no-load
+    test's terminal voltage is the machine's own answer to its field, so it is simulated, not
+    imposed (the play-in above imposes the measured terminal, which at no load only measures the
+    mismatch through the reactance). The plant's equations behind a breaker's reactance."""
+    st = _setup([scenario], base, effects, 1, f_nominal_hz, step)
+    p_m, v_f, v_t, theta = (a[:, :1] if a.shape[1] != 1 else a for a in st.inputs)
+    damping = st.damping
+    x_open = np.full(1, OPEN_BREAKER_X)
+    zero = np.zeros(1)
+    states = rk4(
+        st.plant._rhs,
+        st.x0,
+        st.steps - 1,
+        st.h,
+        lambda k: (),
+        staged=lambda k, j: (p_m[2 * k + j], v_f[2 * k + j], v_t[2 * k + j], theta[2 * k + j], zero, x_open, damping),
+    )
+    x = np.moveaxis(states, 1, 0)
+    eq_i, ed_i, xd_i, xq_i = st.plant._emf(x)
+    v_src, ang = v_t[::2], theta[::2]
+    i_d, i_q, vth_d, vth_q = st.plant._currents(x[0], eq_i, ed_i, v_src, ang, zero, x_open, xd_i, xq_i)
+    v_d, v_q = terminal_dq(vth_d, vth_q, i_d, i_q, zero, x_open)
+    idx = st.idx[0]
+    return idx, np.hypot(v_d, v_q)[: len(idx), 0]
 
 
 def _scenario_columns(a: Array, j: int, m: int, cols: int) -> Array:

@@ -205,9 +205,10 @@ class ScenarioData:
         )
 
 
-def file_of(s: ScenarioData) -> str:
-    """The test file a scenario was cut from: an event's scenario is named ``FILE@13.3s``."""
-    return s.name.rsplit("@", 1)[0]
+def file_of(s: ScenarioData | str) -> str:
+    """The test file a scenario (or a scenario's name) was cut from: an event's scenario is named
+    ``FILE@13.3s``."""
+    return (s if isinstance(s, str) else s.name).rsplit("@", 1)[0]
 
 
 def _largest_step(x: Array, span: int) -> tuple[int, float]:

@@ -39,6 +39,12 @@ def test_import_info_identify_export(folder, capsys) -> None:
     assert doc["parameters"]["H"] is None and doc["identifiable"]["H"] is False
     assert doc["parameters"]["T_d0_prime"] == pytest.approx(TABLE1.T_d0_prime, rel=0.01)
     assert doc["determined_by"]["T_d0_prime"].startswith("no-load field steps")
+    # with the field current recorded, X_d and X'_d by the field circuit on line (T'_d0 from no load)
+    for name in ("X_d", "X_d_prime"):
+        assert doc["determined_by"][name].startswith("the field circuit on line"), name
+        assert doc["identifiable"][name] is True
+    assert doc["parameters"]["X_d"] == pytest.approx(TABLE1.X_d, rel=0.01)
+    assert doc["parameters"]["X_d_prime"] == pytest.approx(TABLE1.X_d_prime, rel=0.03)
     # a planning record needs all eight: refused, naming the first that is missing and the way on
     assert main(["export", str(result), "--format", "psse-dyr", "--out", str(d / "unit.dyr")]) == 2
     err = capsys.readouterr().err

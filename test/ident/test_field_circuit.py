@@ -12,12 +12,12 @@ import dataclasses
 import numpy as np
 import pytest
 
-from phid_ros.ident.field_circuit import field_circuit, field_current_base
+from phid_ros.ident.field_circuit import field_circuit, field_current_base, machine_field, on_line
 from phid_ros.ident.scenario import ScenarioData, resampled, scenario_from_simulation
 from phid_ros.ident.terminal import with_channels
 from phid_ros.model.parameters import TABLE1
 from phid_ros.sim.effects.magnetic_saturation import MagneticSaturation
-from phid_ros.sim.runner import simulate_scenarios
+from phid_ros.sim.runner import SimulationConfig, simulate_scenarios
 from phid_ros.sim.scenarios import Scenario
 from test.io.field.field_sets import NO_LOAD, field_current
 
@@ -26,10 +26,12 @@ CURVE = (0.1, 0.4)  # S(1.0), S(1.2)
 REPORT_NS = 4_807_692  # 208 reports per second
 
 
-def no_load_steps(steps: dict[str, float], saturation: tuple[float, float] | None, seed: int = 0) -> list[ScenarioData]:
-    """No-load field steps (name -> E_fd multiplier), as a controller's trend log carries them."""
+def no_load_steps(
+    steps: dict[str, float], saturation: tuple[float, float] | None, seed: int = 0, on_line: bool = False
+) -> list[ScenarioData]:
+    """No-load (or on-line) field steps (name -> E_fd multiplier), as a controller's trend log carries them."""
     effects = () if saturation is None else (MagneticSaturation(s10=saturation[0], s12=saturation[1], form="gensal"),)
-    cfg = dataclasses.replace(NO_LOAD, params=TABLE1, effects=effects)
+    cfg = dataclasses.replace(SimulationConfig() if on_line else NO_LOAD, params=TABLE1, effects=effects)
     runs = simulate_scenarios([Scenario(n, "field_step", m, duration=15.0) for n, m in steps.items()], cfg)
     rng = np.random.default_rng(seed)
     out = []
@@ -92,3 +94,27 @@ def test_the_base_from_plateaus() -> None:
     assert field_current_base(v, i, CURVE).scale == pytest.approx(2.5, rel=1e-9)
     bound = field_current_base(v, i, None)
     assert not bound.determined and bound.scale == pytest.approx(1.0 / 1.1 * 2.5, rel=1e-9)
+
+
+def test_x_d_and_x_d_prime_on_line_from_the_field_circuit_of_a_saturated_machine() -> None:
+    """On line, E'_q's course comes from the field channels and T'_d0, X'_d from E'_q = V_q + X'_d
+    I_d, X_d from the field current with the curve (GENSAL's form): the TABLE 1 machine with S(1.0)
+    0.1, S(1.2) 0.4, two no-load steps (T'_d0, the field base) and four on-line field steps, each
+    a file of its own, E_fd and I_fd on the controller's bases."""
+    scs = no_load_steps({"up": 1.1, "down": 0.9}, CURVE)
+    scs += no_load_steps({f"line_{k}": m for k, m in enumerate((1.05, 0.95, 1.1, 0.9))}, CURVE, seed=1, on_line=True)
+    field = machine_field(scs, CURVE)
+    assert field is not None and field.base.determined
+    assert set(field.scale) == {"up", "down", "line_0", "line_1", "line_2", "line_3"}
+    # every file's E_fd back on the machine's base (the controller's 0.37 undone)
+    assert all(k == pytest.approx(1 / E_FD_BASE, rel=0.01) for k in field.scale.values())
+    t_d0 = field_circuit(scs, CURVE).T_d0_prime
+    out = on_line(scs, field, t_d0, TABLE1.X_q, CURVE)
+    assert out.X_d.identifiable and out.X_d_prime.identifiable
+    assert out.X_d.value == pytest.approx(TABLE1.X_d, rel=0.02)
+    assert out.X_d_prime.value == pytest.approx(TABLE1.X_d_prime, rel=0.05)
+    for e in (out.X_d, out.X_d_prime):
+        assert e.std < 0.05 * e.value
+    # without the curve the same events give another X_d: the saturation is in the field current
+    bare = on_line(scs, machine_field(scs, None), t_d0, TABLE1.X_q, None)
+    assert not bare.X_d.identifiable  # the base is not determined: every no-load plateau above the knee
