@@ -284,6 +284,18 @@ def _add_replay(sub: Subparsers) -> None:
     p.add_argument(
         "--report", metavar="OUT.html", help="write an HTML report: events, parameters and stream health over time"
     )
+    p.add_argument(
+        "--fix",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="hold a datasheet value in every recalibration, repeatable (the node's held parameter)",
+    )
+    p.add_argument(
+        "--saturation",
+        metavar="S10,S12",
+        help="the machine's open-circuit curve from its datasheet (the node's saturation parameter)",
+    )
 
 
 def _add_track(sub: Subparsers) -> None:

@@ -243,6 +243,8 @@ def replay_command(args: Any, console: Any) -> int:
 
     from phid_ros.cli.common import warn
     from phid_ros.cli.progress import ProgressLine
+    from phid_ros.ident.constraints import parse_constraints
+    from phid_ros.ident.pipeline import IdentifyOptions
     from phid_ros.io.bags.recordings import open_message_writer
     from phid_ros.io.files.outputs import atomic_output, partial_path, refuse_inputs
     from phid_ros.io.overview import Overview
@@ -255,6 +257,7 @@ def replay_command(args: Any, console: Any) -> int:
     refuse_inputs([out_path], [args.store])
     check_output(out_path, args.force)
     # the recording is read part by part as it is played: memory holds one part, not the file
+    constraints = parse_constraints(args.fix, saturation=args.saturation)  # a typo said before the reading
     with ProgressLine(f"reading {args.bag}"):
         parts = recording_parts(args.bag)
         part_iter = iter(parts)
@@ -266,6 +269,7 @@ def replay_command(args: Any, console: Any) -> int:
         store_path=args.store or ":memory:",
         unit=unit,
         not_recorded=not_recorded(parts.metadata),
+        identify=IdentifyOptions(baseline=False, constraints=constraints),
     )
     pipeline = MonitorPipeline(settings)
     if len(pipeline.store):

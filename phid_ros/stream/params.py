@@ -12,6 +12,9 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import Any
 
+from phid_ros.errors import ParameterError
+from phid_ros.ident.constraints import Constraints, parse_constraints
+from phid_ros.ident.pipeline import IdentifyOptions
 from phid_ros.model.bounds import Bounded
 from phid_ros.model.channels import CHANNELS
 from phid_ros.model.conventions import seconds_to_ns
@@ -145,6 +148,22 @@ RECALIBRATION: tuple[Tunable, ...] = (
             "the generating unit watched; the store refuses another unit's events (empty: the node namespace)",
             runtime=False,
         ),
+        Tunable(
+            "held",
+            str,
+            "",
+            "datasheet values every recalibration holds, NAME=VALUE separated by commas (a recorder without the "
+            "rotor angle: X_q=0.62), as phid identify --fix",
+            runtime=False,
+        ),
+        Tunable(
+            "saturation",
+            str,
+            "",
+            "the machine's open-circuit curve S(1.0),S(1.2) from its datasheet, as phid identify --saturation "
+            "(empty: none; the field current's base then needs a no-load plateau below the knee)",
+            runtime=False,
+        ),
         Tunable("tracking_enabled", bool, False, "run the sliding-window tracker too"),
         Tunable("tracking_window_s", float, 300.0, "tracker window", 30.0, 3600.0, runtime=False),
         Tunable("tracking_hop_s", float, 60.0, "tracker hop", 1.0, 3600.0, runtime=False),
@@ -173,7 +192,18 @@ def validate(table: tuple[Tunable, ...], name: str, value: Any, *, running: bool
         unknown = [c for c in channel_list(value) if c not in CHANNELS]
         if unknown:
             return f"not_recorded: unknown channel(s) {', '.join(unknown)}; channels: {', '.join(CHANNELS)}"
+    if name in ("held", "saturation"):
+        try:
+            held_constraints(value if name == "held" else "", value if name == "saturation" else "")
+        except ParameterError as exc:
+            return f"{name}: {exc}"
     return spec.outside(value, str)
+
+
+def held_constraints(held: str, saturation: str) -> Constraints:
+    """The ``held`` and ``saturation`` parameters (phid identify's --fix and --saturation) as the
+    recalibration's constraints."""
+    return parse_constraints([h.strip() for h in held.split(",") if h.strip()], saturation=saturation.strip() or None)
 
 
 def channel_list(text: str) -> frozenset[str]:
@@ -210,6 +240,7 @@ def pipeline_settings(
         tracking=TrackerSettings(window_s=float(v["tracking_window_s"]), hop_s=float(v["tracking_hop_s"])),
         expected_rates_hz={s: float(v[f"{s}_rate_hz"]) for s in RATED_STREAMS if v[f"{s}_rate_hz"] > 0},
         not_recorded=channel_list(str(v["not_recorded"])),
+        identify=IdentifyOptions(baseline=False, constraints=held_constraints(str(v["held"]), str(v["saturation"]))),
     )
 
 

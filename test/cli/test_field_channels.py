@@ -204,3 +204,25 @@ def test_a_test_file_from_another_machine_never_leaves_a_wrong_x_d_as_identified
     x_d, std = doc["parameters"]["X_d"], doc["uncertainty"]["X_d"]
     assert not doc["identifiable"]["X_d"] or abs(x_d - TABLE1.X_d) <= 2 * std, (x_d, std)
     assert doc["identifiable"]["T_d0_prime"] and doc["parameters"]["T_d0_prime"] == pytest.approx(1.437, rel=0.01)
+
+
+def test_the_monitor_holds_the_datasheet_values_it_is_given(trend_bag, tmp_path, capsys) -> None:
+    """A recorder without the rotor angle: with X_q held (phid replay --fix, the node's ``held``
+    parameter), the recalibration reconstructs the angle and publishes X'_d beside X_d and T'_d0."""
+    from rosbags.highlevel import AnyReader
+
+    from phid_ros.io.msg_schemas import typestore
+
+    out = tmp_path / "held.mcap"
+    assert main(["replay", str(trend_bag), "--out", str(out), "--fix", f"X_q={TABLE1.X_q}"]) == 0
+    assert "partial set published: X_d, X'_d, T'_d0" in capsys.readouterr().out
+    with AnyReader([out], default_typestore=typestore()) as reader:
+        conns = [c for c in reader.connections if c.topic == "/phid/parameters"]
+        last = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages(connections=conns)][-1]
+    assert list(last.names) == ["X_d", "X_d_prime", "T_d0_prime"]
+    for name, value, std in zip(last.names, last.values, last.std_dev):
+        truth = getattr(TABLE1, name)
+        assert abs(value - truth) < max(3 * std, 0.02 * truth), (name, value, std)
+    # a typo is said before the reading, in one line
+    assert main(["replay", str(trend_bag), "--out", str(tmp_path / "x.mcap"), "--saturation", "0.4,0.1"]) == 2
+    assert "needs S(1.2) > S(1.0) > 0" in capsys.readouterr().err

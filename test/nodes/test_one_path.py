@@ -118,3 +118,14 @@ def test_tracking_on_the_node_equals_tracking_in_replay(ros, plant):
     assert len(hops) >= 3 and all(p.t_ns % (30 * 10**9) == 0 for p in hops)
     expect = [(split_stamp(p.t_ns)[0], list(p.estimates), [e.value for e in p.estimates.values()]) for p in hops]
     assert node == expect
+
+
+def test_the_held_values_and_the_curve_reach_the_recalibration() -> None:
+    from phid_ros.stream.params import RECALIBRATION, pipeline_settings, validate
+
+    settings = pipeline_settings({"held": "X_q=0.62, H=2.3", "saturation": "0.1,0.4"}, detect=False)
+    assert settings.identify.constraints.fixed == {"X_q": 0.62, "H": 2.3}
+    assert settings.identify.constraints.saturation == (0.1, 0.4)
+    assert validate(RECALIBRATION, "held", "X_q=abc", running=False) == "held: --fix X_q: 'abc' is not a number"
+    assert "needs S(1.2) > S(1.0) > 0" in (validate(RECALIBRATION, "saturation", "0.4,0.1", running=False) or "")
+    assert validate(RECALIBRATION, "held", "X_q=0.62", running=True).startswith("held cannot change while")
