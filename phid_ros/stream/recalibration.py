@@ -15,6 +15,7 @@ withheld by name.
 from __future__ import annotations
 
 import math
+import re
 import threading
 import time
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -61,6 +62,14 @@ PARTIAL = "partial set: "
 WITHHELD_WHY = "not determined by these channels and events (phid identify on the same events says why, per parameter)"
 
 
+_NAMES = re.compile(r"\b(" + "|".join(sorted(SYMBOLS, key=len, reverse=True)) + r")\b")
+
+
+def in_symbols(text: str) -> str:
+    """``text`` with each parameter's name (X_d_prime) in the paper's symbol (X'_d), for a reader."""
+    return _NAMES.sub(lambda m: SYMBOLS[m.group(1)], text)
+
+
 @dataclass
 class RecalibrationOutcome:
     accepted: bool
@@ -85,8 +94,7 @@ class RecalibrationOutcome:
         why = self.status.removeprefix(KEPT_LAST_GOOD)
         if self.parameters is None and self.determined:
             names = ", ".join(SYMBOLS.get(n, n) for n in self.determined)
-            withheld = ", ".join(SYMBOLS.get(n, n) for n in SYMBOLS if n not in self.determined)
-            return f"partial set published: {names}", f"withheld {withheld}: {WITHHELD_WHY}"
+            return f"partial set published: {names}", in_symbols(self.status.removeprefix(PARTIAL))
         if self.parameters is None:
             if why.startswith(INCOMPLETE):
                 why = why.removeprefix(INCOMPLETE).removesuffix(")")
@@ -310,8 +318,11 @@ class Recalibrator:
             why = "; ".join(result.problems[:3]) or f"missing {missing}"
             determined = {} if self.last_good is not None else determined_only(result)
             if determined:
-                withheld = ", ".join(n for n in result.parameters if n not in determined)
+                held = result.constraints.fixed
+                withheld = ", ".join(n for n in result.parameters if n not in determined and n not in held)
                 status = f"{PARTIAL}withheld {withheld}: {WITHHELD_WHY}"
+                if held:  # the user's datasheet values: neither determined here nor withheld
+                    status += "; held: " + ", ".join(f"{n} = {v:g}" for n, v in held.items())
             else:
                 status = f"{KEPT_LAST_GOOD}{INCOMPLETE}{why})"
             return RecalibrationOutcome(False, status, self.last_good, result, ids, now, seconds, determined)

@@ -215,7 +215,9 @@ def test_the_monitor_holds_the_datasheet_values_it_is_given(trend_bag, tmp_path,
 
     out = tmp_path / "held.mcap"
     assert main(["replay", str(trend_bag), "--out", str(out), "--fix", f"X_q={TABLE1.X_q}"]) == 0
-    assert "partial set published: X_d, X'_d, T'_d0" in capsys.readouterr().out
+    said = capsys.readouterr().out
+    assert "partial set published: X_d, X'_d, T'_d0 (withheld H, D, X'_q, T'_q0: not determined" in said
+    assert "; held: X_q = 2.41)" in said
     with AnyReader([out], default_typestore=typestore()) as reader:
         conns = [c for c in reader.connections if c.topic == "/phid/parameters"]
         last = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages(connections=conns)][-1]
