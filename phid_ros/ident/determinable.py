@@ -271,11 +271,10 @@ def identify_by_channels(
         and r.key == "field_circuit_online"
         and _field_circuit_online(res, r, ident, opt, put, say, t_d0_at_no_load)
     )
-    if r is not None and r.key == "field_circuit_online" and not on_line:  # no no-load test: E_fd's steady states
-        r = ROUTES_BY_KEY["steady_terminal"]
-    if on_line:
-        pass
-    elif r is not None and r.key in ("steady_states", "steady_states_paper"):
+    if r is not None and r.key == "field_circuit_online":
+        # done; or, without a no-load test to give the field current's base, E_fd's steady states
+        r = None if on_line else ROUTES_BY_KEY["steady_terminal"]
+    if r is not None and r.key in ("steady_states", "steady_states_paper"):
         say(f"X_d, X_q: {r.how}")
         try:
             out2 = stage2.identify_reactances(r.scenarios(ident), use_field_voltage=r.key == "steady_states")
@@ -311,10 +310,9 @@ def identify_by_channels(
     # -- the d axis's transient ----------------------------------------------------------------
     known = {n: e.value for n, e in res.estimates.items() if n in ("X_d", "X_q") and math.isfinite(e.value)}
     known.update({n: v for n, v in held.items() if n in ("X_d", "X_q")})
-    r = route_of("X_d_prime", "T_d0_prime") or chosen["T_d0_prime"].route
-    if on_line:
-        pass  # X'_d from the field circuit on line, T'_d0 from it at no load
-    elif r is not None and r.key == "d_axis" and "X_d" in known:
+    # with the field circuit on line, X'_d is its and T'_d0 the no-load tests'
+    r = None if on_line else route_of("X_d_prime", "T_d0_prime") or chosen["T_d0_prime"].route
+    if r is not None and r.key == "d_axis" and "X_d" in known:
         say(f"X'_d, T'_d0: {r.how}")
         _one_axis(res, r, r.scenarios(ident), True, known["X_d"], opt, put)
     elif r is not None and r.key == "d_axis_terminal" and "X_d" in known and x_q_for_angle is not None:
