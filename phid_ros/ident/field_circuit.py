@@ -29,6 +29,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.integrate import cumulative_trapezoid
 
 from phid_ros.errors import StageError
 from phid_ros.ident.characteristics import LINEAR_PART
@@ -169,7 +170,7 @@ def one_event(s: ScenarioData) -> FieldEvent:
     k_e = (u0 * i0 + u1 * i1) / (u0 * u0 + u1 * u1)
     a = pre.stop
     g = k_e * s["v_f"][a:] - s["i_fd"][a:]
-    integral = np.concatenate(([0.0], np.cumsum(0.5 * (g[1:] + g[:-1])) * s.dt))
+    integral = cumulative_trapezoid(g, dx=s.dt, initial=0.0)
     moved = s["v_t"][a:] - v0
     # T'_d0 (V_t(t) - V_t0) = the integral to t at every t once the dampers have settled: fitted
     # over the transient from a third of the way to where V_t settles (and a second on), not
@@ -323,7 +324,7 @@ def _on_line_event(
     v_q, i_d = r["v_q"], r["i_d"]
     x_ad_i_fd = field.base.scale * s["i_fd"]
     g = field.scale[file_of(s)] * s["v_f"] - x_ad_i_fd
-    course = np.concatenate(([0.0], np.cumsum(0.5 * (g[1:] + g[:-1])) * s.dt)) / t_d0
+    course = cumulative_trapezoid(g, dx=s.dt, initial=0.0) / t_d0
     # a short window about the event: a long one carries the recorder's drift into E'_q's course
     a = max(s.k_event - int(round(window[0] / s.dt)), 0)
     b = min(s.k_event + int(round(window[1] / s.dt)), s.n)
