@@ -39,6 +39,7 @@ from phid_ros.model.channels import CHANNEL_INDEX, CHANNELS, PLAUSIBLE, Frame
 from phid_ros.model.conventions import NS
 
 RATE_BLOCKS = 50  # blocks a stream's rate is measured over
+GAP_SPANS = 10_000  # gaps remembered per stream to tell a pause from a loss (more are counted as losses)
 
 
 @dataclass
@@ -65,6 +66,10 @@ class StreamHealth:
     not_recorded: bool = False
     gaps: int = 0
     missing: int = 0  # samples absent in those gaps (by the stamps): what was lost on the way
+    # of those, the gaps that lie between two marked scenarios (a test recorder's files one after
+    # the other): the recording paused, nothing was lost (see :meth:`mark_pauses`)
+    pauses: int = 0
+    paused_missing: int = 0
     clock_jumps: int = 0
     gap_grid_points: int = 0
     last_stamp_ns: int | None = None
@@ -74,6 +79,8 @@ class StreamHealth:
     # diagnostics ask for the rate once a second per stream, the aligner adds a block per message
     _recent: deque[tuple[int, int]] = field(default_factory=lambda: deque(maxlen=RATE_BLOCKS))
     _recent_samples: int = 0
+    # (last stamp before, first stamp after, samples missing) of each gap, the last GAP_SPANS
+    _gap_spans: deque[tuple[int, int, int]] = field(default_factory=lambda: deque(maxlen=GAP_SPANS))
 
     @property
     def dropped(self) -> int:
@@ -96,6 +103,22 @@ class StreamHealth:
     def forget_blocks(self) -> None:
         self._recent.clear()
         self._recent_samples = 0
+
+    def note_gap(self, before_ns: int, after_ns: int, missing: int) -> None:
+        """A hole in the stream between two accepted stamps; the rate is judged from after it (a
+        rate over a pause read 171 Hz for a 208 Hz recorder)."""
+        self.gaps += 1
+        self.missing += missing
+        self._gap_spans.append((before_ns, after_ns, missing))
+        self.forget_blocks()
+
+    def mark_pauses(self, marked: Sequence[tuple[int, int]]) -> None:
+        """Count as pauses the gaps that touch no marked scenario (``marked``: their [start, end]
+        stamps): the recording paused between two tests, nothing was lost. Without markers every
+        gap is a loss: a live feed has no pauses by design."""
+        pauses = [g for g in self._gap_spans if marked and not any(a < g[1] and g[0] < b for a, b in marked)]
+        self.pauses = len(pauses)
+        self.paused_missing = sum(g[2] for g in pauses)
 
     def rate_hz(self) -> float:
         """Samples per second over the recent blocks, by their stamps."""
@@ -146,12 +169,15 @@ class StreamHealth:
         if self.dead_channel:
             problems.append(f"{self.dead_channel} samples with a dead channel (no finite value in their message)")
             level = "ERROR" if self.samples and self.dead_channel > 0.5 * self.samples else "WARN"
-        if self.missing:
-            problems.append(f"{self.missing} samples missing in {self.gaps} gap(s)")
+        if self.missing > self.paused_missing:
+            problems.append(f"{self.missing - self.paused_missing} samples missing in {self.gaps - self.pauses} gap(s)")
             level = "WARN" if level == "OK" else level
         if self.samples and self.dropped > 0.5 * self.samples:
             level = "ERROR"
-        return level, "; ".join(problems) or f"{rate:.0f} Hz"
+        said = "; ".join(problems) or f"{rate:.0f} Hz"
+        if self.pauses:  # said, not judged: a pause between two tests is the recording's design
+            said += f"; paused {self.pauses} time(s) between marked tests"
+        return level, said
 
     def as_dict(self) -> dict[str, object]:
         return {k: v for k, v in self.__dict__.items() if not k.startswith("_")} | {"rate_hz": self.rate_hz()}
@@ -466,8 +492,10 @@ class Aligner:
             steps = np.diff(t) if h.last_stamp_ns is None else np.diff(np.concatenate(([h.last_stamp_ns], t)))
             holes = steps[steps > 1.5 * period_ns]
         if holes.size:
-            h.gaps += int(holes.size)
-            h.missing += int(np.sum(np.rint(holes / period_ns).astype(np.int64) - 1))
+            stamps = t if h.last_stamp_ns is None else np.concatenate(([h.last_stamp_ns], t))
+            for k in np.flatnonzero(np.diff(stamps) > 1.5 * period_ns):
+                hole = int(stamps[k + 1] - stamps[k])
+                h.note_gap(int(stamps[k]), int(stamps[k + 1]), int(round(hole / period_ns)) - 1)
         h.accepted += len(t)
         h.last_stamp_ns = int(t[-1])
         h.note_block(int(t[-1]), len(t))
