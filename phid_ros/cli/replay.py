@@ -78,7 +78,7 @@ class OutputCollector:
                 self._log_health(
                     self._next_diag,
                     {
-                        n: (self.pipeline.aligner.status(n)[0], h.dropped, h.gaps, h.clock_jumps)
+                        n: (self.pipeline.status(n)[0], h.dropped, h.gaps - h.pauses, h.clock_jumps)
                         for n, h in self.pipeline.health.items()
                     },
                 )
@@ -196,14 +196,14 @@ def print_summary(
         )
     elif partial := next((r for r in reversed(outputs.recalibrations) if r.determined), None):
         est = partial.determined
-        prows = [
-            [
-                SYMBOLS[n],
-                SPECS_BY_NAME[n].unit,
-                estimate_text(est[n].value, est[n].std, True) if n in est else "withheld",
-            ]
-            for n in PARAMETER_NAMES
-        ]
+        held = partial.result.constraints.fixed if partial.result else {}
+
+        def shown(n: str) -> str:
+            if n in est:
+                return estimate_text(est[n].value, est[n].std, True)
+            return f"{held[n]:g} held" if n in held else "withheld"
+
+        prows = [[SYMBOLS[n], SPECS_BY_NAME[n].unit, shown(n)] for n in PARAMETER_NAMES]
         print_table(
             console,
             f"no full set in force at the end; the partial set published at "
@@ -219,6 +219,11 @@ def print_summary(
             else "not enough events for a recalibration"
         )
         console.print(f"parameters in force at the end: none ({why})", highlight=False)
+    if fitted := next((r for r in reversed(outputs.recalibrations) if r.controls), None):
+        from phid_ros.cli.identify import print_controls
+
+        console.print(f"fitted beside the machine at {(fitted.stream_time_ns - start) / NS:.1f} s:", highlight=False)
+        print_controls(console, fitted.controls)
     if pipeline.recalibrator.last_good is not None and outputs.energy:
         e = outputs.energy[-1]
         n_energy = collector.counts.get(BAG_TOPICS["hamiltonian"][0], 0)
@@ -230,10 +235,10 @@ def print_summary(
         )
     hrows = []
     for name, h in pipeline.health.items():
-        level, msg = pipeline.aligner.status(name)
-        hrows.append([name, level, msg, str(h.samples), str(h.dropped), str(h.gaps), str(h.clock_jumps)])
+        level, msg = pipeline.status(name)
+        hrows.append([name, level, msg, str(h.samples), str(h.dropped), str(h.gaps - h.pauses), str(h.clock_jumps)])
     hcols = [Col("stream", "left"), Col("level", "left"), Col("status", "left", text=True), Col("samples")]
-    hcols += [Col("dropped"), Col("gaps"), Col("clock jumps")]
+    hcols += [Col("dropped"), Col("gaps (lost)"), Col("clock jumps")]
     print_table(console, "stream health", hcols, hrows)
 
 

@@ -704,15 +704,16 @@ def identify_controls(
     scenarios: Sequence[ScenarioData],
     candidates: Mapping[str, Sequence[str]] | None = None,
     starts: Mapping[str, Mapping[str, float]] | None = None,
+    kinds: Sequence[str] | None = None,
 ) -> dict[str, ControlFit | str]:
     """For each kind (exciter, governor, stabiliser): the named model's fit, or why none is named.
 
     ``candidates`` restricts a kind to the models named (a plant engineer who knows the unit's
     exciter is static says EXST1); the default is every registered model of the kind.
     ``starts``: per kind, constants of a model the user has (an existing .dyr's), where the fit
-    of the model they belong to starts."""
+    of the model they belong to starts. ``kinds``: only these (default every kind)."""
     out: dict[str, ControlFit | str] = {}
-    for kind in KINDS:
+    for kind in KINDS if kinds is None else [k for k in KINDS if k in kinds]:
         fit, held = _cases(scenarios, kind, "identify"), _cases(scenarios, kind, "validate")
         # a fault drives the field voltage to its ceiling: fitted only where a limit is (see the module)
         faults = _cases(scenarios, kind, "identify", ("fault",)) if kind == "exciter" else []

@@ -61,6 +61,7 @@ OUTPUT_TOPICS: dict[str, tuple[str, str]] = {
     "events": ("events", "phid_msgs/msg/DisturbanceEvent"),
     "windows": ("event_windows", "phid_msgs/msg/EventWindow"),
     "parameters": ("parameters", "phid_msgs/msg/GeneratorParameters"),
+    "controls": ("control_parameters", "phid_msgs/msg/ControlParameters"),  # exciter, governor, stabiliser
     "tracked_parameters": ("tracked_parameters", "phid_msgs/msg/GeneratorParameters"),
     "hamiltonian": ("hamiltonian", "phid_msgs/msg/HamiltonianState"),
     "diagnostics": ("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray"),  # absolute: the ROS convention

@@ -29,7 +29,7 @@ from rclpy.qos import (
 )
 
 from phid_ros.cluster import tune_malloc
-from phid_ros.io.topics import OUTPUT_TOPICS, STREAMS
+from phid_ros.io.topics import OUTPUT_TOPICS, RECORDER_STREAMS, STREAMS
 from phid_ros.stream.params import Tunable, apply, validate
 
 
@@ -56,11 +56,12 @@ def byte_level(value: int) -> bytes:
     return bytes([value])
 
 
-def latched_qos() -> QoSProfile:
-    """Transient local: a late subscriber gets the latest parameter set."""
+def latched_qos(depth: int = 1) -> QoSProfile:
+    """Transient local: a late subscriber gets the latest parameter set (the latest ``depth``
+    messages: one per control system)."""
     return QoSProfile(
         history=HistoryPolicy.KEEP_LAST,
-        depth=1,
+        depth=depth,
         reliability=ReliabilityPolicy.RELIABLE,
         durability=DurabilityPolicy.TRANSIENT_LOCAL,
     )
@@ -252,10 +253,12 @@ def msg_types() -> dict[str, Any]:
     from builtin_interfaces.msg import Time
     from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
     from phid_msgs.msg import (
+        ControlParameters,
         DisturbanceEvent,
         EncoderBlock,
         EventWindow,
         ExcitationBlock,
+        FieldControllerBlock,
         GeneratorParameters,
         HamiltonianState,
         PmuBlock,
@@ -270,10 +273,12 @@ def msg_types() -> dict[str, Any]:
         "diagnostic_msgs/msg/DiagnosticArray": DiagnosticArray,
         "diagnostic_msgs/msg/DiagnosticStatus": DiagnosticStatus,
         "diagnostic_msgs/msg/KeyValue": KeyValue,
+        "phid_msgs/msg/ControlParameters": ControlParameters,
         "phid_msgs/msg/DisturbanceEvent": DisturbanceEvent,
         "phid_msgs/msg/EncoderBlock": EncoderBlock,
         "phid_msgs/msg/EventWindow": EventWindow,
         "phid_msgs/msg/ExcitationBlock": ExcitationBlock,
+        "phid_msgs/msg/FieldControllerBlock": FieldControllerBlock,
         "phid_msgs/msg/GeneratorParameters": GeneratorParameters,
         "phid_msgs/msg/HamiltonianState": HamiltonianState,
         "phid_msgs/msg/PmuBlock": PmuBlock,
@@ -293,7 +298,10 @@ def subscribe_sensors(node: MonitorNode) -> None:
 
     values = node.values
     qos = sensor_qos(values["reliable_qos"], values["queue_depth"])
-    for spec in STREAMS:  # a stream's name is its topic, relative to the node's namespace
+    # a stream's name is its topic, relative to the node's namespace; a recorder's own stream (the
+    # field controller's) is optional: kept for the event windows when it comes, never waited for
+    streams = (*STREAMS, *RECORDER_STREAMS)
+    for spec in streams:
 
         def callback(msg: Any, stream: str = spec.name, channels: tuple[str, ...] = spec.channels) -> None:
             node.input.on_data()
@@ -307,7 +315,7 @@ def subscribe_sensors(node: MonitorNode) -> None:
 
         node.subscription(node.types[spec.msgtype], spec.name, callback, qos)
     node.get_logger().info(
-        f"ready: {', '.join(s.name for s in STREAMS)} ({'reliable' if values['reliable_qos'] else 'best effort'}, "
+        f"ready: {', '.join(s.name for s in streams)} ({'reliable' if values['reliable_qos'] else 'best effort'}, "
         f"depth {values['queue_depth']})"
     )
 

@@ -2,8 +2,9 @@
 
 Subscribes (relative, remappable): event_windows (from ingest_node), the four sensor topics
 (for the Hamiltonian and stream health) and /phid/scenarios (markers, when a recording has
-them). Publishes: parameters (transient local), hamiltonian, /diagnostics, and with
-tracking_enabled, tracked_parameters. Services (std_srvs/Trigger): ~/recalibrate, ~/reset.
+them). Publishes: parameters and control_parameters (the exciter, governor and stabiliser
+fitted beside them; transient local), hamiltonian, /diagnostics, and with tracking_enabled,
+tracked_parameters. Services (std_srvs/Trigger): ~/recalibrate, ~/reset.
 A managed (lifecycle) node: see :class:`phid_ros.nodes.common.MonitorNode`.
 """
 
@@ -13,6 +14,7 @@ from typing import Any
 
 from std_srvs.srv import Trigger
 
+from phid_ros.controls.models import KINDS_IN_ORDER as CONTROL_KINDS
 from phid_ros.ident.pipeline import prepare as prepare_identification
 from phid_ros.io.recording import scenario_from_message
 from phid_ros.io.topics import OUTPUT_TOPICS, SCENARIO_TOPIC
@@ -50,6 +52,8 @@ class RecalibrationNode(common.MonitorNode):
         )
         self.publishers_by_key = {
             "parameters": self.publisher("parameters", common.latched_qos()),
+            # one message per control system (exciter, governor, stabiliser) at each recalibration
+            "controls": self.publisher("controls", common.latched_qos(len(CONTROL_KINDS))),
             "tracked_parameters": self.publisher("tracked_parameters", common.latched_qos()),
             "hamiltonian": self.publisher("hamiltonian", common.reliable_qos(HAMILTONIAN_DEPTH)),
         }

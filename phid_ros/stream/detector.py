@@ -40,12 +40,18 @@ from phid_ros.stream.ring import RingBuffer
 # online detector, the node parameters and the offline cut of phid identify.
 PRE_EVENT_S = 1.0
 POST_EVENT_S = 29.0
+# A field step (an AVR reference step, a manual field step, a de-excitation) is a staged test: its
+# window reaches back for the plateau before it, as ``phid identify`` cuts a test file (halfway from
+# the event before, or from where the recording resumed), up to this far. The field circuit's k_e
+# and the exciter's initial state are read there; 1 s of it made the exciter's ceilings 3 % off.
+STEP_PLATEAU_S = 60.0
 
 
 @dataclass(frozen=True)
 class DetectorSettings:
     pre_s: float = PRE_EVENT_S
     post_s: float = POST_EVENT_S
+    plateau_s: float = STEP_PLATEAU_S  # a field step's window, back to its plateau (at most; the ring's oldest)
     settle_s: float = 2.0
     context_s: float = 3.5  # history the batch detector needs: 1 s pre-fault mean + 2 s quiet + step span
     detect_every_s: float = 1.0  # stream time between detector runs (latency: this plus settle_s)
@@ -73,6 +79,9 @@ class Event:
     name: str = ""
     role: str = "identify"
     generator_damping: bool = True
+    # what the test sheet says of the scenario (a marker's): who held the field, the reference step
+    regulator: str = ""
+    reference_step: float | None = None
 
 
 def event_id(kind: str, inception_ns: int) -> str:
@@ -95,6 +104,9 @@ class EventWindow(Frame):
     reason: str = ""
     # V_t's and Q's step as a test sheet states it (``settled_steps``), for the reader; not published
     settled: dict[str, float] = field(default_factory=dict)
+    # a recorder's own channels on the window's stamps (the field current, the regulator's and the
+    # stabiliser's outputs: :mod:`phid_ros.stream.recorder`), those it kept
+    recorded: dict[str, NDArray[np.float64]] = field(default_factory=dict)
 
     def light(self) -> EventWindow:
         """The window without its samples (new empty arrays: a slice would keep them alive)."""
@@ -113,19 +125,22 @@ SETTLED = ("v_t", "q_e")
 STEP_KINDS = ("voltage_step", "field_step")
 
 
-def settled_steps(w: EventWindow) -> dict[str, float]:
-    """V_t's and Q's step between the plateau before the event and the last quarter of the window
+def settled_steps(w: Frame, inception_ns: int) -> dict[str, float]:
+    """V_t's and Q's step between the second before the event and the last quarter of the window
     after it: the size a test sheet gives (an AVR step of +5 % and back, a manual field step). The
     event's severity is its first 0.2 s, before a regulator has settled: on the commissioning day's
-    no-load +10 % step it read +0.051 pu for the sheet's +0.10."""
-    k = int(np.searchsorted(w.t_ns, w.event.inception_ns))
+    no-load +10 % step it read +0.051 pu for the sheet's +0.10. ``w`` runs from the plateau before
+    the event to the second before the next event's (not a field step's window, which stops
+    halfway to it and read +0.047 for the +5 % step with the stabiliser on)."""
+    k = int(np.searchsorted(w.t_ns, inception_ns))
     after = len(w.t_ns) - k
     if k < 2 or after < 8:
         return {}
+    second = max(2, int(NS // w.period_ns))
     out = {}
     for name in SETTLED:
         x = w.channel(name)
-        pre, tail = x[:k], x[k + (3 * after) // 4 :]
+        pre, tail = x[max(0, k - second) : k], x[k + (3 * after) // 4 :]
         if np.isfinite(pre).any() and np.isfinite(tail).any():
             out[name] = float(np.nanmean(tail) - np.nanmean(pre))
     return out
@@ -139,6 +154,8 @@ class Detector:
     _frontier_ns: int | None = None
     _segment: int = 0
     _pending: list[Event] = field(default_factory=list)
+    _last_cut: Event | None = None  # the event before the pending ones in this segment: where they start
+    _starts: dict[str, int] = field(default_factory=dict)  # a pending field step's window start, once decided
     # the voltage measurement lost at no load: V_t before it, and (once back) until when the
     # events are the measurement's, not the machine's (None: not lost)
     _lost_level: float | None = None
@@ -150,12 +167,18 @@ class Detector:
         self._frontier_ns = None
         self._segment = segment
         self._pending = [e for e in self._pending if e.segment == segment]
+        self._last_cut = None
+        self._starts.clear()
         self._lost_level = self._lost_until_ns = None
 
     def update(self, *, force: bool = False) -> tuple[list[Event], list[EventWindow]]:
         """New events since the last call, and windows whose post-event time has passed.
 
-        Detection runs every ``detect_every_s`` of stream time, or now with ``force``.
+        Detection steps through stream time ``detect_every_s`` at a time, each step reading its
+        own span and ``settle_s`` after it (with ``force``, also the part step up to what is
+        decided): what is found depends on the data alone, not on how often this is called. A
+        node at 20x (called every 2 s of stream time) found a step on a test file's edge that
+        ``phid replay`` (every 0.5 s) did not.
         """
         latest = self.ring.latest_ns
         if latest is None:
@@ -167,40 +190,53 @@ class Detector:
             # from the start of a segment, events can be found once the pre-event mean exists
             oldest = self.ring.oldest_ns
             self._frontier_ns = (oldest if oldest is not None else latest) + int(s.pre_s * NS)
-        due = self._frontier_ns + (0 if force else int(s.detect_every_s * NS))
-        if decided > self._frontier_ns and decided >= due:
-            t, x = self.ring.window(self._frontier_ns - int(s.context_s * NS), latest)
-            if len(t) > 10:
-                # the batch detector reads V_t and P_m; P and Q say whether the breaker is open
-                # (V_f too: an AVR reference step or a manual field step moves V_t by 1 % only)
-                signals = {c: forward_filled(x[:, CHANNEL_INDEX[c]]) for c in ("v_t", "p_m", "p_e", "q_e", "v_f")}
-                no_load = at_no_load(signals)
-                dt = self.period_ns / NS
-                for kind, k, k_cl in find_events(signals, dt, thresholds=s.thresholds):
-                    if not self._frontier_ns <= t[k] < decided or self._measurement_lost(t, signals["v_t"], k):
-                        continue
-                    if kind == "field_step" and not moves_terminal(signals, k, dt):
-                        continue  # a static exciter's ripple: the field channel moved, the machine did not
-                    if no_load and kind == "fault":
-                        if fell_at_once(signals["v_t"], k, dt):
-                            self._lose_measurement(t, signals["v_t"], k)
-                            continue
-                        kind = "field_step"  # a de-excitation: the field taken away
-                    new.append(self._event(kind, t, signals, k, k_cl))
-                if self._lost_level is not None and self._lost_until_ns is None:
-                    self._measurement_back(t, signals["v_t"], decided)
-            self._frontier_ns = decided
+        step = int(s.detect_every_s * NS)
+        while decided > self._frontier_ns:
+            end = self._frontier_ns + step
+            if end > decided:
+                if not force:
+                    break
+                end = decided
+            self._detect(self._frontier_ns, end, new)
+            self._frontier_ns = end
         self._pending.extend(new)
         windows = []
-        still = []
-        for ev, end in zip(self._pending, self._ends()):
+        still: list[Event] = []
+        for ev, (start, end), reading in zip(self._pending, self._spans(), self._readings()):
             # every event before the end is known once detection has passed it
-            if self._frontier_ns > end:
-                windows.append(self._cut(ev, end))
+            if self._frontier_ns > end and not still:
+                windows.append(self._cut(ev, start, end, reading=reading))
+                self._last_cut = ev
             else:
                 still.append(ev)
         self._pending = still
         return new, windows
+
+    def _detect(self, start: int, end: int, new: list[Event]) -> None:
+        """Events in [``start``, ``end``), read on the span from ``context_s`` before it to
+        ``settle_s`` after it."""
+        s = self.settings
+        t, x = self.ring.window(start - int(s.context_s * NS), end + int(s.settle_s * NS))
+        if len(t) <= 10:
+            return
+        # the batch detector reads V_t and P_m; P and Q say whether the breaker is open
+        # (V_f too: an AVR reference step or a manual field step moves V_t by 1 % only)
+        signals = {c: forward_filled(x[:, CHANNEL_INDEX[c]]) for c in ("v_t", "p_m", "p_e", "q_e", "v_f")}
+        no_load = at_no_load(signals)
+        dt = self.period_ns / NS
+        for kind, k, k_cl in find_events(signals, dt, thresholds=s.thresholds):
+            if not start <= t[k] < end or self._measurement_lost(t, signals["v_t"], k):
+                continue
+            if kind == "field_step" and not moves_terminal(signals, k, dt):
+                continue  # a static exciter's ripple: the field channel moved, the machine did not
+            if no_load and kind == "fault":
+                if fell_at_once(signals["v_t"], k, dt):
+                    self._lose_measurement(t, signals["v_t"], k)
+                    continue
+                kind = "field_step"  # a de-excitation: the field taken away
+            new.append(self._event(kind, t, signals, k, k_cl))
+        if self._lost_level is not None and self._lost_until_ns is None:
+            self._measurement_back(t, signals["v_t"], end)
 
     def _lose_measurement(self, t: NDArray[np.int64], v: NDArray[np.float64], k: int) -> None:
         span = max(1, int(NS / self.period_ns))
@@ -241,18 +277,58 @@ class Detector:
         its event (what the detector needed to accept it); the stages judge whether it is enough.
         """
         new, windows = self.update(force=True)
-        out = windows + [self._cut(ev, end, final=True) for ev, end in zip(self._pending, self._ends())]
+        out = windows + [
+            self._cut(ev, a, b, final=True, reading=r)
+            for ev, (a, b), r in zip(self._pending, self._spans(), self._readings())
+        ]
+        self._last_cut = self._pending[-1] if self._pending else self._last_cut
         self._pending = []
         return new, out
 
-    def _ends(self) -> list[int]:
-        """Each pending window's last stamp: ``post_s`` after its event, or the sample before the next
-        event's window begins."""
+    def _start(self, before: Event | None, ev: Event) -> int:
+        """Where ``ev``'s window begins (and ``before``'s ends, one sample earlier): ``pre_s``
+        before it (the paper's 1 s). A field step, a staged test, wants the plateau before it, as
+        ``phid identify`` cuts a test file: from where the recording resumed when it paused after
+        ``before`` (another test's file; the segment's start without one), else halfway from
+        ``before``'s end to it; never more than ``plateau_s`` back."""
         s = self.settings
-        pre, post = int(s.pre_s * NS), int(s.post_s * NS)
+        if ev.kind != "field_step":
+            return ev.inception_ns - int(s.pre_s * NS)
+        if ev.event_id in self._starts:
+            return self._starts[ev.event_id]
+        lo = ev.inception_ns - int(max(s.pre_s, s.plateau_s) * NS)
+        if before is not None:
+            lo = max(lo, (before.clearing_ns or before.inception_ns) + self.period_ns)
+        t, x = self.ring.window(lo, ev.inception_ns - self.period_ns)
+        judged = [i for i, c in enumerate(CHANNELS) if c not in s.not_recorded]
+        paused = np.flatnonzero(~np.isfinite(x[:, judged]).any(axis=1))
+        if paused.size and paused[-1] + 1 < len(t):
+            start = int(t[paused[-1] + 1])  # the recording resumed: this test's file begins
+        elif before is None:
+            start = max(lo, self.ring.oldest_ns or lo)
+        else:
+            start = max(lo, ((before.clearing_ns or before.inception_ns) + ev.inception_ns) // 2)
+        # the ring holds what lies before the event once it is detected: decided once
+        self._starts[ev.event_id] = start = min(start, ev.inception_ns - int(s.pre_s * NS))
+        return start
+
+    def _spans(self) -> list[tuple[int, int]]:
+        """Each pending window's first and last stamp: from its start (:meth:`_start`) to ``post_s``
+        after its event or the sample before the next window begins."""
+        post = int(self.settings.post_s * NS)
+        starts = [self._start(b, ev) for b, ev in zip([self._last_cut, *self._pending[:-1]], self._pending)]
         ends = [ev.inception_ns + post - self.period_ns for ev in self._pending]
         for i in range(len(ends) - 1):
-            ends[i] = min(ends[i], self._pending[i + 1].inception_ns - pre - self.period_ns)
+            ends[i] = min(ends[i], starts[i + 1] - self.period_ns)
+        return list(zip(starts, ends))
+
+    def _readings(self) -> list[int]:
+        """Each pending step's last stamp for its settled size: ``post_s`` after it, or the
+        second before the next event (past a field step's window, which stops halfway)."""
+        s = self.settings
+        ends = [ev.inception_ns + int(s.post_s * NS) - self.period_ns for ev in self._pending]
+        for i in range(len(ends) - 1):
+            ends[i] = min(ends[i], self._pending[i + 1].inception_ns - int(s.pre_s * NS) - self.period_ns)
         return ends
 
     def _event(
@@ -277,9 +353,11 @@ class Detector:
             segment=self._segment,
         )
 
-    def _cut(self, ev: Event, t1: int, *, final: bool = False) -> EventWindow:
+    def _cut(self, ev: Event, t0: int, t1: int, *, final: bool = False, reading: int | None = None) -> EventWindow:
         s = self.settings
-        t0 = ev.inception_ns - int(s.pre_s * NS)
+        if t0 < ev.inception_ns - int(s.pre_s * NS) and self.ring.oldest_ns is not None:
+            t0 = max(t0, self.ring.oldest_ns)  # a plateau reaching back past the ring's oldest sample
+        self._starts.pop(ev.event_id, None)
         t, x = self.ring.window(t0, t1)
         t, x = t.copy(), x.copy()
         latest = self.ring.latest_ns or 0
@@ -298,17 +376,23 @@ class Detector:
         judged = [i for i, c in enumerate(CHANNELS) if c not in s.not_recorded]
         if w.usable and len(x):
             w = self._paused_trimmed(w, judged)
-        x = w.values
-        if w.usable and not np.isfinite(x[:, judged]).all():
-            finite = np.isfinite(x)
-            dead = [c for i, c in enumerate(CHANNELS) if len(x) and not finite[:, i].any() and i in judged]
-            gappy = [c for i, c in enumerate(CHANNELS) if finite[:, i].any() and not finite[:, i].all() and i in judged]
-            why = [f"no data on {', '.join(dead)} (a dead channel)"] if dead else []
-            why += [f"{gappy} have gaps"] if gappy else []
-            w.usable, w.reason = False, "stale data in the window: " + "; ".join(why)
+        stale = stale_data(w.values, s.not_recorded) if w.usable else ""
+        if stale:
+            w.usable, w.reason = False, stale
         if w.usable and ev.kind in STEP_KINDS:
-            w.settled = settled_steps(w)
+            w.settled = settled_steps(self._reading(ev, w, reading), ev.inception_ns)
         return w
+
+    def _reading(self, ev: Event, w: EventWindow, end: int | None) -> Frame:
+        """The samples a step's settled size is read on: its window's, on to ``end`` where the
+        recording did not pause before it."""
+        if end is None or len(w.t_ns) == 0 or end <= int(w.t_ns[-1]):
+            return w
+        t, x = self.ring.window(int(w.t_ns[0]), end)
+        judged = [i for i, c in enumerate(CHANNELS) if c not in self.settings.not_recorded]
+        paused = np.flatnonzero(~np.isfinite(x[:, judged]).any(axis=1) & (t > ev.inception_ns))
+        stop = int(paused[0]) if paused.size else len(t)
+        return Frame(t[:stop], x[:stop], self.period_ns)
 
     def _paused_trimmed(self, w: EventWindow, judged: list[int]) -> EventWindow:
         """The window between the recording's pauses around its event (rows where every channel
@@ -332,7 +416,8 @@ class Detector:
         rows = slice(first, last + 1)
         out = EventWindow(t_ns=w.t_ns[rows].copy(), values=w.values[rows].copy(), period_ns=w.period_ns, event=ev)
         why = []
-        if first:
+        # said only within the paper's pre-event time: a field step's plateau begins where its file does
+        if first and t0 > ev.inception_ns - int(s.pre_s * NS):
             why.append(f"the recording resumed {(t0 - int(w.t_ns[0])) / NS:.1f} s into the window")
         if last < n - 1:
             why.append(f"paused {(int(w.t_ns[-1]) - t1) / NS:.1f} s before its end")
@@ -341,6 +426,21 @@ class Detector:
             out.usable = False
             out.reason += ": too little of the window left around the event"
         return out
+
+
+def stale_data(values: NDArray[np.float64], not_recorded: frozenset[str]) -> str:
+    """Why a window's samples cannot be used (a dead channel, gaps), or "" when they can: the
+    one judgement, for the detector's cut and for a window that arrives by topic. A channel the
+    recorder never carries is absent, not dead."""
+    judged = [i for i, c in enumerate(CHANNELS) if c not in not_recorded]
+    if np.isfinite(values[:, judged]).all():
+        return ""
+    finite = np.isfinite(values)
+    dead = [CHANNELS[i] for i in judged if len(values) and not finite[:, i].any()]
+    gappy = [CHANNELS[i] for i in judged if finite[:, i].any() and not finite[:, i].all()]
+    why = [f"no data on {', '.join(dead)} (a dead channel)"] if dead else []
+    why += [f"{gappy} have gaps"] if gappy else []
+    return "stale data in the window: " + "; ".join(why)
 
 
 def grid_points(t0: int, t1: int, period_ns: int, anchor: int) -> int:

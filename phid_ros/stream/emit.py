@@ -83,6 +83,9 @@ def emit(
         msg = m.parameters_message(types, r, seq, bools)
         if msg is not None:
             add("parameters", r.stream_time_ns, msg)
+        if "controls" in keys:
+            for c in m.controls_messages(types, r, seq, bools):
+                add("controls", r.stream_time_ns, c)
         if not r.accepted:
             done.notes.append(r.status)
     if "hamiltonian" in keys:

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from phid_ros.io.topics import RECORDER_CHANNELS
 from phid_ros.model.channels import CHANNELS, channel_columns
 from phid_ros.model.conventions import NS, seconds_to_ns, split_stamp, stamp_ns
 from phid_ros.model.parameters import PARAMETER_NAMES
@@ -63,6 +64,7 @@ def event_message(types: Types, e: Event) -> Any:
 def window_message(types: Types, w: EventWindow, seq: Seq = numpy_seq) -> Any:
     e = w.event
     arrays = {c: seq(v) for c, v in channel_columns(w.values).items()}
+    arrays |= {c: seq(w.recorded[c] if c in w.recorded else np.zeros(0)) for c in RECORDER_CHANNELS}
     return types["phid_msgs/msg/EventWindow"](
         header=header(types, int(w.t_ns[0]) if len(w.t_ns) else e.inception_ns),
         event_id=e.event_id,
@@ -102,6 +104,42 @@ def parameters_message(
         fit_rmse=float(fit),
         status=outcome.status,
     )
+
+
+def controls_messages(
+    types: Types, outcome: RecalibrationOutcome, seq: Seq = numpy_seq, bools: Seq = numpy_bools
+) -> list[Any]:
+    """One ControlParameters message per kind the run fitted (or said why not): the exciter, and
+    the stabiliser and governor where recorded, published beside the machine's parameters."""
+    from phid_ros.controls.identify import ControlFit
+
+    out = []
+    for kind, fit in outcome.controls.items():
+        if isinstance(fit, ControlFit):
+            names = list(fit.parameters)
+
+            def number(v: float | None) -> float:
+                return math.nan if v is None else float(v)
+
+            fields: dict[str, Any] = {
+                "model": fit.model if fit.named else "",
+                "fitted_model": fit.model,
+                "names": names,
+                "values": seq([number(fit.parameters[n]) for n in names]),
+                "std_dev": seq([number(fit.uncertainty.get(n)) for n in names]),
+                "identifiable": bools([bool(fit.identifiable.get(n)) for n in names]),
+                "limits_reached": sorted(fit.limits),
+                "fit_rmse": float(fit.fit_rmse),
+                "why": fit.why,
+            }
+        else:
+            fields = {"model": "", "fitted_model": "", "names": [], "values": seq([]), "std_dev": seq([])}
+            fields |= {"identifiable": bools([]), "limits_reached": [], "fit_rmse": math.nan, "why": fit}
+        msg = types["phid_msgs/msg/ControlParameters"](
+            header=header(types, outcome.stream_time_ns), kind=kind, event_ids=list(outcome.event_ids), **fields
+        )
+        out.append(msg)
+    return out
 
 
 def partial_message(types: Types, outcome: RecalibrationOutcome, seq: Seq = numpy_seq, bools: Seq = numpy_bools) -> Any:
@@ -209,6 +247,7 @@ def diagnostics_message(
                 ("wild_stamps", h.wild_stamps),
                 ("malformed", h.malformed),
                 ("gaps", h.gaps),
+                ("pauses", h.pauses),  # of the gaps, those between marked tests: nothing lost
                 ("clock_jumps", h.clock_jumps),
             )
         ]
@@ -255,9 +294,9 @@ def window_from_message(msg: Any) -> EventWindow:
         v_prefault=math.nan,
         segment=0,
     )
-    w = EventWindow(t_ns=t, values=values, period_ns=period, event=ev)
+    recorded = {c: x for c in RECORDER_CHANNELS if len(x := np.asarray(getattr(msg, c), dtype=np.float64)) == len(t)}
+    w = EventWindow(t_ns=t, values=values, period_ns=period, event=ev, recorded=recorded if len(t) else {})
     if period <= 0 or len(values) == 0:
         w.usable, w.reason = False, "empty window or bad sample period"
-    elif not np.isfinite(values).all():
-        w.usable, w.reason = False, "stale data in the window (gaps)"
+    # its samples are judged where the deployment's channels are known (MonitorPipeline.add_window)
     return w

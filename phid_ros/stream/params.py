@@ -12,13 +12,14 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import Any
 
+from phid_ros.controls.models import KINDS_IN_ORDER as CONTROL_KINDS
 from phid_ros.errors import ParameterError
 from phid_ros.ident.constraints import Constraints, parse_constraints
 from phid_ros.ident.pipeline import IdentifyOptions
 from phid_ros.model.bounds import Bounded
 from phid_ros.model.channels import CHANNELS
 from phid_ros.model.conventions import seconds_to_ns
-from phid_ros.stream.detector import POST_EVENT_S, PRE_EVENT_S
+from phid_ros.stream.detector import POST_EVENT_S, PRE_EVENT_S, STEP_PLATEAU_S
 from phid_ros.stream.pipeline import PipelineSettings
 
 # the streams that may report slower than the grid (a 50 Hz PMU beside 1 kHz PT/CT); the
@@ -95,24 +96,36 @@ AUTOSTART = Tunable(
     runtime=False,
 )
 
+# both nodes align the streams (the recalibration node for the Hamiltonian and the streams' health)
+SAMPLE_RATE = Tunable(
+    "sample_rate_hz",
+    float,
+    1000.0,
+    "rate of the common time grid the streams are aligned on (a recorder's own: 208.3332031 for 4.800003 ms)",
+    10.0,
+    100000.0,
+    runtime=False,
+)
+
 INGEST: tuple[Tunable, ...] = (
     (AUTOSTART,)
     + SENSORS
     + (
-        Tunable(
-            "sample_rate_hz",
-            float,
-            1000.0,
-            "rate of the common time grid the streams are aligned on",
-            10.0,
-            100000.0,
-            runtime=False,
-        ),
+        SAMPLE_RATE,
         Tunable(
             "ring_seconds", float, 120.0, "length of the ring buffer of aligned samples", 40.0, 3600.0, runtime=False
         ),
         Tunable("pre_event_s", float, PRE_EVENT_S, "event window before the disturbance", 0.2, 10.0),
         Tunable("post_event_s", float, POST_EVENT_S, "event window after the disturbance", 2.0, 120.0),
+        Tunable(
+            "plateau_s",
+            float,
+            STEP_PLATEAU_S,
+            "how far a field step's window reaches back for its pre-step plateau (halfway from the event before, "
+            "or where the recording resumed; at most the ring buffer's oldest sample)",
+            0.0,
+            3600.0,
+        ),
         Tunable(
             "process_period_s",
             float,
@@ -131,6 +144,7 @@ RECALIBRATION: tuple[Tunable, ...] = (
     (AUTOSTART,)
     + SENSORS
     + (
+        SAMPLE_RATE,
         Tunable("hamiltonian_rate_hz", float, 10.0, "rate of the Hamiltonian output", 0.1, 100.0),
         Tunable("diagnostics_period_s", float, 1.0, "period of /diagnostics", 0.1, 60.0, runtime=False),
         Tunable("min_interval_s", float, 300.0, "least stream time between automatic recalibrations", 0.0, 86400.0),
@@ -164,6 +178,14 @@ RECALIBRATION: tuple[Tunable, ...] = (
             "(empty: none; the field current's base then needs a no-load plateau below the knee)",
             runtime=False,
         ),
+        Tunable(
+            "control_systems",
+            str,
+            "exciter,stabiliser",
+            "control systems fitted beside the machine at each recalibration, comma-separated among exciter, "
+            "governor, stabiliser (empty: none), as phid identify fits them",
+            runtime=False,
+        ),
         Tunable("tracking_enabled", bool, False, "run the sliding-window tracker too"),
         Tunable("tracking_window_s", float, 300.0, "tracker window", 30.0, 3600.0, runtime=False),
         Tunable("tracking_hop_s", float, 60.0, "tracker hop", 1.0, 3600.0, runtime=False),
@@ -192,6 +214,10 @@ def validate(table: tuple[Tunable, ...], name: str, value: Any, *, running: bool
         unknown = [c for c in channel_list(value) if c not in CHANNELS]
         if unknown:
             return f"not_recorded: unknown channel(s) {', '.join(unknown)}; channels: {', '.join(CHANNELS)}"
+    if name == "control_systems":
+        unknown = [k for k in channel_list(value) if k not in CONTROL_KINDS]
+        if unknown:
+            return f"control_systems: unknown {', '.join(unknown)}; among {', '.join(CONTROL_KINDS)}"
     if name in ("held", "saturation"):
         try:
             held_constraints(value if name == "held" else "", value if name == "saturation" else "")
@@ -224,7 +250,9 @@ def pipeline_settings(
     return PipelineSettings(
         period_ns=seconds_to_ns(1.0 / v["sample_rate_hz"]),
         ring_seconds=float(v["ring_seconds"]),
-        detector=DetectorSettings(pre_s=float(v["pre_event_s"]), post_s=float(v["post_event_s"])),
+        detector=DetectorSettings(
+            pre_s=float(v["pre_event_s"]), post_s=float(v["post_event_s"]), plateau_s=float(v["plateau_s"])
+        ),
         hamiltonian_rate_hz=float(v["hamiltonian_rate_hz"]),
         stale_timeout_s=float(v["stale_timeout_s"]),
         store_path=store_path,
@@ -240,16 +268,19 @@ def pipeline_settings(
         tracking=TrackerSettings(window_s=float(v["tracking_window_s"]), hop_s=float(v["tracking_hop_s"])),
         expected_rates_hz={s: float(v[f"{s}_rate_hz"]) for s in RATED_STREAMS if v[f"{s}_rate_hz"] > 0},
         not_recorded=channel_list(str(v["not_recorded"])),
+        control_systems=tuple(k for k in CONTROL_KINDS if k in channel_list(str(v["control_systems"]))),
         identify=IdentifyOptions(baseline=False, constraints=held_constraints(str(v["held"]), str(v["saturation"]))),
     )
 
 
 def apply(settings: PipelineSettings, name: str, value: Any) -> PipelineSettings:
     """A run-time change applied to live settings (already validated)."""
-    if name in ("pre_event_s", "post_event_s"):
-        if name == "pre_event_s":
-            return replace(settings, detector=replace(settings.detector, pre_s=float(value)))
-        return replace(settings, detector=replace(settings.detector, post_s=float(value)))
+    if name in ("pre_event_s", "post_event_s", "plateau_s"):
+        d = settings.detector
+        d = replace(d, pre_s=float(value)) if name == "pre_event_s" else d
+        d = replace(d, post_s=float(value)) if name == "post_event_s" else d
+        d = replace(d, plateau_s=float(value)) if name == "plateau_s" else d
+        return replace(settings, detector=d)
     if name in ("min_interval_s", "latest_per_kind", "max_relative_jump"):
         return replace(settings, policy=replace(settings.policy, **{name: value}))
     if name in ("hamiltonian_rate_hz", "auto_recalibrate", "stale_timeout_s", "tracking_enabled"):

@@ -15,13 +15,15 @@ import numpy as np
 
 from phid_ros.ident.pipeline import IdentifyOptions
 from phid_ros.io.recording import ScenarioInfo
+from phid_ros.io.topics import RECORDER_STREAMS
 from phid_ros.model.channels import CHANNELS
 from phid_ros.model.conventions import NS
 from phid_ros.model.parameters import GeneratorParameters
 from phid_ros.stream.align import Aligner, Run, StreamHealth
-from phid_ros.stream.detector import Detector, DetectorSettings, Event, EventWindow
+from phid_ros.stream.detector import Detector, DetectorSettings, Event, EventWindow, stale_data
 from phid_ros.stream.energy import EnergySamples, energy
 from phid_ros.stream.recalibration import RecalibrationOutcome, RecalibrationPolicy, Recalibrator
+from phid_ros.stream.recorder import RecorderBuffer
 from phid_ros.stream.ring import RingBuffer
 from phid_ros.stream.store import EventStore
 from phid_ros.stream.tracker import SlidingTracker, TrackerSettings, TrackPoint
@@ -39,6 +41,8 @@ class PipelineSettings:
     auto_recalibrate: bool = True
     policy: RecalibrationPolicy = field(default_factory=RecalibrationPolicy)
     identify: IdentifyOptions = field(default_factory=lambda: IdentifyOptions(baseline=False))
+    # the control systems each recalibration fits beside the machine (phid identify's controls)
+    control_systems: tuple[str, ...] = ("exciter", "stabiliser")
     initial_parameters: GeneratorParameters | None = None
     detect: bool = True  # False: windows arrive from elsewhere (the recalibration node gets them by topic)
     # False: windows are handed on, not kept (the ingest node: the recalibration node keeps them; an
@@ -103,11 +107,16 @@ class Outputs:
         return Outputs(list(self.events), windows, recalibrations, energy, list(self.tracked))
 
 
+RECORDER_STREAM_NAMES = frozenset(s.name for s in RECORDER_STREAMS)
+RECORDER_CHANNELS_OF = {s.name: s.channels for s in RECORDER_STREAMS}
+
+
 class MonitorPipeline:
     def __init__(self, settings: PipelineSettings | None = None) -> None:
         self.settings = s = settings or PipelineSettings()
         self.aligner = self._new_aligner()
         self.ring = RingBuffer(int(s.ring_seconds * NS // s.period_ns), CHANNELS, s.period_ns)
+        self.recorder = RecorderBuffer(s.ring_seconds, not_recorded=s.not_recorded)
         self.detector = Detector(self.ring, s.period_ns, s.detector)
         # in memory (a replay without --store) the store keeps what a recalibration can read, the
         # newest windows of each kind: enough for ready() as long as that is no fewer than it asks
@@ -115,7 +124,7 @@ class MonitorPipeline:
         if retain is not None and retain < max(s.policy.min_swing_events, s.policy.min_step_events):
             retain = None
         self.store = EventStore(s.store_path, unit=s.unit or None, retain_per_kind=retain)
-        self.recalibrator = Recalibrator(self.store, s.policy, s.identify)
+        self.recalibrator = Recalibrator(self.store, s.policy, s.identify, controls=s.control_systems)
         self.recalibrator.last_good = s.initial_parameters
         self.markers: list[ScenarioInfo] = []  # a recording's scenario markers: they name the events
         self.tracker: SlidingTracker | None = None
@@ -130,14 +139,17 @@ class MonitorPipeline:
 
     # -- input ---------------------------------------------------------------------------
     def ingest(self, stream: str, t0_ns: int, period_ns: int, arrays: dict, receive_ns: int | None = None) -> None:
-        self.aligner.ingest(stream, t0_ns, period_ns, arrays, receive_ns)
+        if stream in RECORDER_STREAM_NAMES:  # beside the grid: kept for the windows, never waited for
+            self.recorder.ingest(stream, t0_ns, period_ns, arrays, receive_ns)
+        else:
+            self.aligner.ingest(stream, t0_ns, period_ns, arrays, receive_ns)
         self.samples_in += sum(len(a) for a in arrays.values())
 
     def ingest_message(
         self, stream: str, t0_ns: int, period_ns: int, arrays: dict, receive_ns: int | None = None
     ) -> None:
         """A sensor block as a ROS message carries it: a zero stamp is an unset clock, not a time."""
-        if int(t0_ns) == 0:
+        if int(t0_ns) == 0 and stream not in RECORDER_STREAM_NAMES:  # the recorder's buffer counts its own
             h = self.aligner.health[stream]
             n = len(next(iter(arrays.values()))) if arrays else 0
             h.messages += 1
@@ -148,10 +160,22 @@ class MonitorPipeline:
 
     def ingest_runs(self, runs: Sequence[Run]) -> bool:
         """Runs of messages as :meth:`ingest_message` would take them one by one, or False and
-        nothing taken (see :meth:`Aligner.take_runs`)."""
-        if not self.aligner.take_runs(runs):
+        nothing taken (see :meth:`Aligner.take_runs`; a recorder's runs go in message by message)."""
+        recorder = [r for r in runs if r.stream in RECORDER_STREAM_NAMES]
+        if not self.aligner.take_runs([r for r in runs if r.stream not in RECORDER_STREAM_NAMES]):
             return False
-        self.samples_in += sum(r.x.size for r in runs)
+        for r in recorder:
+            channels = RECORDER_CHANNELS_OF[r.stream]
+            a = 0
+            for k in r.lengths:
+                self.ingest_message(
+                    r.stream,
+                    r.t0_ns + a * r.period_ns,
+                    r.period_ns,
+                    {c: r.x[a : a + k, j] for j, c in enumerate(channels)},
+                )
+                a += k
+        self.samples_in += sum(r.x.size for r in runs if r.stream not in RECORDER_STREAM_NAMES)
         return True
 
     def add_marker(self, marker: ScenarioInfo) -> None:
@@ -176,6 +200,7 @@ class MonitorPipeline:
                 self._store(pending, out)
                 self._energy_upto(self.latest_ns, out)  # what the old segment still owes, if in hand
                 self.ring.clear()
+                self.recorder.clear()
                 self.detector.reset(block.segment)
                 if self.tracker is not None:
                     self.tracker.reset()
@@ -211,8 +236,12 @@ class MonitorPipeline:
         return out
 
     def add_window(self, window: EventWindow) -> Outputs:
-        """A window cut elsewhere (by the ingest node): label it, store it, maybe recalibrate."""
+        """A window cut elsewhere (by the ingest node): label it, store it, maybe recalibrate. Its
+        samples are judged as the detector judges its own, on this deployment's channels."""
         out = Outputs()
+        stale = stale_data(window.values, self.settings.not_recorded) if window.usable else ""
+        if stale:
+            window.usable, window.reason = False, stale
         if not window.event.name:
             self._label(window.event)
         self._store([window], out)
@@ -226,6 +255,7 @@ class MonitorPipeline:
         """Forget buffered data and stored events (the ~/reset service); parameters are kept."""
         self.aligner = self._new_aligner()
         self.ring.clear()
+        self.recorder = RecorderBuffer(self.settings.ring_seconds, not_recorded=self.settings.not_recorded)
         self.detector = Detector(self.ring, self.settings.period_ns, self.settings.detector)
         self.store.clear()
         if self.tracker is not None:
@@ -240,7 +270,20 @@ class MonitorPipeline:
 
     @property
     def health(self) -> dict[str, StreamHealth]:
-        return self.aligner.health
+        """Every sensor stream's health, and a recorder's stream once it has sent anything: it is
+        optional (a deployment without one loses nothing), but one that stops is stale."""
+        kept = {n: h for n, h in self.recorder.health.items() if h.messages}
+        health = self.aligner.health | kept if kept else self.aligner.health
+        marked = [(m.start_ns, m.end_ns) for m in self.markers]
+        for h in health.values():
+            h.mark_pauses(marked)
+        return health
+
+    def status(self, name: str, now_ns: int | None = None) -> tuple[str, str]:
+        """One stream's diagnostic level and message, stale judged on both clocks."""
+        return self.health[name].status(
+            now_ns, stream_now_ns=self.aligner.stream_now_ns, stale_ns=self.aligner.stale_ns
+        )
 
     def configure(self, settings: PipelineSettings) -> None:
         """Run-time settings changed (a ROS parameter): hand each part its share."""
@@ -277,10 +320,13 @@ class MonitorPipeline:
         for m in self.markers:
             if m.start_ns <= e.inception_ns <= m.end_ns:
                 e.name, e.role, e.generator_damping = m.name, m.role, m.generator_damping
+                e.regulator, e.reference_step = m.regulator, m.reference_step
                 return
 
     def _store(self, windows: list[EventWindow], out: Outputs) -> None:
         for w in windows:
+            if not w.recorded:
+                w.recorded = self.recorder.columns(w.t_ns)
             if self.settings.keep_windows:
                 self.store.add(w)
             out.windows.append(w)

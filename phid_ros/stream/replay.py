@@ -17,7 +17,7 @@ import numpy as np
 
 from phid_ros.ident.scenario import DEFAULT_THRESHOLDS, StepThresholds
 from phid_ros.io.recording import DEFAULT_BLOCK_SIZE, Recording, block_bounds
-from phid_ros.io.topics import STREAMS_BY_NAME
+from phid_ros.io.topics import ALL_STREAMS_BY_NAME
 from phid_ros.model.conventions import NS
 from phid_ros.model.parameters import GeneratorParameters
 from phid_ros.stream.align import Run, StreamHealth
@@ -29,7 +29,7 @@ PROCESS_EVERY_NS = NS // 2  # stream time between pipeline runs while feeding
 MAX_PACE_STEP_NS = 60 * NS  # a stamp step beyond this is a clock jump, not time to wait for
 
 
-def sensor_blocks(rec: Recording, block_size: int = DEFAULT_BLOCK_SIZE) -> list[tuple[int, str, int, int]]:
+def stream_blocks(rec: Recording, block_size: int = DEFAULT_BLOCK_SIZE) -> list[tuple[int, str, int, int]]:
     """(stamp of the block's last sample, stream, start, stop), in the order a recorder logged them.
 
     A bag remembers where each message stood in the file: its messages are fed in that
@@ -37,7 +37,8 @@ def sensor_blocks(rec: Recording, block_size: int = DEFAULT_BLOCK_SIZE) -> list[
     the aligner as a jump and a wild stamp as one wild block. Recordings without that
     order (CSV imports, simulations) have monotonic stamps; their blocks go by stamp.
     """
-    sensors = rec.sensor_streams()  # a recorder's own streams are not the pipeline's
+    # a recorder's own streams too: the pipeline keeps them beside the grid for the event windows
+    sensors = rec.streams
     recorded = all(s.msg_seq is not None and s.msg_offsets is not None for s in sensors.values())
     keys, ends, names, starts, stops = [], [], [], [], []
     for i, (name, s) in enumerate(sensors.items()):
@@ -132,7 +133,7 @@ class Player:
         pipeline = self.pipeline
         for m in rec.scenarios:
             pipeline.add_marker(m)
-        blocks = sensor_blocks(rec, self.block_size)
+        blocks = stream_blocks(rec, self.block_size)
         if not blocks:
             return
         if self.prev_end is None:
@@ -156,7 +157,7 @@ class Player:
                         if ahead > 0:
                             time.sleep(ahead)
                     s = rec.streams[name]
-                    chans = STREAMS_BY_NAME[name].channels
+                    chans = ALL_STREAMS_BY_NAME[name].channels
                     pipeline.ingest_message(name, int(s.t_ns[a]), s.period_ns, {c: s.channels[c][a:b] for c in chans})
             i = j + 1
             if played_at[j] >= self.next_process:
@@ -211,7 +212,7 @@ def _runs(rec: Recording, step: list[tuple[int, str, int, int]]) -> list[Run] | 
     runs = []
     for name, (a, b, _, *lengths) in spans.items():
         s = rec.streams[name]
-        chans = STREAMS_BY_NAME[name].channels
+        chans = ALL_STREAMS_BY_NAME[name].channels
         x = np.empty((b - a, len(chans)), order="F")
         for col, c in enumerate(chans):
             x[:, col] = s.channels[c][a:b]

@@ -31,6 +31,7 @@ from phid_ros.model.conventions import NS
 from phid_ros.stream.align import StreamHealth
 from phid_ros.stream.detector import EventWindow
 from phid_ros.stream.recalibration import scenario_from_window
+from phid_ros.stream.recorder import on_stamps
 
 
 def aligned_frame(
@@ -91,26 +92,14 @@ def aligned_frame(
 
 
 def recorder_columns(rec: Recording, t_ns: np.ndarray) -> dict[str, np.ndarray]:
-    """A recorder's own channels on the frame's stamps ``t_ns``: each sample the recorded one
-    at that stamp, or linearly between two neighbours a period apart; NaN elsewhere (outside
-    the stream, across its gaps). Only the channels with a finite sample come out."""
+    """A recorder's own channels on the frame's stamps ``t_ns`` (:func:`~phid_ros.stream.recorder.on_stamps`:
+    the rule the online pipeline's windows follow too)."""
     out: dict[str, np.ndarray] = {}
     for stream in rec.recorder_streams().values():
-        if not len(stream):
-            continue
-        order = np.argsort(stream.t_ns, kind="stable")
-        ts = stream.t_ns[order]
-        k = np.clip(np.searchsorted(ts, t_ns, side="right") - 1, 0, len(ts) - 1)
-        k1 = np.minimum(k + 1, len(ts) - 1)
-        span = (ts[k1] - ts[k]).astype(np.float64)
-        inside = (t_ns >= ts[k]) & (t_ns <= ts[k1]) & (span <= 1.5 * stream.period_ns)
-        inside |= t_ns == ts[k]
-        w = np.where(span > 0, (t_ns - ts[k]) / np.where(span > 0, span, 1.0), 0.0)
-        for c, x in stream.channels.items():
-            xs = x[order]
-            if not np.isfinite(xs).any():
-                continue
-            out[c] = np.where(inside, xs[k] + w * (xs[k1] - xs[k]), np.nan)
+        if len(stream):
+            order = np.argsort(stream.t_ns, kind="stable")
+            channels = {c: x[order] for c, x in stream.channels.items()}
+            out.update(on_stamps(stream.t_ns[order], channels, stream.period_ns, t_ns))
     return out
 
 

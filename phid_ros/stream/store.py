@@ -44,10 +44,15 @@ SCHEMA_STEPS = (
     """,
     # 2: a digest of the samples, so that a replayed event is told from a different one
     "ALTER TABLE events ADD COLUMN digest TEXT NOT NULL DEFAULT ''",
+    # 3: what the test sheet says of the event's scenario (its marker's), which the identification reads
+    """
+    ALTER TABLE events ADD COLUMN regulator TEXT NOT NULL DEFAULT '';
+    ALTER TABLE events ADD COLUMN reference_step REAL
+    """,
 )
 COLUMNS = (
     "event_id, kind, name, role, generator_damping, inception_ns, clearing_ns, severity, v_prefault, segment, "
-    "start_ns, period_ns, n, usable, reason, channels, data"
+    "start_ns, period_ns, n, usable, reason, channels, data, regulator, reference_step"
 )
 BUSY_TIMEOUT_S = 30.0  # how long a writer waits for another process's transaction before giving up
 
@@ -62,6 +67,9 @@ def window_digest(w: EventWindow) -> str:
     start = int(w.t_ns[0]) if len(w.t_ns) else w.event.inception_ns
     h.update(np.array([start, w.period_ns, len(w.t_ns)], dtype="<i8").tobytes())
     h.update(np.ascontiguousarray(w.values, dtype="<f8").tobytes())
+    for c, x in w.recorded.items():  # a window without them keeps the digest it always had
+        h.update(c.encode())
+        h.update(np.ascontiguousarray(x, dtype="<f8").tobytes())
     return h.hexdigest()
 
 
@@ -164,7 +172,7 @@ class EventStore:
                     if stored.usable or (not w.usable and len(stored.t_ns) >= len(w.t_ns)):
                         return "kept"  # the stored window is the more complete one of the same event
                 self._db.execute(
-                    f"INSERT OR REPLACE INTO events ({COLUMNS}, digest) VALUES ({'?,' * 17}?)",
+                    f"INSERT OR REPLACE INTO events ({COLUMNS}, digest) VALUES ({'?,' * 19}?)",
                     (
                         *self._values(w),
                         digest,
@@ -200,8 +208,10 @@ class EventStore:
             len(w.t_ns),
             int(w.usable),
             w.reason,
-            ",".join(CHANNELS),
-            np.ascontiguousarray(w.values, dtype="<f8").tobytes(),
+            ",".join((*CHANNELS, *w.recorded)),
+            np.ascontiguousarray(np.column_stack([w.values, *w.recorded.values()]), dtype="<f8").tobytes(),
+            e.regulator,
+            e.reference_step,
         )
 
     # -- reading -------------------------------------------------------------------------
@@ -253,17 +263,26 @@ class EventStore:
 
     @staticmethod
     def _row(r: tuple) -> EventWindow:
-        (eid, kind, name, role, damping, inc, clr, sev, vpf, seg, start, period, n, usable, reason, chans, blob) = r
+        eid, kind, name, role, damping, inc, clr, sev, vpf, seg, start, period, n, usable, reason, chans, blob = r[:17]
+        regulator, reference_step = r[17:]
         channels = chans.split(",")
-        values = np.frombuffer(blob, dtype="<f8").reshape(n, len(channels)).copy()
-        if tuple(channels) != CHANNELS:
-            values = values[:, [channels.index(c) for c in CHANNELS]]
+        stored = np.frombuffer(blob, dtype="<f8").reshape(n, len(channels))
+        values = stored[:, [channels.index(c) for c in CHANNELS]].copy()
+        # a recorder's own channels stored beside them (a store from before keeps none)
+        recorded = {c: stored[:, j].copy() for j, c in enumerate(channels) if c not in CHANNELS}
 
         def real(v: float | None) -> float:
             return math.nan if v is None else float(v)  # SQLite stores NaN as NULL
 
         ev = Event(eid, kind, int(inc), int(clr), real(sev), real(vpf), int(seg), name or "", role, bool(damping))
+        ev.regulator, ev.reference_step = regulator or "", None if reference_step is None else float(reference_step)
         t = int(start) + np.arange(n, dtype=np.int64) * int(period)
         return EventWindow(
-            t_ns=t, values=values, period_ns=int(period), event=ev, usable=bool(usable), reason=reason or ""
+            t_ns=t,
+            values=values,
+            period_ns=int(period),
+            event=ev,
+            usable=bool(usable),
+            reason=reason or "",
+            recorded=recorded,
         )

@@ -228,3 +228,50 @@ def test_the_monitor_holds_the_datasheet_values_it_is_given(trend_bag, tmp_path,
     # a typo is said before the reading, in one line
     assert main(["replay", str(trend_bag), "--out", str(tmp_path / "x.mcap"), "--saturation", "0.4,0.1"]) == 2
     assert "needs S(1.2) > S(1.0) > 0" in capsys.readouterr().err
+
+
+def test_the_monitor_on_a_trend_log_publishes_what_identify_finds(folder, trend_bag) -> None:
+    """A recorder at 208 reports/s with jitter and without the rotor's channels, its field current
+    on a stream of its own: the online pipeline carries I_fd with each window, a field step's window
+    reaches back to where its test's file began, and the recalibration's partial set equals phid
+    identify's on the same bag within 1 %; every declared stream is healthy (the pauses between the
+    files are between marked tests)."""
+    from phid_ros.api import load_recording
+    from phid_ros.ident.constraints import parse_constraints
+    from phid_ros.ident.pipeline import IdentifyOptions
+    from phid_ros.io.recording import not_recorded
+    from phid_ros.stream.pipeline import MonitorPipeline, PipelineSettings
+    from phid_ros.stream.replay import replay
+
+    d = folder[0]
+    rec = load_recording(trend_bag)
+    held = parse_constraints([f"X_q={TABLE1.X_q}"])
+    pipeline = MonitorPipeline(
+        PipelineSettings(
+            period_ns=rec.streams["pt_ct"].period_ns,
+            not_recorded=not_recorded(rec.metadata),
+            identify=IdentifyOptions(baseline=False, constraints=held),
+        )
+    )
+    try:
+        out = replay(rec, pipeline)
+        health = {n: pipeline.status(n) for n in pipeline.health}
+    finally:
+        pipeline.close()
+    assert {n: level for n, (level, _) in health.items()} == dict.fromkeys(
+        ("pt_ct", "encoder", "pmu", "excitation", "field_controller"), "OK"
+    ), health
+    assert "paused 6 time(s) between marked tests" in health["pt_ct"][1]
+    starts = {m.name: m.start_ns for m in rec.scenarios}
+    steps = [w for w in out.windows if w.event.kind == "field_step"]
+    assert len(steps) == 5 and all(w.usable and "i_fd" in w.recorded for w in steps)
+    for w in steps:  # the window begins where its file does, within a report
+        assert abs(int(w.t_ns[0]) - starts[w.event.name]) <= w.period_ns, w.event.name
+    result = d / "monitor_identify.json"
+    assert main(["identify", str(trend_bag), "--fix", f"X_q={TABLE1.X_q}", "--json", str(result)]) == 0
+    doc = json.loads(result.read_text())
+    partial = out.recalibrations[-1].determined
+    assert set(partial) == {"X_d", "X_d_prime", "T_d0_prime"}
+    for name, e in partial.items():
+        assert e.value == pytest.approx(doc["parameters"][name], rel=0.01), name
+    assert out.recalibrations[-1].controls["exciter"]  # fitted beside the machine, or said why not

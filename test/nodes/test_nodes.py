@@ -70,7 +70,8 @@ def test_wiring_topics_qos_services_parameters(ros):
 
     ingest, recal = make_nodes(ros)
     subs = {s.topic: s for s in ingest.subscriptions}
-    assert set(subs) == {"/generator/pt_ct", "/generator/encoder", "/generator/pmu", "/generator/excitation"}
+    sensors = {"/generator/pt_ct", "/generator/encoder", "/generator/pmu", "/generator/excitation"}
+    assert set(subs) == sensors | {"/generator/field_controller"}  # the recorder's own: optional
     assert all(s.qos.reliability == ReliabilityPolicy.BEST_EFFORT for s in subs.values())  # sensor data QoS
     assert {p.topic for p in ingest.publishers} == {"/generator/events", "/generator/event_windows"}
     params = next(p for p in recal.publishers if p.topic == "/generator/parameters")
@@ -245,8 +246,17 @@ def test_launch_file_names_the_installed_executables_and_config_sections():
 
     root = Path(__file__).resolve().parents[2]
     tree = ast.parse((root / "launch" / "monitor.launch.py").read_text())
-    calls = [n for n in ast.walk(tree) if isinstance(n, ast.Call) and getattr(n.func, "id", "") == "LifecycleNode"]
-    executables = {k.value.value for c in calls for k in c.keywords if k.arg == "executable"}
+    # the nodes: one LifecycleNode a name, made in a comprehension over the executables' names
+    made = next(
+        n
+        for n in ast.walk(tree)
+        if isinstance(n, ast.ListComp)
+        and isinstance(n.elt, ast.Call)
+        and getattr(n.elt.func, "id", "") == "LifecycleNode"
+    )
+    keywords = {k.arg: ast.unparse(k.value) for k in made.elt.keywords}
+    assert keywords["executable"] == keywords["name"] == ast.unparse(made.generators[0].target)
+    executables = set(ast.literal_eval(made.generators[0].iter))
     assert executables == {"ingest_node", "recalibration_node"}
     entry_points = set(re.findall(r'"(\w+) = phid_ros\.nodes\.\w+:main"', (root / "setup.py").read_text()))
     assert executables <= entry_points

@@ -129,3 +129,65 @@ def test_the_held_values_and_the_curve_reach_the_recalibration() -> None:
     assert validate(RECALIBRATION, "held", "X_q=abc", running=False) == "held: --fix X_q: 'abc' is not a number"
     assert "needs S(1.2) > S(1.0) > 0" in (validate(RECALIBRATION, "saturation", "0.4,0.1", running=False) or "")
     assert validate(RECALIBRATION, "held", "X_q=0.62", running=True).startswith("held cannot change while")
+
+
+@pytest.fixture(scope="module")
+def trend_log(tmp_path_factory):
+    """A commissioning day's trend logs (208 reports/s, jittered, no rotor channels, the field
+    current on the controller's stream), imported as a plant engineer does."""
+    from phid_ros.io.bags.recordings import read_recording, write_recording
+    from phid_ros.io.field.channel_map import load_channel_map
+    from phid_ros.io.field.pmu_csv import import_pmu_csv
+    from test.io.field.field_sets import trend_log_set
+
+    d = tmp_path_factory.mktemp("trend")
+    paths, cmap = trend_log_set(d, TABLE1)
+    path = write_recording(d / "day.mcap", import_pmu_csv(paths, load_channel_map(cmap)))
+    return read_recording(path)
+
+
+def test_the_nodes_on_a_trend_log_publish_what_replay_does(ros, trend_log):
+    """The field current crosses from the ingest node to the recalibration node inside each
+    window message; a window without the rotor's channels is used by both (the recalibration node
+    judged it stale before); the last partial set and the exciter are replay's, to the last digit."""
+    from phid_ros.io.recording import not_recorded
+    from phid_ros.stream.params import pipeline_settings
+    from phid_ros.stream.pipeline import MonitorPipeline
+    from phid_ros.stream.replay import replay
+
+    absent = ",".join(sorted(not_recorded(trend_log.metadata)))
+    rate = 1e9 / trend_log.streams["pt_ct"].period_ns
+    import rclpy.node
+
+    rclpy.node.OVERRIDES["ingest_node"] = {"not_recorded": absent, "sample_rate_hz": rate}
+    try:
+        ingest, recal = make_nodes(ros, not_recorded=absent, held=f"X_q={TABLE1.X_q}")
+    finally:
+        rclpy.node.OVERRIDES.pop("ingest_node")
+    play(ros, trend_log, ingest, recal)
+    recal.input._last -= recal.values["end_of_data_s"] + 1  # the bag has ended
+    ingest.input._last -= ingest.values["end_of_data_s"] + 1
+    ingest.process()
+    recal.pipeline.recalibrator.join()
+    recal.process()
+    recal.pipeline.recalibrator.join()
+    recal.process()
+    windows = published(ingest, "/generator/event_windows")
+    assert len(windows) >= 5 and all(len(w.i_fd) == len(w.v_t) for w in windows)
+    assert all(w.usable for w in recal.pipeline.store.all())
+    node = published(recal, "/generator/parameters")[-1]
+    exciter = [m for m in published(recal, "/generator/control_parameters") if m.kind == "exciter"][-1]
+
+    settings = pipeline_settings(
+        {"not_recorded": absent, "sample_rate_hz": rate, "held": f"X_q={TABLE1.X_q}"}, detect=True
+    )
+    pipeline = MonitorPipeline(settings)
+    out = replay(trend_log, pipeline)
+    pipeline.close()
+    last = out.recalibrations[-1]
+    assert [m.event_id for m in windows] == [w.event.event_id for w in out.windows if w.usable]
+    assert list(node.names) == list(last.determined) == ["X_d", "X_d_prime", "T_d0_prime"]
+    assert np.asarray(node.values).tolist() == [e.value for e in last.determined.values()]
+    assert exciter.why == (
+        last.controls["exciter"] if isinstance(last.controls["exciter"], str) else last.controls["exciter"].why
+    )

@@ -461,3 +461,49 @@ def test_identify_export_on_the_unit_s_record_validate_beats_the_published_fit(
     better = [k for k, v in ours.items() if v < 0.5 * theirs[k]]
     assert len(better) >= 8, better  # E_fd on every AVR step, V_t on every no-load event, the on-line step's Q
     assert ours[("AVR_MR_PSS_ON@43.7s", "q_e")] <= 0.05
+
+
+def test_the_monitor_recalibrates_the_day_as_identify_does(sheet_day: Path) -> None:
+    """Issue 53's done-when on the development day: every step and return of the AVR and manual
+    tests found and its window used; the recalibration (the controller's field current carried with
+    each window, a field step's window reaching back to its plateau) publishes X_d, X'_d, T'_d0 and
+    the exciter equal within 1 % to identify on the same files, X_q and the curve held as the node's
+    ``held`` and ``saturation`` parameters say; every declared stream's health OK (the pauses
+    between the test files are the recorder's, not losses)."""
+    from phid_ros.api import cut_unit, identify_unit, load_recording
+    from phid_ros.controls.identify import ControlFit
+    from phid_ros.io.recording import not_recorded
+    from phid_ros.stream.params import held_constraints
+    from phid_ros.stream.pipeline import MonitorPipeline, PipelineSettings
+    from phid_ros.stream.replay import replay
+
+    held = held_constraints("X_q=0.62", "0.1,0.4")
+    rec = load_recording(sheet_day)
+    settings = PipelineSettings(
+        period_ns=rec.streams["pt_ct"].period_ns,
+        not_recorded=not_recorded(rec.metadata),
+        identify=IdentifyOptions(baseline=False, constraints=held),
+    )
+    pipeline = MonitorPipeline(settings)
+    try:
+        out = replay(rec, pipeline)
+        health = {n: pipeline.status(n)[0] for n in pipeline.health}
+    finally:
+        pipeline.close()
+    used = sorted((w.event.name for w in out.windows if w.usable), key=str)
+    for test in ("AVR_MR_PSS_ON", "AVR_PH_Step10", "RR_MR_Step10"):  # each step and its return
+        assert used.count(test) == 2, used
+    assert used.count("AVR_PH_Stop_INV") == used.count("RR_PH_Stop_INV") == 1  # the de-excitations
+    assert health == dict.fromkeys(("pt_ct", "encoder", "pmu", "excitation", "field_controller"), "OK"), health
+    last = out.recalibrations[-1]
+    assert set(last.determined) == {"X_d", "X_d_prime", "T_d0_prime"} and last.parameters is None
+    found = identify_unit(cut_unit([sheet_day]), IdentifyOptions(baseline=False, validate=False, constraints=held))
+    for name, e in last.determined.items():
+        assert e.value == pytest.approx(found.result.estimates[name].value, rel=0.01), name
+    ours, theirs = last.controls["exciter"], found.controls["exciter"]
+    assert isinstance(ours, ControlFit) and isinstance(theirs, ControlFit)
+    assert ours.named and ours.model == theirs.model == "ESST5B"
+    determined = {n for n, ok in theirs.identifiable.items() if ok}
+    assert determined == {n for n, ok in ours.identifiable.items() if ok} and "VRMAX" in determined
+    for n in determined:
+        assert ours.parameters[n] == pytest.approx(theirs.parameters[n], rel=0.01), n

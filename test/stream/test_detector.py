@@ -189,9 +189,9 @@ def test_a_step_is_sized_as_its_test_sheet_states_it():
     values[:, CHANNEL_INDEX["q_e"]] = 0.1 + 0.4 * rise
     ev = Event("e", "field_step", int(t[k]), 0, 0.011, 1.0, 0)
     w = EventWindow(t_ns=t, values=values, period_ns=period, event=ev)
-    steps = settled_steps(w)
+    steps = settled_steps(w, ev.inception_ns)
     assert abs(steps["v_t"] - 0.05) < 1e-3 and abs(steps["q_e"] - 0.40) < 1e-2
     assert severity_text("field_step", ev.severity, steps) == "ΔV_t +0.050 pu, ΔQ +0.400 settled (+0.011 at 0.2 s)"
     assert severity_text("field_step", ev.severity, {}) == "ΔV_t +0.011 pu"  # no window: the first 0.2 s
     assert severity_text("torque_step", 0.1, steps) == "ΔP_m +0.100 pu"
-    assert settled_steps(EventWindow(t_ns=t[:3], values=values[:3], period_ns=period, event=ev)) == {}
+    assert settled_steps(EventWindow(t_ns=t[:3], values=values[:3], period_ns=period, event=ev), ev.inception_ns) == {}

@@ -107,3 +107,65 @@ def test_before_any_set_a_partial_run_publishes_what_it_determined_and_only_that
     # nothing determined and no set in force: nothing to publish
     empty = RecalibrationOutcome(False, "kept last good set: incomplete result (...)", None, None, [], T0, 0.1)
     assert list(emit(types, Outputs(recalibrations=[empty]))) == []
+
+
+def test_a_window_carries_the_recorder_s_field_current_to_the_recalibration_node(types: dict) -> None:
+    """The ingest node's window message carries i_fd, v_r, v_s where the recorder kept them (empty
+    otherwise), back to the same float64 values; its samples are judged on the deployment's
+    declared channels (a trend log's absent rotor channels made every window "stale" before)."""
+    from phid_ros.stream.pipeline import MonitorPipeline, PipelineSettings
+
+    w = _window(T0)
+    i_fd = np.linspace(0.51, 0.64, len(w.t_ns))
+    w.recorded = {"i_fd": i_fd, "v_r": i_fd * 2.5}
+    msg = _sent(types, w)
+    assert len(msg.v_s) == 0  # type: ignore[attr-defined]
+    back = window_from_message(msg)
+    assert set(back.recorded) == {"i_fd", "v_r"}
+    assert np.array_equal(back.recorded["i_fd"], i_fd) and np.array_equal(back.recorded["v_r"], i_fd * 2.5)
+    w.values[:, CHANNELS.index("omega")] = np.nan  # a recorder without the rotor's speed
+    trend_log = MonitorPipeline(PipelineSettings(not_recorded=frozenset({"omega"}), auto_recalibrate=False))
+    ten_channels = MonitorPipeline(PipelineSettings(auto_recalibrate=False))
+    try:
+        kept = trend_log.add_window(window_from_message(_sent(types, w))).windows[0]
+        assert kept.usable and trend_log.store.latest()[0].recorded["i_fd"].tolist() == i_fd.tolist()
+        refused = ten_channels.add_window(window_from_message(_sent(types, w))).windows[0]
+        assert not refused.usable and "omega" in refused.reason
+    finally:
+        trend_log.close()
+        ten_channels.close()
+
+
+def _sent(types: dict, w: EventWindow) -> object:
+    """``w`` as the ingest node publishes it."""
+    return next(iter(emit(types, Outputs(windows=[w]), {"windows"}))).message
+
+
+def test_each_recalibration_publishes_its_control_systems_beside_the_machine(types: dict) -> None:
+    """The exciter fitted at a recalibration goes out on control_parameters: the model named, its
+    constants with what the recordings determined (a ceiling reached), or why none is named."""
+    from phid_ros.controls.identify import ControlFit
+
+    fit = ControlFit(
+        "SEXS",
+        "exciter",
+        {"TA_TB": 0.1, "TB": 10.0, "K": 200.0, "TE": 0.05, "EMIN": None, "EMAX": 5.3},
+        {"TA_TB": None, "TB": None, "K": 12.0, "TE": 0.01, "EMIN": None, "EMAX": 0.02},
+        {"TA_TB": False, "TB": False, "K": True, "TE": True, "EMIN": False, "EMAX": True},
+        0.044,
+        None,
+        0.2,
+        True,
+        "SEXS: fit error 0.044 pu against 0.2 pu without control action",
+        limits={"EMAX": 5.3},
+    )
+    r = RecalibrationOutcome(False, "partial set: ...", None, None, ["e1"], T0, 0.1)
+    r.controls = {"exciter": fit, "stabiliser": "not identified: no scenario with p_e and v_s to fit"}
+    exciter, stabiliser = [p.message for p in emit(types, Outputs(recalibrations=[r]), {"controls"})]
+    assert (exciter.kind, exciter.model, exciter.fitted_model) == ("exciter", "SEXS", "SEXS")
+    assert list(exciter.names) == ["TA_TB", "TB", "K", "TE", "EMIN", "EMAX"]
+    assert list(exciter.values)[2:4] == [200.0, 0.05] and np.isnan(exciter.values[4])
+    assert list(exciter.identifiable) == [False, False, True, True, False, True]
+    assert list(exciter.limits_reached) == ["EMAX"] and exciter.fit_rmse == 0.044
+    assert list(exciter.event_ids) == ["e1"] and exciter.header.stamp.sec == T0 // NS
+    assert stabiliser.model == "" and stabiliser.why.startswith("not identified") and len(stabiliser.names) == 0

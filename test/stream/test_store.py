@@ -177,3 +177,30 @@ def test_a_store_from_before_digests_opens(tmp_path):
     db.close()
     s = EventStore(path, unit="G1")
     assert s.add(replace(window(1))) == "added" and len(s) == 1
+
+
+def test_a_window_keeps_the_recorder_s_channels_and_its_test_sheet_through_the_store(tmp_path):
+    """The field current (and the regulator's output) stored beside the ten channels, the marker's
+    regulator and reference step beside the event, all back as written; a version-2 store (a
+    node's, from before) takes the new columns and keeps its events."""
+    import sqlite3
+
+    path = tmp_path / "s.sqlite"
+    old = EventStore(path, unit="G1")
+    old.add(window(1))
+    old.close()
+    db = sqlite3.connect(path)  # as the previous schema left it
+    db.executescript("ALTER TABLE events DROP COLUMN regulator; ALTER TABLE events DROP COLUMN reference_step;")
+    db.execute("PRAGMA user_version = 2")
+    db.close()
+    w = window(2)
+    w.recorded = {"i_fd": np.linspace(0.5, 0.6, len(w.t_ns)), "v_r": np.full(len(w.t_ns), 2.5)}
+    w.event.regulator, w.event.reference_step = "manual", 0.05
+    s = EventStore(path, unit="G1")
+    assert s.add(w) == "added" and s.integrity() == "ok"
+    first, second = s.latest()
+    assert first.recorded == {} and first.event.regulator == "" and first.event.reference_step is None
+    assert np.array_equal(second.values, w.values) and set(second.recorded) == {"i_fd", "v_r"}
+    assert all(np.array_equal(second.recorded[c], w.recorded[c]) for c in w.recorded)
+    assert (second.event.regulator, second.event.reference_step) == ("manual", 0.05)
+    assert s.add(second) == "duplicate"  # its digest covers the recorder's channels too
