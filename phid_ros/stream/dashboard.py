@@ -5,7 +5,8 @@ namespace; ``python -m phid_ros.stream.dashboard [NAMESPACE] > FILE`` writes one
 unit. Import it in Foxglove (Layouts, Import from file) with a ROS 2 connection to the running nodes
 (foxglove_bridge) or a bag recorded from them (``ros2 bag record``). The panels: the terminal quantities, the identified
 parameters and their one-σ uncertainties, the Port-Hamiltonian energy and its stores, the stream and
-recalibration diagnostics, the last parameter set and the disturbance events as messages.
+recalibration diagnostics, the last parameter set, the control systems fitted beside it and the
+disturbance events as messages.
 
 Foxglove's layout format: panels by id in ``configById`` (``Type!suffix``), their arrangement in
 ``layout`` (a binary tree of row and column splits); a Plot panel's ``paths`` are message paths,
@@ -97,6 +98,8 @@ def foxglove_layout(namespace: str = DEFAULT_NAMESPACE) -> dict[str, Any]:
     }
     panels["RawMessages!parameters"] = {"topicPath": output_topic("parameters", namespace), "diffEnabled": False}
     panels["RawMessages!events"] = {"topicPath": output_topic("events", namespace), "diffEnabled": False}
+    # the exciter and the stabiliser fitted beside the machine: their models and constants as published
+    panels["RawMessages!controls"] = {"topicPath": output_topic("controls", namespace), "diffEnabled": False}
     layout = {
         "direction": "row",
         "splitPercentage": 55,
@@ -116,7 +119,11 @@ def foxglove_layout(namespace: str = DEFAULT_NAMESPACE) -> dict[str, Any]:
             "second": {
                 "direction": "row",
                 "first": "Plot!uncertainty",
-                "second": {"direction": "column", "first": "RawMessages!parameters", "second": "RawMessages!events"},
+                "second": {
+                    "direction": "column",
+                    "first": "RawMessages!parameters",
+                    "second": {"direction": "column", "first": "RawMessages!controls", "second": "RawMessages!events"},
+                },
             },
         },
     }
