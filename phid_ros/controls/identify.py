@@ -76,6 +76,12 @@ FLAT_NOISES = 6.0  # "flat": within this many output noises of the extreme (foun
 WANTED_NOISES = 5.0  # ... while the small-signal fit wants it this many noises further
 LIMIT_RANGE = 0.10  # a reached limit is fitted within this share of the extreme it was found at
 REFERENCE_SEARCH = (-0.5, 0.5)  # pu: a limited model's reference step is sized within this
+# an input limit is looked for from this share of the error's largest swing beyond rest outwards
+INPUT_LIMIT_FLOOR = 0.05
+# ... and kept where the step tests' error falls by this share at least with it (a freed limit
+# can always be put out of reach, so any fit is at least as good with it)
+INPUT_LIMIT_GAIN = 0.2
+OUTSIDE_LIMITS = 10.0  # a fit's residual where its limits cannot hold an operating point: x the output's range
 
 Limits = dict[str, tuple[float, float, float]]  # limit -> (start, low, high), for a fit that frees it
 
@@ -431,7 +437,7 @@ def fit_model(
         for i in stepped
     ]
     free = [*model.fitted(), *bounded, *references]
-    values0 = model.defaults() | held_limits
+    values0 = model.defaults() | open_limits(model) | held_limits
     log = [p.low > 0 for p in free]
 
     def values_at(x: Array) -> dict[str, float]:
@@ -445,7 +451,12 @@ def fit_model(
         if not through_limits:
             return simulate_cases(model, values, fit)
         refs = dict(zip(stepped, (float(r) for r in x[n_model:])))
-        return [limited_output(model, values, c, refs.get(i, c.known_reference()))[0] for i, c in enumerate(fit)]
+        try:
+            return [limited_output(model, values, c, refs.get(i, c.known_reference()))[0] for i, c in enumerate(fit)]
+        except LimitsError:
+            # limits that cannot hold an operating point at these constants (an input limit below
+            # E_fd / K_A as K_A falls): a wall the search turns back from, not an answer
+            return [c.output + OUTSIDE_LIMITS * np.maximum(np.ptp(c.output), 1e-3) for c in fit]
 
     def residual(x: Array) -> Array:
         return np.concatenate([c.output - p for c, p in zip(fit, predicted(x))])
@@ -506,8 +517,14 @@ def fit_model(
     raw = [float(np.exp(xi)) if lg else float(xi) for xi, lg in zip(sol.x, log)]
     raw_other = [float(np.exp(xi)) if lg else float(xi) for xi, lg in zip(other.x, log)]
     stds, determined = [], []
+    # a time constant is known to a quarter of the fit's sample at best (1 ms at 250 Hz): a
+    # limiter switches somewhere within a step of whatever made the recording (ANDES's 2 ms put
+    # T_R 0.0179 and T_A 0.0223 for 0.02 each, T_A's Jacobian std 26 us)
+    resolution = 0.25 * min(c.inputs.dt for c in fit)
     for i in range(n_model):  # the references are the cases' own, not the model's: not judged
         sd = raw[i] * float(std_x[i]) if log[i] else float(std_x[i])
+        if free[i].unit == "s":
+            sd = max(sd, resolution)
         scale = DETERMINED_STD * max(abs(raw[i]), 1e-9)
         ok = not at_bound[i] and math.isfinite(sd) and sd <= scale
         ok = ok and (not equal_fit or abs(raw_other[i] - raw[i]) <= scale)
@@ -555,6 +572,71 @@ def fit_model(
     )
 
 
+def open_limits(model: type[ControlModel]) -> dict[str, float]:
+    """The model's output and input limits out of reach: a limit the recordings did not reach
+    does not act in a fit played through the others (its default would: SEXS's E_MAX 5)."""
+    out = {}
+    for pair in (model.output_limits, model.input_limits):
+        if pair is not None:
+            out |= {pair[0]: -math.inf, pair[1]: math.inf}
+    return out
+
+
+def wanted_input_limits(model: type[ControlModel], values: Mapping[str, float], cases: Sequence[ControlCase]) -> Limits:
+    """Where a fit may put the model's input limits (its error's VIMIN, VIMAX): between the error at
+    rest and the largest the small-signal model drives it to in the recordings, either way. No
+    flat top shows an input limit (behind a lead-lag the output keeps moving), so these are
+    candidates: the fit that frees them is kept only where it binds and explains clearly more
+    (see :func:`_with_reached_limits`)."""
+    if model.input_limits is None or not any(c.levels is not None for c in cases):
+        return {}
+    full = model.completed({**model.defaults(), **values})
+    refs = simulate_references(model, full, cases)
+    highest, lowest, rest_hi, rest_lo = -math.inf, math.inf, -math.inf, math.inf
+    for c, r in zip(cases, refs):
+        if c.levels is None:
+            continue
+        try:
+            e = model.input_signal(full, c.inputs, r, c.levels)
+        except LimitsError:
+            continue
+        if e is None or not e.size:
+            continue
+        highest, lowest = max(highest, float(np.max(e))), min(lowest, float(np.min(e)))
+        rest_hi, rest_lo = max(rest_hi, float(e[0])), min(rest_lo, float(e[0]))
+    if not math.isfinite(highest):
+        return {}
+    lower, upper = model.input_limits
+    out: Limits = {}
+    # the swing beyond rest on each side; a limit is looked for within it, never inside the rest
+    for name, far, rest, sign in ((upper, highest, rest_hi, 1.0), (lower, lowest, rest_lo, -1.0)):
+        swing = sign * (far - rest)
+        if swing <= 0:
+            continue
+        near = rest + sign * INPUT_LIMIT_FLOOR * swing
+        lo, hi = sorted((near, far))
+        out[name] = (rest + sign * 0.5 * swing, lo, hi)
+    return out
+
+
+def _binding(
+    model: type[ControlModel], limited: ControlFit, cases: Sequence[ControlCase], noise: float
+) -> tuple[list[Array], list[str]]:
+    """The cases played through ``limited``'s limits, and the limits it freed that never bind
+    there (moved out of reach, no case's output moves by more than the noise)."""
+    values = model.completed({**model.defaults(), **open_limits(model), **_known(limited)})
+    refs = limited.references
+    played = [limited_output(model, values, c, refs.get(c.name, 0.0))[0] for c in cases]
+    uppers = {p[1] for p in (model.output_limits, model.input_limits) if p is not None}
+    idle = []
+    for name in limited.limits:
+        far = {**values, name: 1e9 if name in uppers else -1e9}
+        free = [limited_output(model, far, c, refs.get(c.name, 0.0))[0] for c in cases]
+        if max(float(np.max(np.abs(a - b))) for a, b in zip(played, free)) < WANTED_NOISES * max(noise, 1e-9):
+            idle.append(name)
+    return played, idle
+
+
 def _with_reached_limits(
     model: type[ControlModel],
     small_signal: ControlFit,
@@ -564,35 +646,90 @@ def _with_reached_limits(
 ) -> ControlFit:
     """``small_signal`` refitted with the output limits the recordings reached, the faults joining
     the fit; as it was where none is reached (or the limits found cannot hold a case's operating
-    point)."""
+    point). Then, for a model with input limits, refitted with those freed too, kept where they
+    bind and the step tests' error falls by ``INPUT_LIMIT_GAIN`` at least."""
     cases = [*fit, *faults]
-    limits = reached_limits(model, _known(small_signal), cases, _output_noise(fit))
-    if not limits:
-        return small_signal
-    try:
-        limited = fit_model(model, cases, held, checked=False, start_at=_known(small_signal), limits=limits)
-    except LimitsError:
-        return small_signal
-    values = model.completed({**model.defaults(), **_known(limited)})
-    refs = limited.references
-    played = [limited_output(model, values, c, refs.get(c.name, 0.0))[0] for c in cases]
-    # a limit the fit put where it never binds was no limit (a fast step onto a flat plateau looks
-    # like one): its value would carry no information, and its std none either
     noise = _output_noise(fit)
-    assert model.output_limits is not None  # limits are found only where a model declares them
-    for name in limited.limits:
-        far = {**values, name: 1e9 if name == model.output_limits[1] else -1e9}
-        free = [limited_output(model, far, c, refs.get(c.name, 0.0))[0] for c in cases]
-        if max(float(np.max(np.abs(a - b))) for a, b in zip(played, free)) < WANTED_NOISES * max(noise, 1e-9):
-            return small_signal
-    # judged on the cases the other models' fits are (the step tests), not on the faults too
-    limited.fit_rmse = _rmse(fit, played[: len(fit)])
-    return limited
+    outcome = small_signal
+    limits = reached_limits(model, _known(small_signal), cases, noise)
+    if limits:
+        try:
+            limited = fit_model(model, cases, held, checked=False, start_at=_known(small_signal), limits=limits)
+            played, idle = _binding(model, limited, cases, noise)
+        except LimitsError:
+            limited, idle = small_signal, []
+        # a limit the fit put where it never binds was no limit (a fast step onto a flat plateau
+        # looks like one): its value would carry no information, and its std none either
+        if limited is not small_signal and not idle:
+            # judged on the cases the other models' fits are (the step tests), not on the faults too
+            limited.fit_rmse = _rmse(fit, played[: len(fit)])
+            outcome = limited
+    # the input limits freed from the small-signal fit alone and beside the output limits found:
+    # an input limit flattens E_fd's rise behind a slow lag, which reads as a flat top, so each
+    # start may fall into the other's local minimum (EXST1 from SEXS's fit put VIMIN at rest)
+    trials = [
+        _with_input_limits(model, base, fit, faults, held, noise)
+        for base in ((small_signal, outcome) if outcome is not small_signal else (small_signal,))
+    ]
+    freed = min((f for f in trials if f is not None), key=lambda f: f.fit_rmse, default=None)
+    if freed is None or freed.fit_rmse > (1.0 - INPUT_LIMIT_GAIN) * outcome.fit_rmse:
+        return outcome
+    return freed
+
+
+def _with_input_limits(
+    model: type[ControlModel],
+    base: ControlFit,
+    fit: Sequence[ControlCase],
+    faults: Sequence[ControlCase],
+    held: Sequence[ControlCase],
+    noise: float,
+) -> ControlFit | None:
+    """``base`` refitted with the input limits freed (and its own limits), the faults joining the
+    fit; the limits that never bind dropped (an output limit pushed to the far end of its range
+    too), None where no input limit binds. ``fit_rmse`` on the step tests."""
+    cases = [*fit, *faults]
+    wanted = wanted_input_limits(model, _known(base), cases)
+    if not wanted:
+        return None
+    uppers = {p[1] for p in (model.output_limits, model.input_limits) if p is not None}
+    try:
+        trial = {**base.limits, **wanted}
+        freed = fit_model(model, cases, held, checked=False, start_at=_known(base), limits=trial)
+        played, idle = _binding(model, freed, cases, noise)
+        # an output limit the fit now pushes to the far end of its range was a top the input
+        # limit flattened (behind a slow lag E_fd barely rises): no limit of its own
+        idle += [
+            n
+            for n in base.limits
+            if n not in idle
+            and math.isclose(freed.parameters[n] or 0.0, trial[n][2 if n in uppers else 1], rel_tol=1e-4)
+        ]
+        if idle and not set(wanted) <= set(idle):  # some reached, some not: refitted without the others
+            trial = {k: v for k, v in trial.items() if k not in idle}
+            freed = fit_model(model, cases, held, checked=False, start_at=_known(freed), limits=trial)
+            played, idle = _binding(model, freed, cases, noise)
+    except LimitsError:
+        return None
+    if idle or not set(wanted) & set(freed.limits):
+        return None
+    freed.fit_rmse = _rmse(fit, played[: len(fit)])
+    return freed
 
 
 def _limit_values(f: ControlFit) -> dict[str, float]:
-    """The values of the limits ``f`` freed (found reached)."""
-    return {n: float(v) for n in f.limits if (v := f.parameters.get(n)) is not None}
+    """The values of the output limits ``f`` freed (found reached): held while the small-signal
+    constants are fitted on the step tests, which a fault's ceiling is not seen in."""
+    inputs = MODELS[f.model].input_limits or ()
+    return {n: float(v) for n in f.limits if n not in inputs and (v := f.parameters.get(n)) is not None}
+
+
+def _input_limits(f: ControlFit) -> Limits:
+    """The input limits ``f`` freed, from its values within their search ranges: fitted again with
+    the small-signal constants, since a step test reaches them too (a V_ref step of 0.15 an input
+    limit of 0.1) and, held at a fault's value, the step tests' constants bend around them."""
+    inputs = MODELS[f.model].input_limits or ()
+    return {n: (float(v), *f.limits[n][1:]) for n in f.limits if n in inputs and (v := f.parameters.get(n)) is not None}
 
 
 def _known(f: ControlFit) -> dict[str, float]:
@@ -623,7 +760,15 @@ def _without_unseen_terms(
         if p.absent is None or p.held or p.limit:
             continue
         trial = _holding(model, p.name)
-        f = fit_model(trial, fit, held, checked=False, start_at=_known(fitted), held_limits=_limit_values(fitted))
+        f = fit_model(
+            trial,
+            fit,
+            held,
+            checked=False,
+            start_at=_known(fitted),
+            limits=_input_limits(fitted),
+            held_limits=_limit_values(fitted),
+        )
         if f.fit_rmse <= (1.0 + EQUAL_FIT) * fitted.fit_rmse:
             model, fitted = trial, f
     return model
@@ -732,8 +877,14 @@ def identify_controls(
             continue
         allowed = (candidates or {}).get(kind)
         models = [m for m in of_kind(kind) if allowed is None or m.name in allowed]
+        # a model that reads a channel some identification scenario lacks cannot be fitted there
+        # (PSS2A without the rotor speed): the others compete
+        fitted_on = [s for s in scenarios if s.role == "identify"]
+        unreadable = [m.name for m in models if not all(s.has(*m.needs) for s in fitted_on)]
+        models = [m for m in models if m.name not in unreadable]
         if not models:
-            out[kind] = f"not identified: no {kind} model among the candidates {sorted(allowed or [])}"
+            lacking = f" ({', '.join(unreadable)} need channels not recorded)" if unreadable else ""
+            out[kind] = f"not identified: no {kind} model among the candidates {sorted(allowed or [])}{lacking}"
             continue
         fits: list[ControlFit] = []
         for m in models:  # in registration order: a model may start where a simpler one ended
@@ -751,8 +902,16 @@ def identify_controls(
             # and checked on the small-signal tests, played through those limits (a fault's
             # switching, which the smoothed inputs blur, would weigh in every constant's profile)
             model = _without_unseen_terms(MODELS[chosen.model], chosen, fit, held)
-            best = fit_model(model, fit, held, checked=True, start_at=_known(chosen), held_limits=_limit_values(chosen))
-            for n in chosen.limits:
+            best = fit_model(
+                model,
+                fit,
+                held,
+                checked=True,
+                start_at=_known(chosen),
+                limits=_input_limits(chosen),
+                held_limits=_limit_values(chosen),
+            )
+            for n in _limit_values(chosen):
                 best.parameters[n], best.uncertainty[n] = chosen.parameters[n], chosen.uncertainty[n]
                 best.identifiable[n] = chosen.identifiable[n]
             best.limits = chosen.limits

@@ -205,12 +205,20 @@ class ControlModel(ABC):
     parameters: ClassVar[tuple[ControlParameter, ...]]
     # integers a .dyr record carries before the constants (PSS/E's ICONs), with the values phid writes
     icons: ClassVar[tuple[tuple[str, int], ...]] = ()
+    # the ICONs whose value the simulation depends on (an input's code, a filter's order): a
+    # record that gives another is refused, not simulated as phid's
+    icons_simulated: ClassVar[tuple[str, ...]] = ()
+    # channels a model reads beyond its kind's (a dual-input stabiliser's rotor speed)
+    needs: ClassVar[tuple[str, ...]] = ()
     # constants of branches the small-signal path does not pass through (said in a validation)
     outside_path: ClassVar[tuple[str, ...]] = ()
     # limits :meth:`limited` simulates (said apart from the ones the play-in leaves out)
     simulated_limits: ClassVar[tuple[str, ...]] = ()
     # (lower, upper): the limits that bound the output itself, which a recorded flat top pins
     output_limits: ClassVar[tuple[str, str] | None] = None
+    # (lower, upper): the limits on the regulator's input (its error), which no flat top shows:
+    # found where the fit wants them (:func:`phid_ros.controls.identify.wanted_input_limits`)
+    input_limits: ClassVar[tuple[str, str] | None] = None
     simulated_limits_how: ClassVar[str] = ""
 
     @classmethod
@@ -261,6 +269,14 @@ class ControlModel(ABC):
     ) -> Array | None:
         """The output's deviation with the limits the model declares simulated, from the
         operating levels; None where the model has only its small-signal path."""
+        return None
+
+    @classmethod
+    def input_signal(
+        cls, values: Mapping[str, float], x: ControlInputs, reference: float, levels: OperatingLevels
+    ) -> Array | None:
+        """The signal at the input limiter (absolute, pu) with that limiter open; None where the
+        model declares no input limit."""
         return None
 
     @classmethod
@@ -414,6 +430,136 @@ class EXST1(ControlModel):
         num = v["KA"] * np.polymul(first_order(v["TC"]), first_order(v["TF"]))
         return transfer(regulator_error(x, reference, sensed), num, den, x.dt)
 
+    simulated_limits = ("VIMAX", "VIMIN", "VRMAX", "VRMIN", "KC")
+    output_limits = ("VRMIN", "VRMAX")
+    input_limits = ("VIMIN", "VIMAX")
+    simulated_limits_how = (
+        "the error within VIMIN..VIMAX, E_fd within VRMIN V_T..VRMAX V_T - K_C I_FD on the regulator's "
+        "output (PSS/E EXST1; the lag winds up), the rate feedback inside the input limiter; I_FD held at "
+        "its pre-event value"
+    )
+
+    @classmethod
+    def limit_at(cls, name: str, output: float, levels: OperatingLevels, k: int) -> float:
+        # E_fd's ceiling is V_T VRMAX - K_C I_FD (floor V_T VRMIN): with K_C not reached, V_T's share
+        return output / float(levels.v_t[k]) if name in ("VRMAX", "VRMIN") else output
+
+    @classmethod
+    def limited(
+        cls, values: Mapping[str, float], x: ControlInputs, reference: float, levels: OperatingLevels
+    ) -> Array | None:
+        return cls._played(values, x, reference, levels, limited=True)[0] - levels.output0
+
+    @classmethod
+    def input_signal(
+        cls, values: Mapping[str, float], x: ControlInputs, reference: float, levels: OperatingLevels
+    ) -> Array | None:
+        return cls._played(values, x, reference, levels, limited=False)[1]
+
+    @classmethod
+    def _played(
+        cls, values: Mapping[str, float], x: ControlInputs, reference: float, levels: OperatingLevels, *, limited: bool
+    ) -> tuple[Array, Array]:
+        """E_fd and the error at the input limiter, sample by sample (the rate feedback closes a
+        loop around the limiter, so no filter chain gives it); ``limited`` False: every limit open."""
+        v = values
+        vi0 = levels.output0 / v["KA"]  # at rest the lead-lag passes the error at gain 1, K_A makes E_fd
+        loading = v["KC"] * levels.i_fd0
+        n = len(x.v_t)
+        if limited:
+            if not v["VIMIN"] <= vi0 <= v["VIMAX"]:
+                raise LimitsError(
+                    f"the error at rest {vi0:.4f} (E_fd {levels.output0:.3f} / K_A {v['KA']:g}) lies outside "
+                    f"VIMIN..VIMAX {v['VIMIN']:g}..{v['VIMAX']:g}: the limits do not hold the recorded operating point"
+                )
+            lo, hi = v["VRMIN"] * levels.v_t, v["VRMAX"] * levels.v_t - loading
+            if not lo[0] <= levels.output0 <= hi[0]:
+                raise LimitsError(
+                    f"E_fd at rest {levels.output0:.3f} lies outside V_T VRMIN..V_T VRMAX - K_C I_FD "
+                    f"{lo[0]:.3f}..{hi[0]:.3f}: the record's limits do not hold the recorded operating point"
+                )
+            in_lo, in_hi = v["VIMIN"], v["VIMAX"]
+        else:
+            lo, hi = np.full(n, -np.inf), np.full(n, np.inf)
+            in_lo, in_hi = -np.inf, np.inf
+        external = regulator_error(x, reference, lag(x.v_t, v["TR"], x.dt))
+        out = _exst1_loop(
+            np.ascontiguousarray(external, np.float64),
+            float(vi0),
+            float(in_lo),
+            float(in_hi),
+            *_lead_lag_steps(v["TC"], v["TB"], x.dt),
+            float(v["KA"]),
+            *_lead_lag_steps(0.0, v["TA"], x.dt)[1:],
+            float(v["KF"] / v["TF"]) if v["TF"] > 1e-6 else 0.0,
+            *_lead_lag_steps(0.0, v["TF"], x.dt)[1:],
+            np.ascontiguousarray(lo, np.float64),
+            np.ascontiguousarray(hi, np.float64),
+        )
+        return out[0], out[1]
+
+
+def _lead_lag_steps(t_lead: float, t_lag: float, dt: float) -> tuple[float, float, float, float]:
+    """(r, a, b0, b1): (1 + s t_lead)/(1 + s t_lag) as r u + (1 - r) x, the lag's state x stepped
+    by :func:`~phid_ros.numerics.first_order_coefficients`; a vanishing lag is a wire."""
+    if t_lag <= 1e-6:
+        return 1.0, 0.0, 0.0, 1.0
+    return (t_lead / t_lag, *first_order_coefficients(t_lag, dt))
+
+
+def _exst1_steps(
+    external: Array,
+    vi0: float,
+    in_lo: float,
+    in_hi: float,
+    r: float,
+    a_ll: float,
+    b0_ll: float,
+    b1_ll: float,
+    ka: float,
+    a_a: float,
+    b0_a: float,
+    b1_a: float,
+    g_f: float,
+    a_f: float,
+    b0_f: float,
+    b1_f: float,
+    lo: Array,
+    hi: Array,
+) -> Array:
+    # each step solved with the rate feedback of the same instant (implicit: an explicit one-step
+    # delay in a loop of gain K_A K_F / T_F rings): the regulator's output is p + q x the limited
+    # error, the feedback g (1 - b1_f) times it less w, so the unlimited error solves one linear
+    # equation and the limiter clips that solution
+    n = len(external)
+    out = np.empty((2, n))
+    x_ll, x_a, z = vi0, vi0, ka * vi0
+    vl_prev, y_prev, vr_prev = vi0, vi0, ka * vi0
+    q = ka * b1_a * (r + (1.0 - r) * b1_ll)
+    gain = g_f * (1.0 - b1_f)
+    for k in range(n):
+        x_ll_next = a_ll * x_ll + b0_ll * vl_prev
+        x_a_next = a_a * x_a + b0_a * y_prev
+        p = ka * (x_a_next + b1_a * (1.0 - r) * x_ll_next)
+        w = g_f * (a_f * z + b0_f * vr_prev)
+        base = vi0 + external[k] + w
+        vi = (base - gain * p) / (1.0 + gain * q)
+        vl = min(max(vi, in_lo), in_hi)
+        if vl != vi:
+            vi = base - gain * (p + q * vl)
+        x_ll = x_ll_next + b1_ll * vl
+        y = r * vl + (1.0 - r) * x_ll
+        x_a = x_a_next + b1_a * y
+        vr = ka * x_a
+        z = a_f * z + b0_f * vr_prev + b1_f * vr
+        out[0, k] = min(max(vr, lo[k]), hi[k])
+        out[1, k] = vi
+        vl_prev, y_prev, vr_prev = vl, y, vr
+    return out
+
+
+_exst1_loop = maybe_jit(_exst1_steps)
+
 
 @register
 class IEEET1(ControlModel):
@@ -503,6 +649,14 @@ class ESST5B(ControlModel):
         return v["KR"] * lag(lead_lag(first, v["TC2"], v["TB2"], x.dt), v["T1"], x.dt)
 
     @classmethod
+    def input_signal(
+        cls, values: Mapping[str, float], x: ControlInputs, reference: float, levels: OperatingLevels
+    ) -> Array | None:
+        """The signal at the input limiter (absolute, pu) with that limiter open; None where the
+        model declares no input limit."""
+        return None
+
+    @classmethod
     def limit_at(cls, name: str, output: float, levels: OperatingLevels, k: int) -> float:
         # E_fd's bound is V_T VRMAX - K_C I_FD (V_T VRMIN): with K_C not reached, V_R's limit is E_fd / V_T
         return output / float(levels.v_t[k]) if name in ("VRMAX", "VRMIN") else output
@@ -548,6 +702,7 @@ class IEEEG1(ControlModel):
     name = "IEEEG1"
     kind = "governor"
     icons = (("JBUS", 0), ("M", 0))  # the low-pressure shaft's machine: none (a tandem compound)
+    icons_simulated = ("JBUS", "M")
     description = "IEEE type 1 steam turbine-governor, one reheat stage (PSS/E IEEEG1)"
     parameters = (
         ControlParameter("K", "pu", 20.0, 2.0, 100.0, "governor gain (1/droop)"),
@@ -688,6 +843,7 @@ class IEEEST(ControlModel):
     name = "IEEEST"
     kind = "stabiliser"
     icons = (("MODE", 3), ("BUSR", 0))  # the input: the machine's electrical power; its own bus
+    icons_simulated = ("MODE",)
     description = "IEEE stabiliser on the electrical power (PSS/E IEEEST, input code 3)"
     outside_path = ("VCU", "VCL")
     parameters = (
@@ -715,16 +871,11 @@ class IEEEST(ControlModel):
 
     @classmethod
     def completed(cls, values: Mapping[str, float]) -> dict[str, float]:
-        # the two lead-lags commute: put in one order, so a fit has one answer: a lag without lead
-        # first (the lead a fit finds absent is T_1's), then the longer lag
-        first, second = (values["T1"], values["T2"]), (values["T3"], values["T4"])
-        if (first[0] > 0, -first[1]) > (second[0] > 0, -second[1]):
-            first, second = second, first
-        return {**values, "T1": first[0], "T2": first[1], "T3": second[0], "T4": second[1], "T5": values["T6"]}
+        return {**values, **lead_lags_in_order(values), "T5": values["T6"]}
 
     @classmethod
     def response(cls, values: Mapping[str, float], x: ControlInputs, reference: float) -> Array:
-        v = cls.completed(values)
+        v = values  # a record's as written (a fit's values come completed: T_5 = T_6)
         if x.p_e is None:
             return np.full(len(x.v_t), np.nan)  # no electrical power: the model does not apply
         led = lead_lag(lead_lag(x.p_e, v["T1"], v["T2"], x.dt), v["T3"], v["T4"], x.dt)
@@ -742,3 +893,100 @@ class IEEEST(ControlModel):
         v = values
         out = cls.response(values, x, reference) + levels.output0
         return np.clip(out, v["LSMIN"], v["LSMAX"]) - levels.output0
+
+
+def lead_lags_in_order(values: Mapping[str, float]) -> dict[str, float]:
+    """A stabiliser's two lead-lags (T_1, T_2), (T_3, T_4) in one order, so a fit has one answer:
+    (1 + sT_1)(1 + sT_3)/((1 + sT_2)(1 + sT_4)) is the same whichever lead a lag is paired with, so
+    the shorter lead goes with the shorter lag, first (a lead the fit finds absent is T_1)."""
+    leads = sorted((values["T1"], values["T3"]))
+    lags = sorted((values["T2"], values["T4"]))
+    return {"T1": leads[0], "T2": lags[0], "T3": leads[1], "T4": lags[1]}
+
+
+def washout(u: Array, tau: float, dt: float) -> Array:
+    """s tau/(1 + s tau) from rest; a vanishing tau is a wire (PSS/E bypasses a washout of T = 0)."""
+    return u if tau <= 1e-6 else u - lag(u, tau, dt)
+
+
+@register
+class PSS2A(ControlModel):
+    """IEEE dual-input stabiliser (PSS/E PSS2A, IEEE 421.5 PSS2A) on the rotor speed (input code 1)
+    and the electrical power (code 3): each input through two washouts, the speed then 1/(1 + sT_6),
+    the power K_S2/(1 + sT_7) (the integral of accelerating power: K_S2 = T_7/(2H)); their sum, the
+    power's share K_S3, through the ramp-tracking filter [(1 + sT_8)/(1 + sT_9)^M]^N, less the power's
+    path; then K_S1 and two lead-lags, V_S within VSTMIN..VSTMAX.
+
+    Fitted from a recorded stabiliser output against the recorded speed and P_e (a recorder
+    without the speed cannot fit it). As IEEE 421.5's sample data set it, the washouts and T_7 are
+    one time constant (T_W1 = T_W2 = T_W3 = T_7, T_W4 = 0: a wire), T_6 = 0, K_S3 = 1, M = 5, N = 1
+    and T_8 = M T_9 (the filter tracks a ramp of mechanical power with no error): the fit frees
+    T_W1, K_S2, T_9, K_S1 and the lead-lags. A record's constants are all simulated as written."""
+
+    name = "PSS2A"
+    kind = "stabiliser"
+    # PSS/E's ICONs: input 1 the rotor speed, input 2 the electrical power (both the machine's own
+    # bus), then the ramp-tracking filter's orders
+    icons = (("ICS1", 1), ("IB1", 0), ("ICS2", 3), ("IB2", 0), ("M", 5), ("N", 1))
+    icons_simulated = ("ICS1", "ICS2", "M", "N")
+    needs = ("omega",)
+    description = "IEEE dual-input stabiliser on the speed and the electrical power (PSS/E PSS2A)"
+    parameters = (
+        ControlParameter("TW1", "s", 2.0, 0.5, 30.0, "washout time constant (the speed's first)"),
+        ControlParameter("TW2", "s", 2.0, 2.0, 2.0, "the speed's second washout (T_W1 in a fit)", held=True),
+        ControlParameter("T6", "s", 0.0, 0.0, 0.0, "the speed's lag (0 in a fit: a wire)", held=True),
+        ControlParameter("TW3", "s", 2.0, 2.0, 2.0, "the power's first washout (T_W1 in a fit)", held=True),
+        ControlParameter("TW4", "s", 0.0, 0.0, 0.0, "the power's second washout (0 in a fit: a wire)", held=True),
+        ControlParameter("T7", "s", 2.0, 2.0, 2.0, "the power's integrating lag (T_W1 in a fit)", held=True),
+        ControlParameter("KS2", "pu", 0.3, 0.01, 10.0, "the power's gain (T_7 / 2H)"),
+        ControlParameter("KS3", "", 1.0, 1.0, 1.0, "the power's share before the filter (1 in a fit)", held=True),
+        ControlParameter("T8", "s", 0.5, 0.5, 0.5, "ramp-tracking lead (M T_9 in a fit)", held=True),
+        ControlParameter("T9", "s", 0.1, 0.01, 1.0, "ramp-tracking lag"),
+        ControlParameter("KS1", "pu", 10.0, -200.0, 200.0, "stabiliser gain"),
+        ControlParameter("T1", "s", 0.15, 0.0, 5.0, "first lead time constant", absent=0.0),
+        ControlParameter("T2", "s", 0.03, 0.002, 5.0, "first lag time constant"),
+        ControlParameter("T3", "s", 0.15, 0.0, 5.0, "second lead time constant", absent=0.0),
+        ControlParameter("T4", "s", 0.03, 0.002, 5.0, "second lag time constant"),
+        ControlParameter("VSTMAX", "pu", 0.1, 0.005, 0.5, "maximum stabiliser output", limit=True),
+        ControlParameter("VSTMIN", "pu", -0.1, -0.5, -0.005, "minimum stabiliser output", limit=True),
+    )
+    simulated_limits = ("VSTMAX", "VSTMIN")
+    output_limits = ("VSTMIN", "VSTMAX")
+    simulated_limits_how = "V_S within VSTMIN..VSTMAX (PSS/E PSS2A)"
+    M, N = 5, 1  # the ramp-tracking filter's orders phid simulates (icons_simulated holds a record to them)
+
+    @classmethod
+    def completed(cls, values: Mapping[str, float]) -> dict[str, float]:
+        # a fit's structure (see the class); the lead-lags in one order
+        tw = values["TW1"]
+        return {
+            **values,
+            **lead_lags_in_order(values),
+            "TW2": tw,
+            "TW3": tw,
+            "T7": tw,
+            "T8": cls.M * values["T9"],
+        }
+
+    @classmethod
+    def response(cls, values: Mapping[str, float], x: ControlInputs, reference: float) -> Array:
+        v = values
+        if x.p_e is None:
+            return np.full(len(x.v_t), np.nan)  # no electrical power: the model does not apply
+        speed = lag(washout(washout(x.speed, v["TW1"], x.dt), v["TW2"], x.dt), v["T6"], x.dt)
+        power = v["KS2"] * lag(washout(washout(x.p_e, v["TW3"], x.dt), v["TW4"], x.dt), v["T7"], x.dt)
+        tracked = speed + v["KS3"] * power
+        for _ in range(cls.N):
+            tracked = lead_lag(tracked, v["T8"], v["T9"], x.dt)
+            for _ in range(cls.M - 1):
+                tracked = lag(tracked, v["T9"], x.dt)
+        u = tracked - power
+        return v["KS1"] * lead_lag(lead_lag(u, v["T1"], v["T2"], x.dt), v["T3"], v["T4"], x.dt)
+
+    @classmethod
+    def limited(
+        cls, values: Mapping[str, float], x: ControlInputs, reference: float, levels: OperatingLevels
+    ) -> Array | None:
+        v = values
+        out = cls.response(values, x, reference) + levels.output0
+        return np.clip(out, v["VSTMIN"], v["VSTMAX"]) - levels.output0

@@ -194,18 +194,29 @@ def _with_stabiliser(s: ScenarioData, case: ControlCase, stabiliser: Control | N
     if stabiliser is None:
         notes.append("the recorded stabiliser output played in at the regulator's summing point")
         return case
+    lacking = [c for c in stabiliser.model.needs if not s.has(c)]
+    if lacking:
+        notes.append(
+            f"stabiliser {stabiliser.model.name} not played in: it reads {', '.join(lacking)}, not recorded; the "
+            "recorded stabiliser output played in at the regulator's summing point"
+        )
+        return case
     on = switched_on(s)
     x = case.inputs
     if on is None or x.p_e is None:
         notes.append(f"stabiliser {stabiliser.model.name} not played in: it was off (its output held still)")
         return replace(case, inputs=replace(x, v_s=np.zeros(len(x.v_t))))
     k_on = on // fit_stride(s.dt)
-    p_e = np.where(np.arange(len(x.p_e)) >= k_on, x.p_e - x.p_e[k_on], 0.0)  # from rest when switched on
-    v_s = stabiliser.model.response(stabiliser.values, replace(x, p_e=p_e), 0.0)
-    lo, hi = stabiliser.values.get("LSMIN"), stabiliser.values.get("LSMAX")
+    after = np.arange(len(x.p_e)) >= k_on
+    # the inputs from rest when switched on
+    p_e, speed = (np.where(after, u - u[k_on], 0.0) for u in (x.p_e, x.speed))
+    v_s = stabiliser.model.response(stabiliser.values, replace(x, p_e=p_e, speed=speed), 0.0)
+    bounds = stabiliser.model.output_limits
+    lo, hi = (stabiliser.values.get(n) for n in bounds) if bounds else (None, None)
     if lo is not None and hi is not None:
         v_s = np.clip(v_s, lo, hi)
-    notes.append(f"stabiliser {stabiliser.model.name} played in from the recorded P_e (on from {on * s.dt:.1f} s)")
+    read = "rotor speed and P_e" if "omega" in stabiliser.model.needs else "P_e"
+    notes.append(f"stabiliser {stabiliser.model.name} played in from the recorded {read} (on from {on * s.dt:.1f} s)")
     return replace(case, inputs=replace(x, v_s=v_s))
 
 

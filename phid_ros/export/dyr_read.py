@@ -216,6 +216,13 @@ def read_unit(path: str | Path, bus: int | None = None, machine_id: str | None =
             raise DyrError(
                 f"{p}:{r.line}: {r.model} has {len(r.constants)} numbers; phid reads {skip} + {len(names)} constants"
             )
+        icons = dict(zip((n for n, _v in model.icons), r.constants[:skip]))
+        for name, simulated in model.icons:
+            if name in model.icons_simulated and icons[name] != simulated:
+                raise DyrError(
+                    f"{p}:{r.line}: {r.model} {name} = {icons[name]:g}: phid simulates {r.model} with {name} = "
+                    f"{simulated} only"
+                )
         if model.kind in unit.controls:
             raise DyrError(f"{p}:{r.line}: a second {model.kind} ({r.model}) on bus {m.bus} id '{m.machine_id}'")
         values = dict(zip(names, r.constants[skip:]))

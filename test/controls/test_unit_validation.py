@@ -296,3 +296,39 @@ def test_a_unit_s_stabiliser_is_played_in_where_the_recording_shows_it_on(tmp_pa
     mine, theirs = checks(doc), checks(flipped)
     key = ("grid_voltage_-5%", "v_f")
     assert theirs[key]["max_error"] > 1.5 * mine[key]["max_error"], (mine[key], theirs[key])
+
+
+def test_a_dual_input_stabiliser_is_played_from_the_recorded_speed_and_power(noisy_scenarios) -> None:
+    """A unit's PSS2A is played in from the recorded rotor speed and P_e (from rest where it was
+    switched on) at the exciter's summing point: what reaches the regulator is the record's own
+    response to them, its washouts as written (10 s, not a fit's one time constant); a recorder
+    without the speed plays the recorded output instead, and says why."""
+    from dataclasses import replace
+
+    from phid_ros.controls.identify import control_case
+    from phid_ros.controls.models import MODELS
+    from phid_ros.controls.unit_validation import Control, _with_stabiliser
+
+    model = MODELS["PSS2A"]
+    record = dict(
+        zip(
+            (p.name for p in model.parameters),
+            (10, 10, 0, 10, 0, 10, 0.29, 1, 0.5, 0.1, 10, 0.2, 0.04, 0.1, 0.02, 0.1, -0.1),
+        )
+    )
+    s = next(s for s in noisy_scenarios if s.kind == "torque_step")
+    s = replace(s, recorded={"v_s": 0.001 * np.sin(np.arange(s.n) * s.dt)})  # moving from the start: on
+    case = control_case(s, "exciter", output=False)
+    assert case is not None
+    notes: list[str] = []
+    played = _with_stabiliser(s, case, Control(model, record), notes)
+    assert notes == ["stabiliser PSS2A played in from the recorded rotor speed and P_e (on from 0.0 s)"]
+    expected = model.response(record, replace(case.inputs, p_e=case.inputs.p_e - case.inputs.p_e[0],
+                                              speed=case.inputs.speed - case.inputs.speed[0]), 0.0)  # fmt: skip
+    assert played.inputs.v_s is not None and np.max(np.abs(played.inputs.v_s - np.clip(expected, -0.1, 0.1))) < 1e-12
+    assert np.ptp(played.inputs.v_s) > 0.01  # the speed drives it: not a flat line
+    blind = replace(s, absent=frozenset({*s.absent, "omega"}))  # a recorder without the speed
+    notes = []
+    kept = _with_stabiliser(blind, control_case(blind, "exciter", output=False), Control(model, record), notes)
+    assert notes[0].startswith("stabiliser PSS2A not played in: it reads omega, not recorded")
+    assert kept.inputs.v_s is not None and np.allclose(kept.inputs.v_s, case.inputs.v_s)

@@ -79,16 +79,16 @@ def test_comments_continuations_and_several_units(tmp_path: Path) -> None:
         "  3.48 0.0 2.54 2.41 0.5 0.5\n"
         "  0.5 0.15 0.0 0.0 / machine one\n"
         "2 'GENROU' '2' 5.0 0.05 0.6 0.05 4.0 0.0 1.8 1.7 0.3 0.55 0.25 0.15 0.1 0.4 /\n"
-        "2 'PSS2A' '2' 1 2 3 / a stabiliser phid does not model\n"
+        "2 'STAB1' '2' 1 2 3 / a stabiliser phid does not model\n"
         "2 'TGOV1' '2' 0.05 0.5 1.0 0.0 2.0 6.0 0.0 /\n"
     )
-    assert [r.model for r in read_records(path)] == ["GENROU", "GENROU", "PSS2A", "TGOV1"]
+    assert [r.model for r in read_records(path)] == ["GENROU", "GENROU", "STAB1", "TGOV1"]
     with pytest.raises(DyrError, match=r"two\.dyr: 2 machines \(bus 1 id '1', bus 2 id '2'\): name one with --bus"):
         read_unit(path)
     one = read_unit(path, bus=1)
     assert one.constants["H"] == 3.48 and one.controls == {}
     two = read_unit(path, bus=2, machine_id="2")
-    assert list(two.controls) == ["governor"] and two.ignored == ["PSS2A (line 6)"]
+    assert list(two.controls) == ["governor"] and two.ignored == ["STAB1 (line 6)"]
     assert ("magnetic_saturation", 0.1, 0.4, "genrou") in [
         (cls.name, v["s10"], v["s12"], v["form"]) for cls, v in two.effects() if "s10" in v
     ]
@@ -97,6 +97,20 @@ def test_comments_continuations_and_several_units(tmp_path: Path) -> None:
     assert any(n.startswith(f"{two.controls['governor'].model} ") and "small-signal" in n for n in two.not_simulated())
     with pytest.raises(DyrError, match=r"no GENROU or GENSAL record at the unit asked; the file has bus 1"):
         read_unit(path, bus=3)
+
+
+def test_a_dual_input_stabiliser_reads_back_as_written(tmp_path: Path) -> None:
+    """A PSS2A record (its ICONs: speed, power, M = 5, N = 1, then the constants in PSS/E's
+    order) reads back constant for constant, a record's washouts not forced equal as a fit's are."""
+    path = tmp_path / "pss2a.dyr"
+    path.write_text(
+        "1 'GENSAL' 1 5.0 0.05 0.05 3.0 0.0 1.1 0.7 0.3 0.22 0.15 0.0 0.0 /\n"
+        "1 'SEXS' 1 0.2 5.0 500.0 0.05 -5 5 /\n"
+        "1 'PSS2A' 1 1 0 3 0 5 1 10 10 0 10 0 10 0.29 1 0.5 0.1 10 0.2 0.04 0.1 0.02 0.1 -0.1 /\n"
+    )
+    pss = read_unit(path).controls["stabiliser"]
+    assert pss.model == "PSS2A"
+    assert list(pss.values.values()) == [10, 10, 0, 10, 0, 10, 0.29, 1, 0.5, 0.1, 10, 0.2, 0.04, 0.1, 0.02, 0.1, -0.1]
 
 
 @pytest.mark.parametrize(
@@ -115,6 +129,17 @@ def test_comments_continuations_and_several_units(tmp_path: Path) -> None:
             "1 'GENSAL' 1 5.0 0.05 0.05 3.0 0.0 1.1 0.7 0.3 0.22 0.15 0.0 0.0 /\n"
             "1 'IEEET1' 1 0.02 50 0.05 5 -5 0.0 0.5 0.05 1.0 0 0 0 0 0 /\n",
             r"bad\.dyr:2: IEEET1 KE = 0 \(PSS/E computes it at initialisation",
+        ),
+        (
+            # an IEEEST on the rotor speed (MODE 1) is not the one phid plays on P_e (MODE 3)
+            "1 'GENSAL' 1 5.0 0.05 0.05 3.0 0.0 1.1 0.7 0.3 0.22 0.15 0.0 0.0 /\n"
+            "1 'IEEEST' 1 1 0 0 0 0 0 0 0 0 0.02 0.2 0.04 2 2 -0.2 0.1 -0.1 0 0 /\n",
+            r"bad\.dyr:2: IEEEST MODE = 1: phid simulates IEEEST with MODE = 3 only",
+        ),
+        (
+            "1 'GENSAL' 1 5.0 0.05 0.05 3.0 0.0 1.1 0.7 0.3 0.22 0.15 0.0 0.0 /\n"
+            "1 'PSS2A' 1 1 0 3 0 4 1 10 10 0 10 0 10 0.29 1 0.5 0.1 10 0.2 0.04 0.1 0.02 0.1 -0.1 /\n",
+            r"bad\.dyr:2: PSS2A M = 4: phid simulates PSS2A with M = 5 only",
         ),
     ],
 )
