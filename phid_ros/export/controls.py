@@ -51,9 +51,12 @@ class ControlRecord:
         parts = [f"phid_ros export: {self.kind} identified from the recordings"]
         if self.flagged:
             parts.append("NOT IDENTIFIED: " + ", ".join(self.flagged))
-        unreached = [n for n in self.defaults if n not in self.absent]
+        widened = [n for n, s in self.sources.items() if s.startswith("default: widened")]
+        unreached = [n for n in self.defaults if n not in self.absent and n not in widened]
         if unreached:
             parts.append("defaults (not reached in the recordings): " + ", ".join(unreached))
+        if widened:
+            parts.append("not reached, at least what the recordings reached: " + ", ".join(widened))
         if self.absent:
             parts.append("absent (the recordings show no such term): " + ", ".join(self.absent))
         return parts
@@ -83,6 +86,8 @@ def build_control_records(
                 f"{source}: controls.{kind}: model {name!r} is not one phid knows ({sorted(MODELS)})"
             )
         params, ident = doc.get("parameters") or {}, doc.get("identifiable") or {}
+        seen = doc.get("limits_seen") or {}
+        upper = model.output_limits[1] if model.output_limits else None
         values: dict[str, float] = {}
         sources: dict[str, str] = {}
         flagged = []
@@ -98,6 +103,12 @@ def build_control_records(
                 continue
             if v is None or (p.limit and not ident.get(p.name)):
                 values[p.name], sources[p.name] = p.default, "default (a limit the recordings never reached)"
+                least = seen.get(p.name)
+                sign = 1.0 if p.name == upper else -1.0
+                if isinstance(least, (int, float)) and math.isfinite(least) and sign * least > sign * p.default:
+                    # the default would cut what was recorded: the least the limit can be instead
+                    values[p.name] = float(least)
+                    sources[p.name] = "default: widened to what the recordings reached (a limit never reached)"
                 continue
             if not isinstance(v, (int, float)) or not math.isfinite(float(v)):
                 raise ControlExportError(f"{source}: controls.{kind}.{p.name} = {v!r}: not a number")

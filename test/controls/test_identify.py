@@ -411,9 +411,12 @@ def test_andes_exst1_at_its_input_limit_is_named_with_gain_and_limit_and_exporte
     V_ref step and a fault. The exciter is named EXST1 with K_A and V_IMAX within 10 % (measured:
     +0.6 %, +0.4 %), the limit never reached (V_IMIN) stays null, nothing given as determined is
     more than 3 std from the truth; the governor's droop within 5 %; the .dyr carries machine,
-    exciter (with its V_IMAX) and governor."""
+    exciter (with its V_IMAX) and governor, and phid validate plays it within MOD-026's bands."""
     pytest.importorskip("andes")
+    import json
+
     from phid_ros.api import cut_scenarios
+    from phid_ros.cli.main import main
     from phid_ros.export.formats import psse_dyr
     from phid_ros.export.record import build_record
     from phid_ros.model.parameters import PARAMETER_NAMES, TABLE1
@@ -454,3 +457,21 @@ def test_andes_exst1_at_its_input_limit_is_named_with_gain_and_limit_and_exporte
     assert [c.model for c in rec.controls] == ["EXST1", "TGOV1"] and "'GENROU'" in dyr
     line = next(ln for ln in dyr.splitlines() if "'EXST1'" in ln)
     assert f"{exciter.parameters['VIMAX']:.6g}" in line.split("'EXST1'")[1], line
+    # V_RMAX never reached, but the fault's E_fd of 4.8 at V_T 0.19 says it is at least ~23 in
+    # PSS/E's EXST1 (ceiling V_T V_RMAX): the default 5 would cut the fault; written as that bound
+    vrmax = rec.controls[0].values["VRMAX"]
+    assert vrmax > 20 and "at least what the recordings reached: VRMAX" in line, line
+    # the record played by phid validate against ANDES's recordings: every Q, and E_fd through
+    # the V_ref steps, the grid steps and the fault (the input limit and the bound included)
+    (tmp_path / "unit.dyr").write_text(dyr)
+    out = tmp_path / "v.json"
+    main(["validate", str(tmp_path / "unit.dyr"), str(manifest), "--json", str(out)])
+    checks = {
+        (sc["scenario"], c["channel"]): c
+        for sc in json.loads(out.read_text())["validation"]["scenarios"]
+        for c in sc["checks"]
+    }
+    failed = {k: (c["max_error"], c["band"]) for k, c in checks.items() if not c["passed"]}
+    # the load-reference step moves E_fd by 0.15 pu: its band (0.016) is below the E_fd sensor's
+    # noise through the play-in (ANDES's own record errs 0.0246 there too)
+    assert set(failed) <= {("load_ref_step", "v_f")}, failed
