@@ -219,6 +219,9 @@ class ControlModel(ABC):
     # (lower, upper): the limits on the regulator's input (its error), which no flat top shows:
     # found where the fit wants them (:func:`phid_ros.controls.identify.wanted_input_limits`)
     input_limits: ClassVar[tuple[str, str] | None] = None
+    # the constant that lowers the output's ceiling with the field current (a static exciter's
+    # rectifier loading K_C): fitted beside a ceiling the recordings reached
+    loading: ClassVar[str | None] = None
     simulated_limits_how: ClassVar[str] = ""
 
     @classmethod
@@ -433,6 +436,7 @@ class EXST1(ControlModel):
     simulated_limits = ("VIMAX", "VIMIN", "VRMAX", "VRMIN", "KC")
     output_limits = ("VRMIN", "VRMAX")
     input_limits = ("VIMIN", "VIMAX")
+    loading = "KC"
     simulated_limits_how = (
         "the error within VIMIN..VIMAX, E_fd within VRMIN V_T..VRMAX V_T - K_C I_FD on the regulator's "
         "output (PSS/E EXST1; the lag winds up), the rate feedback inside the input limiter; I_FD held at "
@@ -663,6 +667,7 @@ class ESST5B(ControlModel):
 
     simulated_limits = ("KC", "VRMAX", "VRMIN")
     output_limits = ("VRMIN", "VRMAX")
+    loading = "KC"
     simulated_limits_how = (
         "V_R within VRMIN..VRMAX after the lead-lags, E_fd within VRMIN V_T..VRMAX V_T - K_C I_FD on a "
         "non-windup T_1 lag, the first lead-lag non-windup (IEEE 421.5 ST5B); I_FD held at its pre-event value"

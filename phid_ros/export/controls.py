@@ -87,6 +87,9 @@ def build_control_records(
             )
         params, ident = doc.get("parameters") or {}, doc.get("identifiable") or {}
         seen = doc.get("limits_seen") or {}
+        # a limit fitted because the recordings reached it, determined or not (a ceiling's loading
+        # fitted with it): written as fitted, flagged where not determined, never as a default
+        reached = set(doc.get("limits_reached") or [])
         upper = model.output_limits[1] if model.output_limits else None
         values: dict[str, float] = {}
         sources: dict[str, str] = {}
@@ -101,7 +104,7 @@ def build_control_records(
             if parent is not None and parent.absent is not None and _is_absent(params.get(parent.name), parent):
                 values[p.name], sources[p.name] = p.default, f"default: moot ({parent.name} absent)"
                 continue
-            if v is None or (p.limit and not ident.get(p.name)):
+            if v is None or (p.limit and not ident.get(p.name) and p.name not in reached):
                 values[p.name], sources[p.name] = p.default, "default (a limit the recordings never reached)"
                 least = seen.get(p.name)
                 sign = 1.0 if p.name == upper else -1.0
