@@ -799,15 +799,7 @@ def _on_step_tests(
     if not limited.limits:
         return limited
     try:
-        refit = fit_model(
-            model,
-            fit,
-            held,
-            checked=False,
-            start_at=_known(limited),
-            limits=_input_limits(limited),
-            held_limits=_limit_values(limited),
-        )
+        refit = _refit_through_limits(model, limited, fit, held, checked=False)
     except LimitsError:
         return limited
     for n in _limit_values(limited):
@@ -815,6 +807,21 @@ def _on_step_tests(
         refit.identifiable[n] = limited.identifiable[n]
     refit.limits = limited.limits
     return refit
+
+
+def _refit_through_limits(
+    model: type[ControlModel],
+    f: ControlFit,
+    fit: Sequence[ControlCase],
+    held: Sequence[ControlCase],
+    *,
+    checked: bool,
+) -> ControlFit:
+    """``model`` fitted on ``fit`` from ``f``'s constants, played through the limits ``f`` found:
+    its output limits held, its input limits fitted again."""
+    return fit_model(
+        model, fit, held, checked=checked, start_at=_known(f), limits=_input_limits(f), held_limits=_limit_values(f)
+    )
 
 
 def _limit_values(f: ControlFit) -> dict[str, float]:
@@ -860,15 +867,7 @@ def _without_unseen_terms(
         if p.absent is None or p.held or p.limit:
             continue
         trial = _holding(model, p.name)
-        f = fit_model(
-            trial,
-            fit,
-            held,
-            checked=False,
-            start_at=_known(fitted),
-            limits=_input_limits(fitted),
-            held_limits=_limit_values(fitted),
-        )
+        f = _refit_through_limits(trial, fitted, fit, held, checked=False)
         if f.fit_rmse <= (1.0 + EQUAL_FIT) * fitted.fit_rmse:
             model, fitted = trial, f
     return model
@@ -1001,15 +1000,7 @@ def identify_controls(
             # and checked on the small-signal tests, played through those limits (a fault's
             # switching, which the smoothed inputs blur, would weigh in every constant's profile)
             model = _without_unseen_terms(MODELS[chosen.model], chosen, fit, held)
-            best = fit_model(
-                model,
-                fit,
-                held,
-                checked=True,
-                start_at=_known(chosen),
-                limits=_input_limits(chosen),
-                held_limits=_limit_values(chosen),
-            )
+            best = _refit_through_limits(model, chosen, fit, held, checked=True)
             for n in _limit_values(chosen):
                 best.parameters[n], best.uncertainty[n] = chosen.parameters[n], chosen.uncertainty[n]
                 best.identifiable[n] = chosen.identifiable[n]

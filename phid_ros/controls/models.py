@@ -275,6 +275,16 @@ class ControlModel(ABC):
         return None
 
     @classmethod
+    def output_clipped(
+        cls, values: Mapping[str, float], x: ControlInputs, reference: float, levels: OperatingLevels
+    ) -> Array:
+        """The small-signal response held within the output limits (a stabiliser's V_S band)."""
+        assert cls.output_limits is not None
+        lower, upper = cls.output_limits
+        out = cls.response(values, x, reference) + levels.output0
+        return np.clip(out, values[lower], values[upper]) - levels.output0
+
+    @classmethod
     def input_signal(
         cls, values: Mapping[str, float], x: ControlInputs, reference: float, levels: OperatingLevels
     ) -> Array | None:
@@ -653,14 +663,6 @@ class ESST5B(ControlModel):
         return v["KR"] * lag(lead_lag(first, v["TC2"], v["TB2"], x.dt), v["T1"], x.dt)
 
     @classmethod
-    def input_signal(
-        cls, values: Mapping[str, float], x: ControlInputs, reference: float, levels: OperatingLevels
-    ) -> Array | None:
-        """The signal at the input limiter (absolute, pu) with that limiter open; None where the
-        model declares no input limit."""
-        return None
-
-    @classmethod
     def limit_at(cls, name: str, output: float, levels: OperatingLevels, k: int) -> float:
         # E_fd's bound is V_T VRMAX - K_C I_FD (V_T VRMIN): with K_C not reached, V_R's limit is E_fd / V_T
         return output / float(levels.v_t[k]) if name in ("VRMAX", "VRMIN") else output
@@ -895,9 +897,7 @@ class IEEEST(ControlModel):
     def limited(
         cls, values: Mapping[str, float], x: ControlInputs, reference: float, levels: OperatingLevels
     ) -> Array | None:
-        v = values
-        out = cls.response(values, x, reference) + levels.output0
-        return np.clip(out, v["LSMIN"], v["LSMAX"]) - levels.output0
+        return cls.output_clipped(values, x, reference, levels)
 
 
 def lead_lags_in_order(values: Mapping[str, float]) -> dict[str, float]:
@@ -992,6 +992,4 @@ class PSS2A(ControlModel):
     def limited(
         cls, values: Mapping[str, float], x: ControlInputs, reference: float, levels: OperatingLevels
     ) -> Array | None:
-        v = values
-        out = cls.response(values, x, reference) + levels.output0
-        return np.clip(out, v["VSTMIN"], v["VSTMAX"]) - levels.output0
+        return cls.output_clipped(values, x, reference, levels)
