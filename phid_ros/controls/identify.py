@@ -105,6 +105,9 @@ class ControlFit:
     limits: Limits = field(default_factory=dict)  # the limits this fit freed (reached in the recordings)
     # an output limit not reached: the least it can be, in its own terms (the recordings went that far)
     seen: dict[str, float] = field(default_factory=dict)
+    # the limits the fit pressed on an end of their range: it wants them where the recordings say
+    # they cannot be (a constant ceiling asked to be both a no-load step's top and a loaded one's)
+    pressed: list[str] = field(default_factory=list)
 
     def as_json(self) -> dict[str, Any]:
         """``model`` is null where none is named; ``fitted_model`` is the best candidate either way."""
@@ -123,6 +126,7 @@ class ControlFit:
             "fit_as_well": self.alternatives,
             "limits_reached": sorted(self.limits),  # fitted from the recordings' flat tops
             "limits_seen": self.seen,  # a limit not reached is at least this (the recordings went that far)
+            "limits_pressed": sorted(self.pressed),  # pressed on an end of its range: flagged, and said
         }
 
 
@@ -542,8 +546,13 @@ def fit_model(
     # or an operating point it held): one pressed within a thousandth of that end is flagged
     # (Mostar's V_RMIN sat 0.0003 from the lowest the output went, "determined")
     edge = 1e-3 * (hi - lo)
+    ends = {n for pair in (model.output_limits, model.input_limits) if pair is not None for n in pair}
+    pressed = []
     for i in range(len(model.fitted()), n_model):
-        at_bound[i] |= bool(min(sol.x[i] - lo[i], hi[i] - sol.x[i]) < edge[i])
+        at_edge = bool(min(sol.x[i] - lo[i], hi[i] - sol.x[i]) < edge[i])
+        at_bound[i] |= at_edge
+        if at_edge and free[i].name in ends:
+            pressed.append(free[i].name)
     # the Jacobian's std is local: where the error hardly changes with a constant moved by
     # DETERMINED_STD either way (the others refitted), the data do not determine it (HYGOV's T_r
     # on 12 s windows: 4.407 +- 0.21 for a true 5.0, the truth's error 0.02 % above the fit's).
@@ -607,6 +616,7 @@ def fit_model(
         "",
         {c.name: r for c, r in zip(fit, refs) if c.stepped},
         limits=limits,
+        pressed=pressed,
     )
 
 
@@ -806,6 +816,7 @@ def _on_step_tests(
         refit.parameters[n], refit.uncertainty[n] = limited.parameters[n], limited.uncertainty[n]
         refit.identifiable[n] = limited.identifiable[n]
     refit.limits = limited.limits
+    refit.pressed = sorted({*refit.pressed, *(n for n in limited.pressed if n in _limit_values(limited))})
     return refit
 
 
@@ -1005,6 +1016,7 @@ def identify_controls(
                 best.parameters[n], best.uncertainty[n] = chosen.parameters[n], chosen.uncertainty[n]
                 best.identifiable[n] = chosen.identifiable[n]
             best.limits = chosen.limits
+            best.pressed = sorted({*best.pressed, *(n for n in chosen.pressed if n in _limit_values(chosen))})
         else:  # no model is named: none of its constants is given as determined, and none is checked
             best = chosen
             best.identifiable = dict.fromkeys(best.identifiable, False)
@@ -1021,6 +1033,14 @@ def identify_controls(
             best.why += (
                 f"; {', '.join(best.alternatives)} answer the recordings as well (within {SIMPLEST_WITHIN - 1:.0%}):"
                 f" the simplest is named; name the unit's own with --{kind} MODEL"
+            )
+        if best.named and best.pressed:
+            # the data push the limit where they say it cannot be: the model lacks what set it (a
+            # constant ceiling asked to be both a no-load step's top and a loaded step's, which a
+            # V_T- and I_FD-dependent one is); said, with the alike models that keep theirs inside
+            inside = [f.model for f in alike if not f.pressed]
+            best.why += f"; its {', '.join(best.pressed)} pressed on an end of its range (flagged)" + (
+                f"; inside in {', '.join(inside)}" if inside else ""
             )
         out[kind] = best
     return out

@@ -32,6 +32,10 @@ MIN_WINDOW_S = 2.0  # an event with less than this between its neighbours is not
 # (the fastest open-circuit decay is the subtransient one, T''_d0 of tens of ms, and only with
 # the field short-circuited)
 LOST_MEASUREMENT_S = 0.02
+# the plateau before an event: its level over the last PLATEAU_LEVEL_S, left where a channel
+# strays from it by more than PLATEAU_SHARE of the event's own move
+PLATEAU_LEVEL_S = 1.0
+PLATEAU_SHARE = 0.2
 MIN_TERMINAL_MOVE = 0.002  # pu: an event moves V_t, Q or P by at least this (a 1 % field step moves V_t 1.4 %)
 
 
@@ -71,7 +75,7 @@ def events_of_file(
     lost_until = -1
     for i, (kind, k, k_clear) in enumerate(events):
         k_end = k_clear if k_clear is not None else k
-        start = 0 if i == 0 else (_last_end(events[i - 1]) + k) // 2
+        start = plateau_start(signals, 0 if i == 0 else (_last_end(events[i - 1]) + k) // 2, k, dt)
         end = n if i == len(events) - 1 else (k_end + events[i + 1][1]) // 2
         if (end - start) * dt < MIN_WINDOW_S or k - start < 2:
             continue
@@ -85,6 +89,34 @@ def events_of_file(
             kind = "field_step"
         out.append(FileEvent(kind, start, k, end, (k_end + end) // 2, lost))
     return out
+
+
+def plateau_start(signals: Mapping[str, Array], start: int, k: int, dt: float) -> int:
+    """Where the plateau before the event at ``k`` begins, no earlier than ``start``: one past the
+    last sample at which the channel the event moves most (V_t, Q or P) stood further from its
+    level just before the event than PLATEAU_SHARE of the event's move. A manual test's Q ramp
+    100 s before its field step is not the step's steady state: averaged in, Mostar's
+    RR_MR_Step10 read Q 0.12 pu before a step taken at 0.045, and its play-in started 0.38 pu away
+    from the recording. (The channels it barely moves, P at a field step, wander by more than a
+    fifth of their move and say nothing of where the test began.)"""
+    lead = max(2, int(round(PLATEAU_LEVEL_S / dt)))
+    span = max(5, int(round(0.5 / dt)))
+    if k - start <= 2 * lead or k + span + span // 2 > len(signals["v_t"]):
+        return start
+    moves: dict[str, tuple[float, float]] = {}
+    for c in ("v_t", "q_e", "p_e"):
+        x = np.asarray(signals[c], float)
+        if np.isfinite(x[start : k + 2 * span]).all():
+            level = float(np.median(x[k - lead : k]))
+            moves[c] = (level, abs(float(np.mean(x[k + span // 2 : k + span + span // 2])) - level))
+    if not moves:
+        return start
+    c, (level, move) = max(moves.items(), key=lambda m: m[1][1])
+    if move < MIN_TERMINAL_MOVE:
+        return start
+    x = np.asarray(signals[c], float)
+    off = np.flatnonzero(np.abs(x[start : k - lead] - level) > PLATEAU_SHARE * move)
+    return start + int(off[-1]) + 1 if off.size else start
 
 
 def at_no_load(signals: Mapping[str, Array]) -> bool:

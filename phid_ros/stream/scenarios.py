@@ -210,7 +210,8 @@ def _marked_scenarios(
         pieces: list[FileEvent] = []
         whole_kind: str | None = m.kind
         if not m.event_ns:
-            pieces, whole_kind = _file_events(m, frame.rows(a, b), thresholds, source, problems)
+            pieces, whole_kind, plateau = _file_events(m, frame.rows(a, b), thresholds, source, problems)
+            a += plateau
         if whole_kind is None:  # its one event, or every one, is a lost measurement
             continue
         try:
@@ -264,20 +265,27 @@ def event_name(recording: str, e: FileEvent, period_ns: int) -> str:
 
 def _file_events(
     m: ScenarioInfo, frame: Frame, thresholds: StepThresholds, source: str, problems: list[str]
-) -> tuple[list[FileEvent], str | None]:
+) -> tuple[list[FileEvent], str | None, int]:
     """A marked window without an event stamp (a test file imported whole) cut into its events,
-    when it holds more than one; ([], the kind to prepare it whole with) when it holds one or
-    none (None: its one event is a lost measurement, left out)."""
+    when it holds more than one; ([], the kind to prepare it whole with, where its plateau before
+    the event begins) when it holds one or none (None: its one event is a lost measurement, left
+    out). The pieces' offsets are the window's; the plateau's too (0: the whole window)."""
     if len(frame) < 2:
-        return [], m.kind
+        return [], m.kind, 0
     dt = frame.period_ns / NS
     events = events_of_file(frame.columns(), dt, thresholds=thresholds)
     if len(events) == 1 and events[0].lost_measurement:
         problems.append(f"{source}: skipped scenario {m.name}: {LOST_NOTE}")
-        return [], None
+        return [], None, 0
     if len(events) < 2:
+        plateau = events[0].start if events else 0
+        if plateau:
+            problems.append(
+                f"{source}: {m.name} taken from {plateau * dt:.2f} s, the plateau before its event at "
+                f"{events[0].event * dt:.2f} s (what came before is not its steady state)"
+            )
         # at no load a fall of V_t is the field's (a de-excitation), never a fault
-        return [], (events[0].kind if events and m.kind == "unknown" else m.kind)
+        return [], (events[0].kind if events and m.kind == "unknown" else m.kind), plateau
     kept = []
     for e in events:
         if e.lost_measurement:
@@ -289,8 +297,8 @@ def _file_events(
         + "; ".join(e.describe(dt) for e in events)
     )
     if not kept:  # every event the measurement's: nothing of the machine (whole, it read as a fault)
-        return [], None
-    return kept, m.kind
+        return [], None, 0
+    return kept, m.kind, 0
 
 
 LOST_NOTE = (

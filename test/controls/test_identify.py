@@ -223,6 +223,7 @@ def test_an_exciter_ceiling_reached_is_identified_and_nothing_given_as_determine
         if ok:
             assert f.parameters[name] == pytest.approx(truth[name], rel=0.10), name
     assert f.parameters["EMIN"] is None and not f.identifiable["EMIN"]
+    assert f.pressed == [] and f.as_json()["limits_pressed"] == []  # the ceiling sits inside its range
     # the unlimited exciter on the same scenarios: nothing flat at the top, so no limit is freed
     plain = identify_controls(switched_in(noisy_scenarios, clean_scenarios), {"exciter": ["SEXS"]})["exciter"]
     assert isinstance(plain, ControlFit) and plain.limits == {} and plain.parameters["EMAX"] is None

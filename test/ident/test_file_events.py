@@ -166,6 +166,81 @@ def test_a_file_whose_every_event_is_the_measurement_s_is_no_scenario() -> None:
     sig["v_t"][k:back] = np.abs(np.random.default_rng(3).normal(0, 0.003, back - k))
     frame = Frame.of_columns(sig, int(round(DT * 1e9)))
     problems: list[str] = []
-    pieces, kind = _file_events(ScenarioInfo("Ispad", kind="fault"), frame, DEFAULT_THRESHOLDS, "day.mcap", problems)
-    assert (pieces, kind) == ([], None)
+    pieces, kind, plateau = _file_events(
+        ScenarioInfo("Ispad", kind="fault"), frame, DEFAULT_THRESHOLDS, "day.mcap", problems
+    )
+    assert (pieces, kind, plateau) == ([], None, 0)
     assert sum("measurement lost" in p for p in problems) == 2  # the loss and the return, each named
+
+
+def manual_on_line_file(events: list[tuple[float, float]], seconds: float = 150.0, seed: int = 4) -> dict:
+    """A manual on-line test as Mostar's RR_MR_Step10: Q ramped 0.37 -> 0.045 pu over 20-40 s by the
+    field-current regulator, then the field stepped at the given (time, +1 up / -1 back): Q +0.115,
+    V_t +0.014 through a 0.5 s lag."""
+    rng = np.random.default_rng(seed)
+    n = int(seconds / DT)
+    t = np.arange(n) * DT
+    q = np.interp(t, [0.0, 20.0, 40.0, seconds], [0.37, 0.37, 0.045, 0.045])
+    up = np.zeros(n)
+    for at, sign in events:
+        up += sign * np.where(t >= at, 1.0 - np.exp(-(t - at) / 0.5), 0.0)
+    field = np.zeros(n)
+    for at, sign in events:
+        field += sign * (t >= at)
+    sig = {c: np.full(n, np.nan) for c in CHANNELS}
+    sig.update(
+        v_t=0.992 + 0.014 * up + rng.normal(0, 3e-4, n),
+        q_e=q + 0.115 * up + rng.normal(0, 2e-3, n),
+        p_e=0.073 + rng.normal(0, 1e-3, n),
+        v_f=1.2 - 0.9 * (q - 0.045) + 0.25 * field + rng.normal(0, 0.01, n),
+        i_d=np.full(n, 0.1),
+        i_q=np.full(n, 0.1),
+        theta_t=np.zeros(n),
+    )
+    return sig
+
+
+@pytest.mark.parametrize("events", [[(138.0, 1.0)], [(138.0, 1.0), (143.5, -1.0)]], ids=["step", "step-and-return"])
+def test_an_event_s_window_begins_on_the_plateau_before_it_not_across_a_ramp(events: list) -> None:
+    """The Q ramp 100 s before a manual field step is not the step's steady state: averaged in,
+    the pre-event Q read 0.12 pu for 0.045 (and the play-in began 0.38 pu away). The window begins
+    where the ramp ended, whether the file holds the step alone or the step and its return."""
+    sig = manual_on_line_file(events)
+    found = events_of_file(sig, DT)
+    assert [round(e.event * DT, 1) for e in found] == [at for at, _ in events]
+    first = found[0]
+    assert 39.0 <= first.start * DT <= 41.0, first.start * DT
+    assert float(np.mean(sig["q_e"][first.start : first.event])) == pytest.approx(0.045, abs=0.002)
+
+
+def test_a_file_s_one_event_is_taken_from_its_plateau_and_said() -> None:
+    """A test file holding one event, imported whole: its scenario begins on the plateau before the
+    event, and the problems say from where."""
+    from phid_ros.io.recording import ScenarioInfo
+    from phid_ros.stream.scenarios import _file_events
+
+    frame = Frame.of_columns(manual_on_line_file([(138.0, 1.0)]), int(round(DT * 1e9)))
+    problems: list[str] = []
+    pieces, kind, plateau = _file_events(
+        ScenarioInfo("RR_MR_Step10", kind="field_step"), frame, DEFAULT_THRESHOLDS, "day.mcap", problems
+    )
+    assert pieces == [] and kind == "field_step" and 39.0 <= plateau * DT <= 41.0
+    assert any("RR_MR_Step10 taken from" in p and "the plateau before its event at 138.00 s" in p for p in problems)
+
+
+def test_a_step_is_placed_at_its_onset_not_half_way() -> None:
+    """A regulator's output falling in three samples (Mostar's AVR return: 0.69, 0.47, -0.16, -0.36
+    pu as recorded) was stepped before its first moved sample: the event is that sample, not the
+    one past half the fall (a sample late, at 30 pu/s, erred 0.3 pu of E_fd against the recording)."""
+    from phid_ros.ident.scenario import locate_labelled_step
+
+    rng = np.random.default_rng(5)
+    n, k0 = 3000, 1500
+    x = 0.69 + rng.normal(0, 0.004, n)
+    x[k0 : k0 + 3] = [0.47, -0.155, -0.364]
+    x[k0 + 3 :] = -0.9 + rng.normal(0, 0.004, n - k0 - 3)
+    k, _ = locate_labelled_step({"v_f": x}, DT, "field_step")
+    assert k == k0
+    # a clean step is where it was
+    y = np.where(np.arange(n) >= k0, 1.0, 0.0) + rng.normal(0, 1e-3, n)
+    assert locate_labelled_step({"v_f": y}, DT, "field_step")[0] == k0
