@@ -216,7 +216,18 @@ def _with_stabiliser(s: ScenarioData, case: ControlCase, stabiliser: Control | N
     if lo is not None and hi is not None:
         v_s = np.clip(v_s, lo, hi)
     read = "rotor speed and P_e" if "omega" in stabiliser.model.needs else "P_e"
-    notes.append(f"stabiliser {stabiliser.model.name} played in from the recorded {read} (on from {on * s.dt:.1f} s)")
+    # its own output against the recorded one: behind a regulator of high DC gain played from the
+    # recorded V_t (no network closes its loop) a thousandth of a pu held for seconds is tenths of
+    # E_fd (Mostar's return with the PSS on: Q 0.11 pu off with IEEEST, 0.03 with the recorded output)
+    apart = float(np.max(np.abs(v_s[after] - x.v_s[after]))) if x.v_s is not None and after.any() else math.nan
+    own = (
+        f"; its output within {apart:.2g} pu of the recorded (which swung {float(np.ptp(x.v_s[after])):.2g})"
+        if math.isfinite(apart) and x.v_s is not None
+        else ""
+    )
+    notes.append(
+        f"stabiliser {stabiliser.model.name} played in from the recorded {read} (on from {on * s.dt:.1f} s){own}"
+    )
     return replace(case, inputs=replace(x, v_s=v_s))
 
 

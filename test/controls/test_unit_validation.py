@@ -322,11 +322,16 @@ def test_a_dual_input_stabiliser_is_played_from_the_recorded_speed_and_power(noi
     assert case is not None
     notes: list[str] = []
     played = _with_stabiliser(s, case, Control(model, record), notes)
-    assert notes == ["stabiliser PSS2A played in from the recorded rotor speed and P_e (on from 0.0 s)"]
+    [note] = notes
+    assert note.startswith("stabiliser PSS2A played in from the recorded rotor speed and P_e (on from 0.0 s); its")
     expected = model.response(record, replace(case.inputs, p_e=case.inputs.p_e - case.inputs.p_e[0],
                                               speed=case.inputs.speed - case.inputs.speed[0]), 0.0)  # fmt: skip
     assert played.inputs.v_s is not None and np.max(np.abs(played.inputs.v_s - np.clip(expected, -0.1, 0.1))) < 1e-12
     assert np.ptp(played.inputs.v_s) > 0.01  # the speed drives it: not a flat line
+    # and how far it plays from the recorded output, said (a record's stabiliser that is not the unit's shows)
+    assert case.inputs.v_s is not None
+    apart = float(np.max(np.abs(played.inputs.v_s - case.inputs.v_s)))
+    assert f"its output within {apart:.2g} pu of the recorded" in note, note
     blind = replace(s, absent=frozenset({*s.absent, "omega"}))  # a recorder without the speed
     notes = []
     kept = _with_stabiliser(blind, control_case(blind, "exciter", output=False), Control(model, record), notes)
