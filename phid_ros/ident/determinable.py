@@ -384,6 +384,15 @@ def _field_circuit(
         ],
         "plateaus": [{"v_t": v, "i_fd": i, "scenario": n} for v, i, n in f.plateaus],
     }
+    if f.leakage is not None:  # the field's leakage flux: the test files' T'_d0 against their dI/dV
+        res.route_details["field_circuit"]["leakage"] = {
+            "files": [{"file": n, "field_current_per_volt": r, "T_d0_prime": t} for n, r, t in f.leakage.per_volt],
+            "T_leakage": f.leakage.leakage,
+            "T_leakage_std": f.leakage.leakage_std,
+            "T_d0_prime_unsaturated": f.leakage.unsaturated,
+            "T_d0_prime_unsaturated_std": f.leakage.unsaturated_std,
+            "shows": f.leakage.shows,
+        }
     current = res.estimates.get("T_d0_prime")
     if f.T_d0_prime.identifiable or current is None or not current.identifiable:
         put({"T_d0_prime": f.T_d0_prime}, route)

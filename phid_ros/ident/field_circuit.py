@@ -111,6 +111,28 @@ class FieldEvent:
     delta_v: float  # V_t after minus before
     k_e: float  # the recorded I_f per U_f at this event's plateaus
     time_per_base: float  # integral / delta_v = T'_d0 / c
+    # the recorded I_f moved per V_t over the same samples, as the fit weighs them (see FieldLeakage)
+    current_per_volt: float = math.nan
+
+
+@dataclass
+class FieldLeakage:
+    """What the events' T'_d0 say of the field's own leakage flux, which does not saturate.
+
+    The field's flux is the air gap's (V_t at no load) and its leakage's (X_fl I_fd), so the
+    integral per V_t moved is T_ad + T_fl dI/dV, dI/dV the field current (X_ad I_fd) moved per V_t
+    over the samples the event's fit weighs: 1 on the air-gap line, more above the knee. GENSAL's
+    and GENROU's form saturate the whole field flux with the air gap's and take one T'_d0: where
+    the events' dI/dV differ and their T'_d0 rise with it, a line through the test files'
+    (dI/dV, T'_d0) gives T_fl (its slope) and the unsaturated T'_d0 (IEEE 115's, a datasheet's:
+    the line at dI/dV = 1)."""
+
+    per_volt: list[tuple[str, float, float]]  # (file, dI/dV, T'_d0) of each test file's events
+    leakage: float  # T_fl (s): the slope
+    leakage_std: float  # from the files' scatter about the line (NaN without a file to spare)
+    unsaturated: float  # T'_d0 at dI/dV = 1
+    unsaturated_std: float
+    shows: bool  # T_fl beyond LEAKAGE_STDS of its std and moving T'_d0 by LEAKAGE_SHARE across the files
 
 
 @dataclass
@@ -119,6 +141,39 @@ class FieldCircuitResult:
     base: FieldCurrentBase
     events: list[FieldEvent]
     plateaus: list[tuple[float, float, str]]  # (V_t, I_f, scenario)
+    leakage: FieldLeakage | None = None
+
+
+LEAKAGE_SPREAD = 0.5  # of dI/dV between the test files: less cannot tell the leakage's share
+LEAKAGE_STDS = 3.0  # T_fl beyond this many of its std
+LEAKAGE_SHARE = 0.05  # and moving T'_d0 by this share across the files' dI/dV: less changes no study
+
+
+def field_leakage(events: Sequence[FieldEvent], base: FieldCurrentBase) -> FieldLeakage | None:
+    """The line through the test files' (dI/dV, T'_d0) (see :class:`FieldLeakage`); None where the
+    files' dI/dV do not differ by LEAKAGE_SPREAD or fewer than two files have events."""
+    files: dict[str, list[tuple[float, float]]] = {}
+    for e in events:
+        files.setdefault(file_of(e.scenario), []).append(
+            (base.scale * e.current_per_volt, base.scale * e.time_per_base)
+        )
+    per = [(f, float(np.mean([p[0] for p in v])), float(np.mean([p[1] for p in v]))) for f, v in files.items()]
+    r, t = np.array([p[1] for p in per]), np.array([p[2] for p in per])
+    if len(per) < 2 or np.ptp(r) < LEAKAGE_SPREAD:
+        return None
+    design = np.column_stack([np.ones(len(r)), r - 1.0])
+    coef, *_ = np.linalg.lstsq(design, t, rcond=None)
+    spare = len(per) - 2
+    sd = (math.nan, math.nan)
+    if spare > 0:
+        s2 = float(np.sum((t - design @ coef) ** 2)) / spare
+        cov = s2 * np.linalg.inv(design.T @ design)
+        sd = (float(np.sqrt(cov[0, 0])), float(np.sqrt(cov[1, 1])))
+    unsat, t_fl = float(coef[0]), float(coef[1])
+    shows = bool(
+        math.isfinite(sd[1]) and t_fl > LEAKAGE_STDS * sd[1] and t_fl * float(np.ptp(r)) > LEAKAGE_SHARE * unsat
+    )
+    return FieldLeakage(per, t_fl, sd[1], unsat, sd[0], shows)
 
 
 def field_events(scenarios: Sequence[ScenarioData]) -> list[ScenarioData]:
@@ -182,7 +237,9 @@ def one_event(s: ScenarioData) -> FieldEvent:
     use = np.flatnonzero(share[:end] >= FROM_SHARE)
     x, y = moved[use], integral[use]
     slope = float(x @ y / (x @ x)) if use.size else float(integral[end - 1] / delta)
-    return FieldEvent(s.name, (v0, i0), (v1, i1), delta, k_e, slope)
+    moved_i = s["i_fd"][a:] - i0
+    per_volt = float(x @ moved_i[use] / (x @ x)) if use.size else float((i1 - i0) / delta)
+    return FieldEvent(s.name, (v0, i0), (v1, i1), delta, k_e, slope, per_volt)
 
 
 def by_file(values: Sequence[tuple[str, float]]) -> tuple[float, float, int]:
@@ -231,7 +288,17 @@ def field_circuit(scenarios: Sequence[ScenarioData], saturation: tuple[float, fl
             f"the open-circuit curve (S(1.0) = {saturation[0]:g}, S(1.2) = {saturation[1]:g}) misses the "
             f"no-load plateaus by up to {100 * base.scatter:.1f} %: is it this machine's?"
         )
-    return FieldCircuitResult(est, base, events, plateaus)
+    leak = field_leakage(events, base) if base.determined else None
+    if leak is not None and leak.shows:
+        each = ", ".join(f"{t:.3g} s at {r:.2f}" for _, r, t in leak.per_volt)
+        est.add_note(
+            f"the field's own leakage flux, which does not saturate, shows: the test files' T'_d0 rise with the field "
+            f"current moved per V_t ({each}; 1 on the air-gap line), by T_fl {leak.leakage:.3g} s per unit, so the "
+            f"unsaturated T'_d0 (IEEE 115's, a datasheet's) is about {leak.unsaturated:.3g} s; GENSAL's and "
+            "GENROU's form take the leakage flux as saturating and one T'_d0: the one given is the events' mean, "
+            "which a record plays"
+        )
+    return FieldCircuitResult(est, base, events, plateaus, leak)
 
 
 @dataclass

@@ -11,6 +11,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from scipy.signal import savgol_filter
 
 from phid_ros.ident.field_circuit import field_circuit, field_current_base, machine_field, on_line
 from phid_ros.ident.scenario import ScenarioData, resampled, scenario_from_simulation
@@ -94,6 +95,38 @@ def test_the_base_from_plateaus() -> None:
     assert field_current_base(v, i, CURVE).scale == pytest.approx(2.5, rel=1e-9)
     bound = field_current_base(v, i, None)
     assert not bound.determined and bound.scale == pytest.approx(1.0 / 1.1 * 2.5, rel=1e-9)
+
+
+def test_a_field_whose_leakage_flux_does_not_saturate_shows_it() -> None:
+    """A field whose flux is the air gap's and its own leakage's, which does not saturate: the
+    recorded E_fd written as X_ad I_fd + T_ad dV_t/dt + T_fl d(X_ad I_fd)/dt on the simulated V_t and
+    field current of three no-load steps (above the knee, where the field current moves 2-2.4 x V_t,
+    and below it). Each file's T'_d0 is T_ad + T_fl dI/dV: the line through the files gives T_fl and
+    the unsaturated T'_d0 back, and the note says it. The simulator's own field (GENSAL's form: no
+    leakage flux of its own) shows none."""
+    t_ad, t_fl = 1.2, 0.25
+    plain = no_load_steps({"up": 1.1, "deep": 0.6, "down": 0.9}, CURVE)
+    leaky = []
+    for s in plain:
+        i = np.asarray(s["i_fd"], float) / I_FD_BASE  # X_ad I_fd on the machine's base
+        # the derivatives smoothed (a quarter second): the sensors' noise differentiated would be
+        # the recorded E_fd's, whose plateaus give the winding's resistance
+        rate = {k: savgol_filter(x, 51, 3, deriv=1, delta=s.dt) for k, x in (("v", s["v_t"]), ("i", i))}
+        e_fd = i + t_ad * rate["v"] + t_fl * rate["i"]
+        leaky.append(with_channels(s, {"v_f": e_fd * E_FD_BASE}, "a field with its own leakage flux"))
+    r = field_circuit(leaky, CURVE)
+    assert r.leakage is not None and r.leakage.shows
+    assert [f for f, _, _ in r.leakage.per_volt] == ["up", "deep", "down"]
+    assert r.leakage.leakage == pytest.approx(t_fl, rel=0.10)
+    assert r.leakage.unsaturated == pytest.approx(t_ad + t_fl, rel=0.03)
+    assert "the field's own leakage flux, which does not saturate, shows" in r.T_d0_prime.note
+    # GENSAL's form: one T'_d0 whatever dI/dV, no leakage flux of its own
+    g = field_circuit(plain, CURVE)
+    assert g.leakage is not None and not g.leakage.shows and abs(g.leakage.leakage) < 0.02
+    assert g.leakage.unsaturated == pytest.approx(TABLE1.T_d0_prime, rel=0.01)
+    assert "leakage flux" not in g.T_d0_prime.note
+    # two files above the knee alike: their dI/dV do not differ enough to tell
+    assert field_circuit(no_load_steps({"up": 1.1, "down": 0.9}, CURVE), CURVE).leakage is None
 
 
 def test_x_d_and_x_d_prime_on_line_from_the_field_circuit_of_a_saturated_machine() -> None:
