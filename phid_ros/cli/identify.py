@@ -10,6 +10,7 @@ from rich.console import Console
 
 from phid_ros.api import cut_unit, identify_unit
 from phid_ros.cli.common import finish, load_truth, step_thresholds, warn
+from phid_ros.cli.day_summary import HEADERS, day_summary
 from phid_ros.cli.progress import ProgressLine
 from phid_ros.cli.tables import Col, fmt, pct, print_table
 from phid_ros.controls.identify import ControlFit
@@ -133,6 +134,20 @@ def print_validation(console: Console, res: IdentificationResult) -> None:
     )
 
 
+def print_day(console: Console, res: IdentificationResult, controls: dict[str, ControlFit | str]) -> None:
+    """What each test gave (a recorder's day: the field-circuit routes, the exciter's steps)."""
+    rows = [r.cells() for r in day_summary(res, controls)]
+    cols = [
+        Col(HEADERS[0], "left", key=True, breakable=True),
+        Col(HEADERS[1]),
+        Col(HEADERS[2], "left", keep=2),
+        Col(HEADERS[3], "left", keep=5),
+        Col(HEADERS[4], "left", keep=4),
+        Col(HEADERS[5], "left", text=True),
+    ]
+    print_table(console, "what each test gave", cols, rows)
+
+
 def start_from_dyr(args: Any) -> dict[str, dict[str, float]]:
     """``--start-from UNIT.dyr``: the user's existing model as the starts of the searches that
     take one (the machine's, as --start does; the controls' fits), and its control models as the
@@ -199,6 +214,8 @@ def identify_command(args: Any, console: Console) -> int:
     print_parameters(console, res, truth)
     print_validation(console, res)
     print_controls(console, controls)
+    if res.determined_by:
+        print_day(console, res, controls)
     if res.stage1_paper is not None:
         console.print(
             f"for comparison, not in the result: the paper's differential damping (stage 1a) gives H = "

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from phid_ros.cli.common import figure_backend
+from phid_ros.cli.day_summary import HEADERS, day_summary
 from phid_ros.cli.tables import pct
 from phid_ros.controls.identify import ControlFit
 from phid_ros.ident.pipeline import IdentificationResult
@@ -300,6 +301,14 @@ def _controls_section(controls: Mapping[str, ControlFit | str]) -> str:
     return "".join(parts)
 
 
+def _day_section(res: IdentificationResult, controls: Mapping[str, ControlFit | str] | None) -> str:
+    """What each test gave, where a recorder's channels were identified (its day's tests)."""
+    if not res.determined_by:
+        return ""
+    rows = [r.cells() for r in day_summary(res, controls)]
+    return f"<h2>What each test gave</h2>\n{html_table(HEADERS, rows, text_columns=(0, 2, 3, 4, 5))}"
+
+
 def write_report(
     path: str | Path,
     res: IdentificationResult,
@@ -327,6 +336,7 @@ def write_report(
 "(bound)": at its search bound.</p>
 <h2>Excitation and turbine-governor</h2>
 {_controls_section(controls or {})}
+{_day_section(res, controls)}
 <h2>Validation against the {against}</h2>
 {_validation_table(res)}
 <p>RMSE, MAE and STD of the combined state-trajectory error (Table 9); MOD-026: simulated P and Q within
