@@ -282,6 +282,47 @@ def test_a_stabiliser_whose_output_is_recorded_is_named_with_its_gain_and_nothin
     assert "no scenario" in str(identify_controls(dark, {"exciter": [], "governor": []})["stabiliser"])
 
 
+def dual_input_recording(noisy, clean, model_name: str, constants: dict[str, float], seed: int):
+    """The catalogue with a dual-input stabiliser's output recorded (0.0002 pu of noise), driven by
+    the clean speed and P_e from their pre-event levels: (its constants completed, the scenarios)."""
+    from dataclasses import replace
+
+    model = MODELS[model_name]
+    truth = model.completed({**model.defaults(), **constants})
+    rng = np.random.default_rng(seed)
+    out = []
+    for n, c in zip(noisy, clean, strict=True):
+        pre = c.pre_slice()
+        dev = {k: np.asarray(c[k]) - float(np.mean(c[k][pre])) for k in ("omega", "p_e")}
+        x = ControlInputs(c.dt, np.zeros(c.n), dev["omega"], np.zeros(c.n), p_e=dev["p_e"])
+        v_s = model.response(truth, x, 0.0) + 0.0002 * rng.standard_normal(c.n)
+        out.append(replace(n, recorded={"v_s": v_s}))
+    return truth, out
+
+
+def given_within_3_std(f, model_name: str, truth: dict[str, float]) -> ControlFit:
+    """The fit, named ``model_name``, every constant it gives as determined within 3 std of the truth."""
+    assert isinstance(f, ControlFit) and f.named and f.model == model_name, f
+    for name, ok in f.identifiable.items():
+        if ok:
+            std = f.uncertainty[name]
+            assert std is not None and abs(f.parameters[name] - truth[name]) <= 3 * std, (name, f.parameters[name], std)
+    return f
+
+
+def unit_result(found) -> dict:
+    """An identify result for the TABLE 1 machine with ``found``'s controls, as export reads it."""
+    from phid_ros.model.parameters import PARAMETER_NAMES, TABLE1
+
+    return {
+        "parameters": TABLE1.as_dict(),
+        "identifiable": dict.fromkeys(PARAMETER_NAMES, True),
+        "f_nominal_hz": 50.0,
+        "operating_point": {"p_m_pu": 0.8},
+        "controls": controls_json(found),
+    }
+
+
 # IEEE 421.5's PSS2A sample data but for its washouts (2 s for 10 s: the catalogue's windows are 12 s)
 DUAL_INPUT = {"TW1": 2.0, "KS2": 2.0 / (2 * 3.48), "T9": 0.1, "KS1": 10.0, "T1": 0.2, "T2": 0.04, "T3": 0.1, "T4": 0.02}
 
@@ -297,34 +338,12 @@ def test_a_dual_input_stabiliser_is_named_from_speed_and_power_and_not_without_t
 
     from phid_ros.export.formats import psse_dyr
     from phid_ros.export.record import build_record
-    from phid_ros.model.parameters import PARAMETER_NAMES, TABLE1
 
-    model = MODELS["PSS2A"]
-    truth = model.completed({**model.defaults(), **DUAL_INPUT})
-    rng = np.random.default_rng(5)
-    recording = []
-    for n, c in zip(noisy_scenarios, clean_scenarios, strict=True):
-        pre = c.pre_slice()
-        dev = {k: np.asarray(c[k]) - float(np.mean(c[k][pre])) for k in ("omega", "p_e")}
-        x = ControlInputs(c.dt, np.zeros(c.n), dev["omega"], np.zeros(c.n), p_e=dev["p_e"])
-        v_s = model.response(truth, x, 0.0) + 0.0002 * rng.standard_normal(c.n)
-        recording.append(replace(n, recorded={"v_s": v_s}))
+    truth, recording = dual_input_recording(noisy_scenarios, clean_scenarios, "PSS2A", DUAL_INPUT, seed=5)
     found = identify_controls(recording, {"exciter": [], "governor": []})
-    f = found["stabiliser"]
-    assert isinstance(f, ControlFit) and f.named and f.model == "PSS2A", f
+    f = given_within_3_std(found["stabiliser"], "PSS2A", truth)
     assert f.parameters["KS1"] == pytest.approx(10.0, rel=0.05) and f.identifiable["KS1"]
-    for name, ok in f.identifiable.items():
-        if ok:
-            std = f.uncertainty[name]
-            assert std is not None and abs(f.parameters[name] - truth[name]) <= 3 * std, (name, f.parameters[name], std)
-    result = {
-        "parameters": TABLE1.as_dict(),
-        "identifiable": dict.fromkeys(PARAMETER_NAMES, True),
-        "f_nominal_hz": 50.0,
-        "operating_point": {"p_m_pu": 0.8},
-        "controls": controls_json(found),
-    }
-    dyr = psse_dyr(build_record(result, source="unit.json", mva=1000.0, allow_flagged=True))
+    dyr = psse_dyr(build_record(unit_result(found), source="unit.json", mva=1000.0, allow_flagged=True))
     assert " 'PSS2A' '1' 1 0 3 0 5 1 " in dyr, dyr
     blind = [replace(s, absent=frozenset({*s.absent, "omega"})) for s in recording]  # a recorder without the speed
     other = identify_controls(blind, {"exciter": [], "governor": []})["stabiliser"]
@@ -485,46 +504,24 @@ def test_a_stabiliser_with_a_third_lead_lag_is_named_pss2b_and_written_in_its_or
     lag determined, every constant given as determined within 3 std of the truth; a .dyr carries
     its ICONs, the third lead-lag after T_4 and the input limits before VSTMAX, VSTMIN, and reads
     back to the same constants."""
-    from dataclasses import replace
 
     from phid_ros.export.dyr_read import read_unit
     from phid_ros.export.formats import psse_dyr
     from phid_ros.export.record import build_record
-    from phid_ros.model.parameters import PARAMETER_NAMES, TABLE1
 
-    model = MODELS["PSS2B"]
-    truth = model.completed({**model.defaults(), **DUAL_INPUT, "T10": 0.05, "T11": 0.5})
-    rng = np.random.default_rng(7)
-    recording = []
-    for n, c in zip(noisy_scenarios, clean_scenarios, strict=True):
-        pre = c.pre_slice()
-        dev = {k: np.asarray(c[k]) - float(np.mean(c[k][pre])) for k in ("omega", "p_e")}
-        x = ControlInputs(c.dt, np.zeros(c.n), dev["omega"], np.zeros(c.n), p_e=dev["p_e"])
-        v_s = model.response(truth, x, 0.0) + 0.0002 * rng.standard_normal(c.n)
-        recording.append(replace(n, recorded={"v_s": v_s}))
+    third = {**DUAL_INPUT, "T10": 0.05, "T11": 0.5}
+    truth, recording = dual_input_recording(noisy_scenarios, clean_scenarios, "PSS2B", third, seed=7)
     found = identify_controls(recording, {"exciter": [], "governor": []})
-    f = found["stabiliser"]
-    assert isinstance(f, ControlFit) and f.named and f.model == "PSS2B", f
+    f = given_within_3_std(found["stabiliser"], "PSS2B", truth)
     assert f.parameters["KS1"] == pytest.approx(10.0, rel=0.05) and f.identifiable["KS1"]
     assert f.identifiable["T11"] and f.parameters["T11"] == pytest.approx(0.5, rel=0.05), f.identifiable
-    for name, ok in f.identifiable.items():
-        if ok:
-            std = f.uncertainty[name]
-            assert std is not None and abs(f.parameters[name] - truth[name]) <= 3 * std, (name, f.parameters[name], std)
-    result = {
-        "parameters": TABLE1.as_dict(),
-        "identifiable": dict.fromkeys(PARAMETER_NAMES, True),
-        "f_nominal_hz": 50.0,
-        "operating_point": {"p_m_pu": 0.8},
-        "controls": controls_json(found),
-    }
-    dyr = psse_dyr(build_record(result, source="unit.json", mva=1000.0, allow_flagged=True))
+    dyr = psse_dyr(build_record(unit_result(found), source="unit.json", mva=1000.0, allow_flagged=True))
     line = next(x for x in dyr.splitlines() if "'PSS2B'" in x)
     fields = line.split("'PSS2B' '1' ")[1].split()
     assert fields[:6] == ["1", "0", "3", "0", "5", "1"], line
     constants = [float(v) for v in line.split("/")[0].split("'PSS2B' '1' ")[1].split()[6:]]
     assert len(constants) == 23
-    written = dict(zip([p.name for p in model.parameters], constants, strict=True))
+    written = dict(zip([p.name for p in MODELS["PSS2B"].parameters], constants, strict=True))
     assert written["T10"] == pytest.approx(f.parameters["T10"], rel=1e-4)
     assert (written["VSI2MIN"], written["VSTMAX"], written["VSTMIN"]) == (-0.66, 0.1, -0.1)  # never reached: defaults
     assert constants[15:17] == [written["T10"], written["T11"]]
