@@ -13,6 +13,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 from phid_ros.controls.identify import ControlFit, regulator_out_of_loop, switched_on
+from phid_ros.ident.file_events import time_in_file
 from phid_ros.ident.pipeline import IdentificationResult
 from phid_ros.ident.scenario import ScenarioData, file_of
 from phid_ros.ident.terminal import at_no_load
@@ -41,11 +42,9 @@ def _held_by(s: ScenarioData) -> str:
 
 
 def _event_time(s: ScenarioData) -> float:
-    """The event's time in its test file (the cut's own note says where its window began)."""
-    for n in s.notes:
-        if n.startswith(f"event {s.kind} at "):
-            return float(n.split(" at ", 1)[1].split(" s", 1)[0])
-    return s.k_event * s.dt
+    """The event's time in its test file, or in its window where it was not cut from a file."""
+    t = time_in_file(s.notes)
+    return s.k_event * s.dt if t is None else t
 
 
 def day_summary(res: IdentificationResult, controls: Mapping[str, ControlFit | str] | None = None) -> list[TestRow]:

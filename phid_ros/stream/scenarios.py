@@ -16,7 +16,7 @@ import hashlib
 import numpy as np
 
 from phid_ros.errors import PhidError
-from phid_ros.ident.file_events import FileEvent, events_of_file
+from phid_ros.ident.file_events import FileEvent, event_note, events_of_file
 from phid_ros.ident.scenario import (
     DEFAULT_THRESHOLDS,
     ScenarioData,
@@ -254,7 +254,7 @@ def _marked_scenarios(
                 problems.append(f"{source}: skipped {exc}")
                 continue
             made.steady_start = e.steady_start - e.start
-            made.notes.append(f"event {e.describe(frame.period_ns / NS)} of {m.name}")
+            made.notes.append(event_note(e, frame.period_ns / NS, m.name))
             out.append(made)
 
 

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from phid_ros.ident.file_events import events_of_file
+from phid_ros.ident.file_events import FileEvent, event_note, events_of_file, time_in_file
 from phid_ros.ident.open_circuit import OpenCircuitError, open_circuit, saturation_seen
 from phid_ros.ident.scenario import DEFAULT_THRESHOLDS, make_scenario
 from phid_ros.model.channels import CHANNELS, Frame
@@ -244,3 +244,13 @@ def test_a_step_is_placed_at_its_onset_not_half_way() -> None:
     # a clean step is where it was
     y = np.where(np.arange(n) >= k0, 1.0, 0.0) + rng.normal(0, 1e-3, n)
     assert locate_labelled_step({"v_f": y}, DT, "field_step")[0] == k0
+
+
+def test_an_event_s_time_in_its_file_reads_back_from_its_note() -> None:
+    """The note a scenario is cut with gives the event's time in its test file back (the day's
+    summary shows it); a scenario not cut from a file's events has none."""
+    e = FileEvent("field_step", start=10_000, event=11_199, end=12_400, steady_start=11_900)
+    note = event_note(e, 0.0048, "AVR_PH_Step10")
+    assert note.startswith("event field_step at 53.76 s (window 48.00-59.52 s) of AVR_PH_Step10")
+    assert time_in_file(["not recorded: omega", note]) == pytest.approx(53.76)
+    assert time_in_file(["labelled voltage_step, taken as field_step"]) is None
