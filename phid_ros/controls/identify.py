@@ -180,11 +180,15 @@ def _cases(
     return [c for c in picked if c is not None]
 
 
-def control_case(s: ScenarioData, kind: str, *, output: bool = True) -> ControlCase | None:
+def control_case(
+    s: ScenarioData, kind: str, *, output: bool = True, v_t_rest: float | None = None
+) -> ControlCase | None:
     """The scenario as a control's fit or play-in sees it: deviations from the pre-event state,
     the inputs smoothed zero-phase below ``INPUT_CUTOFF_HZ``, at ``FIT_RATE_HZ``; None where a
     channel the kind needs is not recorded. ``output=False`` (a play-in): the output channel may
-    be missing (then zeros, and no reference step is sized on it)."""
+    be missing (then zeros, and no reference step is sized on it). ``v_t_rest``: the V_t the
+    regulator holds at rest where it is not the scenario's own pre-event V_t (a closed loop's
+    machine, whose V_t is its own, against the recorded set point)."""
     kind_needs, out_channel, kind_stepped, _fitted = KINDS[kind]
     needs: tuple[str, ...] = kind_needs
     stepped_kinds: tuple[str, ...] = kind_stepped
@@ -200,7 +204,10 @@ def control_case(s: ScenarioData, kind: str, *, output: bool = True) -> ControlC
     pre = s.pre_slice()
     # an exciter's error takes the recorded stabiliser output where there is one (V_REF - V_C + V_S)
     channels = (*needs, "omega", "v_t", "p_e", *(("v_s",) if kind == "exciter" else ()))
-    dev = {c: np.asarray(s[c], float) - float(np.mean(s[c][pre])) for c in channels if s.has(c)}
+    rest = {c: float(np.mean(s[c][pre])) for c in channels if s.has(c)}
+    if v_t_rest is not None:
+        rest["v_t"] = v_t_rest
+    dev = {c: np.asarray(s[c], float) - rest[c] for c in channels if s.has(c)}
     if not all(np.all(np.isfinite(dev[c])) for c in needs):
         return None
     if out_channel not in dev:

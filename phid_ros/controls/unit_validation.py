@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from phid_ros.controls.closed_loop import ClosedLoop, LoopNotClosed, close_loop
 from phid_ros.controls.identify import (
     KINDS,
     ControlCase,
@@ -43,9 +44,10 @@ from phid_ros.controls.identify import (
     switched_on,
     zero_phase,
 )
-from phid_ros.controls.models import MODELS, ControlModel, LimitsError, OperatingLevels
+from phid_ros.controls.models import MODELS, ControlInputs, ControlModel, LimitsError, OperatingLevels
 from phid_ros.ident.field_circuit import ON_BASE
-from phid_ros.ident.plant_playin import open_circuit_voltage
+from phid_ros.ident.network_equivalent import thevenin_reactance
+from phid_ros.ident.plant_playin import OPEN_BREAKER_X, BehindReactance, behind_reactance, open_circuit_voltage
 from phid_ros.ident.plant_playin import play_in as plant_play_in
 from phid_ros.ident.scenario import ScenarioData
 from phid_ros.ident.terminal import at_no_load, with_channels, with_rotor_angle
@@ -232,20 +234,31 @@ def _with_stabiliser(s: ScenarioData, case: ControlCase, stabiliser: Control | N
 
 
 def _control_output(
-    s: ScenarioData, kind: str, control: Control, level: float, notes: list[str], stabiliser: Control | None = None
+    s: ScenarioData,
+    kind: str,
+    control: Control,
+    level: float,
+    notes: list[str],
+    stabiliser: Control | None = None,
+    reference: float | None = None,
+    v_t_rest: float | None = None,
 ) -> tuple[Array, float] | None:
     """The control's output deviation (pu) on the scenario's samples, and the reference step it
-    was given; None where the recording lacks the input the kind needs. A model that simulates
-    its limits (:meth:`ControlModel.limited`) is played from ``level``, its output's pre-event
-    value, and its reference step sized by a bounded search (the response is not linear in it).
-    An exciter's error takes the ``stabiliser`` (:func:`_with_stabiliser`)."""
-    case: ControlCase | None = control_case(s, kind, output=False)
+    was given (``reference`` where given, else the test sheet's or sized); None where the
+    recording lacks the input the kind needs. A model that simulates its limits
+    (:meth:`ControlModel.limited`) is played from ``level``, its output's pre-event value, and its
+    reference step sized by a bounded search (the response is not linear in it). An exciter's
+    error takes the ``stabiliser`` (:func:`_with_stabiliser`); ``v_t_rest``: its set point, where
+    not the scenario's pre-event V_t (:func:`~phid_ros.controls.identify.control_case`)."""
+    case: ControlCase | None = control_case(s, kind, output=False, v_t_rest=v_t_rest)
     if case is None:
         return None
+    if reference is not None and case.stepped:
+        case = replace(case, reference=reference)
     if kind == "exciter":
         case = _with_stabiliser(s, case, stabiliser, notes)
     model, values = control.model, control.values
-    v_t0 = float(np.mean(s["v_t"][s.pre_slice()]))
+    v_t0 = float(np.mean(s["v_t"][s.pre_slice()])) if v_t_rest is None else v_t_rest
     levels = OperatingLevels(v_t0 + case.inputs.v_t, level, level) if kind == "exciter" else None
     try:
         limited = levels is not None and model.limited(values, case.inputs, 0.0, levels) is not None
@@ -286,6 +299,8 @@ def validate_unit(
     made: list[dict[str, str]] = []
     per_notes: list[list[str]] = []
     skipped: list[set[str]] = []
+    seen: list[ScenarioData] = []  # each scenario as the unit sees it (its rotor angle reconstructed)
+    closings: list[_Closing | None] = []
     for s in scenarios:
         mine: list[str] = []
         unchecked: set[str] = set()
@@ -294,6 +309,7 @@ def validate_unit(
             mine.append("rotor angle reconstructed from V_t, P, Q with the unit's X_q")
         put: dict[str, Array] = {}
         by: dict[str, str] = {}
+        closing: _Closing | None = None
         for kind, channel in (("exciter", "v_f"), ("governor", "p_m")):
             control = controls.get(kind)
             level = _pre_event_level(s, channel, params)
@@ -304,6 +320,8 @@ def validate_unit(
             response = _control_output(s, kind, control, level, mine, stabiliser) if control is not None else None
             if control is not None and response is not None:
                 put[channel], by[channel] = level + response[0], control.model.name
+                if kind == "exciter":
+                    closing = _Closing(control, stabiliser, level, response[1])
                 if response[1]:
                     said = s.reference_step is not None and s.kind in KINDS[kind][2]
                     how = "the test sheet's" if said else f"sized on the recorded {channel}"
@@ -329,20 +347,35 @@ def validate_unit(
         made.append(by)
         per_notes.append(mine)
         skipped.append(unchecked)
+        seen.append(s)
+        closings.append(closing)
     kept = _simulable(effects, play_in_stride(played[0].dt) * played[0].dt, notes) if played else []
     trajectories = _machine_play_in(played, params, f_nominal_hz, kept) if played else []
     base = {name: getattr(params, name) for name in PARAMETER_NAMES}
+    closed_v: list[BehindReactance | None] = [None] * len(played)
+    for i, closing in enumerate(closings):
+        if closing is not None:
+            loop = _closed_loop(seen[i], played[i], closing, base, kept, f_nominal_hz, per_notes[i])
+            if loop is not None:
+                played[i] = with_channels(played[i], {"v_f": loop.v_f}, "E_fd with the exciter's loop closed")
+                trajectories[i] = _Played(loop.run.p_e[:, None], loop.run.q_e[:, None])
+                closed_v[i] = loop.run
     out: list[ScenarioCheck] = []
-    for s, p, traj, by, mine, unchecked in zip(scenarios, played, trajectories, made, per_notes, skipped):
+    for s, p, traj, by, mine, unchecked, loop_run in zip(
+        scenarios, played, trajectories, made, per_notes, skipped, closed_v
+    ):
         idx = np.arange(0, s.n, play_in_stride(s.dt))
         pre = slice(0, max(1, int(np.searchsorted(idx, s.k_event))))
         skip = switching_spans(s, idx, f_nominal_hz)
         simulated = {"p_e": traj.p_e[:, 0], "q_e": traj.q_e[:, 0], "v_f": p["v_f"][idx], "p_m": p["p_m"][idx]}
         no_load = at_no_load(s)
-        if no_load:
+        if loop_run is not None:
+            simulated["v_t"] = np.interp(idx, loop_run.idx, loop_run.v_t)
+        elif no_load:
             oc_idx, v_open = open_circuit_voltage(p, base, kept, f_nominal_hz, STEP_SECONDS)
             simulated["v_t"] = np.interp(idx, oc_idx, v_open)
-            mine.append("no load: the machine's V_t simulated on open circuit from the played E_fd (no P, Q to check)")
+        if no_load:
+            mine.append("no load: the machine's V_t simulated on open circuit (no P, Q to check)")
         if not (np.isfinite(simulated["p_e"]).all() and np.isfinite(simulated["q_e"]).all()):
             mine.append("the machine's play-in diverged (not a number): every check of it fails")
         recorded: dict[str, Array] = {}
@@ -350,11 +383,15 @@ def validate_unit(
         for channel, (standard, _label, _fixed) in CHANNELS.items():
             if not s.has(channel) or standard in unchecked:
                 continue
-            if (channel in AT_NO_LOAD) != no_load and channel not in ("v_f", "p_m"):
-                continue  # P, Q on line; V_t on open circuit
+            if channel in AT_NO_LOAD and "v_t" not in simulated:
+                continue  # V_t is checked where the machine makes it: on open circuit, or with the loop closed
+            if channel in ("p_e", "q_e") and no_load:
+                continue  # no P, Q on open circuit
             if channel in ("v_f", "p_m") and by.get(channel) == "recorded":
                 continue  # played in, not simulated: nothing to check
             full = np.asarray(p[channel], float) if channel in ("v_f", "p_m") else None
+            if full is not None and channel == "v_f" and loop_run is not None:
+                full = _from_recorded_rest(full, np.asarray(s[channel], float), s.pre_slice(), mine)
             sim_at = simulated[channel] if full is None else None
             check, rec_at, sim_at = channel_check(
                 channel, np.asarray(s[channel], float), s.dt, idx, pre, full, sim_at, skip
@@ -373,6 +410,94 @@ def validate_unit(
 class _Played:
     p_e: Array  # (steps, 1)
     q_e: Array
+
+
+@dataclass
+class _Closing:
+    """What the exciter of a scenario was played with, to play it again in a closed loop."""
+
+    control: Control
+    stabiliser: Control | None
+    level: float  # E_fd before the event
+    reference: float  # the reference step it was given
+
+
+def _from_recorded_rest(simulated: Array, recorded: Array, pre: slice, notes: list[str]) -> Array:
+    """A closed loop's E_fd, moved to start where the recorded one does: the machine model's own
+    field at the recorded operating point is not the recorded field (the regulator trims E_fd to
+    whatever holds the recorded V_t), and that offset, said in ``notes``, is a steady-state figure
+    of the machine model; what MOD-026 compares is the response (its band is a share of the
+    recorded response), as an open-loop play-in, which starts at the recorded field, does."""
+    own, rest = float(np.mean(simulated[pre])), float(np.mean(recorded[pre]))
+    notes.append(
+        f"E_fd at rest with the loop closed: {own:.4g} pu against the recorded {rest:.4g} ({own - rest:+.3g} pu, "
+        f"{(own - rest) / rest:+.1%}: the machine model's own field at the recorded operating point); the "
+        "response compared from the recorded rest"
+    )
+    return simulated - (own - rest)
+
+
+def exciter_step_response(control: Control, s: ScenarioData) -> Array:
+    """The exciter's small-signal E_fd (pu) after a unit step of V_t at the scenario's first sample,
+    on every sample (limits left out): the linear part of its loop."""
+    k = fit_stride(s.dt)
+    coarse = np.arange(0, s.n, k)
+    zero = np.zeros(len(coarse))
+    x = ControlInputs(s.dt * k, np.ones(len(coarse)), zero, zero)
+    return np.interp(np.arange(s.n), coarse, control.model.response(control.values, x, 0.0))
+
+
+def _closed_loop(
+    s: ScenarioData,
+    played: ScenarioData,
+    closing: _Closing,
+    base: Mapping[str, Any],
+    effects: Sequence[tuple[type[PlantEffect], Mapping[str, Any]]],
+    f_nominal_hz: float,
+    notes: list[str],
+) -> ClosedLoop | None:
+    """The scenario with the exciter's loop closed through the machine (:mod:`phid_ros.controls.closed_loop`),
+    behind the network the recording shows, or on open circuit at no load; None (said in
+    ``notes``) where the network is not determined or the loop does not settle, and the exciter
+    stays played from the recorded V_t."""
+    if at_no_load(s):
+        x_series, where = OPEN_BREAKER_X, "on open circuit"
+    else:
+        network = thevenin_reactance(s)
+        if network is None:
+            notes.append(
+                "the exciter played from the recorded V_t (its loop open): the recording does not determine the "
+                "network's reactance (V_t did not move with Q / V_t)"
+            )
+            return None
+        x_series, where = network.x_e, f"behind {network.describe()}"
+    said: list[str] = []  # the open-loop play-in said these already
+    # the regulator holds the recorded V_t at rest: a machine that makes another V_t for the
+    # recorded field is corrected by it, as the unit would be, and its field shows the difference
+    set_point = float(np.mean(s["v_t"][s.pre_slice()]))
+
+    def exciter(v_t: Array) -> Array:
+        heard = with_channels(s, {"v_t": v_t}, "V_t as the closed loop makes it")
+        out = _control_output(
+            heard, "exciter", closing.control, closing.level, said, closing.stabiliser, closing.reference, set_point
+        )
+        assert out is not None  # the open-loop play-in of the same scenario gave one
+        return closing.level + out[0]
+
+    def machine(fields: list[Array]) -> list[BehindReactance]:
+        columns = [with_channels(played, {"v_f": e}, "E_fd as the exciter makes it") for e in fields]
+        return behind_reactance(columns, x_series, base, effects, f_nominal_hz, STEP_SECONDS)
+
+    try:
+        loop = close_loop(np.asarray(s["v_t"], float), exciter, exciter_step_response(closing.control, s), machine)
+    except LoopNotClosed as exc:
+        notes.append(f"{exc}: the exciter played from the recorded V_t (its loop open)")
+        return None
+    notes.append(
+        f"the exciter's loop closed through the machine {where}: V_t, Q and E_fd as the unit makes them "
+        f"({loop.iterations} iterations to |V - F(V)| {loop.residual:.1g} pu)"
+    )
+    return loop
 
 
 def _simulable(

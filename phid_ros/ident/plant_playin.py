@@ -30,7 +30,7 @@ from numpy.typing import NDArray
 from phid_ros.cluster import spare_threads
 from phid_ros.ident.scenario import ScenarioData
 from phid_ros.ident.validation import play_in_grid, staged_samples
-from phid_ros.model.conventions import DEFAULT_F_NOMINAL_HZ, electrical_power, terminal_to_dq
+from phid_ros.model.conventions import DEFAULT_F_NOMINAL_HZ, dq_to_terminal, electrical_power, terminal_to_dq
 from phid_ros.model.parameters import PARAMETER_NAMES
 from phid_ros.numerics import rk4
 from phid_ros.sim import kernel
@@ -296,6 +296,66 @@ def _numpy_outputs(
 OPEN_BREAKER_X = 1e6  # pu: the network behind an open breaker (no current, the source irrelevant)
 
 
+@dataclass
+class BehindReactance:
+    """The machine's own terminal on the play-in grid: V_t, P and Q at ``idx`` (sample indices)."""
+
+    idx: Array  # sample indices
+    v_t: Array
+    p_e: Array
+    q_e: Array
+
+
+def behind_reactance(
+    scenarios: Sequence[ScenarioData],
+    x_series: float,
+    base: Mapping[str, Any],
+    effects: Sequence[tuple[type[PlantEffect], Mapping[str, Any]]] = (),
+    f_nominal_hz: float = DEFAULT_F_NOMINAL_HZ,
+    step: float = STEP_SECONDS,
+) -> list[BehindReactance]:
+    """Each scenario's machine behind ``x_series`` from the source the recording gives there,
+    driven by its V_f and P_m: its terminal is the machine's own answer, not imposed (the play-in
+    above imposes the measured terminal). The source is the recorded terminal less the drop the
+    recorded current drives through the reactance, V_t - j X I, so a machine that draws the
+    recorded current sees the recorded V_t, whatever ``x_series``. Scenarios run side by side
+    (one column each: the same recording with other fields is a column too).
+
+    ``x_series`` = :data:`OPEN_BREAKER_X`: on open circuit (the source is then the recorded V_t as
+    it is: no current flows to drop it)."""
+    st = _setup(scenarios, base, effects, 1, f_nominal_hz, step)
+    cols = len(scenarios)
+    p_m, v_f, v_t, theta = (np.broadcast_to(a, (a.shape[0], cols)) for a in st.inputs)
+    x = np.full(cols, float(x_series))
+    zero = np.zeros(cols)
+    if x_series < OPEN_BREAKER_X:
+        delta, i_d, i_q = (np.broadcast_to(st.staged(c), v_t.shape) for c in ("delta", "i_d", "i_q"))
+        v_d, v_q = terminal_to_dq(v_t, delta, theta)
+        # the source: the terminal less the drop (terminal_dq with the source at zero)
+        drop_d, drop_q = terminal_dq(0.0, 0.0, i_d, i_q, 0.0, x_series)
+        v_t, theta = dq_to_terminal(v_d - drop_d, v_q - drop_q, delta)
+    damping = st.damping
+    states = rk4(
+        st.plant._rhs,
+        st.x0,
+        st.steps - 1,
+        st.h,
+        lambda k: (),
+        staged=lambda k, j: (p_m[2 * k + j], v_f[2 * k + j], v_t[2 * k + j], theta[2 * k + j], zero, x, damping),
+    )
+    xs = np.moveaxis(states, 1, 0)
+    eq_i, ed_i, xd_i, xq_i = st.plant._emf(xs)
+    i_d, i_q, vth_d, vth_q = st.plant._currents(xs[0], eq_i, ed_i, v_t[::2], theta[::2], zero, x, xd_i, xq_i)
+    v_d, v_q = terminal_dq(vth_d, vth_q, i_d, i_q, zero, x)
+    p_e, q_e = electrical_power(v_d, v_q, i_d, i_q)
+    v_abs = np.hypot(v_d, v_q)
+    out = []
+    for j, idx in enumerate(st.idx):
+        n = len(idx)
+        out.append(BehindReactance(idx, v_abs[:n, j], p_e[:n, j], q_e[:n, j]))
+    return out
+
+
 def open_circuit_voltage(
     scenario: ScenarioData,
     base: Mapping[str, Any],
@@ -307,26 +367,8 @@ def open_circuit_voltage(
     test's terminal voltage is the machine's own answer to its field, so it is simulated, not
     imposed (the play-in above imposes the measured terminal, which at no load only measures the
     mismatch through the reactance). The plant's equations behind a breaker's reactance."""
-    st = _setup([scenario], base, effects, 1, f_nominal_hz, step)
-    p_m, v_f, v_t, theta = (a[:, :1] if a.shape[1] != 1 else a for a in st.inputs)
-    damping = st.damping
-    x_open = np.full(1, OPEN_BREAKER_X)
-    zero = np.zeros(1)
-    states = rk4(
-        st.plant._rhs,
-        st.x0,
-        st.steps - 1,
-        st.h,
-        lambda k: (),
-        staged=lambda k, j: (p_m[2 * k + j], v_f[2 * k + j], v_t[2 * k + j], theta[2 * k + j], zero, x_open, damping),
-    )
-    x = np.moveaxis(states, 1, 0)
-    eq_i, ed_i, xd_i, xq_i = st.plant._emf(x)
-    v_src, ang = v_t[::2], theta[::2]
-    i_d, i_q, vth_d, vth_q = st.plant._currents(x[0], eq_i, ed_i, v_src, ang, zero, x_open, xd_i, xq_i)
-    v_d, v_q = terminal_dq(vth_d, vth_q, i_d, i_q, zero, x_open)
-    idx = st.idx[0]
-    return idx, np.hypot(v_d, v_q)[: len(idx), 0]
+    [run] = behind_reactance([scenario], OPEN_BREAKER_X, base, effects, f_nominal_hz, step)
+    return run.idx, run.v_t
 
 
 def _scenario_columns(a: Array, j: int, m: int, cols: int) -> Array:

@@ -436,10 +436,9 @@ def test_identify_export_on_the_unit_s_record_validate_beats_the_published_fit(
     saturation: identify (X_q held) gives T'_d0 from the field circuit, an exciter and the
     stabiliser; export writes them into the unit's existing record (the published fit: what the
     day did not determine, H, D, the dampers, kept from it and said); validate plays it. Against
-    the published fit validated the same way: half its error or less on eight checks, worse on one
-    by 0.003 pu, the on-line AVR step's Q within MOD-026's 0.05 pu; E_fd within its MOD-026 band
-    through both on-line AVR steps (each step played from its onset: from the half-way sample, a
-    sample late on a 30 pu/s fall, it erred 0.32 pu for a band of 0.22); the manual field step's
+    the published fit validated the same way: half its error or less on ten checks, worse on none;
+    both on-line AVR steps within MOD-026 on Q, E_fd and V_t, the exciter's loop closed through the
+    machine behind the network's reactance (0.120 pu, from the recording); the manual field step's
     Q within 0.05 pu (played from the plateau before it: from the file's start, across the Q
     ramp 100 s earlier, it began 0.38 pu away)."""
     from phid_ros.cli.main import main
@@ -467,16 +466,20 @@ def test_identify_export_on_the_unit_s_record_validate_beats_the_published_fit(
         checks[name] = {(sc["scenario"], c["channel"]): c["max_error"] for sc in doc for c in sc["checks"]}
         if name == "ours":
             passed = {(sc["scenario"], c["channel"]): c["passed"] for sc in doc for c in sc["checks"]}
-    assert passed[("AVR_MR_PSS_ON@43.7s", "v_f")] and passed[("AVR_MR_PSS_ON@53.9s", "v_f")]
+    # both on-line AVR steps (the step and its return, the PSS on) with the exciter's loop closed
+    # behind the network the recording shows: Q, E_fd and V_t within MOD-026 (Q 0.011 and 0.011 pu;
+    # played from the recorded V_t, the loop open, the return's Q was 0.111)
+    for step in ("AVR_MR_PSS_ON@43.7s", "AVR_MR_PSS_ON@53.9s"):
+        assert passed[(step, "q_e")] and passed[(step, "v_f")] and passed[(step, "v_t")]
+        assert checks["ours"][(step, "q_e")] < 0.03
     assert passed[("RR_MR_Step10@138.0s", "q_e")]
     ours, theirs = checks["ours"], checks["published"]
     assert ours.keys() == theirs.keys()
-    # no check worse by more than 0.01 pu (the PSS-on step's return: Q 0.111 against 0.108), most far better
+    # no check worse than the published fit's, most far better
     worse = {k: (v, theirs[k]) for k, v in ours.items() if v > theirs[k] + 1e-3}
-    assert set(worse) <= {("AVR_MR_PSS_ON@53.9s", "q_e")} and all(a - b < 0.01 for a, b in worse.values()), worse
+    assert not worse, worse
     better = [k for k, v in ours.items() if v < 0.5 * theirs[k]]
-    assert len(better) >= 8, better  # E_fd on every AVR step, V_t on every no-load event, the on-line step's Q
-    assert ours[("AVR_MR_PSS_ON@43.7s", "q_e")] <= 0.05
+    assert len(better) >= 10, better  # E_fd on every AVR step, V_t and Q on line, V_t on the no-load events
 
 
 def test_the_monitor_recalibrates_the_day_as_identify_does(sheet_day: Path) -> None:
