@@ -266,9 +266,12 @@ def validate_record(
     machine_id: str | None = None,
     thresholds: StepThresholds | None = None,
     progress: Callable[[str], None] | None = None,
+    open_loop: bool = False,
 ) -> RecordValidation:
     """A unit's PSS/E record (machine, exciter, governor) played in against each event of the
-    recording at ``path``, as MOD-026/027 ask; the record's constants on the recording's base."""
+    recording at ``path``, as MOD-026/027 ask; the record's constants on the recording's base.
+    ``open_loop``: the exciter driven by the recorded V_t, never closed through the machine
+    (:mod:`phid_ros.controls.closed_loop`)."""
     import numpy as np
 
     from phid_ros.controls.unit_validation import control_of, field_on_machine_base, validate_unit
@@ -298,7 +301,13 @@ def validate_record(
     models = [c.model for c in unit.controls.values()]
     described = " + ".join([f"{unit.machine} at bus {unit.bus} id '{unit.machine_id}'", *models])
     result = validate_unit(
-        scenarios, params, controls, cut.f_nominal_hz, f"{described} ({unit.source})", unit.effects()
+        scenarios,
+        params,
+        controls,
+        cut.f_nominal_hz,
+        f"{described} ({unit.source})",
+        unit.effects(),
+        close_loops=not open_loop,
     )
     base = cut.recording.metadata.get("base_mva")
     on_base = f"{float(base):g} MVA" if base is not None else "not stated in the recording"

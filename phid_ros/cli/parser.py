@@ -402,6 +402,12 @@ def _add_validate(sub: Subparsers) -> None:
     p.add_argument("--id", help="the machine's id at its bus")
     p.add_argument("--json", metavar="OUT", help="write the checks (per scenario and channel) here")
     p.add_argument("--report", metavar="OUT.html", help="write the overlays, recorded against simulated, here")
+    p.add_argument(
+        "--open-loop",
+        action="store_true",
+        help="drive the exciter by the recorded V_t, its loop open, as playback tools do (default: the loop "
+        "closed through the machine behind the network's reactance the recording shows)",
+    )
     add_step_thresholds(p)
 
 

@@ -35,6 +35,7 @@ def validate_command(args: Any, console: Console) -> int:
             machine_id=args.id,
             thresholds=step_thresholds(args),
             progress=progress.update,
+            open_loop=args.open_loop,
         )
     for w in found.warnings:
         warn(w)

@@ -40,6 +40,10 @@ TOLERANCE_PU = 1e-4  # |V - F(V)| at which the loop is closed: a tenth of a reco
 MAX_ITERATIONS = 25
 MEMORY = 6  # iterates Anderson's mixing looks back over
 PROBE_PU = 0.01  # the E_fd step the machine's linear response is measured with
+# J^-1's kernel is worked out this far (33 s at the play-in's 4 ms): its cost grows with the square
+# of its length, and the settled loop's memory is far shorter; what a cut tail leaves, the
+# iterations take
+KERNEL_SAMPLES = 8192
 
 
 class LoopNotClosed(RuntimeError):
@@ -95,7 +99,7 @@ def close_loop(
     idx = first.idx
     mv = increments((probed.v_t - first.v_t) / PROBE_PU)
     g = increments(exciter_step[idx])
-    j = -fftconvolve(mv, g)[: len(idx)]
+    j = -fftconvolve(mv, g)[: min(len(idx), KERNEL_SAMPLES)]
     j[0] += 1.0
     c = inverse_kernel(j)
 

@@ -290,10 +290,13 @@ def validate_unit(
     f_nominal_hz: float,
     describe: str,
     effects: Sequence[tuple[type[PlantEffect], Mapping[str, Any]]] = (),
+    close_loops: bool = True,
 ) -> UnitValidation:
     """Every scenario played in with the unit; the MOD-026/027 checks and the traces for the
     overlays. ``effects``: the machine beyond the fourth-order model (a record's saturation and
-    dampers), played in by the plant's own equations (:mod:`phid_ros.ident.plant_playin`)."""
+    dampers), played in by the plant's own equations (:mod:`phid_ros.ident.plant_playin`).
+    ``close_loops``: the exciter's loop closed through the machine where the recording allows
+    (:func:`_closed_loop`); else every exciter is driven by the recorded V_t."""
     notes: list[str] = []
     played: list[ScenarioData] = []
     made: list[dict[str, str]] = []
@@ -354,7 +357,9 @@ def validate_unit(
     base = {name: getattr(params, name) for name in PARAMETER_NAMES}
     closed_v: list[BehindReactance | None] = [None] * len(played)
     for i, closing in enumerate(closings):
-        if closing is not None:
+        if closing is not None and not close_loops:
+            per_notes[i].append("the exciter played from the recorded V_t, its loop open (as asked)")
+        elif closing is not None:
             loop = _closed_loop(seen[i], played[i], closing, base, kept, f_nominal_hz, per_notes[i])
             if loop is not None:
                 played[i] = with_channels(played[i], {"v_f": loop.v_f}, "E_fd with the exciter's loop closed")

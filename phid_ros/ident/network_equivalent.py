@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.ndimage import uniform_filter1d
 
 from phid_ros.ident.scenario import ScenarioData
 from phid_ros.ident.terminal import at_no_load
@@ -29,6 +30,7 @@ Array = NDArray[np.float64]
 X_E_MAX = 1.0  # pu on the machine's base: a unit behind more than this is not on a network
 MIN_Q_MOVED = 0.02  # pu of Q / V_t over the scenario: less, and V_t's movement is not Q's doing
 STILLER = 3.0  # |V_g| with X_e at least this many times stiller than V_t itself
+SMOOTH_S = 0.1  # s: the moving mean V_t, P and Q are compared through
 
 
 @dataclass(frozen=True)
@@ -36,8 +38,8 @@ class NetworkEquivalent:
     """The network's reactance seen from the terminals and how well it explains the recording."""
 
     x_e: float  # pu on the machine's base
-    source_spread: float  # std of |V_g| over the scenario with x_e (pu)
-    terminal_spread: float  # std of V_t itself (pu): |V_g| with no reactance
+    source_spread: float  # std of |V_g| over the scenario with x_e (pu; through SMOOTH_S's moving mean)
+    terminal_spread: float  # std of V_t itself (pu, the same way): |V_g| with no reactance
 
     def describe(self) -> str:
         return (
@@ -61,6 +63,10 @@ def thevenin_reactance(s: ScenarioData) -> NetworkEquivalent | None:
     v, p, q = (np.asarray(s[c], float) for c in ("v_t", "p_e", "q_e"))
     if not (np.isfinite(v).all() and np.isfinite(p).all() and np.isfinite(q).all()) or np.min(v) <= 0.1:
         return None
+    # the sensors' noise moves |V_g| whatever X_e: averaged out, the stillness is the network's
+    # (ANDES's IEEET1 unit's V_ref step: V_t's noise left |V_g| 2.9 times stiller than V_t, 3 asked)
+    width = max(1, int(round(SMOOTH_S / s.dt)))
+    v, p, q = (uniform_filter1d(x, width, mode="nearest") for x in (v, p, q))
     if float(np.ptp(q / v)) < MIN_Q_MOVED:
         return None
     found = minimize_scalar(

@@ -459,6 +459,7 @@ def test_identify_export_on_the_unit_s_record_validate_beats_the_published_fit(
     text = ours.read_text()
     assert f"kept from {published} (not determined by the recordings): H, D, Xd2" in text
     checks, passed = {}, {}
+    ours_dyr = ours
     for name, dyr in (("published", published), ("ours", ours)):
         out = tmp_path / f"{name}.json"
         assert main(["validate", str(dyr), str(sheet_day), "--json", str(out)]) in (0, 1)  # 1: a check failed
@@ -480,6 +481,12 @@ def test_identify_export_on_the_unit_s_record_validate_beats_the_published_fit(
     assert not worse, worse
     better = [k for k, v in ours.items() if v < 0.5 * theirs[k]]
     assert len(better) >= 10, better  # E_fd on every AVR step, V_t and Q on line, V_t on the no-load events
+    # the same record played from the recorded V_t, the regulator's loop open: the return's Q fails
+    out = tmp_path / "open.json"
+    assert main(["validate", str(ours_dyr), str(sheet_day), "--open-loop", "--json", str(out)]) == 1
+    doc = json.loads(out.read_text())["validation"]["scenarios"]
+    opened = {(sc["scenario"], c["channel"]): c["max_error"] for sc in doc for c in sc["checks"]}
+    assert opened[("AVR_MR_PSS_ON@53.9s", "q_e")] > 0.1 > 0.03 > ours[("AVR_MR_PSS_ON@53.9s", "q_e")]
 
 
 def test_the_monitor_recalibrates_the_day_as_identify_does(sheet_day: Path) -> None:
