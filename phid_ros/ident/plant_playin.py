@@ -335,19 +335,37 @@ def behind_reactance(
         drop_d, drop_q = terminal_dq(0.0, 0.0, i_d, i_q, 0.0, x_series)
         v_t, theta = dq_to_terminal(v_d - drop_d, v_q - drop_q, delta)
     damping = st.damping
-    states = rk4(
-        st.plant._rhs,
+    staged = tuple(np.ascontiguousarray(a) for a in (p_m, v_f, v_t, theta))
+    outputs = kernel.integrate(
+        st.plant,
         st.x0,
         st.steps - 1,
         st.h,
-        lambda k: (),
-        staged=lambda k, j: (p_m[2 * k + j], v_f[2 * k + j], v_t[2 * k + j], theta[2 * k + j], zero, x, damping),
+        staged,  # type: ignore[arg-type]
+        np.tile(np.arange(cols), (4, 1)),
+        damping,
+        threads=spare_threads(),
+        x_series=x,
     )
-    xs = np.moveaxis(states, 1, 0)
-    eq_i, ed_i, xd_i, xq_i = st.plant._emf(xs)
-    i_d, i_q, vth_d, vth_q = st.plant._currents(xs[0], eq_i, ed_i, v_t[::2], theta[::2], zero, x, xd_i, xq_i)
-    v_d, v_q = terminal_dq(vth_d, vth_q, i_d, i_q, zero, x)
-    p_e, q_e = electrical_power(v_d, v_q, i_d, i_q)
+    if outputs is not None:
+        found = dict(zip(kernel.OUTPUTS, outputs))
+        delta, i_d, i_q, p_e, q_e = (found[c] for c in ("delta", "i_d", "i_q", "p_e", "q_e"))
+        vth_d, vth_q = terminal_to_dq(v_t[::2], delta, theta[::2])
+        v_d, v_q = terminal_dq(vth_d, vth_q, i_d, i_q, zero, x)
+    else:  # numba absent or switched off, or an effect without compiled terms
+        states = rk4(
+            st.plant._rhs,
+            st.x0,
+            st.steps - 1,
+            st.h,
+            lambda k: (),
+            staged=lambda k, j: (p_m[2 * k + j], v_f[2 * k + j], v_t[2 * k + j], theta[2 * k + j], zero, x, damping),
+        )
+        xs = np.moveaxis(states, 1, 0)
+        eq_i, ed_i, xd_i, xq_i = st.plant._emf(xs)
+        i_d, i_q, vth_d, vth_q = st.plant._currents(xs[0], eq_i, ed_i, v_t[::2], theta[::2], zero, x, xd_i, xq_i)
+        v_d, v_q = terminal_dq(vth_d, vth_q, i_d, i_q, zero, x)
+        p_e, q_e = electrical_power(v_d, v_q, i_d, i_q)
     v_abs = np.hypot(v_d, v_q)
     out = []
     for j, idx in enumerate(st.idx):

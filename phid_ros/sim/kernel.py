@@ -42,9 +42,20 @@ from phid_ros.sim.effects.base import PlantEffect
 Array = NDArray[np.float64]
 
 # rows of the per-column coefficient matrix: the base model's, then each compiled effect's own
-BASE_ROWS = ("inv_2h", "xd_diff", "xq_diff", "inv_td0", "inv_tq0", "x_d_prime", "x_q_prime", "r_a", "damping")
+BASE_ROWS = (
+    "inv_2h",
+    "xd_diff",
+    "xq_diff",
+    "inv_td0",
+    "inv_tq0",
+    "x_d_prime",
+    "x_q_prime",
+    "r_a",
+    "damping",
+    "x_series",  # the network's reactance between the terminal and the source (0: the play-in's)
+)
 # the same indices as constants, which the compiled code reads as literals
-INV_2H, XD_DIFF, XQ_DIFF, INV_TD0, INV_TQ0, XDP, XQP, R_A, DAMPING = range(len(BASE_ROWS))
+INV_2H, XD_DIFF, XQ_DIFF, INV_TD0, INV_TQ0, XDP, XQP, R_A, DAMPING, X_SERIES = range(len(BASE_ROWS))
 
 
 def compiled_parts(classes: Any) -> list[tuple[type[PlantEffect], int]]:
@@ -74,6 +85,7 @@ def integrate(
     source: NDArray[np.int64],
     damping: Array,
     threads: int = 1,
+    x_series: Array | float = 0.0,
 ) -> Array | None:
     """RK4 of ``plant`` from ``x0`` (n_states, cols): its OUTPUTS (6, n_steps + 1, cols), or None.
 
@@ -84,9 +96,11 @@ def integrate(
     the inputs of row 2k (the play-in's terminal is the source: V = V_th), computed where the
     step computes them anyway, so no trajectory of states is stored. None when the compiled
     path cannot run. ``threads``: the columns split over this many threads (the compiled loop
-    holds no GIL, and each column's arithmetic is the same wherever it runs).
+    holds no GIL, and each column's arithmetic is the same wherever it runs). ``x_series``: a
+    reactance per column between the terminal and the source (then P and Q are the terminal's,
+    and V_t is the source's plus the drop, :func:`phid_ros.sim.network.terminal_dq`).
     """
-    args = _column_args(plant, x0, n_steps, h, staged, source, damping)
+    args = _column_args(plant, x0, n_steps, h, staged, source, damping, x_series)
     if args is None:
         return None
     parts = _over_columns(lambda a, b: _rk4_outputs(*args(a, b)), x0.shape[1], threads)
@@ -164,6 +178,7 @@ def _column_args(
     staged: tuple[Array, Array, Array, Array],
     source: NDArray[np.int64],
     damping: Array,
+    x_series: Array | float = 0.0,
 ) -> Callable[[int, int], tuple[Any, ...]] | None:
     """The compiled loops' common arguments for the model columns a:b, or None where the
     compiled path cannot run (numba absent or switched off, an effect without compiled terms)."""
@@ -173,6 +188,7 @@ def _column_args(
     if terms is None:
         return None
     coef, at = terms
+    coef[X_SERIES] = np.broadcast_to(np.asarray(x_series, dtype=np.float64), (x0.shape[1],))
     p_m, v_f, v_t, theta = (np.ascontiguousarray(a, dtype=np.float64) for a in staged)
 
     def args(a: int, b: int) -> tuple[Any, ...]:
@@ -360,7 +376,10 @@ def _rhs_column(
     delta, omega, e_q, e_d = x[0], x[1], x[2], x[3]
     eq_i, ed_i, xd_i, xq_i = _emf(x, coef, c, at)
     v_d, v_q = jitted.dq_of(vt, delta - th)
-    i_d, i_q = jitted.stator(eq_i, ed_i, v_d, v_q, coef[R_A, c], xd_i, xq_i)
+    x_s = coef[X_SERIES, c]
+    i_d, i_q = jitted.stator(eq_i, ed_i, v_d, v_q, coef[R_A, c], xd_i + x_s, xq_i + x_s)
+    # the terminal: the source's voltage plus the drop through the reactance (terminal_dq, R = 0)
+    v_d, v_q = v_d - x_s * i_q, v_q + x_s * i_d
     p_airgap = jitted.airgap_power(eq_i, ed_i, i_d, i_q, xd_i, xq_i)
     damping = coef[DAMPING, c]
     d_omega = jitted.swing(pm, p_airgap, omega, damping, coef[INV_2H, c])
