@@ -5,9 +5,12 @@ validation tools that MOD-026/027 reports rely on do it: the terminal voltage's 
 angle as recorded (so no network model is assumed), the exciter by the recorded terminal
 voltage, the governor by the recorded speed (a frequency play-in). A unit without an exciter
 (governor) takes the recorded E_fd (P_m) instead. The machine is the fourth-order model of
-:func:`phid_ros.ident.validation.play_in`; the control models are their small-signal paths
-(:mod:`phid_ros.controls.models`), limits not simulated; a reference step the recording does not
-size is sized by least squares on the recorded output, as identification does.
+:func:`phid_ros.ident.validation.play_in`, or the record's with its saturation and dampers; the
+control models are their small-signal paths (:mod:`phid_ros.controls.models`), with the limits a
+model simulates; a reference step the recording does not size is sized on the recorded output,
+as identification does. Then, where the recording shows the network's reactance (or at no load),
+the exciter's loop is closed through the machine (:mod:`phid_ros.controls.closed_loop`): V_t,
+Q and E_fd as the unit makes them, V_t checked too.
 
 Checked per scenario: MOD-026 (excitation) the reactive power Q and the field voltage E_fd;
 MOD-027 (turbine-governor) the active power P and the mechanical power P_m. A channel passes
