@@ -1007,8 +1007,13 @@ class PSS2B(PSS2A):
     Fitted as PSS2A is (the same structure held), the third lead-lag free; started where PSS2A's
     fit ended, with the third a wire, so it fits at least as well and is named only where the third
     lead-lag earns it (the simplest within 5 % is named). The CONs' order is PSS2A's with T_10,
-    T_11 after T_4 and the input limits before VSTMAX, VSTMIN: the order of PowerSystems.jl's
-    PSS2B, which follows PSS/E's parameter list (PSS/E's manual itself is not at hand here)."""
+    T_11 after T_4 and the input limits before VSTMAX, VSTMIN (23 CONs, 6 ICONs): the order of
+    PowerSystems.jl's PSS2B, and the one PSS/E itself was given in ALSETLab's OpenIPSL verification
+    runs (NYPAModelTransformation, ``OpenIPSLVerification/VerificationRoutines/PSSE/Scripts/
+    add_models_openipsl.py``: ``psspy.add_plant_model(..., "PSS2B", ..., 6, [1, 0, 3, 0, 0, 0], ...,
+    23, [...])``), whose values read in this order are a coherent unit: the washouts and T_7 2 s,
+    K_S2 0.1564, K_S3 1, K_S1 10, the lead-lags 0.25/0.03 and 0.15/0.015 s, T_10 = T_11 = 0, the
+    input limits +-999 and V_S within +-0.1 (PSS/E's manual itself is not at hand here)."""
 
     name = "PSS2B"
     description = "IEEE dual-input stabiliser with a third lead-lag (PSS/E PSS2B, IEEE 421.5-2005)"
