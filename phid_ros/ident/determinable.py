@@ -22,7 +22,7 @@ import numpy as np
 from phid_ros.errors import StageError
 from phid_ros.ident import field_circuit, open_circuit, stage1, stage2, stage3, terminal
 from phid_ros.ident.results import Estimate
-from phid_ros.ident.scenario import ScenarioData
+from phid_ros.ident.scenario import ScenarioData, file_of
 from phid_ros.model.parameters import PARAMETER_NAMES
 
 if TYPE_CHECKING:
@@ -422,7 +422,11 @@ def _field_circuit_online(
         t_d0_at_no_load()
         t_d0 = res.estimates.get("T_d0_prime") or Estimate(math.nan, math.nan, identifiable=False)
     try:
-        out = field_circuit.on_line(route.scenarios(ident), field, t_d0, held["X_q"], opt.constraints.saturation)
+        # the no-load files T'_d0 came from: each on-line file's T'_d0 is referred to its own field resistance
+        files = [] if "T_d0_prime" in held else sorted({file_of(s) for s in no_load})
+        out = field_circuit.on_line(
+            route.scenarios(ident), field, t_d0, held["X_q"], opt.constraints.saturation, t_d0_files=files
+        )
     except StageError as exc:
         res.problems.append(f"the field circuit on line (X_d, X'_d) did not run: {exc}")
         return False

@@ -25,7 +25,7 @@ curve is given, S >= 0 still bounds c, and with it T'_d0, from below, which is s
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -315,6 +315,13 @@ class MachineField:
         """Whether the recorded E_fd is already on the machine's base (every file within 5 %)."""
         return all(abs(k - 1.0) <= ON_BASE for k in self.scale.values())
 
+    def time_constant_ratio(self, file: str, reference: Collection[str]) -> float:
+        """A field time constant's value in ``file`` over its value in the ``reference`` files (T'_d0
+        is L_ffd / R_fd, and a file's R_fd goes as 1 / its I_f per U_f): on the day's E_fd, put on
+        the machine's base file by file, each file's T'_d0 is its own field winding's."""
+        k_ref = sum(self.scale[f] for f in reference) / len(reference)
+        return self.scale[file] / k_ref
+
     def applied(self, scenarios: Sequence[ScenarioData], note: str) -> list[ScenarioData]:
         """The scenarios with E_fd on the machine's base, ``note`` added to each changed."""
         return [
@@ -412,9 +419,15 @@ def on_line(
     t_d0: Estimate,
     x_q: float,
     saturation: tuple[float, float] | None,
+    t_d0_files: Collection[str] = (),
 ) -> OnLineResult:
     """X'_d and X_d from on-line events where the field current is recorded, the rotor angle
     reconstructed with ``x_q`` (held) and T'_d0 known (the no-load field circuit's, or held).
+
+    ``t_d0_files``: the test files T'_d0 was found in. T'_d0 is L_ffd / R_fd, and the field winding
+    warms through a day (Mostar's on-line files' I_f per U_f is 2.5-4 % below the no-load files'),
+    so each on-line file's T'_d0 is T'_d0 referred to its own field resistance; a held T'_d0 (no
+    files) is taken as it is in every file.
 
     T'_d0 dE'_q/dt = E_fd - X_ad I_fd holds on line as at no load, so the field channels give
     E'_q's course through an event; the stator gives E'_q = V_q + X'_d I_d once the dampers have
@@ -428,8 +441,11 @@ def on_line(
     if not (math.isfinite(t_d0.value) and t_d0.value > 0):
         raise FieldCircuitError("T'_d0 is not known: the on-line field circuit needs it")
 
+    reference = [f for f in t_d0_files if f in field.scale]
+    ratio = {file_of(s): field.time_constant_ratio(file_of(s), reference) if reference else 1.0 for s in scs}
+
     def fit(tau: float, window: tuple[float, float] = WINDOW) -> list[tuple[str, float, float]]:
-        return [(s.name, *_on_line_event(s, field, tau, x_q, saturation, window)) for s in scs]
+        return [(s.name, *_on_line_event(s, field, tau * ratio[file_of(s)], x_q, saturation, window)) for s in scs]
 
     each = fit(t_d0.value)
     x_dp, sd_dp, n_files = by_file([(n, a) for n, a, _ in each])
@@ -448,6 +464,11 @@ def on_line(
         + ", ".join(f"{n}: X'_d {a:.3g}, X_d {b:.3g}" for n, a, b in each)
         + f"), T'_d0 = {t_d0.value:.4g} s, X_q = {x_q:g} pu (held)"
     )
+    if reference:
+        where += (
+            "; T'_d0 referred to each file's field resistance (its I_f per U_f against the no-load files'): x "
+            + ", ".join(f"{r:.3f} in {f}" for f, r in ratio.items())
+        )
     est_dp = Estimate(x_dp, sd_dp, drivers=drivers)
     est_dp.add_note(
         f"X'_d from the field circuit on line: E'_q's course from E_fd - X_ad I_fd, = V_q + X'_d I_d; {where}"
