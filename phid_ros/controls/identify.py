@@ -45,6 +45,7 @@ from phid_ros.controls.models import (
 )
 from phid_ros.ident.scenario import ScenarioData
 from phid_ros.ident.uncertainty import block_ids, cluster_robust_cov
+from phid_ros.io.recording import STABILISER_ON
 from phid_ros.numerics import lowpass2
 
 Array = NDArray[np.float64]
@@ -166,6 +167,14 @@ def regulator_out_of_loop(s: ScenarioData) -> str | None:
     return None
 
 
+def acted_unrecorded(s: ScenarioData) -> bool:
+    """Whether the test sheet says the scenario's stabiliser was on (``regulator: avr+pss``) and its
+    output is not recorded: E_fd then answers a signal the recording does not have, so the
+    exciter's fit leaves the scenario out and the stabiliser is fitted from its effect there
+    (:mod:`phid_ros.controls.stabiliser_effect`)."""
+    return s.regulator == STABILISER_ON and not s.has("v_s")
+
+
 def _cases(
     scenarios: Sequence[ScenarioData], kind: str, role: str, kinds: Sequence[str] | None = None
 ) -> list[ControlCase]:
@@ -175,7 +184,7 @@ def _cases(
         for s in scenarios
         if s.role == role
         and s.kind in (fitted_kinds if kinds is None else kinds)
-        and not (kind == "exciter" and regulator_out_of_loop(s))
+        and not (kind == "exciter" and (regulator_out_of_loop(s) or acted_unrecorded(s)))
     )
     return [c for c in picked if c is not None]
 
@@ -457,6 +466,7 @@ def fit_model(
     start_at: Mapping[str, float] | None = None,
     limits: Limits | None = None,
     held_limits: Mapping[str, float] | None = None,
+    played_through_limits: bool = False,
 ) -> ControlFit:
     """``model``'s fitted parameters (log scale, in their ranges; the limits held), their stds
     from the Jacobian, and its error on the held-out cases; started where ``model.start`` says
@@ -465,12 +475,14 @@ def fit_model(
     ``limits``: the output limits the recordings reached (:func:`reached_limits`), fitted too,
     the cases played through them (:meth:`ControlModel.limited`), each stepped case's reference
     a constant of the fit. ``held_limits``: limits found by such a fit, held at their values while
-    the small-signal constants are fitted and checked on the small-signal tests alone."""
+    the small-signal constants are fitted and checked on the small-signal tests alone.
+    ``played_through_limits``: the cases played through :meth:`ControlModel.limited` whatever
+    limits are fitted (a stabiliser fitted through an exciter that reached its own)."""
     from scipy.optimize import least_squares
 
     limits = dict(limits or {})
     held_limits = dict(held_limits or {})
-    through_limits = bool(limits or held_limits)
+    through_limits = bool(limits or held_limits or played_through_limits)
     bounded = [replace(q, default=limits[q.name][0], low=limits[q.name][1], high=limits[q.name][2], limit=False)
                for q in model.parameters if q.name in limits]  # fmt: skip
     n_model = len(model.fitted()) + len(bounded)
@@ -979,6 +991,13 @@ def identify_controls(
         fit, held = _cases(scenarios, kind, "identify"), _cases(scenarios, kind, "validate")
         # a fault drives the field voltage to its ceiling: fitted only where a limit is (see the module)
         faults = _cases(scenarios, kind, "identify", ("fault",)) if kind == "exciter" else []
+        if not fit and kind == "stabiliser":
+            from phid_ros.controls.stabiliser_effect import stabiliser_from_effect
+
+            effect = stabiliser_from_effect(scenarios, out.get("exciter"), (candidates or {}).get(kind))
+            if effect is not None:
+                out[kind] = effect
+                continue
         if not fit:
             out[kind] = f"not identified: no scenario with {' and '.join(KINDS[kind][0])} to fit"
             continue

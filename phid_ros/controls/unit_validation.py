@@ -55,6 +55,7 @@ from phid_ros.ident.plant_playin import play_in as plant_play_in
 from phid_ros.ident.scenario import ScenarioData
 from phid_ros.ident.terminal import at_no_load, with_channels, with_rotor_angle
 from phid_ros.ident.validation import MOD026_TOLERANCE_PU, STEP_SECONDS, play_in, play_in_stride
+from phid_ros.io.recording import STABILISER_ON
 from phid_ros.model.parameters import PARAMETER_NAMES, GeneratorParameters
 from phid_ros.numerics import interpolant
 from phid_ros.sim.effects import PlantEffect
@@ -190,11 +191,15 @@ class Control:
 def _with_stabiliser(s: ScenarioData, case: ControlCase, stabiliser: Control | None, notes: list[str]) -> ControlCase:
     """The exciter's case with the unit's stabiliser played in at its summing point, from the
     recorded P_e, where the recording shows the stabiliser on (its output recorded and moving:
-    from where it started to); the recorded output where the unit names none; without a recorded
-    output, as the case is (a stabiliser not known to be on is not played, and that is said)."""
-    if not s.has("v_s"):
+    from where it started to) or the test sheet says so (``regulator: avr+pss``: from the start);
+    the recorded output where the unit names none; otherwise as the case is (a stabiliser not
+    known to be on is not played, and that is said)."""
+    said_on = s.regulator == STABILISER_ON
+    if not s.has("v_s") and not (said_on and stabiliser is not None):
         if stabiliser is not None:
             notes.append(f"stabiliser {stabiliser.model.name} not played in: the recording does not say it was on")
+        elif said_on:
+            notes.append("the stabiliser was on (the test sheet says), its output not recorded: no model to play")
         return case
     if stabiliser is None:
         notes.append("the recorded stabiliser output played in at the regulator's summing point")
@@ -202,11 +207,12 @@ def _with_stabiliser(s: ScenarioData, case: ControlCase, stabiliser: Control | N
     lacking = [c for c in stabiliser.model.needs if not s.has(c)]
     if lacking:
         notes.append(
-            f"stabiliser {stabiliser.model.name} not played in: it reads {', '.join(lacking)}, not recorded; the "
-            "recorded stabiliser output played in at the regulator's summing point"
+            f"stabiliser {stabiliser.model.name} not played in: it reads {', '.join(lacking)}, not recorded"
+            + ("; the recorded stabiliser output played in at the regulator's summing point" if s.has("v_s") else "")
         )
         return case
-    on = switched_on(s)
+    # on from the start where the test sheet says it was on and its output is not recorded
+    on = switched_on(s) if s.has("v_s") else 0
     x = case.inputs
     if on is None or x.p_e is None:
         notes.append(f"stabiliser {stabiliser.model.name} not played in: it was off (its output held still)")
@@ -230,9 +236,9 @@ def _with_stabiliser(s: ScenarioData, case: ControlCase, stabiliser: Control | N
         if math.isfinite(apart) and x.v_s is not None
         else ""
     )
-    notes.append(
-        f"stabiliser {stabiliser.model.name} played in from the recorded {read} (on from {on * s.dt:.1f} s){own}"
-    )
+    said = "on throughout, as the test sheet says; its output not recorded"
+    when = f"on from {on * s.dt:.1f} s" if s.has("v_s") else said
+    notes.append(f"stabiliser {stabiliser.model.name} played in from the recorded {read} ({when}){own}")
     return replace(case, inputs=replace(x, v_s=v_s))
 
 

@@ -94,10 +94,13 @@ def not_recorded(metadata: Mapping[str, str]) -> frozenset[str]:
     return frozenset(c for c in metadata.get(NOT_RECORDED_KEY, "").split(",") if c)
 
 
-# who holds the field in a test: the voltage regulator (AVR) or a field-current regulator (manual,
-# the AVR not in the loop). A scenario marker carries it in its description, "regulator: manual".
-REGULATORS = ("avr", "manual")
-_REGULATOR_TAG = re.compile(r"(?:^|; )regulator: (avr|manual)$")
+# who holds the field in a test: the voltage regulator (AVR), the AVR with its stabiliser on
+# (avr+pss: where the stabiliser's output is not recorded, its effect is what identifies it), or a
+# field-current regulator (manual, the AVR not in the loop). A scenario marker carries it in its
+# description, "regulator: manual".
+STABILISER_ON = "avr+pss"
+REGULATORS = ("avr", STABILISER_ON, "manual")
+_REGULATOR_TAG = re.compile(r"(?:^|; )regulator: (avr\+pss|avr|manual)$")
 
 
 # the test sheet's reference step travels the same way, "reference step: 0.05", before the regulator

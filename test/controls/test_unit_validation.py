@@ -353,3 +353,35 @@ def test_a_dual_input_stabiliser_is_played_from_the_recorded_speed_and_power(noi
     kept = _with_stabiliser(blind, control_case(blind, "exciter", output=False), Control(model, record), notes)
     assert notes[0].startswith("stabiliser PSS2A not played in: it reads omega, not recorded")
     assert kept.inputs.v_s is not None and np.allclose(kept.inputs.v_s, case.inputs.v_s)
+
+
+def test_a_stabiliser_the_test_sheet_says_was_on_is_played_without_its_output_recorded(noisy_scenarios) -> None:
+    """No stabiliser output recorded, the sheet saying the stabiliser was on (``regulator:
+    avr+pss``): the record's IEEEST is played from the recorded P_e from the start, exactly its
+    response, and said; the same scenario not said to be one plays none, and says why."""
+    from dataclasses import replace
+
+    from phid_ros.controls.identify import control_case
+    from phid_ros.controls.models import MODELS
+    from phid_ros.controls.unit_validation import Control, _with_stabiliser
+
+    model = MODELS["IEEEST"]
+    record = {**model.completed({**model.defaults(), "KS": -0.5, "T1": 0.2, "T2": 0.04, "T6": 2.0}), "LSMAX": 0.1}
+    record["LSMIN"] = -0.1
+    s = replace(next(s for s in noisy_scenarios if s.kind == "torque_step"), regulator="avr+pss")
+    assert not s.has("v_s")
+    case = control_case(s, "exciter", output=False)
+    assert case is not None and case.inputs.p_e is not None
+    notes: list[str] = []
+    played = _with_stabiliser(s, case, Control(model, record), notes)
+    assert notes == [
+        "stabiliser IEEEST played in from the recorded P_e (on throughout, as the test sheet says; its output not "
+        "recorded)"
+    ]
+    x = replace(case.inputs, p_e=case.inputs.p_e - case.inputs.p_e[0])
+    expected = np.clip(model.response(record, x, 0.0), -0.1, 0.1)
+    assert played.inputs.v_s is not None and np.max(np.abs(played.inputs.v_s - expected)) < 1e-12
+    assert np.ptp(played.inputs.v_s) > 0.01
+    notes = []
+    unsaid = _with_stabiliser(replace(s, regulator=""), case, Control(model, record), notes)
+    assert unsaid is case and notes == ["stabiliser IEEEST not played in: the recording does not say it was on"]

@@ -259,8 +259,15 @@ def test_a_manifest_s_regulator_is_checked(tmp_path) -> None:
     (tmp_path / "a.csv").write_text("\n".join(rows) + "\n")
     manifest = tmp_path / "manifest.json"
     manifest.write_text(json.dumps({"scenarios": [{"file": "a.csv", "kind": "field_step", "regulator": "hand"}]}))
-    with pytest.raises(CsvImportError, match=r"regulator 'hand' not one of \('avr', 'manual'\)"):
+    with pytest.raises(CsvImportError, match=r"regulator 'hand' not one of \('avr', 'avr\+pss', 'manual'\)"):
         import_csv_set(manifest)
-    manifest.write_text(json.dumps({"scenarios": [{"file": "a.csv", "kind": "field_step", "regulator": "manual"}]}))
-    rec, _ = import_csv_set(manifest)
-    assert rec.scenarios[0].regulator == "manual"
+    for regulator in ("manual", "avr+pss"):  # a manual test; the AVR with its stabiliser on
+        entry = {"file": "a.csv", "kind": "field_step", "regulator": regulator}
+        manifest.write_text(json.dumps({"scenarios": [entry]}))
+        rec, _ = import_csv_set(manifest)
+        assert rec.scenarios[0].regulator == regulator
+    # through a bag and back: the marker's description carries it
+    from phid_ros.io.bags.recordings import read_recording, write_recording
+
+    write_recording(tmp_path / "a.mcap", rec)
+    assert read_recording(tmp_path / "a.mcap").scenarios[0].regulator == "avr+pss"
