@@ -48,6 +48,16 @@ def day(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
+def _imported(folder: Path, online: str, noload: str) -> Path:
+    """The folder's files imported with these two maps (their text), as a bag in ``folder``."""
+    (folder / "map_online.yaml").write_text(online)
+    (folder / "map_noload.yaml").write_text(noload)
+    maps = [load_channel_map(folder / "map_noload.yaml"), load_channel_map(folder / "map_online.yaml")]
+    out = folder / "day.mcap"
+    write_recording(out, import_pmu_csv(sorted(DAY.glob("*.csv")), maps))
+    return out
+
+
 @pytest.fixture(scope="module")
 def sheet_day(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The day imported with what the test sheet and the controller add to the folder's maps: the
@@ -67,12 +77,7 @@ def sheet_day(tmp_path_factory: pytest.TempPathFactory) -> Path:
     noload = (DAY / "map_noload.yaml").read_text().replace(
         "  v_f: {name: SFS_Meas_UfRel, unit: pu}\n", "  v_f: {name: SFS_Meas_UfRel, unit: pu}\n  v_r: SFS_Reg_Uc\n"
     ) + "scenarios:\n  AVR_PH_Step10: {reference_step: 0.1}\n"
-    (folder / "map_online.yaml").write_text(online)
-    (folder / "map_noload.yaml").write_text(noload)
-    maps = [load_channel_map(folder / "map_noload.yaml"), load_channel_map(folder / "map_online.yaml")]
-    out = folder / "day.mcap"
-    write_recording(out, import_pmu_csv(sorted(DAY.glob("*.csv")), maps))
-    return out
+    return _imported(folder, online, noload)
 
 
 def test_no_load_tests_import_as_open_circuit_beside_the_on_line_ones() -> None:
@@ -538,12 +543,7 @@ def effect_day(tmp_path_factory: pytest.TempPathFactory) -> Path:
         )
     )
     noload = (DAY / "map_noload.yaml").read_text() + "scenarios:\n  AVR_PH_Step10: {reference_step: 0.1}\n"
-    (folder / "map_online.yaml").write_text(online)
-    (folder / "map_noload.yaml").write_text(noload)
-    maps = [load_channel_map(folder / "map_noload.yaml"), load_channel_map(folder / "map_online.yaml")]
-    out = folder / "day.mcap"
-    write_recording(out, import_pmu_csv(sorted(DAY.glob("*.csv")), maps))
-    return out
+    return _imported(folder, online, noload)
 
 
 def test_without_its_output_recorded_the_stabiliser_comes_from_its_effect_and_the_day_still_passes_on_q(
