@@ -843,7 +843,9 @@ class IEEEST(ControlModel):
     (1 + sT_1)/(1 + sT_2), (1 + sT_3)/(1 + sT_4), K_S and the washout sT_5/(1 + sT_6), its output
     V_S within LSMIN..LSMAX, added at the voltage regulator's summing point.
 
-    Fitted from a recorded stabiliser output against the recorded P_e. The torsional filter
+    Fitted from a recorded stabiliser output against the recorded P_e, or, where the output is not
+    recorded, from its effect on E_fd through the exciter (:mod:`phid_ros.controls.stabiliser_effect`).
+    The torsional filter
     (A_1..A_6, for a steam unit's shaft modes) is held out at 0, a wire; the washout's gain is
     T_5/T_6, which K_S carries, so T_5 = T_6; the output's enabling band VCU/VCL at 0 (not used)."""
 
