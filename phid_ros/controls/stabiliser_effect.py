@@ -37,7 +37,7 @@ from phid_ros.controls.identify import (
     limited_output,
     open_limits,
 )
-from phid_ros.controls.models import MODELS, ControlInputs, ControlModel, OperatingLevels, of_kind
+from phid_ros.controls.models import MODELS, ControlInputs, ControlModel, LimitsError, OperatingLevels, of_kind
 from phid_ros.ident.scenario import ScenarioData
 
 
@@ -104,8 +104,25 @@ def stabiliser_from_effect(
     check = [c for c in (control_case(s, "exciter") for s in on if s.role == "validate") if c is not None]
     if not fit:
         return f"not identified: no identification scenario among the tests it acted in ({names})"
-    if model.limited(held, fit[0].inputs, 0.0, fit[0].levels) is None:  # type: ignore[arg-type]
-        return f"not identified: the exciter {model.name} simulates no limits to play its effect through"
+    try:
+        if model.limited(held, fit[0].inputs, 0.0, fit[0].levels) is None:  # type: ignore[arg-type]
+            return f"not identified: the exciter {model.name} simulates no limits to play its effect through"
+        return _fitted_through(model, held, fit, check, on, names, candidates)
+    except LimitsError as exc:  # the exciter's fitted limits cannot hold a PSS-on test's operating point
+        return f"not identified: the exciter {model.name} as fitted cannot play {names}: {exc}"
+
+
+def _fitted_through(
+    model: type[ControlModel],
+    held: Mapping[str, float],
+    fit: Sequence[ControlCase],
+    check: Sequence[ControlCase],
+    on: Sequence[ScenarioData],
+    names: str,
+    candidates: Sequence[str] | None,
+) -> ControlFit | str:
+    """Each readable stabiliser model fitted through the held exciter; the simplest best, named
+    where it explains clearly more of E_fd than the exciter alone."""
     judge = check or fit
     alone = _exciter_alone(model, held, judge)
     readable = [

@@ -584,3 +584,18 @@ def test_a_stabiliser_whose_output_is_not_recorded_is_found_from_its_effect_thro
     plain = identify_controls(unsaid, {"governor": []})
     assert "no scenario" in str(plain["stabiliser"])
     assert isinstance(plain["exciter"], ControlFit) and plain["exciter"].fit_rmse > 1.5 * e.fit_rmse
+
+
+def test_an_exciter_whose_limits_cannot_hold_the_pss_on_test_says_so_and_names_no_stabiliser(noisy_scenarios) -> None:
+    """The exciter named from the other tests with a ceiling below the PSS-on test's field at rest:
+    the effect cannot be played through it, and that is said in one line, not raised."""
+    from dataclasses import replace
+
+    from phid_ros.controls.stabiliser_effect import stabiliser_from_effect
+
+    s = replace(next(s for s in noisy_scenarios if s.kind == "voltage_step"), regulator="avr+pss")
+    e_fd0 = float(np.mean(s["v_f"][s.pre_slice()]))
+    params: dict[str, float | None] = {**TRUTH["SEXS"], "EMAX": 0.5 * e_fd0, "EMIN": -5.0}
+    exciter = ControlFit("SEXS", "exciter", params, {}, {}, 0.0, None, None, True, "")
+    why = stabiliser_from_effect([s], exciter)
+    assert isinstance(why, str) and why.startswith("not identified: the exciter SEXS as fitted cannot play"), why
