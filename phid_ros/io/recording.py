@@ -94,6 +94,11 @@ def not_recorded(metadata: Mapping[str, str]) -> frozenset[str]:
     return frozenset(c for c in metadata.get(NOT_RECORDED_KEY, "").split(",") if c)
 
 
+# a field import's columns no channel map named (a regulator's output, a status word), comma-separated:
+# recorded, left behind by the import, and said so
+NOT_IMPORTED_KEY = "not_imported"
+
+
 # who holds the field in a test: the voltage regulator (AVR), the AVR with its stabiliser on
 # (avr+pss: where the stabiliser's output is not recorded, its effect is what identifies it), or a
 # field-current regulator (manual, the AVR not in the loop). A scenario marker carries it in its

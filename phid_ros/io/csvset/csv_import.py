@@ -67,6 +67,7 @@ class ScenarioTable:
     start_ns: int | None = None  # when the file says it began (a COMTRADE .cfg's start time)
     regulator: str = ""  # who held the field: "avr", "manual" (io.recording.REGULATORS) or not said
     reference_step: float | None = None  # the test sheet's reference step, pu (+ and back)
+    not_imported: list[str] = field(default_factory=list)  # the file's channels no map named
 
 
 def _open_text(path: Path) -> TextIO:

@@ -282,6 +282,14 @@ def check_recording(cmap: ChannelMap, source: str, available: list[str]) -> Chan
     return fitted
 
 
+def not_mapped(cmap: ChannelMap, available: Sequence[str]) -> list[str]:
+    """The recording's channels that ``cmap`` names for nothing (neither a quantity nor its clock),
+    in the recording's order: an import leaves them behind, and must say so (a regulator's or a
+    stabiliser's output a map did not name is a test's evidence lost without a word)."""
+    named = {spec.name for spec in cmap.channels.values()} | {cmap.time_column, cmap.date_column}
+    return [name for name in available if name not in named]
+
+
 STATOR_QUANTITIES = ("i_a", "i_b", "i_c", "i_t", "phi_i", "p_e", "q_e")
 
 

@@ -19,7 +19,7 @@ import numpy as np
 
 from phid_ros.io.csvset.csv_import import ScenarioTable
 from phid_ros.io.field import comtrade_dat
-from phid_ros.io.field.channel_map import WAVEFORMS, ChannelMap, ChannelMapError, choose_map
+from phid_ros.io.field.channel_map import WAVEFORMS, ChannelMap, ChannelMapError, choose_map, not_mapped
 from phid_ros.io.field.comtrade_dat import ComtradeImportError, Samples, declared_rows, open_recording, read_samples
 from phid_ros.io.field.field_channels import field_recording, identification_channels, scenario_table
 from phid_ros.io.recording import Recording
@@ -177,6 +177,7 @@ def read_comtrade(path: str | Path, cmaps: ChannelMap | Sequence[ChannelMap]) ->
         raise ComtradeImportError(str(exc)) from None
     table = scenario_table(p, cmap, t, channels)
     table.notes[:0] = notes
+    table.not_imported = not_mapped(cmap, names)  # analog: a status bit is not a measurement lost
     table.start_ns = _start_ns(cfg.start_timestamp)
     return table
 

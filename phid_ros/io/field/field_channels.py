@@ -37,7 +37,7 @@ from phid_ros.io.field.phasors import (
     sequence_problem,
     system_frequency,
 )
-from phid_ros.io.recording import MEASUREMENT_WINDOW_KEY, REGULATORS, Recording
+from phid_ros.io.recording import MEASUREMENT_WINDOW_KEY, NOT_IMPORTED_KEY, REGULATORS, Recording
 from phid_ros.io.topics import RECORDER_CHANNELS
 from phid_ros.model.channels import NO_LOAD_CURRENT, current_of
 from phid_ros.model.conventions import terminal_to_dq
@@ -289,9 +289,35 @@ def field_recording(
     rec = recording_from_tables(tables, cmap.f_nominal_hz, cmap.mva, source, **kwargs)
     rec.warnings.extend(n for t in tables for n in t.notes)
     rec.warnings.extend(field_notes)
+    left = left_behind(tables)
+    if left:
+        rec.warnings.append(left)
+        rec.metadata[NOT_IMPORTED_KEY] = ",".join(dict.fromkeys(c for t in tables for c in t.not_imported))
     if window_s > 0:
         rec.metadata[MEASUREMENT_WINDOW_KEY] = repr(window_s)
     return rec
+
+
+def left_behind(tables: Sequence[ScenarioTable]) -> str:
+    """One line naming the channels the files recorded and no map named, each with the files that
+    hold it ("" where there are none): the import leaves them out of the set, and says so."""
+    files: dict[str, list[str]] = {}
+    for t in tables:
+        for column in t.not_imported:
+            files.setdefault(column, []).append(t.name)
+
+    def where(names: list[str]) -> str:
+        if len(names) == len(tables) > 1:
+            return "every file"
+        return ", ".join(names) if len(names) <= 3 else f"{len(names)} files"
+
+    if not files:
+        return ""
+    return (
+        "recorded but named by no channel map, so not imported: "
+        + "; ".join(f"{c} ({where(n)})" for c, n in files.items())
+        + " (map them to use them: v_r takes a regulator's output, v_s a stabiliser's)"
+    )
 
 
 STEADY_SHARE = 0.2  # the final fifth of a recording (and the part before its event) as steady states

@@ -21,7 +21,7 @@ import numpy as np
 
 from phid_ros.errors import PhidError
 from phid_ros.io.csvset.csv_import import decimal_comma_fields, is_number
-from phid_ros.io.field.channel_map import WAVEFORMS, ChannelMap, check_recording, choose_map
+from phid_ros.io.field.channel_map import WAVEFORMS, ChannelMap, check_recording, choose_map, not_mapped
 from phid_ros.io.field.field_channels import field_recording, identification_channels, scenario_table
 from phid_ros.io.recording import Recording
 from phid_ros.model.conventions import NS
@@ -223,12 +223,16 @@ def _read_columns(
 
 
 def read_pmu_csv(
-    path: str | Path, cmaps: ChannelMap | Sequence[ChannelMap], notes: list[str] | None = None
+    path: str | Path,
+    cmaps: ChannelMap | Sequence[ChannelMap],
+    notes: list[str] | None = None,
+    skipped: list[str] | None = None,
 ) -> tuple[np.ndarray, dict[str, np.ndarray], float, int | None, ChannelMap]:
     """(t from the first report, per-unit channels, the reporting rate, when the first report
     was taken if the file says: UTC ns, the map it was read through: of several maps of one
     unit, :func:`choose_map`'s); what was done to the reports (a jittered clock resampled) is
-    added to ``notes``. The file is read a chunk of reports at a time."""
+    added to ``notes``, the columns the map names for nothing to ``skipped``. The file is read a
+    chunk of reports at a time."""
     maps = [cmaps] if isinstance(cmaps, ChannelMap) else list(cmaps)
     cmap = maps[0]
     notes = notes if notes is not None else []
@@ -257,7 +261,10 @@ def read_pmu_csv(
         if date_col is not None and date_col not in columns:
             raise PmuImportError(f"{p}: no date column {date_col!r} (map: date); columns: {', '.join(header)}")
         read = check_recording(cmap, p.name, [h for h in header if h not in (time_col, date_col)])
-        mapped = next((m for m in maps if m.path == cmap.path), cmap).channels  # as the map names them
+        chosen = next((m for m in maps if m.path == cmap.path), cmap)
+        mapped = chosen.channels  # as the map names them
+        if skipped is not None:
+            skipped.extend(not_mapped(chosen, header))
         left = [f"{q} ({spec.name})" for q, spec in mapped.items() if q not in read.channels]
         if left:
             notes.append(f"{p.name}: no {', '.join(left)} in this file: imported without it")
@@ -313,9 +320,11 @@ def import_pmu_csv(paths: Sequence[str | Path], cmaps: ChannelMap | Sequence[Cha
     tables = []
     for path in paths:
         notes: list[str] = []
-        t, channels, _, start_ns, cmap = read_pmu_csv(path, maps, notes)
+        skipped: list[str] = []
+        t, channels, _, start_ns, cmap = read_pmu_csv(path, maps, notes, skipped)
         table = scenario_table(Path(path), cmap, t - t[0], channels)
         table.notes[:0] = notes
+        table.not_imported = skipped
         table.start_ns = start_ns
         tables.append(table)
     head = maps[0]

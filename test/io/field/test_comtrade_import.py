@@ -154,11 +154,22 @@ def small_recording(folder, *, fs: float = 1000.0, drop: str = "", ft: str = "AS
 
 def test_a_clean_recording_is_converted_exactly(tmp_path) -> None:
     path, cmap = small_recording(tmp_path, ft="BINARY")
-    c = import_comtrade([path], cmap).streams
+    rec = import_comtrade([path], cmap)
+    c = rec.streams
     pt_ct, pmu = c["pt_ct"].channels, c["pmu"].channels
     assert np.allclose(pt_ct["v_t"], 1.0, atol=2e-4) and np.allclose(pt_ct["p_e"], 0.8 * np.cos(0.5), atol=5e-4)
     assert np.allclose(pmu["delta"] - pmu["theta_t"], np.radians(40), atol=1e-6)
     assert np.allclose(c["encoder"].channels["omega"], 1.0, atol=1e-6)
+    assert "not_imported" not in rec.metadata and not any("not imported" in w for w in rec.warnings)
+
+
+def test_an_analog_channel_no_map_names_is_said_left_behind(tmp_path) -> None:
+    path, cmap = small_recording(tmp_path)
+    text = (tmp_path / "map.yaml").read_text()
+    (tmp_path / "map.yaml").write_text(text.replace("  p_m: {name: PMECH, unit: MW}\n", ""))
+    rec = import_comtrade([path], load_channel_map(tmp_path / "map.yaml"))
+    assert "recorded but named by no channel map, so not imported: PMECH (rec)" in rec.warnings[-1]
+    assert rec.metadata["not_imported"] == "PMECH" and "p_m" in rec.metadata["not_recorded"]
 
 
 def test_bad_recordings_are_named(tmp_path) -> None:

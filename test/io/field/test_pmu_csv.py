@@ -68,6 +68,9 @@ def test_pmu_export_gives_the_channels_back(export) -> None:
     ramp = (got["theta_t"] - m["theta_t"]) - (got["theta_t"] - m["theta_t"])[0]
     assert np.max(np.abs(ramp)) < 5e-3 and np.allclose(got["omega"], m["omega"], rtol=2e-5)
     assert np.allclose(got["p_e"], m["p_e"], atol=0.02)  # from V and I: the sensors' own noise differs
+    # the concentrator's frequency column, which the map names for nothing, is left behind: said so
+    assert "recorded but named by no channel map, so not imported: GEN1:FREQ (S09)" in rec.warnings[-1]
+    assert rec.metadata["not_imported"] == "GEN1:FREQ"
 
 
 @pytest.mark.parametrize(
@@ -310,7 +313,9 @@ def test_a_controllers_own_signals_travel_to_the_scenarios_and_an_on_line_test_i
     v_r = 1.2 + 3.0 * step * np.exp(-np.maximum(t - 3.0, 0.0) / 0.05)
     online = {"UG": 1.0 + 0.03 * step, "UF": 0.6 + 0.1 * step, "P": np.full(n, 0.5), "Q": 0.2 + 0.1 * step}
     _trend_log(tmp_path / "pss_on.csv", {**online, "IF": 0.8 + 0.1 * step, "UREG": v_r, "VPSS": v_s})
-    _trend_log(tmp_path / "pss_off.csv", {**online, "Q": online["Q"] + 0.05, "IF": 0.8 + 0.1 * step, "UREG": v_r})
+    status = {"STATUS": np.full(n, 3.0)}  # a status word no map names
+    off = {**online, "Q": online["Q"] + 0.05, "IF": 0.8 + 0.1 * step, "UREG": v_r}
+    _trend_log(tmp_path / "pss_off.csv", off | status)
     extra = "  i_fd: {name: IF, unit: pu}\n  v_r: UREG\n  v_s: VPSS\n"
     (tmp_path / "online.yaml").write_text(
         ON_LINE_MAP
@@ -323,6 +328,8 @@ def test_a_controllers_own_signals_travel_to_the_scenarios_and_an_on_line_test_i
     assert set(rec.recorder_streams()) == {"field_controller"}
     assert any("pss_off.csv: no v_s (VPSS) in this file: imported without it" in w for w in rec.warnings)
     assert not any("no stator quantity mapped" in w for w in rec.warnings)  # both read on line
+    left = "recorded but named by no channel map, so not imported: STATUS (pss_off) (map them to use them"
+    assert any(w.startswith(left) for w in rec.warnings) and rec.metadata["not_imported"] == "STATUS"
     write_recording(tmp_path / "set.mcap", rec)
     scs = {s.name: s for s in cut_scenarios(tmp_path / "set.mcap").scenarios}
     on, off = scs["pss_on"], scs["pss_off"]
