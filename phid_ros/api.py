@@ -207,6 +207,8 @@ class UnitIdentification:
     result: IdentificationResult
     controls: dict[str, Any]  # by kind: a ControlFit, or why none (str)
     document: dict[str, Any]
+    # the no-load tests played with the identified machine on open circuit (controls.no_load_playback)
+    no_load: Any = None  # controls.unit_validation.UnitValidation
 
 
 def identify_unit(
@@ -236,13 +238,22 @@ def identify_unit(
         res.problems.append(base_note)
     controls = identify_controls(on_base, dict(candidates or {}), dict(control_starts or {}))
     res.timing["controls"] = round(time.perf_counter() - t0, 6)
+    no_load = None
+    if res.determined_by:  # a recorder's channel set: its no-load tests played on open circuit
+        from phid_ros.controls.no_load_playback import no_load_playback
+
+        t0 = time.perf_counter()
+        no_load, _why = no_load_playback(on_base, res.estimates, options.constraints, controls, options.f_nominal_hz)
+        res.timing["no_load_playback"] = round(time.perf_counter() - t0, 6)
     doc = res.to_json(truth)
     doc["controls"] = controls_json(controls)
+    if no_load is not None:
+        doc["no_load_playback"] = no_load.as_json()
     doc.update(result_provenance(*unit.paths))
     doc["f_nominal_hz"] = options.f_nominal_hz  # what phid export needs to write a planning model
     if unit.recording.metadata.get("base_mva") is not None:
         doc["base_mva"] = float(unit.recording.metadata["base_mva"])
-    return UnitIdentification(scenarios, res, controls, doc)
+    return UnitIdentification(scenarios, res, controls, doc, no_load)
 
 
 @dataclass

@@ -216,6 +216,10 @@ def identify_command(args: Any, console: Console) -> int:
     print_controls(console, controls)
     if res.determined_by:
         print_day(console, res, controls)
+    if found.no_load is not None:
+        from phid_ros.cli.validate import print_checks
+
+        print_checks(console, f"the no-load tests played with {found.no_load.unit}", found.no_load)
     if res.stage1_paper is not None:
         console.print(
             f"for comparison, not in the result: the paper's differential damping (stage 1a) gives H = "
@@ -227,7 +231,7 @@ def identify_command(args: Any, console: Console) -> int:
     def report(out: Any) -> None:
         from phid_ros.cli.report import write_report
 
-        write_report(out, res, truth, source, controls)
+        write_report(out, res, truth, source, controls, found.no_load)
 
     summary = f"identified from {len(scenarios)} scenarios in {res.timing['total']:.3f} s (wall time)"
     return finish(console, res.problems, summary, args.json, args.report, report)

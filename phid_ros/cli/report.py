@@ -16,6 +16,7 @@ from phid_ros.cli.common import figure_backend
 from phid_ros.cli.day_summary import HEADERS, day_summary
 from phid_ros.cli.tables import pct
 from phid_ros.controls.identify import ControlFit
+from phid_ros.controls.unit_validation import UnitValidation
 from phid_ros.ident.pipeline import IdentificationResult
 from phid_ros.ident.results import Estimate
 from phid_ros.ident.scenario import KINDS as KIND_ORDER
@@ -309,15 +310,32 @@ def _day_section(res: IdentificationResult, controls: Mapping[str, ControlFit | 
     return f"<h2>What each test gave</h2>\n{html_table(HEADERS, rows, text_columns=(0, 2, 3, 4, 5))}"
 
 
+def _no_load_section(result: UnitValidation) -> str:
+    """The no-load tests played with the identified machine on open circuit (before any record):
+    the checks as ``phid validate`` makes them and each event's overlay."""
+    from phid_ros.cli.validate import CHECK_HEADERS, check_rows, overlays_html
+
+    notes = "".join(f"<li>{html.escape(n)}</li>" for n in result.notes)
+    return (
+        "<h2>The no-load tests played with the identified machine</h2>"
+        f"<p>{html.escape(result.unit)}</p><ul>{notes}</ul>"
+        + html_table(CHECK_HEADERS, check_rows(result), text_columns=(0, 1))
+        + overlays_html(result)
+    )
+
+
 def write_report(
     path: str | Path,
     res: IdentificationResult,
     truth: GeneratorParameters | None,
     source: str,
     controls: Mapping[str, ControlFit | str] | None = None,
+    no_load: UnitValidation | None = None,
 ) -> Path:
     figure_backend()
     figs = []
+    if no_load is not None:
+        figs.append(_no_load_section(no_load))
     f1 = _scenario_figure(res)
     if f1:
         figs.append(f'<h2>Scenario signals</h2><img src="{f1}" alt="identification scenario signals">')

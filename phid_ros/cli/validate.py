@@ -48,6 +48,15 @@ def validate_command(args: Any, console: Console) -> int:
 
 
 def print_result(console: Console, result: UnitValidation) -> None:
+    print_checks(console, f"MOD-026/027: {result.unit}", result)
+    console.print(why_larger_than_identify(result), highlight=False)
+    for n in result.notes:
+        console.print(f"note: {n}", highlight=False)
+
+
+def print_checks(console: Console, title: str, result: UnitValidation) -> None:
+    """The checks' table under ``title``, then each standard's verdict (validate's, and identify's
+    no-load tests played on open circuit)."""
     rows = [[r[0], r[1], f"{r[2]} {r[3]}", *r[4:]] for r in check_rows(result)]
     cols = [
         Col("scenario", "left", key=True, breakable=True),
@@ -58,16 +67,13 @@ def print_result(console: Console, result: UnitValidation) -> None:
         Col("band pu"),
         Col("", "left"),
     ]
-    print_table(console, f"MOD-026/027: {result.unit}", cols, rows)
+    print_table(console, title, cols, rows)
     for standard in ("MOD-026", "MOD-027"):
         checks = [c for s in result.scenarios for c in s.checks if c.standard == standard]
         if checks:
             failed = sum(not c.passed for c in checks)
             verdict = "pass" if not failed else f"FAIL ({failed} of {len(checks)} checks)"
             console.print(f"{standard}: {verdict}", highlight=False)
-    console.print(why_larger_than_identify(result), highlight=False)
-    for n in result.notes:
-        console.print(f"note: {n}", highlight=False)
 
 
 def why_larger_than_identify(result: UnitValidation) -> str:
@@ -106,7 +112,7 @@ def check_rows(result: UnitValidation) -> list[list[str]]:
 CHECK_HEADERS = ["scenario", "kind", "standard", "channel", "simulated by", "max |error| (pu)", "band (pu)", "verdict"]
 
 
-def _overlay_figure(s: ScenarioCheck) -> Any:
+def overlay_figure(s: ScenarioCheck) -> Any:
     """Each checked channel of one event: the band about the recording, the simulation, and the
     recording drawn last so that a simulation on top of it never hides it."""
     import matplotlib.pyplot as plt
@@ -135,16 +141,21 @@ def _overlay_figure(s: ScenarioCheck) -> Any:
     return fig
 
 
-def write_report(path: str | Path, result: UnitValidation, source: str) -> Path:
-    figure_backend()
-    rows = check_rows(result)
-    figures = "".join(
+def overlays_html(result: UnitValidation) -> str:
+    """Each checked event's overlay (recorded, simulated, the band) with its notes, as HTML."""
+    return "".join(
         f"<h3>{html.escape(s.scenario)} ({html.escape(s.kind)})</h3>"
-        + f'<img src="{png_data_uri(_overlay_figure(s))}" alt="{html.escape(s.scenario)}">'
+        + f'<img src="{png_data_uri(overlay_figure(s))}" alt="{html.escape(s.scenario)}">'
         + "".join(f"<p class=note>{html.escape(n)}</p>" for n in s.notes)
         for s in result.scenarios
         if s.checks
     )
+
+
+def write_report(path: str | Path, result: UnitValidation, source: str) -> Path:
+    figure_backend()
+    rows = check_rows(result)
+    figures = overlays_html(result)
     notes = "".join(f"<li>{html.escape(n)}</li>" for n in result.notes) or "<li>none</li>"
     tol = result.as_json()["tolerances"]
     doc = f"""<!doctype html><html><head><meta charset="utf-8"><title>phid validate: {html.escape(source)}</title>
