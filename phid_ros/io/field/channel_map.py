@@ -7,6 +7,7 @@ One format for COMTRADE and PMU exports (YAML or JSON)::
     date: Date                                          # trend logs: a date column beside time of day
     ratios: {pt: "20000/110", ct: "30000/1"}            # primary/secondary, or a number
     values: secondary                                   # the recorded values' side (default primary)
+    rotation: abc                                       # the phases' sequence: abc (default) or acb
     channels:
       v_a: VA                                           # a channel's name, or {name, unit, side}
       i_a: {name: IA, unit: A}
@@ -75,6 +76,7 @@ FIELD_QUANTITIES = ("v_f", "i_fd")
 WAVEFORMS = ("v_a", "v_b", "v_c", "i_a", "i_b", "i_c")
 SCALE = {"V": 1.0, "kV": 1e3, "V_ll": 1.0, "kV_ll": 1e3, "A": 1.0, "kA": 1e3, "W": 1.0, "kW": 1e3, "MW": 1e6}
 SCALE.update({"var": 1.0, "kvar": 1e3, "Mvar": 1e6, "deg": math.pi / 180, "rad": 1.0})
+ROTATIONS = ("abc", "acb")  # the phase sequence a recorder's A, B, C labels turn in
 RATIO_OF = {"voltage": ("pt",), "current": ("ct",), "power": ("pt", "ct")}
 
 
@@ -104,6 +106,7 @@ class ChannelMap:
     time_column: str = "Timestamp"  # PMU exports: the report-time column
     date_column: str | None = None  # trend logs: a date column beside a time-of-day one
     phasor_window_cycles: float = 0.0  # PMU exports: the cycles the PMU's phasor filter spans (0: unknown)
+    rotation: str = "abc"  # the waveforms' phase sequence as the recorder's labels turn (abc or acb)
 
     @property
     def v_base(self) -> float:  # per phase, RMS volts
@@ -212,6 +215,27 @@ def _channel(quantity: str, entry: Any, side: str, where: str) -> ChannelSpec:
     return ChannelSpec(quantity, entry["name"], unit, s, base)
 
 
+def _once(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    """A JSON object whose keys are each given once (json keeps the last of two, silently)."""
+    keys = [k for k, _ in pairs]
+    dup = sorted({k for k in keys if keys.count(k) > 1})
+    if dup:
+        raise ChannelMapError(f"the key {dup[0]!r} is given twice in one object: one entry per key, or one is lost")
+    return dict(pairs)
+
+
+def _one_quantity_a_column(channels: Mapping[str, ChannelSpec], where: str) -> None:
+    """Each recorded column is one quantity: a column mapped as two (V_t read as E_fd too) makes
+    the identification fit one signal against itself, and nothing downstream can tell."""
+    by_name: dict[str, list[str]] = {}
+    for q, spec in channels.items():
+        by_name.setdefault(spec.name, []).append(q)
+    twice = {name: qs for name, qs in by_name.items() if len(qs) > 1}
+    if twice:
+        name, qs = next(iter(twice.items()))
+        raise ChannelMapError(f"{where}: the column {name!r} is mapped as {' and '.join(qs)}: a column is one quantity")
+
+
 def load_channel_map(path: str | Path) -> ChannelMap:
     from phid_ros.io.files.yaml_doc import YamlDocError, load_yaml
 
@@ -219,9 +243,12 @@ def load_channel_map(path: str | Path) -> ChannelMap:
     if not p.is_file():
         raise ChannelMapError(f"{p}: no such channel map")
     try:
-        doc = json.loads(p.read_text(encoding="utf-8")) if p.suffix == ".json" else load_yaml(p)
+        text = p.read_text(encoding="utf-8") if p.suffix == ".json" else ""
+        doc = json.loads(text, object_pairs_hook=_once) if p.suffix == ".json" else load_yaml(p)
     except json.JSONDecodeError as exc:
         raise ChannelMapError(f"{p}: not valid JSON ({exc})") from None
+    except ChannelMapError as exc:
+        raise ChannelMapError(f"{p}: {exc}") from None
     except YamlDocError as exc:
         raise ChannelMapError(str(exc)) from None
     where = str(p)
@@ -243,8 +270,12 @@ def load_channel_map(path: str | Path) -> ChannelMap:
     scenarios = doc.get("scenarios") or {}
     if not isinstance(scenarios, Mapping) or not all(isinstance(v, Mapping) for v in scenarios.values()):
         raise ChannelMapError(f"{where}: scenarios must map a recording's file stem to {{kind, role, event_time_s}}")
+    rotation = doc.get("rotation", "abc")
+    if rotation not in ROTATIONS:
+        raise ChannelMapError(f"{where}: rotation {rotation!r} must be one of {', '.join(ROTATIONS)}")
     cmap = ChannelMap(
         path=where,
+        rotation=rotation,
         mva=_positive(m, "mva", f"{where}: machine"),
         kv=_positive(m, "kv", f"{where}: machine"),
         f_nominal_hz=_positive(m, "f_nominal_hz", f"{where}: machine") if "f_nominal_hz" in m else 50.0,
@@ -258,6 +289,7 @@ def load_channel_map(path: str | Path) -> ChannelMap:
         if "phasor_window_cycles" in m
         else 0.0,
     )
+    _one_quantity_a_column(cmap.channels, where)
     for spec in cmap.channels.values():
         cmap.ratio(spec)  # a secondary value without its ratio is refused now, not after reading
     if cmap.has("omega") and cmap.channels["omega"].unit == "rpm" and cmap.rated_rpm is None:
@@ -288,6 +320,20 @@ def not_mapped(cmap: ChannelMap, available: Sequence[str]) -> list[str]:
     stabiliser's output a map did not name is a test's evidence lost without a word)."""
     named = {spec.name for spec in cmap.channels.values()} | {cmap.time_column, cmap.date_column}
     return [name for name in available if name not in named]
+
+
+def named_once(source: str, available: Sequence[str], cmap: ChannelMap) -> None:
+    """Every channel ``cmap`` reads (and its clock) is named once in the recording: of two
+    channels under one name one would be read and the other dropped, and which is which cannot
+    be told."""
+    used = [cmap.time_column, cmap.date_column, *(spec.name for spec in cmap.channels.values())]
+    for name in dict.fromkeys(u for u in used if u):
+        at = [k + 1 for k, h in enumerate(available) if h == name]
+        if len(at) > 1:
+            raise ChannelMapError(
+                f"{source}: names the channel {name!r} {len(at)} times (columns {', '.join(map(str, at))}): "
+                "which one the map means cannot be told; rename one"
+            )
 
 
 STATOR_QUANTITIES = ("i_a", "i_b", "i_c", "i_t", "phi_i", "p_e", "q_e")

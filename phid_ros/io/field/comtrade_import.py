@@ -19,7 +19,7 @@ import numpy as np
 
 from phid_ros.io.csvset.csv_import import ScenarioTable
 from phid_ros.io.field import comtrade_dat
-from phid_ros.io.field.channel_map import WAVEFORMS, ChannelMap, ChannelMapError, choose_map, not_mapped
+from phid_ros.io.field.channel_map import WAVEFORMS, ChannelMap, ChannelMapError, choose_map, named_once, not_mapped
 from phid_ros.io.field.comtrade_dat import ComtradeImportError, Samples, declared_rows, open_recording, read_samples
 from phid_ros.io.field.field_channels import field_recording, identification_channels, scenario_table
 from phid_ros.io.recording import Recording
@@ -139,6 +139,7 @@ def read_comtrade(path: str | Path, cmaps: ChannelMap | Sequence[ChannelMap]) ->
     cfg, section = open_recording(p)
     names = [str(ch.name).strip() for ch in cfg.analog_channels]
     cmap = choose_map([cmaps] if isinstance(cmaps, ChannelMap) else list(cmaps), p.name, names)
+    named_once(str(p), names, cmap)
     columns = {n: i for i, n in enumerate(names)}
     samples = read_samples(cfg, section, sorted({columns[spec.name] for spec in cmap.channels.values()}))
     if not len(samples):

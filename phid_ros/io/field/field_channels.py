@@ -11,6 +11,7 @@ delay and one bandwidth and are stamped at the window's centre.
 
 from __future__ import annotations
 
+import difflib
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -101,8 +102,8 @@ def identification_channels(
             i = value("i_t") * np.exp(1j * value("phi_i")) * frame
         elif cmap.open_circuit:
             i = np.zeros_like(v)
-        else:
-            i = np.conj((value("p_e") + 1j * value("q_e")) / v)
+        else:  # no voltage, no current (a build-up's first samples from standstill)
+            i = np.conj(np.divide(value("p_e") + 1j * value("q_e"), v, out=np.zeros_like(v), where=v != 0))
         del frame
         theta_t = np.angle(v)  # unwrapped over the whole recording below
         if cmap.has("load_angle"):
@@ -130,9 +131,38 @@ def identification_channels(
             out[c][rows] = x[keep]
     for c in ("theta_t", "delta"):  # angles are unwrapped within a block; between blocks here
         _unwrap_in_place(out[c])
+    _check_terminal_voltage(cmap, out["v_t"], source)  # before the current's check: its cause is the plainer
     if currents:
         _check_current(np.concatenate([a for a, _ in currents]), np.concatenate([b for _, b in currents]), source)
     return t, out
+
+
+V_T_IMPLAUSIBLE = 1.45  # pu: no machine holds its terminals there; sqrt(3) = 1.73 is a phase-for-line mistake
+
+
+def _check_terminal_voltage(cmap: ChannelMap, v_t: Array, source: str) -> None:
+    """A recording whose V_t stays far above any machine's rating (its 90th percentile above
+    :data:`V_T_IMPLAUSIBLE`) is read on a wrong base: most often a line-to-line value mapped as
+    phase to neutral (1.73 pu at 1 pu), else the map's kv or PT ratio."""
+    known = v_t[np.isfinite(v_t)]
+    if known.size < 10:
+        return
+    high = float(np.percentile(known, 90))
+    if high <= V_T_IMPLAUSIBLE:
+        return
+    spec = next((cmap.channels[q] for q in ("v_t", "v_re", "v_a") if cmap.has(q)), None)
+    unit = spec.unit if spec is not None else ""
+    if unit in ("V", "kV") and abs(high / np.sqrt(3.0) - 1.0) < 0.25:
+        why = (
+            f"a line-to-line value mapped as phase to neutral (give unit: {unit}_ll)"
+            if spec is not None and spec.quantity != "v_a"
+            else "line-to-line waveforms (V_AB) mapped as phase to neutral voltages"
+        )
+    else:
+        why = f"the map's machine kv ({cmap.kv:g}), the PT ratio or the unit ({unit or 'none'}) is wrong"
+    raise ChannelMapError(
+        f"{source}: V_t reads {high:.3f} pu (90th percentile), above {V_T_IMPLAUSIBLE} pu where no machine runs: {why}"
+    )
 
 
 def _unwrap_in_place(x: Array, block: int = 1 << 18) -> None:
@@ -177,6 +207,8 @@ def _three_phase(
     piece = slice(lo, hi + n - 1)
     try:
         xa, xb, xc = (_pu(cmap, recorded, q, piece) for q in phases)
+        if cmap.rotation == "acb":  # the recorder's phases turn A-C-B: its C is the B of an A-B-C sequence
+            xb, xc = xc, xb
         if lo == 0 and (problem := sequence_problem(xa, xb, xc, n)) is not None:
             names = ", ".join(f"{q}: {cmap.channels[q].name}" for q in phases)
             raise ChannelMapError(f"{source}: {names}: {problem}")
@@ -282,6 +314,7 @@ def field_recording(
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
         raise ChannelMapError(f"recordings with the same name {dup}: scenario names must differ")
+    _scenarios_name_recordings(tables, cmaps)
     field_notes = calibrate_field(tables, cmaps)
     starts = [t.start_ns for t in tables if t.start_ns is not None]
     # the recording begins when its first file says it did (the import's own date before)
@@ -296,6 +329,24 @@ def field_recording(
     if window_s > 0:
         rec.metadata[MEASUREMENT_WINDOW_KEY] = repr(window_s)
     return rec
+
+
+def _scenarios_name_recordings(tables: Sequence[ScenarioTable], cmaps: Sequence[ChannelMap]) -> None:
+    """Every map's ``scenarios`` entry names a recording: one of the files read, or a file beside
+    them that this import leaves out (a folder's map read for some of its files). An entry that
+    names neither (``step_O`` for ``step_0``) is a setting that would be dropped without a word."""
+    read = {t.name for t in tables}
+    folders = {Path(t.source).parent for t in tables if t.source}
+    beside = {Path(p.name.removesuffix(".gz")).stem for d in folders if d.is_dir() for p in d.iterdir()}
+    for cmap in cmaps:
+        for stem in cmap.scenarios:
+            if stem in read or stem in beside:
+                continue
+            near = difflib.get_close_matches(stem, sorted(read | beside), n=3)
+            raise ChannelMapError(
+                f"{cmap.path}: scenarios.{stem} names no recording: no file {stem}.* was read or lies beside them"
+                + (f" (close: {', '.join(near)})" if near else "")
+            )
 
 
 def left_behind(tables: Sequence[ScenarioTable]) -> str:

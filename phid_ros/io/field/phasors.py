@@ -92,7 +92,7 @@ def sequence_problem(xa: Array, xb: Array, xc: Array, n: int) -> str | None:
     if negative > positive:
         return (
             f"negative sequence {negative / size:.2f} of a phase, positive {positive / size:.2f}: "
-            "phases B and C swapped in the map (or the recorder's rotation is A-C-B)"
+            "phases B and C swapped in the map, or the recorder's phases turn A-C-B (then say rotation: acb in the map)"
         )
     return None
 

@@ -21,7 +21,14 @@ import numpy as np
 
 from phid_ros.errors import PhidError
 from phid_ros.io.csvset.csv_import import decimal_comma_fields, is_number
-from phid_ros.io.field.channel_map import WAVEFORMS, ChannelMap, check_recording, choose_map, not_mapped
+from phid_ros.io.field.channel_map import (
+    WAVEFORMS,
+    ChannelMap,
+    check_recording,
+    choose_map,
+    named_once,
+    not_mapped,
+)
 from phid_ros.io.field.field_channels import field_recording, identification_channels, scenario_table
 from phid_ros.io.recording import Recording
 from phid_ros.model.conventions import NS
@@ -260,6 +267,7 @@ def read_pmu_csv(
         date_col = cmap.date_column
         if date_col is not None and date_col not in columns:
             raise PmuImportError(f"{p}: no date column {date_col!r} (map: date); columns: {', '.join(header)}")
+        named_once(str(p), header, cmap)
         read = check_recording(cmap, p.name, [h for h in header if h not in (time_col, date_col)])
         chosen = next((m for m in maps if m.path == cmap.path), cmap)
         mapped = chosen.channels  # as the map names them

@@ -5,6 +5,8 @@ and a key means what it says.
   walked, and none of our documents needs them.
 - Keys are the text written: YAML 1.1 reads ``0412:`` as the octal number 266, and a recording's
   settings under its file stem ``0412`` were dropped without a word.
+- A key given twice in one mapping is refused: YAML keeps the second and drops the first, and a
+  recording's settings written twice lost the first entry (its kind, its regulator) silently.
 - A document larger than :data:`MAX_YAML_BYTES` is refused before it is parsed.
 """
 
@@ -37,9 +39,17 @@ def _loader(all_text: bool) -> type[yaml.SafeLoader]:
             return super().compose_node(parent, index)
 
         def construct_mapping(self, node: Any, deep: bool = False) -> Any:
+            seen: dict[str, int] = {}
             for key, _ in node.value:
                 if isinstance(key, yaml.ScalarNode):
                     key.tag = "tag:yaml.org,2002:str"  # the key as written: 0412 is a name, not 266
+                    line = key.start_mark.line + 1
+                    if key.value in seen:
+                        raise YamlDocError(
+                            f"line {line}: the key {key.value!r} is given twice (first on line {seen[key.value]}): "
+                            "one entry per key, or the first is lost"
+                        )
+                    seen[key.value] = line
             return super().construct_mapping(node, deep=deep)
 
     if all_text:  # every scalar as written (names and paths: a recording called 0412 is not 266)

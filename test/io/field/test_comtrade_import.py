@@ -313,7 +313,8 @@ def test_a_recording_converted_in_blocks_is_the_one_converted_whole(tmp_path, ft
     ("swap", "message"),
     [
         ({"v_b": "VC", "v_c": "VB"}, r"v_a: VA, v_b: VC, v_c: VB: negative sequence 1\.00 of a phase, positive 0\.00"),
-        ({"i_b": "IA", "i_c": "IA"}, r"i_a: IA, i_b: IA, i_c: IA: the three phases carry one waveform"),
+        # one column mapped as three quantities is refused by the map itself, before any sample
+        ({"i_b": "IA", "i_c": "IA"}, r"the column 'IA' is mapped as i_a and i_b and i_c: a column is one quantity"),
     ],
 )
 def test_phases_swapped_or_one_channel_on_three_are_named(tmp_path, swap, message) -> None:
@@ -324,8 +325,32 @@ def test_phases_swapped_or_one_channel_on_three_are_named(tmp_path, swap, messag
     for q, name in swap.items():
         text = text.replace(f"  {q}: {q[0].upper()}{q[2].upper()}\n", f"  {q}: {name}\n")
     (tmp_path / "swapped.yaml").write_text(text)
-    with pytest.raises(ComtradeImportError, match=message):
+    with pytest.raises((ComtradeImportError, ChannelMapError), match=message):
         import_comtrade([path], load_channel_map(tmp_path / "swapped.yaml"))
+
+
+def test_a_recorder_whose_phases_turn_acb_is_read_with_its_rotation_declared(tmp_path) -> None:
+    """A relay whose phases turn A-C-B (its B carries what an A-B-C recorder's C does) was refused
+    as "B and C swapped", with no way to say so but to exchange the two in the map. Declared as
+    ``rotation: acb`` it imports as the same recording read A-B-C."""
+    path, cmap = small_recording(tmp_path)
+    reference = import_comtrade([path], cmap).streams
+    cfg = path.read_text()
+    # relabel: the recorder's B is the A-B-C system's C and the other way round (analog names only)
+    swapped = cfg.replace(",VB,", ",TMP,").replace(",VC,", ",VB,").replace(",TMP,", ",VC,")
+    swapped = swapped.replace(",IB,", ",TMP,").replace(",IC,", ",IB,").replace(",TMP,", ",IC,")
+    assert swapped != cfg
+    path.write_text(swapped)
+    with pytest.raises(ComtradeImportError, match=r"phases turn A-C-B \(then say rotation: acb in the map\)"):
+        import_comtrade([path], cmap)
+    (tmp_path / "acb.yaml").write_text((tmp_path / "map.yaml").read_text() + "rotation: acb\n")
+    acb = import_comtrade([path], load_channel_map(tmp_path / "acb.yaml")).streams
+    for name, st in reference.items():
+        for c, x in st.channels.items():
+            assert np.allclose(acb[name].channels[c], x, rtol=0, atol=1e-12, equal_nan=True), (name, c)
+    (tmp_path / "bad.yaml").write_text((tmp_path / "map.yaml").read_text() + "rotation: cba\n")
+    with pytest.raises(ChannelMapError, match=r"bad\.yaml: rotation 'cba' must be one of abc, acb"):
+        load_channel_map(tmp_path / "bad.yaml")
 
 
 def test_a_dat_shorter_than_its_cfg_declares_is_said(tmp_path) -> None:

@@ -286,7 +286,7 @@ def test_the_voltage_phasor_as_its_real_and_imaginary_parts_reads_as_magnitude_a
     for name, s in want.streams.items():
         for c, x in s.channels.items():
             np.testing.assert_allclose(got.streams[name].channels[c], x, rtol=1e-9, atol=1e-9, err_msg=c)
-    both = text.replace("  v_re:", '  v_t: {name: "GEN1:V1_RE", unit: V}\n  v_re:')
+    both = text.replace("  v_re:", '  v_t: {name: "GEN1:V1_MAG", unit: V}\n  v_re:')
     (tmp_path / "both.yaml").write_text(both)
     with pytest.raises(ChannelMapError, match=r"the terminal voltage is mapped as v_t, v_re, v_im: map it once"):
         import_pmu_csv([rect], load_channel_map(tmp_path / "both.yaml"))
@@ -357,3 +357,74 @@ def test_a_controllers_own_signals_travel_to_the_scenarios_and_an_on_line_test_i
     maps = [load_channel_map(tmp_path / "noload_if.yaml"), load_channel_map(tmp_path / "online.yaml")]
     with pytest.raises(ChannelMapError, match=r"no_ef.csv: holds 'P', which .*online.yaml maps as p_e, but fits only"):
         import_pmu_csv([tmp_path / "no_ef.csv"], maps)
+
+
+def _no_load_pair(tmp_path, names=("noload",)) -> None:
+    n = 800
+    for name in names:
+        _trend_log(tmp_path / f"{name}.csv", {"UG": np.full(n, 1.0), "UF": np.full(n, 0.37)})
+
+
+def test_a_map_entry_given_twice_or_naming_no_file_is_refused(tmp_path) -> None:
+    """A map naming one scenario twice kept the second entry (the first's kind and regulator lost);
+    an entry naming a file that is not there (step_O for step_0) was ignored; both silently."""
+    _no_load_pair(tmp_path, ("step_0", "0412"))
+    files = [tmp_path / "step_0.csv", tmp_path / "0412.csv"]
+    (tmp_path / "twice.yaml").write_text(
+        NO_LOAD_MAP + "scenarios:\n  step_0: {kind: field_step, regulator: manual}\n  step_0: {kind: unknown}\n"
+    )
+    with pytest.raises(
+        ChannelMapError, match=r"twice\.yaml: line 9: the key 'step_0' is given twice \(first on line 8\)"
+    ):
+        load_channel_map(tmp_path / "twice.yaml")
+    (tmp_path / "twice.json").write_text(
+        '{"machine": {"mva": 30, "kv": 10.5}, "channels": {"v_t": {"name": "UG", "unit": "pu"}, "v_t": "UF"}}'
+    )
+    with pytest.raises(ChannelMapError, match=r"twice\.json: the key 'v_t' is given twice in one object"):
+        load_channel_map(tmp_path / "twice.json")
+    (tmp_path / "miss.yaml").write_text(NO_LOAD_MAP + "scenarios:\n  step_O: {kind: field_step}\n")
+    with pytest.raises(ChannelMapError, match=r"miss\.yaml: scenarios\.step_O names no recording: .*\(close: step_0\)"):
+        import_pmu_csv(files, load_channel_map(tmp_path / "miss.yaml"))
+    # an entry for a file beside the ones read (a folder's map, some of its files imported) is no error;
+    # a file named 0412 takes its entry (YAML 1.1 would read the key as the octal 266)
+    (tmp_path / "ok.yaml").write_text(
+        NO_LOAD_MAP + "scenarios:\n  step_0: {kind: unknown}\n  0412: {kind: field_step}\n"
+    )
+    rec = import_pmu_csv(files[1:], load_channel_map(tmp_path / "ok.yaml"))
+    assert [(s.name, s.kind) for s in rec.scenarios] == [("0412", "field_step")]
+
+
+def test_a_column_mapped_twice_or_named_twice_in_the_header_is_refused(tmp_path) -> None:
+    """One column given for both v_t and v_f imported and identified (SEXS named on E_fd = V_t); a
+    header naming a column twice had its second copy read and the first dropped, unlisted."""
+    _no_load_pair(tmp_path)
+    (tmp_path / "both.yaml").write_text(NO_LOAD_MAP.replace("v_f: {name: UF", "v_f: {name: UG"))
+    with pytest.raises(ChannelMapError, match=r"both\.yaml: the column 'UG' is mapped as v_t and v_f"):
+        load_channel_map(tmp_path / "both.yaml")
+    n = 800
+    rows = ["Timestamp,UG,UF,UG"] + [f"{k * 0.005:.4f},1.0,0.37,0.5" for k in range(n)]
+    (tmp_path / "dup.csv").write_text("\n".join(rows) + "\n")
+    (tmp_path / "map.yaml").write_text(NO_LOAD_MAP)
+    with pytest.raises(ChannelMapError, match=r"dup\.csv: names the channel 'UG' 2 times \(columns 2, 4\)"):
+        import_pmu_csv([tmp_path / "dup.csv"], load_channel_map(tmp_path / "map.yaml"))
+
+
+def test_a_line_to_line_voltage_mapped_as_phase_is_refused_naming_kv_ll(tmp_path) -> None:
+    """V_t in kV line to line mapped as kV (phase to neutral) imported at 1.73 pu at no load, said
+    only inside the calibration line; a build-up from standstill (V_t 0 first) warned of a divide by zero."""
+    import warnings
+
+    n = 800
+    ug = np.concatenate((np.zeros(100), np.full(n - 100, 10.5)))  # kV line to line, from standstill
+    _trend_log(tmp_path / "noload.csv", {"UG": ug, "UF": np.full(n, 0.37), "P": np.zeros(n), "Q": np.zeros(n)})
+    online = ON_LINE_MAP.replace("v_t: {name: UG, unit: pu}", "v_t: {name: UG, unit: kV}")
+    (tmp_path / "kv.yaml").write_text(online)
+    with pytest.raises(
+        ChannelMapError, match=r"noload\.csv: V_t reads 1\.732 pu .*mapped as phase to neutral \(give unit: kV_ll\)"
+    ):
+        import_pmu_csv([tmp_path / "noload.csv"], load_channel_map(tmp_path / "kv.yaml"))
+    (tmp_path / "kv_ll.yaml").write_text(online.replace("unit: kV}", "unit: kV_ll}"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no numpy warning reaches the user
+        rec = import_pmu_csv([tmp_path / "noload.csv"], load_channel_map(tmp_path / "kv_ll.yaml"))
+    assert np.nanmax(rec.streams["pt_ct"].channels["v_t"]) == pytest.approx(1.0, abs=1e-6)
