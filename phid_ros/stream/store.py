@@ -81,6 +81,22 @@ def _same_samples(a: EventWindow, b: EventWindow) -> bool:
     return bool(np.array_equal(a.values[ia], b.values[ib], equal_nan=True))
 
 
+def _more_complete(new: EventWindow, stored: EventWindow) -> bool:
+    """Does ``new`` (the same event, its samples agreeing with ``stored``'s) say more? A usable
+    window over an unusable one, a longer one of two unusable ones, and one that carries a
+    recorder's channel the stored one lacks (a store written by an earlier version, whose windows
+    held no field current, was kept over the recording's own: X'_d published at 0.454 for 0.5)."""
+    if stored.usable and not new.usable:
+        return False
+    gains = set(new.recorded) - set(stored.recorded)
+    loses = set(stored.recorded) - set(new.recorded)
+    if gains and not loses and len(new.t_ns) >= len(stored.t_ns):
+        return True
+    if loses:
+        return False
+    return not stored.usable and (new.usable or len(new.t_ns) > len(stored.t_ns))
+
+
 def _legacy_version(db: sqlite3.Connection) -> int:
     """A store from before ``user_version``: 2 with the digest column, else 0.
 
@@ -151,8 +167,9 @@ class EventStore:
         self._db.close()
 
     def add(self, w: EventWindow) -> str:
-        """Store a window; returns 'added', 'duplicate' (already there), 'replaced' (a complete window
-        for a stored incomplete one) or 'kept' (an incomplete window for a stored complete one)."""
+        """Store a window; returns 'added', 'duplicate' (already there), 'relabelled' (already there,
+        the test sheet's labels now given), 'replaced' (a more complete window for a stored one:
+        complete for incomplete, with a recorder's channel it lacked) or 'kept' (a less complete one)."""
         e = w.event
         digest = window_digest(w)
         try:
@@ -161,15 +178,15 @@ class EventStore:
                     f"SELECT digest, {COLUMNS} FROM events WHERE event_id = ?", (e.event_id,)
                 ).fetchone()
                 if row is not None:
-                    if row[0] == digest:
-                        return "duplicate"
                     stored = self._row(row[1:])
+                    if row[0] == digest:
+                        return self._relabel(stored, w)
                     if not _same_samples(stored, w):
                         raise StoreError(
                             f"{self.path}: event {e.event_id} is already stored with other samples; two "
                             f"recordings are being mixed under unit {self.unit!r} (use another store or unit)"
                         )
-                    if stored.usable or (not w.usable and len(stored.t_ns) >= len(w.t_ns)):
+                    if not _more_complete(w, stored):
                         return "kept"  # the stored window is the more complete one of the same event
                 self._db.execute(
                     f"INSERT OR REPLACE INTO events ({COLUMNS}, digest) VALUES ({'?,' * 19}?)",
@@ -187,6 +204,19 @@ class EventStore:
                 return "added" if row is None else "replaced"
         except sqlite3.OperationalError as exc:  # the lock was not released within the busy timeout
             raise StoreError(f"{self.path}: cannot write event {e.event_id}: {exc}") from exc
+
+    def _relabel(self, stored: EventWindow, w: EventWindow) -> str:
+        """The same samples again: 'duplicate', but a test sheet's labels the new window carries
+        (the regulator, a reference step, given in a map after the first replay) are taken; a store's
+        old labels were otherwise kept over the sheet's, silently."""
+        new, old = w.event, stored.event
+        labels = (new.regulator, new.reference_step)
+        if labels == (old.regulator, old.reference_step) or labels == ("", None):
+            return "duplicate"
+        self._db.execute(
+            "UPDATE events SET regulator = ?, reference_step = ? WHERE event_id = ?", (*labels, new.event_id)
+        )
+        return "relabelled"
 
     @staticmethod
     def _values(w: EventWindow) -> tuple:

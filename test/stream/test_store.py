@@ -204,3 +204,29 @@ def test_a_window_keeps_the_recorder_s_channels_and_its_test_sheet_through_the_s
     assert all(np.array_equal(second.recorded[c], w.recorded[c]) for c in w.recorded)
     assert (second.event.regulator, second.event.reference_step) == ("manual", 0.05)
     assert s.add(second) == "duplicate"  # its digest covers the recorder's channels too
+
+
+def test_a_window_written_by_an_earlier_version_gives_way_to_the_recordings_own(tmp_path):
+    """A store written before windows kept the field current, replayed with the same trend logs:
+    its old windows were kept over the recording's own, and X'_d was published at 0.454 ± 0.013
+    (true 0.5) where a fresh store withholds it. The window carrying the recorder's channels now
+    replaces the one without; the sheet's labels given later replace none; nothing is dropped
+    the other way round."""
+    path = tmp_path / "s.sqlite"
+    s = EventStore(path, unit="G1")
+    assert s.add(window(1)) == "added"  # as the earlier version stored it: the ten channels alone
+    new = window(1)
+    new.recorded = {"i_fd": np.linspace(0.5, 0.6, len(new.t_ns))}
+    assert s.add(new) == "replaced"
+    [got] = s.latest()
+    assert set(got.recorded) == {"i_fd"} and np.array_equal(got.recorded["i_fd"], new.recorded["i_fd"])
+    assert s.add(window(1)) == "kept"  # the window without it never replaces the one with it
+    # the same samples with the test sheet's labels, given in a map after the first replay
+    new.event.regulator, new.event.reference_step = "manual", 0.1
+    assert s.add(new) == "relabelled"
+    [got] = s.latest()
+    assert (got.event.regulator, got.event.reference_step) == ("manual", 0.1) and len(s) == 1
+    plain = window(1)
+    plain.recorded = dict(new.recorded)
+    assert s.add(plain) == "duplicate"  # a window without labels leaves the sheet's in place
+    assert s.latest()[0].event.regulator == "manual"

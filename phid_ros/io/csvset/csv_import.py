@@ -13,9 +13,11 @@ from __future__ import annotations
 import csv
 import difflib
 import gzip
+import hashlib
 import io
 import math
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TextIO
@@ -318,6 +320,24 @@ def import_csv_set(
     return rec, warnings
 
 
+def _each_once(tables: Sequence[ScenarioTable]) -> None:
+    """No recording is given twice: the same samples under a second name count one test twice
+    (T'_d0 published with twice that test's weight, nothing said). Content, not names, decides."""
+    seen: dict[str, ScenarioTable] = {}
+    for tab in tables:
+        h = hashlib.sha256(np.ascontiguousarray(tab.t, dtype=np.float64).tobytes())
+        for c in sorted(tab.columns):
+            h.update(c.encode() + b"\0" + np.ascontiguousarray(tab.columns[c], dtype=np.float64).tobytes())
+        key = h.hexdigest()
+        if key in seen:
+            first = seen[key]
+            raise CsvImportError(
+                f"{tab.source or tab.name}: holds the same samples as {first.source or first.name}: one recording "
+                "given twice would count its test twice; give it once"
+            )
+        seen[key] = tab
+
+
 def recording_from_tables(
     tables: list[ScenarioTable],
     f_nominal_hz: float,
@@ -336,6 +356,7 @@ def recording_from_tables(
     infos: list[ScenarioInfo] = []
     period_ns: int | None = None
     cursor = start_ns
+    _each_once(tables)
     for tab in tables:
         for c in CHANNELS:
             problem = unit_problem(c, tab.columns[c])
