@@ -26,18 +26,21 @@ def export_command(args: argparse.Namespace, console: Console) -> int:
     out = Path(args.out) if args.out else Path(args.result).with_suffix(SUFFIX[args.format])
     refuse_inputs([out], [args.result, args.diagnosis, args.base])
     existing = None
+    bus, machine_id = args.bus or 1, args.id or "1"
     if args.base:
         from phid_ros.export.dyr_read import read_unit
 
-        existing = read_unit(args.base, args.bus if args.bus != 1 else None, args.id if args.id != "1" else None)
+        existing = read_unit(args.base, args.bus, args.id)
+        # the record goes where the unit's record is: a base at bus 5 was written at bus 1, unsaid
+        bus, machine_id = args.bus or existing.bus, args.id or existing.machine_id
     rec = build_record(
         result,
         source=str(args.result),
         model=args.model,
         mva=float(mva),
         kv=args.kv,
-        bus=args.bus,
-        machine_id=args.id,
+        bus=bus,
+        machine_id=machine_id,
         diagnosis=diagnosis,
         diagnosis_source=str(args.diagnosis or ""),
         allow_flagged=args.allow_flagged,
@@ -51,6 +54,11 @@ def export_command(args: argparse.Namespace, console: Console) -> int:
         warn(f"kept from {rec.kept_from} (the recordings did not determine them): {', '.join(rec.kept)}")
     for w in rec.warnings:
         warn(w)
+    if existing is not None and existing.carried and args.format != "psse-dyr":
+        warn(
+            f"{args.base}: {', '.join(r.model for r in existing.carried)} (records phid does not model) not written "
+            f"to a {args.format} file, which has no layout for them here; the .dyr carries them as written"
+        )
     written = dict(rec.values)
     sources = dict(rec.sources)
     if args.format == "psse-dyr":

@@ -374,8 +374,10 @@ def _add_export(sub: Subparsers) -> None:
     p.add_argument("--out", metavar="OUT", help="the record's file (default: RESULT with .dyr, .dyd or .json)")
     p.add_argument("--mva", type=POSITIVE, help="the machine's MVA base (default: the result's base_mva)")
     p.add_argument("--kv", type=POSITIVE, default=20.0, help="the terminal bus's base kV (default 20)")
-    p.add_argument("--bus", type=POSITIVE_INT, default=1, help="the bus number of the machine (default 1)")
-    p.add_argument("--id", default="1", help="the machine id at its bus (default 1)")
+    p.add_argument(
+        "--bus", type=POSITIVE_INT, help="the bus number of the machine (default: the --base record's, else 1)"
+    )
+    p.add_argument("--id", help="the machine id at its bus (default: the --base record's, else 1)")
     p.add_argument("--f-nominal", type=POSITIVE, help="nominal frequency for ANDES's fn (default: the result's)")
     p.add_argument(
         "--allow-flagged",

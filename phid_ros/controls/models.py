@@ -241,6 +241,22 @@ class ControlModel(ABC):
         return dict(values)
 
     @classmethod
+    def record_problem(cls, values: Mapping[str, float]) -> str | None:
+        """What makes a record's constants ones the simulation cannot take, or None: a constant
+        not a number or a negative time constant (held ones too: the play-in runs a record as
+        written, T_5 = -3 s included), and a limit pair whose lower bound lies above its upper (an
+        IEEEST with LSMAX below LSMIN played to an E_fd error of 9e266 pu)."""
+        for q in cls.parameters:
+            problem = q.record_problem(values[q.name])
+            if problem is not None:
+                return f"{q.name} = {values[q.name]:g} {problem}"
+        for pair in (cls.output_limits, cls.input_limits):
+            if pair is not None and values[pair[0]] > values[pair[1]]:
+                lo, hi = pair
+                return f"{lo} = {values[lo]:g} lies above {hi} = {values[hi]:g}: the lower limit is above the upper"
+        return None
+
+    @classmethod
     def recorded(cls, values: Mapping[str, float]) -> dict[str, float]:
         """A record's constants as the simulation takes them: as written (a model whose record
         can carry what phid does not simulate refuses it here, naming the constants)."""
@@ -756,6 +772,22 @@ class IEEEG1(ControlModel):
         # shorter (IEEE's typical data: servo 0.1-0.2 s, steam chest 0.2-0.4 s)
         servo, chest = sorted((values["T3"], values["T4"]))
         return {**values, "T3": servo, "T4": chest, "K3": 1.0 - values["K1"]}
+
+    @classmethod
+    def record_problem(cls, values: Mapping[str, float]) -> str | None:
+        """What makes a record's constants ones the simulation cannot take, or None: a constant
+        not a number or a negative time constant (held ones too: the play-in runs a record as
+        written, T_5 = -3 s included), and a limit pair whose lower bound lies above its upper (an
+        IEEEST with LSMAX below LSMIN played to an E_fd error of 9e266 pu)."""
+        for q in cls.parameters:
+            problem = q.record_problem(values[q.name])
+            if problem is not None:
+                return f"{q.name} = {values[q.name]:g} {problem}"
+        for pair in (cls.output_limits, cls.input_limits):
+            if pair is not None and values[pair[0]] > values[pair[1]]:
+                lo, hi = pair
+                return f"{lo} = {values[lo]:g} lies above {hi} = {values[hi]:g}: the lower limit is above the upper"
+        return None
 
     @classmethod
     def recorded(cls, values: Mapping[str, float]) -> dict[str, float]:

@@ -32,6 +32,12 @@ class ControlRecord:
     sources: dict[str, str]
     flagged: list[str] = field(default_factory=list)
     kept_from: str = ""  # the existing record it was kept from (phid export --base), not identified
+    icons: dict[str, int] = field(default_factory=dict)  # PSS/E's integers (none: the model's own, MODELS[m].icons)
+
+    def icon_values(self) -> list[int]:
+        """PSS/E's integers before the constants: the existing record's where it gave them (a
+        stabiliser's remote bus), else the ones phid simulates."""
+        return [self.icons.get(n, v) for n, v in MODELS[self.model].icons]
 
     @property
     def defaults(self) -> list[str]:

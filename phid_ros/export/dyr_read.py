@@ -48,6 +48,7 @@ class DyrRecord:
     machine_id: str
     constants: tuple[float, ...]
     line: int  # where the record starts, for messages
+    text: str = ""  # the record as written (up to its '/'), so one phid does not model is carried as it is
 
 
 @dataclass
@@ -55,6 +56,7 @@ class ControlSettings:
     model: str
     kind: str
     values: dict[str, float]
+    icons: dict[str, int] = field(default_factory=dict)  # PSS/E's integers as the record gives them
 
 
 @dataclass
@@ -68,6 +70,7 @@ class Unit:
     constants: dict[str, float]  # the machine's, by PSS/E's names
     controls: dict[str, ControlSettings] = field(default_factory=dict)  # by kind
     ignored: list[str] = field(default_factory=list)  # records on the unit phid does not model
+    carried: list[DyrRecord] = field(default_factory=list)  # those records, to be written back as they are
 
     def parameters(self, p_m0: float) -> GeneratorParameters:
         """The fourth-order model's parameters, D in phid's form at the operating point ``p_m0``."""
@@ -154,6 +157,7 @@ def read_records(path: str | Path) -> list[DyrRecord]:
         raise DyrError(f"{p}: cannot read: {e.strerror or e}") from e
     records: list[DyrRecord] = []
     tokens: list[str] = []
+    bodies: list[str] = []
     start = 0
     for number, raw in enumerate(text.splitlines(), 1):
         line = raw.split("@!", 1)[0] if raw.lstrip().startswith("@!") else raw
@@ -165,15 +169,17 @@ def read_records(path: str | Path) -> list[DyrRecord]:
         if words and not tokens:
             start = number
         tokens += words
+        if words:
+            bodies.append(body.rstrip())
         if slash and tokens:
-            records.append(_record(p, start, tokens))
-            tokens = []
+            records.append(_record(p, start, tokens, "\n".join(bodies) + " /"))
+            tokens, bodies = [], []
     if tokens:
         raise DyrError(f"{p}:{start}: record '{' '.join(tokens[:3])} ...' does not end with '/'")
     return records
 
 
-def _record(p: Path, line: int, tokens: list[str]) -> DyrRecord:
+def _record(p: Path, line: int, tokens: list[str], text: str) -> DyrRecord:
     if len(tokens) < 3 or not tokens[0].lstrip("-").isdigit():
         raise DyrError(f"{p}:{line}: a record begins BUS 'MODEL' ID; found '{' '.join(tokens[:3])}'")
     numbers = []
@@ -181,7 +187,21 @@ def _record(p: Path, line: int, tokens: list[str]) -> DyrRecord:
         if not _NUMBER.match(t):
             raise DyrError(f"{p}:{line}: {tokens[1]} constant '{t}' is not a number")
         numbers.append(float(t.replace("d", "e").replace("D", "e")))
-    return DyrRecord(int(tokens[0]), tokens[1].upper(), tokens[2].strip(), tuple(numbers), line)
+    return DyrRecord(int(tokens[0]), tokens[1].upper(), tokens[2].strip(), tuple(numbers), line, text)
+
+
+def _no_control_without_its_machine(p: Path, records: list[DyrRecord], machines: list[DyrRecord], m: DyrRecord) -> None:
+    """A control model's record belongs to the machine at its bus and id: one at a bus and id
+    where the file holds no machine is a record written at the wrong place (an exciter at bus 2
+    beside a machine at bus 1 was dropped, and the unit validated on the recorded E_fd)."""
+    at = {(r.bus, r.machine_id) for r in machines}
+    for r in records:
+        if r.model in CONTROL_MODELS and (r.bus, r.machine_id) not in at:
+            raise DyrError(
+                f"{p}:{r.line}: {r.model} at bus {r.bus} id '{r.machine_id}', where the file holds no machine "
+                f"(its {m.model} is at bus {m.bus} id '{m.machine_id}'): a control belongs to the machine at its "
+                "bus and id"
+            )
 
 
 def read_unit(path: str | Path, bus: int | None = None, machine_id: str | None = None) -> Unit:
@@ -203,12 +223,14 @@ def read_unit(path: str | Path, bus: int | None = None, machine_id: str | None =
     if len(m.constants) != len(order):
         raise DyrError(f"{p}:{m.line}: {m.model} has {len(m.constants)} constants; PSS/E's has {len(order)}")
     unit = Unit(str(p), m.bus, m.machine_id, m.model, dict(zip(order, m.constants)))
+    _no_control_without_its_machine(p, records, every, m)
     for r in records:
         if (r.bus, r.machine_id) != (m.bus, m.machine_id) or r is m:
             continue
         model = CONTROL_MODELS.get(r.model)
         if model is None:
             unit.ignored.append(f"{r.model} (line {r.line})")
+            unit.carried.append(r)
             continue
         names = [q.name for q in model.parameters]
         skip = len(model.icons)  # PSS/E's integers before the constants (IEEEG1's second shaft)
@@ -233,13 +255,12 @@ def read_unit(path: str | Path, bus: int | None = None, machine_id: str | None =
                 f"{p}:{r.line}: IEEET1 KE = 0 (PSS/E computes it at initialisation so V_R starts at 0): "
                 "give the unit's K_E"
             )
-        for q in model.parameters:
-            problem = None if q.limit or q.held else q.record_problem(values[q.name])
-            if problem is not None:
-                raise DyrError(f"{p}:{r.line}: {r.model} {q.name} = {values[q.name]:g} {problem}")
+        problem = model.record_problem(values)
+        if problem is not None:
+            raise DyrError(f"{p}:{r.line}: {r.model} {problem}")
         try:
             model.recorded(values)  # what the simulation cannot take of the record, refused by name
         except ValueError as exc:
             raise DyrError(f"{p}:{r.line}: {r.model}: {exc}") from None
-        unit.controls[model.kind] = ControlSettings(r.model, model.kind, values)
+        unit.controls[model.kind] = ControlSettings(r.model, model.kind, values, {n: int(v) for n, v in icons.items()})
     return unit

@@ -92,9 +92,11 @@ def psse_dyr(rec: MachineRecord) -> str:
         lines.append("    " + " ".join(values[i : i + 6]))
     lines[-1] += f" /  {rec.comment()}"
     for c in rec.controls:  # the exciter and the governor beside the machine, their CONs in PSS/E's order
-        icons = [str(v) for _name, v in MODELS[c.model].icons]
+        icons = [str(v) for v in c.icon_values()]
         lines.append(f"{rec.bus} '{c.model}' '{rec.machine_id}' " + " ".join([*icons, *map(_num, c.values.values())]))
         lines[-1] += f" /  {c.comment()}"
+    for text in rec.carried:  # the existing record's models phid does not model, as they were written
+        lines.append(text)
     return "\n".join(lines) + "\n"
 
 

@@ -21,6 +21,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
+from phid_ros.controls.models import MODELS as CONTROL_MODELS
 from phid_ros.errors import PhidError
 from phid_ros.export.controls import ControlRecord, build_control_records, comment_text
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME
@@ -95,6 +96,9 @@ class MachineRecord:
     # fields taken from the unit's existing record (--base) where the recordings did not determine them
     kept: list[str] = field(default_factory=list)
     kept_from: str = ""
+    # the existing record's records phid does not model (an over-excitation limiter), as written,
+    # re-addressed to this record's bus and id: carried into a .dyr, never dropped
+    carried: list[str] = field(default_factory=list)
 
     @property
     def fields(self) -> list[str]:
@@ -272,19 +276,7 @@ def build_record(
     )
     rec.controls = build_control_records(result, source, allow_flagged=allow_flagged)
     if existing is not None:
-        named = {c.kind for c in rec.controls}
-        rec.controls += [
-            ControlRecord(
-                c.model,
-                kind,
-                dict(c.values),
-                {n: f"kept from {existing.source}" for n in c.values},
-                [],
-                existing.source,
-            )
-            for kind, c in existing.controls.items()
-            if kind not in named
-        ]
+        _keep_existing_controls(rec, existing)
     if rec.p_m0 is not None and rec.values["D"] < rec.p_m0:
         warnings.append(
             f"D = {rec.values['D']:.3g} is below P_m0 = {rec.p_m0:.3g}, the damping PSS/E's torque form adds by "
@@ -296,6 +288,35 @@ def build_record(
         )
     _check(rec)
     return rec
+
+
+def _keep_existing_controls(rec: MachineRecord, existing: Unit) -> None:
+    """The existing record's control models of a kind identify named none of, kept; its PSS/E
+    integers on a model identified anew (a stabiliser's remote bus was written as 0, its own,
+    unsaid); and its records phid does not model, carried as written (an over-excitation limiter
+    was dropped from the .dyr without a word)."""
+    named = {c.kind: c for c in rec.controls}
+    for kind, c in existing.controls.items():
+        mine = named.get(kind)
+        if mine is None:
+            kept = {n: f"kept from {existing.source}" for n in c.values}
+            rec.controls.append(ControlRecord(c.model, kind, dict(c.values), kept, [], existing.source, dict(c.icons)))
+            continue
+        if mine.model != c.model:
+            continue
+        mine.icons = dict(c.icons)
+        moved = [f"{n} = {v}" for n, v in c.icons.items() if v != dict(CONTROL_MODELS[c.model].icons).get(n)]
+        if moved:
+            rec.warnings.append(f"{c.model}: {', '.join(moved)} kept from {existing.source} (phid's fit reads none)")
+    for r in existing.carried:
+        body = r.text.split(None, 3)
+        rest = body[3] if len(body) > 3 else "/"
+        rec.carried.append(f"{rec.bus} {body[1]} '{rec.machine_id}' {rest}")
+    if existing.carried:
+        rec.warnings.append(
+            f"{', '.join(r.model for r in existing.carried)} from {existing.source}: not modelled by phid, "
+            "carried into the .dyr as written"
+        )
 
 
 def _same_recording(
