@@ -115,7 +115,7 @@ def test_a_control_record_at_a_bus_without_its_machine_or_with_limits_crossed_is
 
     machine = "1 'GENSAL' '1' 3.77 0.0552 0.0823 2.3362 0.0 1.12 0.642 0.354 0.24 0.1 0.1 0.4 /\n"
     cases = {
-        "2 'SEXS' '1' 0.1 10.0 200.0 0.05 0.0 4.0 /\n": r"x\.dyr:2: SEXS at bus 2 id '1', where the file holds no machine",
+        "2 'SEXS' '1' 0.1 10.0 200.0 0.05 0.0 4.0 /\n": r"x\.dyr:2: SEXS at bus 2 id '1', where the file holds no",
         "1 'IEEEST' '1' 3 0 0 0 0 0 0 0 0.2 0.05 0.2 0.05 3.0 3.0 -1.0 -0.1 0.1 0 0 /\n": (
             r"x\.dyr:2: IEEEST LSMIN = 0\.1 lies above LSMAX = -0\.1"
         ),
