@@ -17,6 +17,7 @@ def characterise_command(args: argparse.Namespace, console: Console) -> int:
 
     refuse_inputs([args.json], [args.sheet])
     sheet, c = characterise_sheet(args.sheet)
+    refuse_inputs([args.json], [sheet.occ.source, sheet.scc.source])  # the curves the sheet names are inputs too
     rows = [
         ("I_fg", "A", c.i_fg, "field current for rated voltage on the air-gap line (the field's base)"),
         ("I_fsi", "A", c.i_fsi, "field current for rated armature current, short circuit"),

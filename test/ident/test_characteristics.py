@@ -84,3 +84,33 @@ def test_a_sheet_naming_a_missing_column_is_a_one_line_error(tmp_path: Path) -> 
     sheet = _sheet(tmp_path, occ_cols="IF;VOLTS")
     with pytest.raises(SheetError, match=r"occ\.csv: no column 'V' \(columns: IF, VOLTS\)"):
         load_test_sheet(sheet)
+
+
+def test_a_point_below_the_air_gap_line_is_named_and_left_out_not_read_as_negative_saturation() -> None:
+    """An OCC point at 1.0 pu read 15 % low published S(1.0) -0.113 as identified and moved the
+    short-circuit ratio by 22 %, naming no point."""
+    clean = characterise(*curves(3))
+    i_f, v, scc_i_f, i_a = curves(3)
+    k = int(np.flatnonzero(v == 1.0)[0])
+    i_f[k] *= 0.8
+    c = characterise(i_f, v, scc_i_f, i_a)
+    assert len(c.left_out) == 1 and "OCC point 1.000 pu" in c.left_out[0] and "below the air-gap line" in c.left_out[0]
+    assert c.s10.value == pytest.approx(S10, abs=0.02) and c.s10.value > 0
+    assert c.scr == pytest.approx(clean.scr, rel=0.02)
+
+
+def test_a_non_finite_reading_or_json_onto_a_curve_table_is_a_one_line_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """One 'nan' reading reached scipy as "ValueError: y must contain only finite values";
+    ``--json`` onto the curve table the sheet names overwrote the measurements, exit 0."""
+    sheet = _sheet(tmp_path)
+    table = tmp_path / "occ.csv"
+    measured = table.read_text()
+    assert main(["characterise", str(sheet), "--json", str(table)]) == 2
+    assert "occ.csv" in capsys.readouterr().err and table.read_text() == measured
+    lines = measured.splitlines()
+    lines[3] = lines[3].split(";")[0] + ";nan"
+    table.write_text("\n".join(lines) + "\n")
+    with pytest.raises(SheetError, match=r"occ\.csv: line 4, column 'V': 'nan' is not a finite number"):
+        load_test_sheet(sheet)
