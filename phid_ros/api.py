@@ -225,7 +225,7 @@ def identify_unit(
     identify`` and ``phid fleet`` both do. ``options.f_nominal_hz`` is taken from the recordings."""
     from dataclasses import replace
 
-    from phid_ros.controls.identify import controls_json, identify_controls, on_machine_field_base
+    from phid_ros.controls.identify import controls_json, identify_machine_controls
 
     options = replace(options, f_nominal_hz=unit.recording.f_nominal_hz)
     cut = [(c.scenarios, c.problems, p) for p, c in zip(unit.paths, unit.cuts)]
@@ -233,10 +233,10 @@ def identify_unit(
     if progress:
         progress("identifying the exciter, the governor and the stabiliser")
     t0 = time.perf_counter()
-    on_base, base_note = on_machine_field_base(scenarios, options.constraints.saturation)
-    if base_note:
-        res.problems.append(base_note)
-    controls = identify_controls(on_base, dict(candidates or {}), dict(control_starts or {}))
+    on_base, controls, notes = identify_machine_controls(
+        scenarios, res.route_details, options.constraints.saturation, candidates, control_starts
+    )
+    res.problems.extend(notes)
     res.timing["controls"] = round(time.perf_counter() - t0, 6)
     no_load = None
     if res.determined_by:  # a recorder's channel set: its no-load tests played on open circuit

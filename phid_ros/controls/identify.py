@@ -974,6 +974,34 @@ def controls_json(found: dict[str, ControlFit | str]) -> dict[str, Any]:
     return {k: f.as_json() if isinstance(f, ControlFit) else {"model": None, "why": f} for k, f in found.items()}
 
 
+def identify_machine_controls(
+    scenarios: Sequence[ScenarioData],
+    route_details: Mapping[str, Any],
+    saturation: tuple[float, float] | None,
+    candidates: Mapping[str, Sequence[str]] | None = None,
+    starts: Mapping[str, Mapping[str, float]] | None = None,
+    kinds: Sequence[str] | None = None,
+) -> tuple[list[ScenarioData], dict[str, ControlFit | str], list[str]]:
+    """The control systems of a machine just identified (its ``route_details``), as ``phid
+    identify`` and the monitor's recalibration both fit them: E_fd put on the machine's base
+    (:func:`on_machine_field_base`), then :func:`identify_controls`; an exciter is not fitted from
+    field channels that gave the machine an impossible value
+    (:func:`phid_ros.ident.determinable.impossible_field`). Returns (the scenarios with E_fd on the
+    machine's base, the fits, notes for the user)."""
+    from phid_ros.controls.models import KINDS_IN_ORDER
+    from phid_ros.ident.determinable import impossible_field
+
+    on_base, base_note = on_machine_field_base(scenarios, saturation)
+    notes = [base_note] if base_note else []
+    distrust = impossible_field(route_details)
+    wanted = [k for k in (kinds or KINDS_IN_ORDER) if not (distrust and k == "exciter")]
+    found = identify_controls(on_base, candidates, starts, wanted)
+    if distrust and "exciter" in (kinds or KINDS_IN_ORDER):
+        found = {"exciter": f"not identified: {distrust}", **found}
+        notes.append(f"the exciter is not identified: {distrust}")
+    return on_base, found, notes
+
+
 def identify_controls(
     scenarios: Sequence[ScenarioData],
     candidates: Mapping[str, Sequence[str]] | None = None,

@@ -495,7 +495,10 @@ def _closed_loop(
         out = _control_output(
             heard, "exciter", closing.control, closing.level, said, closing.stabiliser, closing.reference, set_point
         )
-        assert out is not None  # the open-loop play-in of the same scenario gave one
+        if out is None or not np.isfinite(out[0]).all():
+            # the loop's V_t left what the exciter can take (a record whose T_R 1e-9 s beside
+            # T_C1 = T_B1 = 1e6 s made it diverge): no closed loop, not a traceback
+            raise LoopNotClosed("the closed loop's V_t diverged")
         return closing.level + out[0]
 
     def machine(fields: list[Array]) -> list[BehindReactance]:

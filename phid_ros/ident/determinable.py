@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -396,6 +396,24 @@ def _field_circuit(
     current = res.estimates.get("T_d0_prime")
     if f.T_d0_prime.identifiable or current is None or not current.identifiable:
         put({"T_d0_prime": f.T_d0_prime}, route)
+
+
+def impossible_field(route_details: Mapping[str, Any]) -> str:
+    """Why the field's channels are not to be trusted, or "": the field circuit found a negative
+    T'_d0 (overall or in a test), which no machine has. E_fd and I_fd exchanged in a map gave
+    T'_d0 = -4.80 s and, from the same E_fd, an exciter published as determined; what a run fits
+    from channels that gave an impossible value is withheld with this reason."""
+    fc = route_details.get("field_circuit") or {}
+    found = [("the tests together", fc.get("T_d0_prime"))]
+    found += [(str(e.get("scenario")), e.get("T_d0_prime")) for e in fc.get("events", [])]
+    bad = [(n, v) for n, v in found if isinstance(v, (int, float)) and math.isfinite(v) and v < 0]
+    if not bad:
+        return ""
+    where = ", ".join(f"{v:.3g} s ({n})" for n, v in bad[:3])
+    return (
+        f"the field's channels gave T'_d0 = {where}, which no machine has: E_fd and I_fd exchanged, or a field "
+        "channel mis-scaled, in the map?"
+    )
 
 
 def _field_circuit_online(

@@ -285,7 +285,7 @@ class Recalibrator:
             # the next run's windows are among these and newer ones: the cache holds one run's
             self._scenarios = {k: self._scenarios[k] for k in map(_window_key, windows)}
             result = identify(scenarios, self.options)
-            controls = self._controls(scenarios) if self.controls else {}
+            controls = self._controls(scenarios, result) if self.controls else {}
             outcome = self._judge(result, ids, stream_time_ns, time.perf_counter() - t0)
             outcome.controls = controls
             if skipped:
@@ -304,14 +304,17 @@ class Recalibrator:
             self.runs += 1
             self._done.append(outcome)
 
-    def _controls(self, scenarios: list[ScenarioData]) -> dict[str, ControlFit | str]:
-        """The control systems asked for on the run's scenarios, E_fd on the machine's base as phid identify
-        puts it (:func:`phid_ros.api.identify_unit`); their failure is said, the machine's set stands."""
-        from phid_ros.controls.identify import identify_controls, on_machine_field_base
+    def _controls(self, scenarios: list[ScenarioData], result: IdentificationResult) -> dict[str, ControlFit | str]:
+        """The control systems asked for on the run's scenarios, as phid identify fits them
+        (:func:`phid_ros.controls.identify.identify_machine_controls`); their failure is said, the
+        machine's set stands."""
+        from phid_ros.controls.identify import identify_machine_controls
 
         try:
-            on_base, _ = on_machine_field_base(scenarios, self.options.constraints.saturation)
-            return identify_controls(on_base, kinds=self.controls)
+            _, found, _ = identify_machine_controls(
+                scenarios, result.route_details, self.options.constraints.saturation, kinds=self.controls
+            )
+            return found
         except Exception as exc:  # noqa: BLE001 - a control fit must not take the machine's outcome down
             return {"exciter": f"not identified: the fit failed ({type(exc).__name__}: {exc})"}
 

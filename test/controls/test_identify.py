@@ -599,3 +599,34 @@ def test_an_exciter_whose_limits_cannot_hold_the_pss_on_test_says_so_and_names_n
     exciter = ControlFit("SEXS", "exciter", params, {}, {}, 0.0, None, None, True, "")
     why = stabiliser_from_effect([s], exciter)
     assert isinstance(why, str) and why.startswith("not identified: the exciter SEXS as fitted cannot play"), why
+
+
+def test_an_exciter_is_not_fitted_from_field_channels_that_gave_the_machine_an_impossible_value(tmp_path) -> None:
+    """E_fd and I_fd exchanged in the map: the field circuit found T'_d0 negative, and an exciter
+    time constant fitted from the same E_fd was published as determined (T_E 0.0529 ± 0.0012 s).
+    With the map right the exciter is named; exchanged, it is withheld with the reason, and the
+    governor and stabiliser are judged as before."""
+    from phid_ros.api import cut_unit, identify_unit
+    from phid_ros.ident.constraints import Constraints
+    from phid_ros.ident.pipeline import IdentifyOptions
+    from phid_ros.io.bags.recordings import write_recording
+    from phid_ros.io.field.channel_map import load_channel_map
+    from phid_ros.io.field.pmu_csv import import_pmu_csv
+    from phid_ros.model.parameters import TABLE1
+    from test.io.field.field_sets import trend_log_set
+
+    paths, cmap = trend_log_set(tmp_path, TABLE1, exciter=EXCITER)
+    text = cmap.read_text()
+    swapped = text.replace("v_f: {name: UF, unit: V}", "v_f: {name: IF, unit: V}")
+    swapped = swapped.replace("i_fd: {name: IF, unit: A}", "i_fd: {name: UF, unit: A}")
+    assert swapped != text
+    (tmp_path / "swapped.yaml").write_text(swapped)
+    bag = tmp_path / "swapped.mcap"
+    write_recording(bag, import_pmu_csv(paths, load_channel_map(tmp_path / "swapped.yaml")))
+    options = IdentifyOptions(constraints=Constraints(fixed={"X_q": TABLE1.X_q}), validate=False)
+    got = identify_unit(cut_unit([str(bag)]), options)
+    exciter = got.controls["exciter"]
+    assert isinstance(exciter, str) and exciter.startswith("not identified: the field's channels gave T'_d0 = -")
+    assert "E_fd and I_fd exchanged" in exciter and got.document["controls"]["exciter"]["model"] is None
+    assert got.controls["governor"] == "not identified: no scenario with omega and p_m to fit"
+    assert any(p.startswith("the exciter is not identified") for p in got.result.problems)

@@ -130,8 +130,8 @@ def read_table(path: Path, columns: list[str]) -> dict[str, Array]:
         except ValueError:
             k = next(i for i, f in enumerate(fields) if not is_number(f))
             raise SheetError(f"{path}: line {k + 2}, column {col!r}: {fields[k]!r} is not a number") from None
-        bad = np.flatnonzero(~np.isfinite(out[col]))
-        if bad.size:  # 'nan' and 'inf' read as numbers, and reached scipy's spline as a traceback
-            k = int(bad[0])
+        nonfinite = np.flatnonzero(~np.isfinite(out[col]))
+        if nonfinite.size:  # 'nan' and 'inf' read as numbers, and reached scipy's spline as a traceback
+            k = int(nonfinite[0])
             raise SheetError(f"{path}: line {k + 2}, column {col!r}: {fields[k]!r} is not a finite number")
     return out
