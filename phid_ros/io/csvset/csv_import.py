@@ -78,6 +78,33 @@ def _open_text(path: Path) -> TextIO:
     return path.open("r", encoding="utf-8-sig", newline="")  # -sig: a spreadsheet's byte-order mark is not part of 't'
 
 
+MAX_HEADER_CHARS = 1 << 16  # a header of a few thousand columns; one endless line is not a header
+
+
+def read_header_line(path: Path, fh: TextIO) -> str:
+    """The first line of a table, read with a bound: an endless first line was read whole and
+    then refused by the csv module as "field larger than field limit"."""
+    first = fh.readline(MAX_HEADER_CHARS + 1)
+    if len(first) > MAX_HEADER_CHARS:
+        raise CsvImportError(
+            f"{path}: the first line runs past {MAX_HEADER_CHARS >> 10} KB without ending: not a header row"
+        )
+    return first
+
+
+def _not_mostly_blank(path: Path, body: str, columns: int) -> None:
+    """A body whose lines are mostly blank is refused before it is split: 0.65 MB of gzip inflated
+    to 640 MB of newlines, and the list of its empty lines ran out of memory (14 GB). A row of
+    ``columns`` numbers takes at least 2 ``columns`` characters; lines averaging less than half of
+    that are more blank than rows."""
+    lines = body.count("\n")
+    if lines > 10_000 and lines * columns > len(body):
+        raise CsvImportError(
+            f"{path}: {lines} lines in {len(body) >> 20} MB of text, most of them blank (a compressed file that "
+            "inflates to blank lines?): not a scenario table"
+        )
+
+
 def _read_bounded(path: Path, fh: TextIO) -> str:
     body = fh.read(MAX_SCENARIO_CSV_BYTES + 1)
     if len(body) > MAX_SCENARIO_CSV_BYTES:
@@ -121,7 +148,7 @@ def read_scenario_csv(path: Path, *, strict: bool = False) -> tuple[dict[str, ND
         raise CsvImportError(f"{path}: no such CSV file")
     try:
         with _open_text(path) as fh:
-            first = fh.readline()
+            first = read_header_line(path, fh)
             body = _read_bounded(path, fh)
         if first.count(";") > first.count(","):
             # a spreadsheet in a decimal-comma locale: fields split by ';', 0,5 for 0.5, and a point
@@ -147,6 +174,7 @@ def read_scenario_csv(path: Path, *, strict: bool = False) -> tuple[dict[str, ND
     if extra and strict:
         raise CsvImportError(f"{path}: unknown column(s) {extra}; allowed: {', '.join(CSV_COLUMNS)}")
     idx = [header.index(c) for c in columns]
+    _not_mostly_blank(path, body, len(header))
     # loadtxt with usecols would accept a row with extra fields, shifting nothing but
     # hiding a broken export; check the field count of every line first (C-speed count)
     lines = body.splitlines()

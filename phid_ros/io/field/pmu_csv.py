@@ -13,14 +13,14 @@ from __future__ import annotations
 import csv
 import itertools
 import re
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import TextIO
 
 import numpy as np
 
 from phid_ros.errors import PhidError
-from phid_ros.io.csvset.csv_import import decimal_comma_fields, is_number
+from phid_ros.io.csvset.csv_import import decimal_comma_fields, is_number, read_header_line
 from phid_ros.io.field.channel_map import (
     WAVEFORMS,
     ChannelMap,
@@ -167,6 +167,17 @@ class _Column:
             self.bad = (line, text, what)
 
 
+def _chunk(path: Path, reader: Iterator[list[str]], line: int) -> list[list[str]]:
+    """The next :data:`CHUNK_ROWS` rows; a field beyond the csv module's limit (an endless line)
+    is a one-line error naming where, not ``_csv.Error``."""
+    rows: list[list[str]] = []
+    try:
+        rows.extend(itertools.islice(reader, CHUNK_ROWS))
+    except csv.Error as exc:
+        raise PmuImportError(f"{path}: line {line + len(rows)}: {exc} (an endless line?)") from None
+    return rows
+
+
 def _read_columns(
     path: Path,
     fh: TextIO,
@@ -185,7 +196,7 @@ def _read_columns(
     out = {name: _Column() for name in wanted}
     line = 2  # the file's line of the chunk's first report
     comma: bool | None = None  # ';' fields: is the comma the decimal mark? (the first reports say)
-    while chunk := list(itertools.islice(reader, CHUNK_ROWS)):
+    while chunk := _chunk(path, reader, line):
         ragged = next((k for k, r in enumerate(chunk) if len(r) != len(header)), None)
         if ragged is not None:
             raise PmuImportError(
@@ -247,7 +258,7 @@ def read_pmu_csv(
     if not p.is_file():
         raise PmuImportError(f"{p}: no such PMU export")
     with p.open(newline="", encoding="utf-8-sig") as fh:
-        first = fh.readline()
+        first = read_header_line(p, fh)
         # a decimal-comma locale's export: ';' between fields, 0,5 for 0.5
         euro = first.count(";") > first.count(",")
         delimiter = ";" if euro else ","

@@ -237,6 +237,25 @@ def test_a_compressed_csv_that_inflates_past_the_bound_is_refused(tmp_path, monk
         csv_import.read_scenario_csv(path)
 
 
+def test_a_compressed_csv_of_blank_lines_or_an_endless_header_is_refused_within_bounded_memory(tmp_path):
+    """0.65 MB of .csv.gz inflating to 640 MB of blank lines ran out of memory splitting them
+    (14 GB, MemoryError); one endless header line reached the csv module ("field larger than field
+    limit"). Both are one line now; the blank lines are counted, not split (a smaller bomb here)."""
+    from phid_ros.io.csvset import csv_import
+
+    path = tmp_path / "blank.csv.gz"
+    with gzip.open(path, "wb", compresslevel=9) as fh:
+        fh.write((",".join(CSV_COLUMNS) + "\n" + "0,0,0,0,0,0,0,0,0,0,0\n" * 2).encode())
+        fh.write(b"\n" * (8 << 20))
+    assert path.stat().st_size < 20_000
+    with pytest.raises(CsvImportError, match=r"blank\.csv\.gz: 8388610 lines in 8 MB of text, most of them blank"):
+        csv_import.read_scenario_csv(path)
+    endless = tmp_path / "endless.csv"
+    endless.write_text("t" + "x" * (200 << 10) + "\n0\n")
+    with pytest.raises(CsvImportError, match=r"endless\.csv: the first line runs past 64 KB without ending"):
+        csv_import.read_scenario_csv(endless)
+
+
 def test_semicolon_fields_with_decimal_points_still_read(tmp_path):
     """';' between fields does not make the point a thousands mark: without a comma anywhere the
     points are decimal points (0.5;1.25 is 0.5 and 1.25, as before)."""

@@ -428,3 +428,19 @@ def test_a_line_to_line_voltage_mapped_as_phase_is_refused_naming_kv_ll(tmp_path
         warnings.simplefilter("error")  # no numpy warning reaches the user
         rec = import_pmu_csv([tmp_path / "noload.csv"], load_channel_map(tmp_path / "kv_ll.yaml"))
     assert np.nanmax(rec.streams["pt_ct"].channels["v_t"]) == pytest.approx(1.0, abs=1e-6)
+
+
+def test_an_endless_line_in_a_pmu_export_is_a_one_line_error(tmp_path) -> None:
+    """A 300 KB field reached the user as ``_csv.Error: field larger than field limit``."""
+    from phid_ros.errors import CsvImportError
+
+    (tmp_path / "map.yaml").write_text(NO_LOAD_MAP)
+    cmap = load_channel_map(tmp_path / "map.yaml")
+    (tmp_path / "head.csv").write_text("Timestamp,UG" + "x" * (100 << 10) + "\n0,1\n")
+    with pytest.raises(CsvImportError, match=r"head\.csv: the first line runs past 64 KB without ending"):
+        import_pmu_csv([tmp_path / "head.csv"], cmap)
+    (tmp_path / "body.csv").write_text("Timestamp,UG,UF\n0.000,1.0,0.37\n0.005," + "1" * (300 << 10) + ",0.37\n")
+    with pytest.raises(
+        PmuImportError, match=r"body\.csv: line 2: field larger than field limit .*\(an endless line\?\)"
+    ):
+        import_pmu_csv([tmp_path / "body.csv"], cmap)
