@@ -441,6 +441,6 @@ def test_an_endless_line_in_a_pmu_export_is_a_one_line_error(tmp_path) -> None:
         import_pmu_csv([tmp_path / "head.csv"], cmap)
     (tmp_path / "body.csv").write_text("Timestamp,UG,UF\n0.000,1.0,0.37\n0.005," + "1" * (300 << 10) + ",0.37\n")
     with pytest.raises(
-        PmuImportError, match=r"body\.csv: line 2: field larger than field limit .*\(an endless line\?\)"
+        PmuImportError, match=r"body\.csv: line 3: field larger than field limit .*\(an endless line\?\)"
     ):
         import_pmu_csv([tmp_path / "body.csv"], cmap)
