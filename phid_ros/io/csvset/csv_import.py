@@ -396,7 +396,8 @@ def recording_from_tables(
             period_ns = p_ns
         elif abs(p_ns - period_ns) > SAME_PERIOD * period_ns:  # a jittered clock's mean differs by ns
             raise CsvImportError(
-                f"{tab.source}: sample period {p_ns} ns differs from the first scenario's {period_ns} ns"
+                f"{tab.source}: sample period {p_ns} ns differs from the first scenario's {period_ns} ns "
+                "(import the files of each rate apart; phid identify reads the recordings together)"
             )
         stamps = cursor + np.arange(len(t), dtype=np.int64) * period_ns
         event_ns = 0 if tab.event_time_s is None else int(stamps[0]) + int(round((tab.event_time_s - t[0]) * NS))

@@ -38,6 +38,17 @@ MAX_JITTER = 0.01  # of the reporting period: a clean export, taken as it is
 # a step up to this much off the period is a jittered clock (a controller's trend log, +-0.3 ms at
 # 208 samples/s), resampled onto the period; beyond it a report is missing (a gap, refused)
 MAX_RESAMPLED_JITTER = 0.4
+# A polled log (a laptop reading a controller over Telnet: 0.12-0.69 s between rows, median
+# 0.15 s) has no period to be off: its intervals spread by more than POLLED_SPREAD of their median
+# (5th to 95th percentile). It is read on its own stamps, and a report is missing only where an
+# interval exceeds POLLED_GAP times the median (1.2 s at 0.15 s: a field time constant of seconds
+# is still seen).
+POLLED_SPREAD = 0.2
+POLLED_GAP = 8.0
+# a channel repeating its last value on this share of consecutive reports, for stretches of
+# HELD_REPORTS or more, is sampled and held by the source (refreshed slower than it is polled)
+HELD_SHARE = 0.3
+HELD_REPORTS = 5
 
 
 class PmuImportError(PhidError):
@@ -296,24 +307,41 @@ def read_pmu_csv(
         k = int(np.flatnonzero(dt <= 0)[0])
         raise PmuImportError(f"{p}: report times do not increase (line {k + 3}: {t[k + 1]:.6f} s after {t[k]:.6f} s)")
     period = float(np.median(dt))
-    gap = np.flatnonzero(np.abs(dt - period) > MAX_RESAMPLED_JITTER * period)
+    polled = float(np.percentile(dt, 95) - np.percentile(dt, 5)) > POLLED_SPREAD * period
+    gap = np.flatnonzero(dt > POLLED_GAP * period if polled else np.abs(dt - period) > MAX_RESAMPLED_JITTER * period)
     if gap.size:
         k = int(gap[0])
+        rule = (
+            f"a polled log's interval beyond {POLLED_GAP:g} x its median {period:.3f} s"
+            if polled
+            else f"the rate is {1 / period:g} per s"
+        )
         raise PmuImportError(
             f"{p}: reports missing at line {k + 3}: {dt[k] * 1e3:.3f} ms after the previous, at "
-            f"{t[k + 1]:.3f} s from the start (the rate is {1 / period:g} per s); export the event without gaps"
+            f"{t[k + 1]:.3f} s from the start ({rule}); export the event without gaps"
         )
     grid = None
     jitter = float(np.max(np.abs(dt - period)))
     if jitter > MAX_JITTER * period:
-        period = (t[-1] - t[0]) / (len(t) - 1)  # the clock's mean period: the median of jittered steps is off
-        # a jittered clock, nothing missing: the reports onto the mean period, linearly (the
-        # channels are phasors and slow values, smooth at the report rate)
-        grid = uniform_grid(t[0], t[-1], period)[: len(t)]
-        notes.append(
-            f"{p.name}: report times jitter by up to {jitter * 1e3:.3f} ms around {period * 1e3:.3f} ms: "
-            f"resampled onto {1 / period:.4g} per s by linear interpolation"
-        )
+        if polled:  # the median to two figures: the polled logs of one source share their grid
+            period = float(f"{period:.2g}")
+            grid = uniform_grid(t[0], t[-1], period)
+        else:
+            period = (t[-1] - t[0]) / (len(t) - 1)  # the clock's mean period: the median of jittered steps is off
+            grid = uniform_grid(t[0], t[-1], period)[: len(t)]
+        # a jittered clock (or a polled log), nothing missing: the reports onto the grid, linearly
+        # (the channels are phasors and slow values, smooth at the report rate)
+        if polled:
+            notes.append(
+                f"{p.name}: a polled log (intervals {dt.min():.3f}-{dt.max():.3f} s, median {np.median(dt):.3f} s; "
+                f"a gap would be one beyond {POLLED_GAP:g} x the median): read on its own stamps and interpolated "
+                f"linearly onto {1 / period:.4g} per s"
+            )
+        else:
+            notes.append(
+                f"{p.name}: report times jitter by up to {jitter * 1e3:.3f} ms around {period * 1e3:.3f} ms: "
+                f"resampled onto {1 / period:.4g} per s by linear interpolation"
+            )
 
     def recorded(name: str, rows: slice) -> np.ndarray:
         col = values[name]
@@ -325,9 +353,46 @@ def read_pmu_csv(
         x = col.parts[0]
         return interpolant(t, x)(grid[rows]) if grid is not None else x[rows]
 
+    if polled:
+        notes.extend(_polled_channel_notes(p.name, t, cmap, values))
     length = len(grid) if grid is not None else len(t)
     t_out, channels = identification_channels(cmap, recorded, length, 1.0 / period, str(p))
     return t[0] + t_out, channels, 1.0 / period, start_ns, cmap
+
+
+def _polled_channel_notes(name: str, t: np.ndarray, cmap: ChannelMap, values: dict[str, _Column]) -> list[str]:
+    """What a polled log's channels are worth between their reports: each mapped channel's
+    linear-interpolation error (a report against the line through its two neighbours, the largest
+    and in the channel's own units), and the channels the source samples and holds (the same value
+    repeated for stretches of reports: its changes are timed to the source's refresh, not the poll)."""
+    errors, held = [], []
+    for q, spec in cmap.channels.items():
+        col = values.get(spec.name)
+        if col is None or col.bad is not None or not col.parts:
+            continue
+        x = np.concatenate(col.parts) if len(col.parts) > 1 else col.parts[0]
+        if len(x) < 3:
+            continue
+        w = (t[1:-1] - t[:-2]) / (t[2:] - t[:-2])
+        between = x[:-2] + w * (x[2:] - x[:-2])
+        errors.append(f"{q} {float(np.max(np.abs(x[1:-1] - between))):.3g} {spec.unit}")
+        same = np.diff(x) == 0
+        if same.mean() > HELD_SHARE:
+            runs = np.diff(np.flatnonzero(np.concatenate(([True], ~same, [True]))))
+            longest = int(runs.max())
+            if longest >= HELD_REPORTS:
+                held.append(f"{q} ({spec.name}: the same value on {100 * same.mean():.0f} % of consecutive reports)")
+    out = [
+        f"{name}: between polled reports, a report lies within "
+        + ", ".join(errors)
+        + " of the line through its neighbours (the largest: what linear interpolation misses at twice the interval)"
+    ]
+    if held:
+        out.append(
+            f"{name}: sampled and held by the source, refreshed slower than polled: {'; '.join(held)}: "
+            "their changes are timed to the refresh"
+        )
+    return out
 
 
 def import_pmu_csv(paths: Sequence[str | Path], cmaps: ChannelMap | Sequence[ChannelMap]) -> Recording:

@@ -444,3 +444,39 @@ def test_an_endless_line_in_a_pmu_export_is_a_one_line_error(tmp_path) -> None:
         PmuImportError, match=r"body\.csv: line 3: field larger than field limit .*\(an endless line\?\)"
     ):
         import_pmu_csv([tmp_path / "body.csv"], cmap)
+
+
+def test_a_polled_log_is_read_on_its_own_stamps_and_a_real_gap_is_still_refused(tmp_path) -> None:
+    """A laptop polling a controller over Telnet writes rows 0.12-0.69 s apart (median 0.15 s):
+    every such log was refused as "reports missing". Now it is read on its stamps onto a grid at
+    its median, the rule for a gap said; the interpolation's reach and a held channel are said;
+    an interval of 2 s (13 x the median) is still missing reports."""
+    rng = np.random.default_rng(4)
+    dt = 0.15 + 0.03 * rng.standard_normal(600).clip(-1, 1)
+    dt[::97] = 0.62  # the laptop's pauses
+    t = np.concatenate(([0.0], np.cumsum(dt)))
+    ug = 1.0 - 0.09 * (t > 30) * (1 - np.exp(-(t - 30).clip(0) / 4.0))
+    ug_held = np.round(ug, 3)  # refreshed slower than polled: the same value row after row
+    uf = 0.37 + 0.2 * (t > 30) * np.exp(-(t - 30).clip(0) / 4.0) + 1e-4 * rng.standard_normal(t.size)
+    rows = ["Timestamp,UG,UF"] + [f"{a:.3f},{b:.6f},{c:.6f}" for a, b, c in zip(t, ug_held, uf)]
+    (tmp_path / "polled.csv").write_text("\n".join(rows) + "\n")
+    (tmp_path / "map.yaml").write_text(NO_LOAD_MAP)
+    cmap = load_channel_map(tmp_path / "map.yaml")
+    rec = import_pmu_csv([tmp_path / "polled.csv"], cmap)
+    pt = rec.streams["pt_ct"]
+    assert pt.period_ns == 150_000_000
+    got = np.interp(t, (pt.t_ns - pt.t_ns[0]) / 1e9, pt.channels["v_t"])
+    assert np.max(np.abs(got - ug_held)[t < t[-1] - 0.2]) < 0.002
+    said = " ".join(rec.warnings)
+    assert "polled.csv: a polled log (intervals" in said and "a gap would be one beyond 8 x the median" in said
+    assert "of the line through its neighbours" in said
+    assert "sampled and held by the source, refreshed slower than polled: v_t (UG:" in said
+    assert "v_f (UF" not in said.split("sampled and held")[1]
+    for k in range(300, len(rows)):  # a 2 s hole before the file's line 301
+        a, rest = rows[k].split(",", 1)
+        rows[k] = f"{float(a) + 2.0:.3f},{rest}"
+    (tmp_path / "gap.csv").write_text("\n".join(rows) + "\n")
+    with pytest.raises(
+        PmuImportError, match=r"gap\.csv: reports missing at line 301: .*beyond 8 x its median 0\.150 s"
+    ):
+        import_pmu_csv([tmp_path / "gap.csv"], cmap)
