@@ -101,16 +101,38 @@ def close_loop(
     g = increments(exciter_step[idx])
     j = -fftconvolve(mv, g)[: min(len(idx), KERNEL_SAMPLES)]
     j[0] += 1.0
-    c = inverse_kernel(j)
+    with np.errstate(over="ignore", invalid="ignore"):
+        c = inverse_kernel(j)
+    if not np.isfinite(c).all():  # a loop whose linear gain grows without bound (T_R 1e-9 s, T_C1 = T_B1 = 1e6 s)
+        raise LoopNotClosed("the voltage loop's linear kernel grows without bound (the loop is unstable as drawn)")
 
     v = np.asarray(v_recorded, float)[idx]
     run = first
     r = v - run.v_t
+    # an unstable loop's iterates overflow before the residual shows it: not finite is the verdict
+    # (LoopNotClosed below), not numpy's warnings on the way there
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        return _iterate(v, e, run, r, c, idx, exciter, machine, on_every_sample)
+
+
+def _iterate(
+    v: Array,
+    e: Array,
+    run: BehindReactance,
+    r: Array,
+    c: Array,
+    idx: Array,
+    exciter: Callable[[Array], Array],
+    machine: Callable[[list[Array]], list[BehindReactance]],
+    on_every_sample: Callable[[Array, Array], Array],
+) -> ClosedLoop:
+    """Newton's steps through the kernel ``c`` with Anderson's mixing, from ``v`` (its field ``e``,
+    the machine's ``run``, the residual ``r``)."""
     worst = float(np.max(np.abs(r)))
     tried: list[Array] = []  # the iterates and their Newton steps, for Anderson's mixing
     steps: list[Array] = []
     iterations = 0
-    while worst > TOLERANCE_PU:
+    while not worst <= TOLERANCE_PU:  # a NaN residual is no fixed point (it ended this loop "closed")
         if iterations == MAX_ITERATIONS or not np.isfinite(worst):
             raise LoopNotClosed(
                 f"the voltage loop did not close in {MAX_ITERATIONS} iterations (|V - F(V)| {worst:.2g} pu)"
@@ -125,7 +147,10 @@ def close_loop(
             # the last few iterates show it, and their least-squares mix takes it in
             dv = np.diff(np.array(tried[-MEMORY - 1 :]), axis=0).T
             dn = np.diff(np.array(steps[-MEMORY - 1 :]), axis=0).T
-            gamma = np.linalg.lstsq(dn, newton, rcond=None)[0]
+            try:
+                gamma = np.linalg.lstsq(dn, newton, rcond=None)[0]
+            except np.linalg.LinAlgError as exc:  # iterates no longer finite
+                raise LoopNotClosed(f"the voltage loop diverged after {iterations} iterations ({exc})") from None
             v = v - (dv + dn) @ gamma
         e = exciter(on_every_sample(idx, v))
         [run] = machine([e])

@@ -580,9 +580,11 @@ def channel_check(
     if not np.isfinite(sim).all():
         err = math.inf  # a play-in that diverged fails, whatever the span compared
     band = _band(channel, rec, pre)
-    if fixed is None:  # what the recorded input's noise makes of the output
+    if fixed is None and math.isfinite(err):  # what the recorded input's noise makes of the output
         step = float(idx[1] - idx[0]) * dt if len(idx) > 1 else dt
-        band = max(band, NOISE_PEAKS * _noise(sim[pre] - rec[pre], step))
+        with np.errstate(over="ignore", invalid="ignore"):  # a play-in of 1e200 pu: its noise is no band
+            noise = _noise(sim[pre] - rec[pre], step)
+        band = max(band, NOISE_PEAKS * noise) if math.isfinite(noise) else band
     return ChannelCheck(channel, standard, err, band, bool(err <= band), "machine"), rec, sim
 
 

@@ -80,3 +80,22 @@ def test_the_inverse_kernel_undoes_its_kernel() -> None:
     c = inverse_kernel(j)
     identity = np.convolve(j, c)[:200]
     assert identity[0] == pytest.approx(1.0) and np.max(np.abs(identity[1:])) < 1e-12
+
+
+def test_a_loop_whose_iterates_turn_nan_or_whose_kernel_overflows_is_not_closed_and_warns_nothing() -> None:
+    """A record with T_R 1e-9 s beside T_C1 = T_B1 = 1e6 s: the iterates overflowed to NaN, the NaN
+    residual ended the loop as "closed (|V - F(V)| nan pu)" with E_fd at rest 5.7e256 pu, numpy's
+    warnings reached the user, and elsewhere an AssertionError. Each is LoopNotClosed now."""
+    import warnings
+
+    def blows_up(v: np.ndarray) -> np.ndarray:
+        return np.full(N, np.nan) if not np.allclose(v, V0) else np.full(N, V0 + 0.01)
+
+    huge = np.full(N, 5.0)
+    huge[1:] = 1e300  # a linear response growing past what the kernel's substitution can hold
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(LoopNotClosed, match=r"did not close in \d+ iterations \(\|V - F\(V\)\| nan pu\)"):
+            close_loop(np.full(N, V0), blows_up, np.full(N, 5.0), field_circuit)
+        with pytest.raises(LoopNotClosed, match="linear kernel grows without bound"):
+            close_loop(np.full(N, V0), regulator, np.cumsum(huge), field_circuit)

@@ -275,6 +275,29 @@ LAB = REALDATA / "usn-lab-2kva"
 
 
 @pytest.mark.skipif(not LAB.is_dir(), reason=f"{LAB} is absent (the real recordings are not shipped)")
+def test_a_record_that_makes_the_loop_diverge_is_played_open_loop_without_a_traceback_or_warning(
+    day: Path, tmp_path: Path
+) -> None:
+    """A record with T_R 1e-9 s, T''_d0 1e-9 s and T_C1 = T_B1 = 1e6 s together: AssertionError in
+    controls/unit_validation.py before, numpy's overflow warnings, and a NaN residual taken as a
+    closed loop. Each event now says where its loop did not close and plays it open."""
+    import warnings
+
+    from phid_ros.api import validate_record
+
+    dyr = tmp_path / "hostile.dyr"
+    dyr.write_text(
+        "1 'GENSAL' 1 3.77 1e-9 0.0823 2.3362 0.0 1.12 0.642 0.354 0.24 0.1 0.1 0.4 /\n"
+        "1 'ESST5B' 1 1e-9 505.3 0.00518 0.982 2.237 -8.384 1e6 1e6 0.0263 0.00511 1 1 1 1 1 1 1 1 /\n"
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        got = validate_record(dyr, day)
+    notes = [n for s in got.document["validation"]["scenarios"] for n in s["notes"]]
+    assert not any("nan pu)" in n and "loop closed" in n for n in notes)
+    assert sum("the exciter played from the recorded V_t (its loop open)" in n for n in notes) >= 2
+
+
 def test_the_laboratory_machine_s_curves(tmp_path: Path) -> None:
     """The USN laboratory machine (SOURCE.md there): X_d against the authors' 1.117 pu. Their value
     is the synchronous reactance at rated voltage (the short-circuit ratio's inverse, I_f,SC/I_f,OCC:
