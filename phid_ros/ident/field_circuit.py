@@ -63,13 +63,32 @@ class FieldCurrentBase:
     scatter: float  # the plateaus' largest relative distance from the curve used
 
 
+MIN_PLATEAU_SPAN = 0.05  # pu of V_t: plateaus closer than this cannot show whether they bend
+
+
 def field_current_base(
-    v_t: Sequence[float], i_f: Sequence[float], saturation: tuple[float, float] | None
+    v_t: Sequence[float],
+    i_f: Sequence[float],
+    saturation: tuple[float, float] | None,
+    traversed: Sequence[tuple[float, str]] = (),
 ) -> FieldCurrentBase:
     """c from no-load plateaus (V_t, I_f as recorded): on the given curve (S(1.0), S(1.2), the
-    quadratic form) or, without one, on the air-gap line when the plateaus' I_f per V_t agrees
-    within SATURATION_GAP; otherwise the bound S >= 0 gives."""
+    quadratic form) or, without one, on the air-gap line traversed by a build-up from standstill
+    (``traversed``: each one's c and scenario, :func:`build_up_line`), or on the air-gap line when
+    plateaus spanning MIN_PLATEAU_SPAN agree within SATURATION_GAP in I_f per V_t; otherwise the
+    bound S >= 0 gives. (Plateaus at one voltage agree with any curve: a single one at 1.0 pu was
+    taken as on the air-gap line, and a saturated unit's T'_d0 published 10 % short.)"""
     v, i = np.asarray(v_t, float), np.asarray(i_f, float)
+    if saturation is None and traversed:
+        cs = np.array([c for c, _ in traversed])
+        c = float(np.mean(cs))
+        return FieldCurrentBase(
+            c,
+            True,
+            f"the air-gap line the build-up(s) from standstill traversed ({', '.join(n for _, n in traversed)}; "
+            f"V_t {LINEAR_PART[0]:g}-{LINEAR_PART[1]:g} pu against I_f)",
+            float(np.max(np.abs(cs / c - 1.0))) if len(cs) > 1 else math.nan,
+        )
     if saturation is not None:
         each = no_load_field(v, *saturation) / i
         c = float(np.mean(each))
@@ -82,7 +101,8 @@ def field_current_base(
         )
     per_volt = i / v
     linear = v <= LINEAR_PART[1]  # below the knee (IEEE 115's linear part): on the air-gap line
-    if per_volt.max() / per_volt.min() - 1.0 <= SATURATION_GAP or linear.any():
+    spans = float(np.ptp(v)) >= MIN_PLATEAU_SPAN
+    if (spans and per_volt.max() / per_volt.min() - 1.0 <= SATURATION_GAP) or linear.any():
         on_line = linear if linear.any() else np.ones(len(v), dtype=bool)
         c = float(np.mean(v[on_line] / i[on_line]))
         return FieldCurrentBase(
@@ -113,6 +133,7 @@ class FieldEvent:
     time_per_base: float  # integral / delta_v = T'_d0 / c
     # the recorded I_f moved per V_t over the same samples, as the fit weighs them (see FieldLeakage)
     current_per_volt: float = math.nan
+    fit_share: float = math.nan  # the integral's misfit to T'_d0 x V_t moved, a share of T'_d0 (its largest)
 
 
 @dataclass
@@ -239,7 +260,8 @@ def one_event(s: ScenarioData) -> FieldEvent:
     slope = float(x @ y / (x @ x)) if use.size else float(integral[end - 1] / delta)
     moved_i = s["i_fd"][a:] - i0
     per_volt = float(x @ moved_i[use] / (x @ x)) if use.size else float((i1 - i0) / delta)
-    return FieldEvent(s.name, (v0, i0), (v1, i1), delta, k_e, slope, per_volt)
+    misfit = float(np.max(np.abs(y - slope * x)) / abs(slope * delta)) if use.size and slope else math.nan
+    return FieldEvent(s.name, (v0, i0), (v1, i1), delta, k_e, slope, per_volt, misfit)
 
 
 def by_file(values: Sequence[tuple[str, float]]) -> tuple[float, float, int]:
@@ -257,18 +279,54 @@ def by_file(values: Sequence[tuple[str, float]]) -> tuple[float, float, int]:
     return float(np.mean(each)), spread, 1
 
 
+BUILD_UP_POINTS = 5  # samples of a build-up on the linear part, at least, to draw the air-gap line
+
+
+def build_up_line(s: ScenarioData) -> tuple[float, float] | None:
+    """c (X_ad I_fd per recorded I_f) on the air-gap line, from a build-up from standstill: the
+    event's plateau before it below PLATEAU_FLOOR (the remanence), the one after above the linear
+    part, and V_t against I_f on the way up, between LINEAR_PART's voltages, a line (its offset the
+    remanence's voltage and the dampers' share while the flux rises steadily); None for any other
+    event. A black start's build-up traverses the whole open-circuit curve: its linear part is the
+    air-gap line that plateaus above the knee cannot give. Returns (c, its relative std from the
+    line's fit)."""
+    v, i = s["v_t"], s["i_fd"]
+    before = v[: max(departure(s) - int(round(LEAD_SECONDS / s.dt)), 10)]  # as one_event takes its plateau
+    if float(np.mean(before)) >= PLATEAU_FLOOR or float(np.mean(v[s.steady_slice()])) < LINEAR_PART[1]:
+        return None
+    top = np.flatnonzero(v >= LINEAR_PART[1])
+    rising = slice(0, int(top[0])) if top.size else slice(0, 0)
+    part = np.flatnonzero((v[rising] >= LINEAR_PART[0]) & (v[rising] <= LINEAR_PART[1]))
+    if part.size < BUILD_UP_POINTS or np.ptp(i[part]) <= 0:
+        return None
+    coef, cov = np.polyfit(i[part], v[part], 1, cov=True)
+    slope = float(coef[0])
+    return (slope, float(np.sqrt(cov[0, 0])) / slope) if slope > 0 else None
+
+
 def field_circuit(scenarios: Sequence[ScenarioData], saturation: tuple[float, float] | None) -> FieldCircuitResult:
     scs = field_events(scenarios)
     if not scs:
         raise FieldCircuitError("no no-load event with V_t, E_fd and I_fd recorded and V_t moving between two plateaus")
     events = [one_event(s) for s in scs]
     plateaus = [(v, i, e.scenario) for e in events for v, i in (e.before, e.after) if v >= PLATEAU_FLOOR]
-    base = field_current_base([p[0] for p in plateaus], [p[1] for p in plateaus], saturation)
+    lines = {s.name: line for s in scs if (line := build_up_line(s)) is not None}
+    traversed = [(c, name) for name, (c, _) in lines.items()]
+    base = field_current_base([p[0] for p in plateaus], [p[1] for p in plateaus], saturation, traversed)
     mean, spread, n_files = by_file([(e.scenario, e.time_per_base) for e in events])
     tau = base.scale * mean
     sd = base.scale * spread
     if base.determined and math.isfinite(base.scatter):
         sd = math.hypot(sd, tau * base.scatter)  # the curve's misfit to the plateaus is c's own error
+    if not math.isfinite(sd) and saturation is None and lines:
+        # one build-up: its air-gap line's own std is c's, the integral's is its (a whole traverse
+        # from standstill against a step's few per cent, and its plateau's resistance)
+        # and the integral's largest misfit to T'_d0 x V_t along the rise, which sampling and the
+        # dampers leave (a 96 ms recorder's edges of the field forcing)
+        fits = [e.fit_share for e in events if e.scenario in lines and math.isfinite(e.fit_share)]
+        sd = tau * math.hypot(
+            float(np.sqrt(np.mean([r * r for _, r in lines.values()]))), max(fits) if fits else math.nan
+        )
     values = ", ".join(f"{base.scale * e.time_per_base:.3g} s" for e in events)
     est = Estimate(tau, sd, drivers=[e.scenario for e in events][:3])
     est.add_note(

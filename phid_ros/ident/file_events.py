@@ -48,9 +48,18 @@ class FileEvent:
     end: int  # one past the window's last sample
     steady_start: int  # where its post-event steady state begins, in the file
     lost_measurement: bool = False
+    # later detections made before it settled, taken as its own transient: (kind, sample) each
+    joined: tuple[tuple[str, int], ...] = ()
 
     def describe(self, dt: float) -> str:
         return f"{self.kind} at {self.event * dt:.2f} s (window {self.start * dt:.2f}-{self.end * dt:.2f} s)"
+
+    def joined_note(self, dt: float) -> str:
+        """What was taken into this event as its own transient ("" where nothing was)."""
+        if not self.joined:
+            return ""
+        named = ", ".join(f"{kind} at {k * dt:.2f} s" for kind, k in self.joined)
+        return f"the {named} came before the {self.kind} at {self.event * dt:.2f} s had settled: part of it, one event"
 
 
 def event_note(e: FileEvent, dt: float, file: str) -> str:
@@ -86,6 +95,8 @@ def events_of_file(
             continue
         events.append(e)
     events = [e for e in events if moves_terminal(signals, e[1], dt)]
+    joined: dict[int, list[tuple[str, int]]] = {}
+    events = _own_transients_joined(signals, events, dt, joined)
     out: list[FileEvent] = []
     v = np.asarray(signals["v_t"], float)
     lost_until = -1
@@ -103,8 +114,65 @@ def events_of_file(
             lost_until = k + int(back[0]) if back.size else n
         if no_load and kind == "fault":
             kind = "field_step"
-        out.append(FileEvent(kind, start, k, end, (k_end + end) // 2, lost))
+        out.append(FileEvent(kind, start, k, end, (k_end + end) // 2, lost, tuple(joined.get(k, ()))))
     return out
+
+
+def _own_transients_joined(
+    signals: Mapping[str, Array],
+    events: list[tuple[str, int, int | None]],
+    dt: float,
+    joined: dict[int, list[tuple[str, int]]],
+) -> list[tuple[str, int, int | None]]:
+    """The events, each later detection made while the one before it has not settled left out:
+    a disturbance's own transient (a limit its exciter reaches, the regulator's answer, the swing,
+    the field forced through a build-up from standstill) is part of its event, never a second
+    one. A fault's swing cut at its exciter's limit 2.4 s on lost stage 1 its H (-19 %); a
+    build-up's field forcing and its arrival at the set-point, cut apart, gave T'_d0 0.36 s.
+    ``joined`` gets, by the kept event's sample, the detections taken into it."""
+    kept: list[tuple[str, int, int | None]] = []
+    for e in events:
+        if kept and not settled(signals, kept[-1][1], _last_end(kept[-1]), e[1], dt):
+            joined.setdefault(kept[-1][1], []).append((e[0], e[1]))
+            continue
+        kept.append(e)
+    return kept
+
+
+SETTLE_S = 1.0  # the span whose activity says whether a transient has settled
+SMOOTH_S = 0.1  # activity is read on the signal's 0.1 s mean: noise is not a transient
+SETTLED_SHARE = 0.2  # settled: the second before the next event moves less than this share of the first second after
+QUIET_SIGMAS = 3.0  # ... or no more than this many times the channel's own activity before the event
+
+
+def settled(signals: Mapping[str, Array], k: int, k_end: int, k_next: int, dt: float) -> bool:
+    """Whether the event at ``k`` (over at ``k_end``: a fault's clearing) has settled by
+    ``k_next``. Each of V_t, Q, P and the speed that the event moved (its activity over the
+    SETTLE_S after ``k_end`` more than five times its activity before ``k``; activity is the
+    std of the signal's SMOOTH_S mean) must move over the SETTLE_S before ``k_next`` by less than
+    SETTLED_SHARE of that, or no more than QUIET_SIGMAS times its activity before the event.
+    A commissioning test's return 6-10 s after its step has settled; a swing still decaying, a
+    regulator still forcing, a build-up still rising has not."""
+    w = max(3, int(round(SETTLE_S / dt)))
+    m = max(1, int(round(SMOOTH_S / dt)))
+    if k - w < 0 or k_next - w < k_end:
+        return k_next - w >= k_end  # too little before the event to judge: apart once a span has passed
+    lo = max(0, k - w - m)  # only the spans judged are smoothed (a recording may be hours long)
+    for c in ("v_t", "q_e", "p_e", "omega"):
+        if c not in signals:
+            continue
+        x = np.asarray(signals[c], float)[lo : k_next + m]
+        if not np.isfinite(x[k - w - lo : k_next - lo]).all():
+            continue
+        mean = np.convolve(x, np.ones(m) / m, mode="same") if m > 1 else x
+
+        def activity(a: int, b: int) -> float:
+            return float(np.std(mean[a - lo : b - lo]))
+
+        before, early, late = activity(k - w, k), activity(k_end, k_end + w), activity(k_next - w, k_next)
+        if early > 5.0 * before and late > SETTLED_SHARE * early and late > QUIET_SIGMAS * before:
+            return False
+    return True
 
 
 def plateau_start(signals: Mapping[str, Array], start: int, k: int, dt: float) -> int:

@@ -277,6 +277,11 @@ def _file_events(
     if len(events) == 1 and events[0].lost_measurement:
         problems.append(f"{source}: skipped scenario {m.name}: {LOST_NOTE}")
         return [], None, 0
+    for e in events:
+        if e.joined:
+            problems.append(f"{source}: {m.name}: {e.joined_note(dt)}")
+    if len(events) == 1 and events[0].joined:  # one event whose transient held a second detection
+        return events, m.kind, 0
     if len(events) < 2:
         plateau = events[0].start if events else 0
         if plateau:

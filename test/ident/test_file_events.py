@@ -254,3 +254,45 @@ def test_an_event_s_time_in_its_file_reads_back_from_its_note() -> None:
     assert note.startswith("event field_step at 53.76 s (window 48.00-59.52 s) of AVR_PH_Step10")
     assert time_in_file(["not recorded: omega", note]) == pytest.approx(53.76)
     assert time_in_file(["labelled voltage_step, taken as field_step"]) is None
+
+
+def test_a_fault_s_own_transient_is_part_of_its_event_a_later_settled_one_is_not() -> None:
+    """ANDES's GENROU with EXST1 at its input limit: the field's jump 2.4 s after a fault, the
+    swing still decaying, was cut as a second event ("fault at 1.00 s (window 0.00-2.32 s);
+    field_step at 3.48 s"), and stage 1 lost the swing (H -19 %). A detection before the first
+    event has settled is its own transient; one after it has settled (a test's return) is an event."""
+    rng = np.random.default_rng(3)
+    dt, n = 0.001, 12000
+    t = np.arange(n) * dt
+    sig = {c: np.full(n, np.nan) for c in CHANNELS}
+    swing = np.where(t > 1.15, 0.25 * np.exp(-0.35 * (t - 1.15)) * np.sin(2 * np.pi * 1.1 * (t - 1.15)), 0.0)
+    v = np.where((t >= 1.0) & (t < 1.15), 0.1, 1.0 + 0.3 * swing)
+    e_fd = np.where(t >= 1.0, 3.0, 2.0)
+    e_fd[t >= 3.48] = 2.3  # the exciter leaves its limit while the rotor still swings
+    sig.update(
+        v_t=v + rng.normal(0, 2e-4, n),
+        v_f=e_fd + rng.normal(0, 0.005, n),
+        p_e=0.8 + swing + rng.normal(0, 1e-3, n),
+        q_e=0.2 + 0.5 * swing + rng.normal(0, 1e-3, n),
+        p_m=np.full(n, 0.8),
+        omega=1.0 + 0.002 * np.gradient(swing, dt) / (2 * np.pi * 1.1) + rng.normal(0, 1e-5, n),
+        i_d=np.full(n, -0.5),
+        i_q=np.full(n, 0.5),
+        theta_t=np.zeros(n),
+        delta=np.full(n, 0.7),
+    )
+    [event] = events_of_file(sig, dt)
+    assert event.kind == "fault" and event.event * dt == pytest.approx(1.0, abs=0.01) and event.end == n
+    assert [(k, round(j * dt, 1)) for k, j in event.joined] == [("field_step", 3.5)]
+    assert "field_step at 3.48 s came before the fault at 1.00 s had settled" in event.joined_note(dt)
+    # the same later step once the swing has died away (a test's own return) is an event of its own
+    quiet = dict(sig)
+    calm = np.where(t > 1.15, 0.25 * np.exp(-3.0 * (t - 1.15)) * np.sin(2 * np.pi * 1.1 * (t - 1.15)), 0.0)
+    for c, scale in (("p_e", 1.0), ("q_e", 0.5)):
+        quiet[c] = sig[c] - scale * swing + scale * calm
+    quiet["v_t"] = sig["v_t"] - 0.3 * swing + 0.3 * calm
+    late = np.where(t >= 1.0, 3.0, 2.0)
+    late[t >= 8.0] = 2.3
+    quiet["v_f"] = late + rng.normal(0, 0.005, n)
+    quiet["v_t"] = quiet["v_t"] + np.where(t >= 8.0, 0.02 * (1 - np.exp(-(t - 8.0).clip(0) / 0.5)), 0.0)
+    assert [e.kind for e in events_of_file(quiet, dt)] == ["fault", "field_step"]

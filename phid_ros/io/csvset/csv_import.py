@@ -348,9 +348,11 @@ def import_csv_set(
     return rec, warnings
 
 
-def _each_once(tables: Sequence[ScenarioTable]) -> None:
+def each_once(tables: Sequence[ScenarioTable]) -> None:
     """No recording is given twice: the same samples under a second name count one test twice
-    (T'_d0 published with twice that test's weight, nothing said). Content, not names, decides."""
+    (T'_d0 published with twice that test's weight, nothing said). Content, not names, decides.
+    (A CSV set's manifest listing one file twice is counted once at the identification instead,
+    said there: :func:`phid_ros.stream.scenarios.seen_before`.)"""
     seen: dict[str, ScenarioTable] = {}
     for tab in tables:
         h = hashlib.sha256(np.ascontiguousarray(tab.t, dtype=np.float64).tobytes())
@@ -384,7 +386,6 @@ def recording_from_tables(
     infos: list[ScenarioInfo] = []
     period_ns: int | None = None
     cursor = start_ns
-    _each_once(tables)
     for tab in tables:
         for c in CHANNELS:
             problem = unit_problem(c, tab.columns[c])

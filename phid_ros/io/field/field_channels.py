@@ -19,7 +19,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from phid_ros.errors import CsvImportError
-from phid_ros.io.csvset.csv_import import KINDS, ROLES, ScenarioTable, recording_from_tables, reference_step_of
+from phid_ros.io.csvset.csv_import import (
+    KINDS,
+    ROLES,
+    ScenarioTable,
+    each_once,
+    recording_from_tables,
+    reference_step_of,
+)
 from phid_ros.io.field import phasors
 from phid_ros.io.field.channel_map import (
     FIELD_QUANTITIES,
@@ -315,6 +322,7 @@ def field_recording(
     if dup:
         raise ChannelMapError(f"recordings with the same name {dup}: scenario names must differ")
     _scenarios_name_recordings(tables, cmaps)
+    each_once(tables)
     field_notes = calibrate_field(tables, cmaps)
     starts = [t.start_ns for t in tables if t.start_ns is not None]
     # the recording begins when its first file says it did (the import's own date before)

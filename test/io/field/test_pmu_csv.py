@@ -480,3 +480,16 @@ def test_a_polled_log_is_read_on_its_own_stamps_and_a_real_gap_is_still_refused(
         PmuImportError, match=r"gap\.csv: reports missing at line 301: .*beyond 8 x its median 0\.150 s"
     ):
         import_pmu_csv([tmp_path / "gap.csv"], cmap)
+
+
+def test_the_same_recording_under_a_second_name_is_refused_by_its_content(tmp_path) -> None:
+    """A step file copied under a second name was counted twice: T'_d0 4.859 ± 0.149 s published
+    where each file once gives 4.781 ± 0.172. Content, not names, decides."""
+    _no_load_pair(tmp_path, ("step_0",))
+    (tmp_path / "copy.csv").write_text((tmp_path / "step_0.csv").read_text())
+    (tmp_path / "map.yaml").write_text(NO_LOAD_MAP)
+    cmap = load_channel_map(tmp_path / "map.yaml")
+    with pytest.raises(
+        Exception, match=r"step_0\.csv: holds the same samples as .*copy\.csv: one recording given twice"
+    ):
+        import_pmu_csv([tmp_path / "copy.csv", tmp_path / "step_0.csv"], cmap)
