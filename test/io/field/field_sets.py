@@ -234,6 +234,7 @@ def build_up_log(
         if k % every == 0:
             u_f = e_fd * i_fg * r_f  # E_fd 1 pu drives I_fg through R_f
             v = (e + 2e-4 * rng.standard_normal()) * 16.0
-            rows.append(f"{t:.3f},{v:.5f},{u_f + 0.2 * rng.standard_normal():.4f},{flux * i_fg + 0.3 * rng.standard_normal():.3f}")
+            u_f, i_f = u_f + 0.2 * rng.standard_normal(), flux * i_fg + 0.3 * rng.standard_normal()
+            rows.append(f"{t:.3f},{v:.5f},{u_f:.4f},{i_f:.3f}")
         e += h / t_d0 * (e_fd - flux)
     path.write_text("t_s,Ug_kV,Uf_V,If_A\n" + "\n".join(rows) + "\n")
