@@ -1,0 +1,563 @@
+"""Every kind of recording phid reads, run the way a user runs it, in one table beside the last
+committed one (``benchmarks/corpus.json``): what moved, and by how much.
+
+    python benchmarks/corpus.py                 # every set (about 30 min on two cores; caches the simulators' sets)
+    python benchmarks/corpus.py --subset ci     # the sets .ci/run runs (under 5 min)
+    python benchmarks/corpus.py --only catalogue,trend-logs
+    python benchmarks/corpus.py --update        # write the table run as the committed one
+    python benchmarks/corpus.py --check         # exit 1 where a figure (not a time) moved past its tolerance
+
+Each set runs in its own process (its wall time and peak memory are its own), two at a time.
+A set is a recording (a shipped bag, a look-alike of a field recording written by the project's
+own simulator, an independent simulator's set, a real recording of ``../shared/realdata``) and
+the commands run on it; its figures are parameters against truth (relative error) or against the
+last table where no truth exists, effects named and the gap closed, validation verdicts, wall
+time and peak memory. A figure has a tolerance: beyond it the row is marked ``MOVED``; times and
+memory are marked alike but never fail ``--check`` (the machines are noisy). A set whose input is
+absent (``../shared/realdata`` not beside the clone, ANDES not installed) is skipped, said so, and
+its committed row kept.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import re
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import redirect_stdout
+from dataclasses import dataclass
+from io import StringIO
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+TABLE = ROOT / "benchmarks" / "corpus.json"
+CACHE = ROOT / "benchmarks" / "out" / "corpus-cache"
+REALDATA = ROOT.parent / "shared" / "realdata"
+PARAMETERS = ("H", "D", "X_d", "X_q", "X_d_prime", "X_q_prime", "T_d0_prime", "T_q0_prime")
+TIME_TOLERANCE = 0.5  # a time or a memory figure is marked past +-50 % of the last table's
+ACCURACY = 0.005  # a relative error is marked where it moves by more than half a per cent
+
+
+class Skip(Exception):
+    """A set whose input is not on this machine: skipped, said so."""
+
+
+Figures = dict[str, dict[str, Any]]
+
+
+def figure(value: Any, tol: float = ACCURACY, kind: str = "accuracy") -> dict[str, Any]:
+    """One figure: a number (or a name, a verdict) and the move past which it is marked."""
+    if isinstance(value, float) and not math.isfinite(value):
+        value = None
+    return {"value": value, "tol": tol, "kind": kind}
+
+
+def phid(*args: str | Path) -> str:
+    """``phid ARGS`` in this process (what a user's command runs), its terminal output returned;
+    a non-zero exit is an error naming the command."""
+    from phid_ros.cli.main import main
+
+    out = StringIO()
+    with redirect_stdout(out):
+        code = main([str(a) for a in args])
+    if code not in (0, 1):  # 1: validate's failed checks, a verdict, not an error
+        raise RuntimeError(f"phid {' '.join(map(str, args))} exited {code}")
+    return out.getvalue()
+
+
+def errors_against(doc: dict[str, Any], truth: dict[str, float], names: tuple[str, ...] = PARAMETERS) -> Figures:
+    """Each parameter's relative error against the truth (None where withheld) and whether it was identified."""
+    out: Figures = {}
+    for n in names:
+        value = doc["parameters"].get(n)
+        ok = bool(doc["identifiable"].get(n))
+        out[f"{n} error"] = figure(None if value is None or not ok else (value - truth[n]) / truth[n])
+        out[f"{n} identified"] = figure(ok, 0.0, "verdict")
+    return out
+
+
+def identify_json(work: Path, *args: str | Path) -> dict[str, Any]:
+    out = work / "identify.json"
+    phid("identify", *args, "--json", out)
+    return json.loads(out.read_text())
+
+
+# -- the sets ------------------------------------------------------------------------------
+
+
+def catalogue(work: Path) -> Figures:
+    """The shipped catalogue bag (the paper's 15 + 3 scenarios, our simulator), identified."""
+    doc = identify_json(work, ROOT / "bags" / "catalogue", "--truth", ROOT / "bags" / "catalogue.truth.json")
+    truth = json.loads((ROOT / "bags" / "catalogue.truth.json").read_text())["parameters"]
+    return errors_against(doc, truth)
+
+
+def saturation(work: Path) -> Figures:
+    """The shipped saturated set: the diagnosis names its effect and closes the gap."""
+    out = work / "diag.json"
+    phid("diagnose", ROOT / "bags" / "saturation", "--json", out, "--workers", "2")
+    doc = json.loads(out.read_text())
+    names = ",".join(sorted(e["name"] for e in doc["effects"])) or "none"
+    ratio = doc["rmse_after"] / doc["rmse_before"] if doc["rmse_before"] else None
+    return {"effects named": figure(names, 0.0, "verdict"), "gap left (after/before)": figure(ratio, 0.02)}
+
+
+def replay(work: Path) -> Figures:
+    """The main job: the catalogue through the online pipeline the nodes run."""
+    text = phid("replay", ROOT / "bags" / "catalogue", "--out", work / "replay.mcap")
+    truth = json.loads((ROOT / "bags" / "catalogue.truth.json").read_text())["parameters"]
+    symbols = {"H": "H", "D": "D", "X_d": "X_d", "X_q": "X_q", "X'_d": "X_d_prime", "X'_q": "X_q_prime"}
+    symbols.update({"T'_d0": "T_d0_prime", "T'_q0": "T_q0_prime"})
+    out: Figures = {}
+    for line in text.splitlines():
+        found = re.match(r"^\s*(\S+)\s+(?:pu|s)\s+(-?[0-9.]+)\(\d+\)\s*$", line)
+        if found and found[1] in symbols:
+            name = symbols[found[1]]
+            out[f"{name} error"] = figure((float(found[2]) - truth[name]) / truth[name])
+    pace = re.search(r"\((\d+)x real time\)", text)
+    out["real time x"] = figure(float(pace[1]) if pace else None, TIME_TOLERANCE, "time")
+    return out
+
+
+def validate(work: Path) -> Figures:
+    """identify -> export -> validate: the catalogue's identified record against the shipped validation bag."""
+    identify_json(work, ROOT / "bags" / "catalogue")
+    phid("export", work / "identify.json", "--format", "psse-dyr", "--out", work / "unit.dyr", "--allow-flagged")
+    out = work / "validate.json"
+    phid("validate", work / "unit.dyr", ROOT / "bags" / "validation.mcap", "--json", out)
+    return verdicts(json.loads(out.read_text()))
+
+
+def verdicts(doc: dict[str, Any]) -> Figures:
+    checks = [c for s in doc["validation"]["scenarios"] for c in s["checks"]]
+    worst = max(
+        (c["max_error"] / c["band"] for c in checks if c.get("band") and c.get("max_error") is not None), default=None
+    )
+    return {
+        "checks passed": figure(f"{sum(bool(c['passed']) for c in checks)} of {len(checks)}", 0.0, "verdict"),
+        "worst error / band": figure(worst, 0.05),
+    }
+
+
+def _imported(work: Path, paths: list[Path], maps: list[Path], name: str = "set.mcap") -> Path:
+    out = work / name
+    phid("import-pmu", *paths, *[a for m in maps for a in ("--map", m)], "--out", out)
+    return out
+
+
+def trend_logs(work: Path) -> Figures:
+    """A commissioning day's controller trend logs, our look-alike (208 reports/s, jittered, the
+    controller's field bases): X_d, X'_d, T'_d0 with the datasheet's X_q."""
+    from phid_ros.model.parameters import TABLE1
+    from test.io.field.field_sets import trend_log_set
+
+    paths, cmap = trend_log_set(work, TABLE1)
+    doc = identify_json(work, _imported(work, paths, [cmap]), "--fix", f"X_q={TABLE1.X_q}")
+    return errors_against(doc, TABLE1.as_dict(), ("X_d", "X_d_prime", "T_d0_prime"))
+
+
+def pmu_exports(work: Path) -> Figures:
+    """PMU exports of disturbances (V and I phasors only, 100 reports/s), our look-alike: H from
+    the swings with the datasheet's q axis held (nothing is determined without X_q)."""
+    from phid_ros.model.parameters import TABLE1
+    from test.io.field.field_sets import pmu_set
+
+    paths, cmap = pmu_set(work, TABLE1)
+    held = [a for n in ("X_q", "X_q_prime", "T_q0_prime") for a in ("--fix", f"{n}={getattr(TABLE1, n)}")]
+    doc = identify_json(work, _imported(work, paths, [cmap]), *held)
+    return errors_against(doc, TABLE1.as_dict(), ("H", "D"))
+
+
+def comtrade(work: Path) -> Figures:
+    """The paper's catalogue as a relay's COMTRADE waveforms (1 kHz, three phases, ASCII and
+    binary, 1999 and 2013), our look-alike, imported and identified against the truth."""
+    import numpy as np
+
+    from phid_ros.model.parameters import TABLE1
+    from phid_ros.sim.runner import SimulationConfig, simulate_scenarios
+    from phid_ros.sim.scenarios import paper_catalogue, with_duration
+    from test.io.field.comtrade_writer import write_comtrade
+    from test.io.field.test_comtrade_import import FS, MAP, waveforms
+
+    scenarios = [with_duration(sc, 12.0) for sc in paper_catalogue()]
+    rng = np.random.default_rng(5)
+    paths = []
+    for k, run in enumerate(simulate_scenarios(scenarios, SimulationConfig())):
+        measured = {c: x[: run.n_analysis] for c, x in run.measured.items()}
+        ft, rev, suffix = (
+            ("ASCII", "1999", ".cfg")
+            if k == 0
+            else ("BINARY", "2013", ".cff")
+            if k == 1
+            else ("BINARY", "1999", ".cfg")
+        )
+        path = work / f"{run.scenario.name}{suffix}"
+        write_comtrade(path, waveforms(measured, rng), FS, f_line=50.0, rev=rev, ft=ft)
+        paths.append(path)
+    kinds = "\n".join(
+        f"  {sc.name}: {{kind: {sc.kind}, role: {sc.role}, generator_damping: {str(sc.generator_damping).lower()}}}"
+        for sc in scenarios
+    )
+    (work / "map.yaml").write_text(MAP + "scenarios:\n" + kinds + "\n")
+    bag = work / "relay.mcap"
+    phid("import-comtrade", *paths, "--map", work / "map.yaml", "--out", bag)
+    return errors_against(identify_json(work, bag, "--no-baseline"), TABLE1.as_dict())
+
+
+def polled_log(work: Path) -> Figures:
+    """A controller's values polled over Telnet (0.12-0.69 s between rows): imported on its stamps."""
+    import numpy as np
+
+    from phid_ros.io.bags.recordings import read_recording
+
+    rng = np.random.default_rng(4)
+    dt = 0.15 + 0.03 * rng.standard_normal(600).clip(-1, 1)
+    dt[::97] = 0.62
+    t = np.concatenate(([0.0], np.cumsum(dt)))
+    ug = 1.0 - 0.09 * (t > 30) * (1 - np.exp(-(t - 30).clip(0) / 4.0))
+    uf = 0.37 + 0.2 * (t > 30) * np.exp(-(t - 30).clip(0) / 4.0) + 1e-4 * rng.standard_normal(t.size)
+    rows = ["Timestamp,UG,UF"] + [f"{a:.3f},{b:.6f},{c:.6f}" for a, b, c in zip(t, ug, uf)]
+    (work / "polled.csv").write_text("\n".join(rows) + "\n")
+    (work / "map.yaml").write_text(
+        "machine: {mva: 30, kv: 10.5, f_nominal_hz: 50}\ntime: Timestamp\nchannels:\n"
+        "  v_t: {name: UG, unit: pu}\n  v_f: {name: UF, unit: pu}\n"
+    )
+    rec = read_recording(_imported(work, [work / "polled.csv"], [work / "map.yaml"]))
+    pt = rec.streams["pt_ct"]
+    got = np.interp(t, (pt.t_ns - pt.t_ns[0]) / 1e9, pt.channels["v_t"])
+    return {
+        "grid period s": figure(pt.period_ns / 1e9, 1e-9),
+        "V_t off the reports (pu)": figure(float(np.max(np.abs(got - ug)[t < t[-1] - 0.2])), 5e-4),
+    }
+
+
+def build_ups(work: Path) -> Figures:
+    """Sister units' black-start build-ups from standstill (our look-alike of Zakucac's fast
+    recorder, S(1.0) 0.1, the controller's ceiling): T'_d0 of each against its truth."""
+    from test.io.field.field_sets import build_up_log
+
+    (work / "map.yaml").write_text(
+        "machine: {mva: 160, kv: 16, f_nominal_hz: 50}\ntime: t_s\nchannels:\n"
+        "  v_t: {name: Ug_kV, unit: kV_ll}\n  v_f: {name: Uf_V, unit: V}\n  i_fd: {name: If_A, unit: A}\n"
+    )
+    out: Figures = {}
+    for unit, t_d0, seed in (("A", 11.0, 0), ("B", 11.5, 1)):
+        build_up_log(work / f"{unit}.csv", t_d0, seed=seed)
+        doc = identify_json(work, _imported(work, [work / f"{unit}.csv"], [work / "map.yaml"], f"{unit}.mcap"))
+        value, ok = doc["parameters"]["T_d0_prime"], doc["identifiable"]["T_d0_prime"]
+        out[f"unit {unit} T_d0_prime error"] = figure((value - t_d0) / t_d0 if ok and value else None)
+    return out
+
+
+def _real(folder: str) -> Path:
+    path = REALDATA / folder
+    if not path.is_dir():
+        raise Skip(f"{path} is absent (the real recordings are not shipped)")
+    return path
+
+
+MOSTAR_PUBLISHED = (
+    "1 'GENSAL' 1 3.77 0.0552 0.0823 2.3362 0.0 1.12 0.642 0.354 0.24 0.1 0.1 0.4 /\n"
+    "1 'ESST5B' 1 0.0127 505.3 0.00518 0.982 2.237 -8.384 1.701 21.98 0.0263 0.00511 1 1 1 1 1 1 1 1 /\n"
+)
+
+
+def mostar(work: Path) -> Figures:
+    """The Mostar commissioning day with the folder's own maps, as the README's recipe runs it:
+    identify with the datasheet's X_q and curve, and the published record validated on the day."""
+    day = _real("mostar-dev")
+    bag = _imported(work, sorted(day.glob("*.csv")), [day / "map_noload.yaml", day / "map_online.yaml"])
+    doc = identify_json(work, bag, "--fix", "X_q=0.62", "--saturation", "0.1,0.4")
+    out: Figures = {}
+    for n in ("X_d", "X_d_prime", "T_d0_prime"):
+        value = doc["parameters"][n] if doc["identifiable"][n] else None
+        out[n] = figure(value, 0.005 * (value or 1.0))
+    exciter = (doc.get("controls") or {}).get("exciter") or {}
+    out["exciter named"] = figure(exciter.get("model") or "none", 0.0, "verdict")
+    (work / "published.dyr").write_text(MOSTAR_PUBLISHED)
+    phid("validate", work / "published.dyr", bag, "--json", work / "v.json")
+    out.update({f"published record: {k}": v for k, v in verdicts(json.loads((work / "v.json").read_text())).items()})
+    return out
+
+
+ZAKUCAC_NO_LOAD = """machine: {mva: 160, kv: 16, f_nominal_hz: 50}
+time: time
+channels:
+  v_t: {name: Ug_kV, unit: kV_ll}
+  v_f: {name: Uf_V, unit: V}
+  i_fd: {name: If_A, unit: A}
+"""
+
+
+def zakucac(work: Path) -> Figures:
+    """The second plant's black-start build-ups (units A and B, the fast recorder) and its polled
+    no-load logs: each sister's T'_d0, how far apart they are, and every polled log imported."""
+    plant = _real("zakucac-dev")
+    (work / "map.yaml").write_text(ZAKUCAC_NO_LOAD)
+    out: Figures = {}
+    found = {}
+    for unit, name in (("A", "cs_recex-zakuca1a-003"), ("B", "cs_recex-zakuca1b-001")):
+        doc = identify_json(work, _imported(work, [plant / f"{name}.csv"], [work / "map.yaml"], f"{unit}.mcap"))
+        value = doc["parameters"]["T_d0_prime"] if doc["identifiable"]["T_d0_prime"] else None
+        found[unit] = value
+        out[f"unit {unit} T_d0_prime (s)"] = figure(value, 0.01 * (value or 1.0))
+    a, b = found["A"], found["B"]
+    out["sisters' T_d0_prime apart"] = figure(abs(a - b) / min(a, b) if a and b else None, 0.01)
+    polled = sorted(plant.glob("watch_cs_*.csv"))
+    imported = 0
+    for p in polled:
+        try:
+            _imported(work, [p], [work / "map.yaml"], f"{p.stem}.mcap")
+            imported += 1
+        except Exception:  # noqa: BLE001 - a refused file is the figure
+            pass
+    out["no-load polled logs imported"] = figure(f"{imported} of {len(polled)}", 0.0, "verdict")
+    return out
+
+
+def usn_lab(work: Path) -> Figures:
+    """The laboratory machine's open- and short-circuit curves: IEEE 115's characteristics (its
+    SOURCE.md: 220 V line to line, so 127.017 V a phase; 5.25 A rated)."""
+    lab = _real("usn-lab-2kva")
+    sheet = work / "lab.yaml"
+    sheet.write_text(
+        "rated: {v: 127.017, i_a: 5.25}\n"
+        f"occ: {{file: {lab / 'test_2_OCC_data.csv'}, i_f: i_f_A, v: v_avg_V}}\n"
+        f"scc: {{file: {lab / 'test_3_SCC_data.csv'}, i_f: i_f_A, i_a: i_avg_A}}\n"
+    )
+    phid("characterise", sheet, "--json", work / "c.json")
+    c = json.loads((work / "c.json").read_text())["characteristics"]
+    return {
+        "X_du": figure(c["x_du"]["value"], 0.002),
+        "S(1.0)": figure(c["s10"]["value"], 0.002),
+        "S(1.2)": figure(c["s12"]["value"], 0.002),
+        "short-circuit ratio": figure(c["short_circuit_ratio"], 0.002),
+        "points left out": figure(len(c["left_out"]), 0.0, "verdict"),
+    }
+
+
+# its SOURCE.md: P, Q in pu on the recorder's 1000 MVA, the phasor's parts in pu, 60 reports/s
+ITAIPU_MAP = """machine: {mva: 1000, kv: 18, f_nominal_hz: 60}
+time: time_s
+channels:
+  v_re: {name: V_re_pu, unit: pu}
+  v_im: {name: V_im_pu, unit: pu}
+  p_e: {name: P_pu_1000MVA, unit: pu}
+  q_e: {name: Q_pu_1000MVA, unit: pu}
+"""
+
+
+def itaipu(work: Path) -> Figures:
+    """One grid disturbance seen by a recorder (P, Q, the voltage phasor, 60/s): nothing alone."""
+    event = _real("itaipu-event") / "itaipu_event_derived.csv"
+    (work / "map.yaml").write_text(ITAIPU_MAP)
+    bag = _imported(work, [event], [work / "map.yaml"])
+    try:
+        doc = identify_json(work, bag)
+        told = sum(bool(doc["identifiable"][n]) for n in PARAMETERS)
+    except RuntimeError:
+        told = 0  # nothing to identify: the error the command gives
+    return {"parameters published": figure(told, 0.0, "verdict")}
+
+
+def andes_exst1(work: Path) -> Figures:
+    """ANDES's GENROU (H 6.5 s, near fourth order) with EXST1 reaching its input limit in the
+    faults, and TGOV1: the paper's catalogue simulated by ANDES (cached), identified."""
+    try:
+        import andes  # noqa: F401
+    except ImportError:
+        raise Skip("ANDES is not installed (pip install '.[test]')") from None
+    from phid_ros.sim.scenarios import paper_catalogue, with_duration
+    from test.andes_plant import write_staged_unit
+
+    folder = CACHE / "andes-exst1"
+    manifest = folder / "tests" / "manifest.json"
+    if not manifest.is_file():
+        write_staged_unit(folder, ANDES_EXST1_UNIT, [with_duration(s, 12.0) for s in paper_catalogue()])
+    doc = identify_json(work, manifest)
+    truth = {"H": 6.5, "X_d": 2.54, "X_q": 2.41, "X_d_prime": 0.5, "T_d0_prime": 1.437}
+    out = errors_against(doc, truth, tuple(truth))
+    out["D (pu)"] = figure(doc["parameters"]["D"] if doc["identifiable"]["D"] else None, 0.05)
+    exciter = (doc.get("controls") or {}).get("exciter") or {}
+    out["exciter named"] = figure(exciter.get("model") or "none", 0.0, "verdict")
+    return out
+
+
+ANDES_EXST1_UNIT = """1 'GENROU' 1  1.437 0.03 0.1351 0.03 6.5 2.0
+   2.54 2.41 0.5 0.5 0.49 0.15 0.0 0.0 /
+1 'EXST1' 1 0.02 0.1 -0.1 1.0 10.0 200.0 0.02 10.0 -10.0 0.0 0.0 1.0 /
+1 'TGOV1' 1 0.05 0.5 1.0 0.0 2.0 6.0 0.0 /
+"""
+
+
+@dataclass(frozen=True)
+class CorpusSet:
+    run: Callable[[Path], Figures]
+    ci: bool  # in the subset .ci/run runs
+
+
+SETS: dict[str, CorpusSet] = {
+    "catalogue": CorpusSet(catalogue, True),
+    "saturation": CorpusSet(saturation, False),
+    "replay": CorpusSet(replay, True),
+    "validate": CorpusSet(validate, False),
+    "trend-logs": CorpusSet(trend_logs, True),
+    "pmu-exports": CorpusSet(pmu_exports, True),
+    "comtrade": CorpusSet(comtrade, False),
+    "polled-log": CorpusSet(polled_log, True),
+    "build-ups": CorpusSet(build_ups, True),
+    "mostar-dev": CorpusSet(mostar, False),
+    "zakucac-dev": CorpusSet(zakucac, True),
+    "usn-lab-2kva": CorpusSet(usn_lab, True),
+    "itaipu-event": CorpusSet(itaipu, True),
+    "andes-exst1": CorpusSet(andes_exst1, False),
+}
+
+
+# -- running -----------------------------------------------------------------------------
+
+
+def run_one(name: str, out: Path) -> None:
+    """One set in this process: its figures, wall time and peak memory into ``out``."""
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory() as tmp:
+        try:
+            figures = SETS[name].run(Path(tmp))
+            doc: dict[str, Any] = {"figures": figures}
+        except Skip as why:
+            doc = {"skipped": str(why)}
+    if "figures" in doc:
+        doc["figures"]["wall time s"] = figure(round(time.perf_counter() - t0, 1), TIME_TOLERANCE, "time")
+        peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+        doc["figures"]["peak memory MB"] = figure(round(peak), TIME_TOLERANCE, "memory")
+    out.write_text(json.dumps(doc, indent=1))
+
+
+def run_sets(names: list[str], jobs: int) -> dict[str, dict[str, Any]]:
+    def one(name: str) -> tuple[str, dict[str, Any]]:
+        with tempfile.TemporaryDirectory() as tmp:
+            out = Path(tmp) / "set.json"
+            proc = subprocess.run(
+                [sys.executable, __file__, "--one", name, "--to", str(out)],
+                capture_output=True,
+                text=True,
+                env={**os.environ, "PYTHONPATH": str(ROOT)},
+            )
+            if proc.returncode != 0 or not out.is_file():
+                last = (proc.stderr.strip().splitlines() or ["no output"])[-1]
+                return name, {"failed": last}
+            return name, json.loads(out.read_text())
+
+    with ThreadPoolExecutor(max_workers=jobs) as pool:
+        return dict(pool.map(one, names))
+
+
+def moved(new: dict[str, Any], old: dict[str, Any] | None) -> str:
+    """ "" where a figure is within its tolerance of the last table's, else how it moved."""
+    if old is None:
+        return "new"
+    a, b = old.get("value"), new.get("value")
+    if isinstance(a, (int, float)) and isinstance(b, (int, float)) and not isinstance(a, bool):
+        tol = new["tol"] * (abs(a) if new["kind"] in ("time", "memory") else 1.0)
+        return "" if abs(b - a) <= tol else f"MOVED {b - a:+.3g}"
+    return "" if a == b else "MOVED"
+
+
+def show(value: Any) -> str:
+    if isinstance(value, float):
+        return f"{value:+.4f}" if abs(value) < 1 else f"{value:.4g}"
+    return "—" if value is None else str(value)
+
+
+DOCS = ROOT / "docs" / "figures.md"
+DOCS_BEGIN = "<!-- corpus:begin (python benchmarks/corpus.py --docs writes this part from benchmarks/corpus.json) -->"
+DOCS_END = "<!-- corpus:end -->"
+
+
+def markdown(table: dict[str, Any]) -> str:
+    """The committed table as the docs print it: one section per set, its figures in a table."""
+    lines = []
+    for name, doc in table.items():
+        run = SETS.get(name)
+        what = (run.run.__doc__ or "").strip().split("\n\n")[0].replace("\n", " ") if run else ""
+        lines += [f"**{name}**: {' '.join(what.split())}", "", "| figure | value |", "|---|---|"]
+        lines += [f"| {key} | {show(f['value'])} |" for key, f in doc["figures"].items()]
+        lines.append("")
+    return "\n".join(lines)
+
+
+def docs_section(table: dict[str, Any]) -> str:
+    return f"{DOCS_BEGIN}\n\n{markdown(table)}\n{DOCS_END}"
+
+
+def write_docs(table: dict[str, Any]) -> None:
+    """``docs/figures.md``'s corpus part replaced by the table's (appended where it has none)."""
+    text = DOCS.read_text()
+    if DOCS_BEGIN in text:
+        head, rest = text.split(DOCS_BEGIN, 1)
+        text = head + docs_section(table) + rest.split(DOCS_END, 1)[1]
+    else:
+        text = text.rstrip("\n") + "\n\n## The corpus\n\n" + docs_section(table) + "\n"
+    DOCS.write_text(text)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--subset", choices=("all", "ci"), default="all")
+    ap.add_argument("--only", help="comma-separated set names")
+    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--update", action="store_true", help=f"write the table run to {TABLE.relative_to(ROOT)}")
+    ap.add_argument("--check", action="store_true", help="exit 1 where a figure (not a time) moved")
+    ap.add_argument("--docs", action="store_true", help="write docs/figures.md's corpus part from the committed table")
+    ap.add_argument("--one", help=argparse.SUPPRESS)
+    ap.add_argument("--to", help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.one:
+        run_one(args.one, Path(args.to))
+        return 0
+    if args.docs:
+        write_docs(json.loads(TABLE.read_text()))
+        print(f"wrote the corpus part of {DOCS.relative_to(ROOT)} from {TABLE.relative_to(ROOT)}")
+        return 0
+    names = args.only.split(",") if args.only else [n for n, s in SETS.items() if args.subset == "all" or s.ci]
+    unknown = [n for n in names if n not in SETS]
+    if unknown:
+        ap.error(f"unknown set(s) {unknown}; the sets: {', '.join(SETS)}")
+    last = json.loads(TABLE.read_text()) if TABLE.is_file() else {}
+    t0 = time.perf_counter()
+    got = run_sets(names, args.jobs)
+    failed = 0
+    print(f"{'set':<14} {'figure':<34} {'last':>14} {'now':>14}  moved")
+    for name in names:
+        doc = got[name]
+        if "figures" not in doc:
+            print(f"{name:<14} {'skipped: ' + doc['skipped'] if 'skipped' in doc else 'FAILED: ' + doc['failed']}")
+            failed += "failed" in doc
+            continue
+        before = (last.get(name) or {}).get("figures", {})
+        for key, f in doc["figures"].items():
+            mark = moved(f, before.get(key))
+            if mark.startswith("MOVED") and f["kind"] not in ("time", "memory"):
+                failed += 1
+            old = before.get(key, {}).get("value")
+            print(f"{name:<14} {key:<34} {show(old):>14} {show(f['value']):>14}  {mark}")
+    print(f"{len(names)} set(s) in {time.perf_counter() - t0:.0f} s on {args.jobs} jobs")
+    if args.update:
+        table = {**last, **{n: d for n, d in got.items() if "figures" in d}}
+        TABLE.write_text(json.dumps(dict(sorted(table.items())), indent=1) + "\n")
+        print(f"wrote {TABLE.relative_to(ROOT)}")
+    return 1 if args.check and failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,37 @@
+"""The corpus's table in the docs is the committed one (``python benchmarks/corpus.py --docs``
+writes it): a figure in docs/figures.md's corpus part is one the corpus command produced."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _corpus():
+    spec = importlib.util.spec_from_file_location("corpus", ROOT / "benchmarks" / "corpus.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # its dataclasses look their module up there
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_docs_corpus_part_is_the_committed_table() -> None:
+    corpus = _corpus()
+    table = json.loads(corpus.TABLE.read_text())
+    assert corpus.docs_section(table) in corpus.DOCS.read_text(), "run: python benchmarks/corpus.py --docs"
+
+
+def test_a_figure_is_marked_where_it_moved_past_its_tolerance_and_a_time_never_fails() -> None:
+    corpus = _corpus()
+    f = corpus.figure
+    assert corpus.moved(f(0.0101), f(0.010)) == ""
+    assert corpus.moved(f(0.0201), f(0.010)).startswith("MOVED +0.0101")
+    assert corpus.moved(f("EXST1", 0.0, "verdict"), f("ESST5B", 0.0, "verdict")) == "MOVED"
+    assert corpus.moved(f(14.0, 0.5, "time"), f(10.0, 0.5, "time")) == ""  # within +-50 %
+    assert corpus.moved(f(16.0, 0.5, "time"), f(10.0, 0.5, "time")).startswith("MOVED")
+    assert corpus.moved(f(None), f(0.01)) == "MOVED"  # a figure withheld where it was published
