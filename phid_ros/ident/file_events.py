@@ -157,18 +157,20 @@ def settled(signals: Mapping[str, Array], k: int, k_end: int, k_next: int, dt: f
     m = max(1, int(round(SMOOTH_S / dt)))
     if k - w < 0 or k_next - w < k_end:
         return k_next - w >= k_end  # too little before the event to judge: apart once a span has passed
-    lo = max(0, k - w - m)  # only the spans judged are smoothed (a recording may be hours long)
+    kernel = np.ones(m) / m
     for c in ("v_t", "q_e", "p_e", "omega"):
         if c not in signals:
             continue
-        x = np.asarray(signals[c], float)[lo : k_next + m]
-        if not np.isfinite(x[k - w - lo : k_next - lo]).all():
-            continue
-        mean = np.convolve(x, np.ones(m) / m, mode="same") if m > 1 else x
+        x = np.asarray(signals[c], float)
 
         def activity(a: int, b: int) -> float:
+            # only the span judged is smoothed (the spans between may be hours long)
+            lo, hi = max(0, a - m), min(len(x), b + m)
+            mean = np.convolve(x[lo:hi], kernel, mode="same") if m > 1 else x[lo:hi]
             return float(np.std(mean[a - lo : b - lo]))
 
+        if not all(np.isfinite(x[a:b]).all() for a, b in ((k - w, k), (k_end, k_end + w), (k_next - w, k_next))):
+            continue
         before, early, late = activity(k - w, k), activity(k_end, k_end + w), activity(k_next - w, k_next)
         if early > 5.0 * before and late > SETTLED_SHARE * early and late > QUIET_SIGMAS * before:
             return False
