@@ -318,15 +318,15 @@ def zakucac(work: Path) -> Figures:
     # (SOURCE.md: U_f 74 V, I_f 725 A; not known to be the machine's)
     (work / "online.yaml").write_text(ZAKUCAC_ON_LINE)
     every = sorted(plant.glob("*.csv"))
-    imported = 0
+    refused = []
     for p in every:
         maps = [work / "map.yaml"] if p.name.startswith(("cs_", "watch_cs_")) else [work / "online.yaml"]
         try:
             _imported(work, [p], maps, f"{p.stem}.mcap")
-            imported += 1
-        except Exception:  # noqa: BLE001 - a refused file is the figure
-            pass
-    out["files imported"] = figure(f"{imported} of {len(every)}", 0.0, "verdict")
+        except Exception as exc:  # noqa: BLE001 - a refused file is the figure, named below
+            refused.append(f"{p.name}: {exc}")
+    out["files imported"] = figure(f"{len(every) - len(refused)} of {len(every)}", 0.0, "verdict")
+    out["files refused"] = figure("; ".join(refused) or "none", 0.0, "verdict")
     return out
 
 

@@ -774,22 +774,6 @@ class IEEEG1(ControlModel):
         return {**values, "T3": servo, "T4": chest, "K3": 1.0 - values["K1"]}
 
     @classmethod
-    def record_problem(cls, values: Mapping[str, float]) -> str | None:
-        """What makes a record's constants ones the simulation cannot take, or None: a constant
-        not a number or a negative time constant (held ones too: the play-in runs a record as
-        written, T_5 = -3 s included), and a limit pair whose lower bound lies above its upper (an
-        IEEEST with LSMAX below LSMIN played to an E_fd error of 9e266 pu)."""
-        for q in cls.parameters:
-            problem = q.record_problem(values[q.name])
-            if problem is not None:
-                return f"{q.name} = {values[q.name]:g} {problem}"
-        for pair in (cls.output_limits, cls.input_limits):
-            if pair is not None and values[pair[0]] > values[pair[1]]:
-                lo, hi = pair
-                return f"{lo} = {values[lo]:g} lies above {hi} = {values[hi]:g}: the lower limit is above the upper"
-        return None
-
-    @classmethod
     def recorded(cls, values: Mapping[str, float]) -> dict[str, float]:
         # every stage a record gives is simulated; the shares of a second (low-pressure) shaft
         # drive another machine, which a single unit's validation does not have
