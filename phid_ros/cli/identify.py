@@ -12,7 +12,7 @@ from phid_ros.api import cut_unit, identify_unit
 from phid_ros.cli.common import finish, load_truth, step_thresholds, warn
 from phid_ros.cli.day_summary import HEADERS, day_summary
 from phid_ros.cli.progress import ProgressLine
-from phid_ros.cli.tables import Col, fmt, pct, print_table
+from phid_ros.cli.tables import NOT_IDENTIFIED, NOT_IDENTIFIED_MEANS, Col, fmt, pct, print_table, withheld_text
 from phid_ros.controls.identify import ControlFit
 from phid_ros.controls.models import KINDS_IN_ORDER, MODELS
 from phid_ros.ident.constraints import parse_constraints
@@ -31,13 +31,15 @@ def _err(v: float, t: float | None) -> str:
 
 def print_parameters(console: Console, res: IdentificationResult, truth: GeneratorParameters | None) -> None:
     t = truth.as_dict() if truth else {}
+    published = res.published()
     cols = [Col("param", "left"), Col("unit", "left"), Col("IEEE 115", keep=3), Col("err 115", keep=2)]
     cols += [Col("proposed"), Col("± std"), Col("err"), Col("truth", keep=4), Col("note", "left", keep=5, text=True)]
     rows = []
     for name in PARAMETER_NAMES:
         est = res.estimates.get(name)
         base = res.baseline.get(name)
-        v = est.value if est else math.nan
+        shown = est is not None and name in published
+        v = est.value if shown else math.nan
         note = "missing" if est is None else ("" if est.identifiable else "not identified")
         if name in res.constraints.fixed:
             note = "held (--fix)"
@@ -47,8 +49,8 @@ def print_parameters(console: Console, res: IdentificationResult, truth: Generat
                 SPECS_BY_NAME[name].unit,
                 fmt(base.value if base else math.nan) + ("*" if base and base.at_bound else ""),
                 _err(base.value, t.get(name)) if base else "",
-                fmt(v, 5),
-                fmt(est.std if est else math.nan, 2),
+                fmt(v, 5) if shown or est is None else withheld_text(est),
+                fmt(est.std if shown else math.nan, 2),
                 _err(v, t.get(name)),
                 fmt(t[name]) if truth else "",
                 note,
@@ -59,7 +61,9 @@ def print_parameters(console: Console, res: IdentificationResult, truth: Generat
     if not res.baseline:
         cols, rows = _without(cols, rows, ("IEEE 115", "err 115"))
     legend = "err = (estimate / truth - 1); IEEE 115: the standard's test-based method; * = at its search bound"
-    print_table(console, f"identified parameters (method: {res.method})", cols, rows, legend if truth else "")
+    withheld = f"{NOT_IDENTIFIED} = {NOT_IDENTIFIED_MEANS} (in the JSON: null, the value under 'withheld')"
+    said = [w for w, shown in ((legend, truth), (withheld, len(published) < len(res.estimates))) if shown]
+    print_table(console, f"identified parameters (method: {res.method})", cols, rows, "; ".join(said))
 
 
 def _without(cols: list[Col], rows: list[list[str]], names: tuple[str, ...]) -> tuple[list[Col], list[list[str]]]:

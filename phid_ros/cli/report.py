@@ -14,7 +14,7 @@ import numpy as np
 
 from phid_ros.cli.common import figure_backend
 from phid_ros.cli.day_summary import HEADERS, day_summary
-from phid_ros.cli.tables import pct
+from phid_ros.cli.tables import pct, withheld_text
 from phid_ros.controls.identify import ControlFit
 from phid_ros.controls.unit_validation import UnitValidation
 from phid_ros.ident.pipeline import IdentificationResult
@@ -215,17 +215,19 @@ def _note(e: Estimate | None) -> str:
 def _parameter_table(res: IdentificationResult, truth: GeneratorParameters | None) -> str:
     """Table 7's layout: IEEE 115 | proposed ± std | truth and errors, what drove each, and flags."""
     t = truth.as_dict() if truth else {}
+    published = res.published()
     rows = []
     for n in PARAMETER_NAMES:
         e = res.estimates.get(n)
         b = res.baseline.get(n)
-        v = e.value if e else math.nan
+        v = e.value if e and n in published else math.nan
         row = [SYMBOLS[n], SPECS_BY_NAME[n].unit]
         if res.baseline:
             row.append(_cell(b.value if b else math.nan, 4) + (" (bound)" if b and b.at_bound else ""))
             if truth:
                 row.append(pct(100 * (b.value / t[n] - 1)) if b and math.isfinite(b.value) else "")
-        row += [_cell(v), _cell(e.std if e else math.nan, 2)]
+        withheld = e is not None and n not in published
+        row += [withheld_text(e) if withheld else _cell(v), _cell(e.std if e and not withheld else math.nan, 2)]
         if truth:
             row += [pct(100 * (v / t[n] - 1)) if math.isfinite(v) else "", _cell(t[n], 4)]
         row += [", ".join(e.drivers) if e else "", _note(e)]

@@ -11,12 +11,15 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rich import box
 from rich.cells import cell_len
 from rich.console import Console
 from rich.table import Table
+
+if TYPE_CHECKING:
+    from phid_ros.ident.results import Estimate
 
 LOG_WIDTH = 80  # a console that is not a terminal (a log, a pipe) is this wide
 WIDE_WIDTH = 400  # --wide: room for every column
@@ -178,7 +181,17 @@ def axis_label(channel: str) -> str:
 
 
 NOT_IDENTIFIED = "n.i."
-CONCISE_LEGEND = "1.4430(55) = 1.4430 ± 0.0055; n.i. = not identifiable from these data (value withheld)"
+NOT_IDENTIFIED_MEANS = "not identifiable from these data (value withheld)"
+CONCISE_LEGEND = f"1.4430(55) = 1.4430 ± 0.0055; {NOT_IDENTIFIED} = {NOT_IDENTIFIED_MEANS}"
+BOUND_SIGNS = {"at least": "≥", "at most": "≤"}
+
+
+def withheld_text(est: Estimate) -> str:
+    """A withheld estimate in a table: its bound where the data give one (``≥ 4.37``, no std: a
+    bound is not a value), else the one notation of a withheld value."""
+    if est.bound in BOUND_SIGNS and math.isfinite(est.value):
+        return f"{BOUND_SIGNS[est.bound]} {est.value:.4g}"
+    return NOT_IDENTIFIED
 
 
 def estimate_text(value: float, std: float, identifiable: bool) -> str:

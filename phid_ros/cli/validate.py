@@ -16,6 +16,7 @@ from phid_ros.cli.report import STYLE, html_table, png_data_uri
 from phid_ros.cli.tables import Col, print_table
 from phid_ros.controls.unit_validation import (
     CHANNELS,
+    STANDARD_OF,
     ScenarioCheck,
     UnitValidation,
 )
@@ -71,9 +72,38 @@ def print_checks(console: Console, title: str, result: UnitValidation) -> None:
     for standard in ("MOD-026", "MOD-027"):
         checks = [c for s in result.scenarios for c in s.checks if c.standard == standard]
         if checks:
-            failed = sum(not c.passed for c in checks)
-            verdict = "pass" if not failed else f"FAIL ({failed} of {len(checks)} checks)"
-            console.print(f"{standard}: {verdict}", highlight=False)
+            console.print(f"{standard}: {verdict_text(result, standard)}", highlight=False)
+
+
+def method_text(result: UnitValidation) -> str:
+    """How the events were played, as they were: the loop closed on some, open on others."""
+    checked = [s for s in result.scenarios if s.checks]
+    exciter = [s for s in checked if s.made_by.get("v_f", "recorded") != "recorded"]
+    closed = sum(s.loop_closed for s in exciter)
+    text = "The unit played in with the recorded terminal voltage (magnitude, angle), "
+    text += "the governor driven by the recorded speed; "
+    if not exciter:
+        return text + "no exciter played: E_fd as recorded."
+    if closed == len(exciter):
+        return text + "the exciter's loop closed through the machine (V_t, Q and E_fd as the unit makes them)."
+    if not closed:
+        return text + "the exciter driven by the recorded V_t (its loop open)."
+    return (
+        text + f"the exciter's loop closed through the machine on {closed} of {len(exciter)} events, on the others "
+        "driven by the recorded V_t (each event's note says which)."
+    )
+
+
+def verdict_text(result: UnitValidation, standard: str) -> str:
+    """``pass``, ``FAIL (k of n checks)``, or ``not tested`` with why (its control model never
+    played: a P or Q checked with the recorded E_fd or P_m tests the machine, not the control)."""
+    checks = [c for s in result.scenarios for c in s.checks if c.standard == standard]
+    verdict = result.verdict(standard)
+    if verdict is None:
+        kind = next(k for k, v in STANDARD_OF.items() if v == standard)
+        return f"not tested (no {kind} played: its output as recorded or held)"
+    failed = sum(not c.passed for c in checks)
+    return "pass" if not failed else f"FAIL ({failed} of {len(checks)} checks)"
 
 
 def why_larger_than_identify(result: UnitValidation) -> str:
@@ -162,10 +192,9 @@ def write_report(path: str | Path, result: UnitValidation, source: str) -> Path:
 <style>{STYLE}</style></head><body>
 <h1>MOD-026/027 validation</h1>
 <p>Unit: <code>{html.escape(result.unit)}</code> &middot; recording: <code>{html.escape(source)}</code></p>
-<p>MOD-026 (excitation: Q, E_fd): <b>{"pass" if result.passed("MOD-026") else "FAIL"}</b> &middot;
-MOD-027 (turbine-governor: P, P_m): <b>{"pass" if result.passed("MOD-027") else "FAIL"}</b></p>
-<p>The unit played in with the recorded terminal voltage (magnitude, angle); the exciter driven by the
-recorded V_t, the governor by the recorded speed. {html.escape(why_larger_than_identify(result))}
+<p>MOD-026 (excitation: Q, E_fd): <b>{html.escape(verdict_text(result, "MOD-026"))}</b> &middot;
+MOD-027 (turbine-governor: P, P_m): <b>{html.escape(verdict_text(result, "MOD-027"))}</b></p>
+<p>{html.escape(method_text(result))} {html.escape(why_larger_than_identify(result))}
 Bands: P, Q {html.escape(tol["p_e, q_e"])}; E_fd, P_m
 {html.escape(tol["v_f, p_m"])}.</p>
 {html_table(CHECK_HEADERS, rows, text_columns=(0, 1))}

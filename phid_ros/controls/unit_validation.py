@@ -63,6 +63,7 @@ from phid_ros.sim.effects import PlantEffect
 Array = NDArray[np.float64]
 
 STANDARD_OF = {"exciter": "MOD-026", "governor": "MOD-027"}
+OUTPUT_OF = {"MOD-026": "v_f", "MOD-027": "p_m"}  # the output of the control model each standard tests
 RESPONSE_SHARE = 0.10  # an E_fd or P_m band: this share of the recorded response's largest deviation
 RESPONSE_FLOOR_PU = 0.01  # and never narrower than this
 NOISE_PEAKS = 4.0  # nor than this many stds of the pre-event difference (the inputs' noise through the model)
@@ -102,10 +103,19 @@ class ScenarioCheck:
     simulated: dict[str, Array]
     checks: list[ChannelCheck]
     notes: list[str] = field(default_factory=list)
+    # the control output's channel -> the model that made it, or "recorded" where it was played in
+    made_by: dict[str, str] = field(default_factory=dict)
+    loop_closed: bool = False  # the exciter's loop closed through the machine (else from the recorded V_t)
 
     @property
     def passed(self) -> bool:
         return all(c.passed for c in self.checks)
+
+    def exercised(self, standard: str) -> bool:
+        """Whether this event tested the standard's control model: it was played in (not its
+        output as recorded) and a channel of that standard was checked."""
+        played = self.made_by.get(OUTPUT_OF[standard], "recorded") != "recorded"
+        return played and any(c.standard == standard for c in self.checks)
 
     def as_json(self) -> dict[str, Any]:
         return {
@@ -127,11 +137,20 @@ class UnitValidation:
         checks = [c for s in self.scenarios for c in s.checks if standard is None or c.standard == standard]
         return bool(checks) and all(c.passed for c in checks)
 
+    def tested(self, standard: str) -> bool:
+        """Whether any event tested the standard's control model (a unit without a governor, or
+        with its P_m played as recorded, has its P checked, and MOD-027 is still not tested)."""
+        return any(s.exercised(standard) for s in self.scenarios)
+
+    def verdict(self, standard: str) -> bool | None:
+        """The standard's verdict: passed or not, None where it was not tested (never "pass")."""
+        return self.passed(standard) if self.tested(standard) else None
+
     def as_json(self) -> dict[str, Any]:
         return {
             "unit": self.unit,
-            "mod026_pass": self.passed("MOD-026"),
-            "mod027_pass": self.passed("MOD-027"),
+            "mod026_pass": self.verdict("MOD-026"),
+            "mod027_pass": self.verdict("MOD-027"),
             "tolerances": {
                 "p_e, q_e": f"within {MOD026_TOLERANCE_PU:g} pu",
                 "v_f, p_m": f"within {RESPONSE_SHARE:.0%} of the recorded response's largest deviation, at least "
@@ -414,7 +433,7 @@ def validate_unit(
             recorded[channel], simulated[channel] = rec_at, sim_at
             checks.append(check)
         t = np.asarray(idx * s.dt, float)
-        out.append(ScenarioCheck(s.name, s.kind, t, recorded, simulated, checks, mine))
+        out.append(ScenarioCheck(s.name, s.kind, t, recorded, simulated, checks, mine, dict(by), loop_run is not None))
     if not any(sc.checks for sc in out):
         notes.append("no channel to check: the recordings carry none of P, Q, E_fd, P_m")
     return UnitValidation(describe, out, notes)

@@ -129,6 +129,20 @@ class MachineRecord:
         return comment_text(parts)
 
 
+def _with_withheld(result: Mapping[str, Any]) -> Mapping[str, Any]:
+    """The result with each withheld value (null under ``parameters``, kept under ``withheld``
+    since 2026-12) in its place: a record needs a number in every field, and a withheld one is
+    flagged, as every value not identified is (refused without ``--allow-flagged``)."""
+    withheld = result.get("withheld")
+    if not isinstance(withheld, Mapping) or not withheld:
+        return result
+    params = dict(result["parameters"])
+    for name, w in withheld.items():
+        if params.get(name) is None and isinstance(w, Mapping) and w.get("value") is not None:
+            params[name] = w["value"]
+    return {**result, "parameters": params}
+
+
 def _number(doc: Mapping[str, Any], key: str, source: str) -> float:
     v = doc.get(key)
     if v is None and key in doc:  # a recorder's channel set did not determine it
@@ -210,6 +224,7 @@ def build_record(
             f"{source}: not an identification result "
             "(it needs 'parameters' and 'identifiable', as phid identify --json writes)"
         )
+    result = _with_withheld(result)
     effects = _effects(diagnosis, diagnosis_source)
     _same_recording(result, source, diagnosis, diagnosis_source)
     held = (result.get("constraints") or {}).get("fixed") or {}

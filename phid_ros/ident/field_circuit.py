@@ -334,6 +334,7 @@ def field_circuit(scenarios: Sequence[ScenarioData], saturation: tuple[float, fl
         f"moved; {len(events)} event(s) in {n_files} file(s): {values}); the field current's base: {base.source}"
     )
     if not base.determined:
+        est.bound = "at least"
         est.disqualify(
             f"T'_d0 is at least {tau:.3g} s (on the air-gap line through the least saturated plateau; S >= 0) and "
             "grows with the saturation at the plateaus: give the machine's open-circuit curve (--saturation "

@@ -85,6 +85,11 @@ class IdentificationResult:
     def parameters(self) -> dict[str, float]:
         return {n: self.estimates[n].value if n in self.estimates else math.nan for n in PARAMETER_NAMES}
 
+    def published(self) -> tuple[str, ...]:
+        """The parameters identified: those the JSON, the topic and the record give as numbers."""
+        e = self.estimates
+        return tuple(n for n in PARAMETER_NAMES if n in e and e[n].identifiable and math.isfinite(e[n].value))
+
     def at_bound(self) -> tuple[str, ...]:
         """Parameters left at a search bound of their stage: their values carry no information."""
         return tuple(n for n in PARAMETER_NAMES if n in self.estimates and self.estimates[n].at_bound)
@@ -104,11 +109,17 @@ class IdentificationResult:
 
     def to_json(self, truth: GeneratorParameters | None = None) -> dict[str, Any]:
         p = self.parameters
+        published = self.published()
         doc: dict[str, Any] = {
-            "parameters": p,
-            "uncertainty": {n: self.estimates[n].std if n in self.estimates else math.nan for n in PARAMETER_NAMES},
-            "identifiable": {
-                n: self.estimates[n].identifiable if n in self.estimates else False for n in PARAMETER_NAMES
+            # a withheld value is null here (the contract), and kept apart with its reason: a
+            # reader that takes ``parameters`` never takes a number the data did not give
+            "parameters": {n: p[n] if n in published else None for n in PARAMETER_NAMES},
+            "uncertainty": {n: self.estimates[n].std if n in published else None for n in PARAMETER_NAMES},
+            "identifiable": {n: n in published for n in PARAMETER_NAMES},
+            "withheld": {
+                n: {"value": e.value, "std": e.std, "bound": e.bound or None, "why": e.note}
+                for n, e in self.estimates.items()
+                if n not in published and math.isfinite(e.value)
             },
             "drivers": {n: self.estimates[n].drivers if n in self.estimates else [] for n in PARAMETER_NAMES},
             "method": self.method,
@@ -148,8 +159,10 @@ class IdentificationResult:
             t = truth.as_dict()
             doc["truth"] = t
             doc["errors_pct"] = {
-                n: 100.0 * (p[n] / t[n] - 1.0) if math.isfinite(p[n]) and t[n] else None for n in PARAMETER_NAMES
+                n: 100.0 * (p[n] / t[n] - 1.0) if n in published and t[n] else None for n in PARAMETER_NAMES
             }
+            for n, w in doc["withheld"].items():  # how far the value withheld was (a simulated set's study)
+                w["error_pct"] = 100.0 * (w["value"] / t[n] - 1.0) if t[n] else None
             doc["baseline_errors_pct"] = {
                 n: 100.0 * (e.value / t[n] - 1.0) for n, e in self.baseline.items() if math.isfinite(e.value) and t[n]
             }

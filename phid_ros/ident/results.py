@@ -19,6 +19,9 @@ class Estimate:
     # the random part of ``std`` (noise only, no bias allowance): what differs between two
     # estimates of one plant under the same conditions, where a common bias cancels
     std_random: float = math.nan
+    # "at least" or "at most" where the data bound the parameter without giving it (then never
+    # identifiable): a table prints the bound as a bound, never as a value with a std
+    bound: str = ""
 
     def add_note(self, note: str) -> None:
         self.note = f"{self.note}; {note}" if self.note else note
@@ -40,6 +43,7 @@ class Estimate:
             "drivers": self.drivers,
             "note": self.note,
             "at_bound": self.at_bound,
+            "bound": self.bound or None,
         }
 
 

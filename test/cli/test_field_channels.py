@@ -97,8 +97,9 @@ def test_an_estimate_outside_the_users_bounds_is_not_published_as_identified(fol
     args = ["identify", str(trend_bag), "--fix", f"X_q={TABLE1.X_q}", "--bounds", "X_d=2.6:3.0", "--json", str(out)]
     assert main(args) == 0
     doc = json.loads(out.read_text())
-    assert doc["parameters"]["X_d"] == pytest.approx(TABLE1.X_d, rel=0.01)  # what the data say, below 2.6
-    assert doc["identifiable"]["X_d"] is False
+    assert doc["parameters"]["X_d"] is None and doc["identifiable"]["X_d"] is False  # the contract: null
+    withheld = doc["withheld"]["X_d"]  # what the data say, below 2.6, kept apart with its reason
+    assert withheld["value"] == pytest.approx(TABLE1.X_d, rel=0.01) and "outside the bounds" in withheld["why"]
     assert "lies outside the bounds 2.6:3 (--bounds)" in " ".join(doc["problems"])
     assert main(["identify", str(trend_bag), "--fix", "X_q=2.41", "--fix", "X_q=1.0"]) == 2
 

@@ -75,6 +75,24 @@ def test_a_wrong_exciter_gain_fails_mod_026_and_a_wrong_turbine_lag_mod_027(stag
     assert not checks(doc)[("load_ref_step", "p_m")]["passed"]
 
 
+def test_a_record_without_its_governor_leaves_mod_027_not_tested_never_passed(staged, tmp_path, capsys) -> None:
+    """P is still checked (the machine's, with P_m as recorded), but no governor model played:
+    MOD-027 is ``null`` in the JSON and "not tested" in the terminal and the report, where it
+    said "pass". The report's method sentence says how the exciter was played."""
+    dyr, manifest = staged
+    report = tmp_path / "v.html"
+    no_governor = "".join(line for line in UNIT.splitlines(keepends=True) if "TGOV1" not in line)
+    code, doc = validate(tmp_path, no_governor, manifest, "--report", str(report))
+    assert doc["mod026_pass"] is True and doc["mod027_pass"] is None
+    assert any(c["channel"] == "p_e" and c["standard"] == "MOD-027" for c in checks(doc).values())
+    assert code == 0  # every check passed: the exit status is the checks'
+    out = capsys.readouterr().out
+    assert "MOD-027: not tested (no governor played" in out and "MOD-026: pass" in out
+    html = report.read_text()
+    assert "MOD-027 (turbine-governor: P, P_m): <b>not tested" in html
+    assert "the exciter&#x27;s loop closed through the machine on 1 of 3 events" in html
+
+
 def test_a_pmu_recording_without_e_fd_p_m_or_rotor_angle_is_validated_on_p_and_q(staged, tmp_path) -> None:
     """What a plant's recorder has: V and I phasors and frequency (a PMU export at 100 reports/s
     through ``phid import-pmu``). The rotor angle comes from the unit's X_q, the exciter and the

@@ -239,3 +239,15 @@ def test_what_the_recordings_did_not_determine_is_kept_from_the_unit_s_record(tm
     assert (exciter.model, exciter.values["K"]) == ("SEXS", 600.0)  # the identified one replaces the record's
     assert governor.model == "HYGOV" and governor.values == unit.controls["governor"].values
     assert governor.comment() == f"phid_ros export: governor kept from {dyr} (the recordings named none)"
+
+
+def test_a_withheld_value_is_written_only_flagged() -> None:
+    """A result of 2026-12 on: the value not identified is null under ``parameters`` and kept
+    under ``withheld``; the record refuses it, and writes it flagged when allowed, as before."""
+    doc = result(T_q0_prime=False)
+    doc["withheld"] = {"T_q0_prime": {"value": doc["parameters"]["T_q0_prime"], "std": 0.1, "why": "poor"}}
+    doc["parameters"] = {**doc["parameters"], "T_q0_prime": None}
+    with pytest.raises(ExportError, match=r"r\.json: T_q0_prime not identified; refusing"):
+        build_record(doc, source="r.json", mva=1000.0)
+    rec = build_record(doc, source="r.json", mva=1000.0, allow_flagged=True)
+    assert rec.flagged == ["T_q0_prime"] and rec.values["Tq10"] == doc["withheld"]["T_q0_prime"]["value"]

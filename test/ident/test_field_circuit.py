@@ -74,7 +74,7 @@ def test_a_saturated_machine_needs_its_curve() -> None:
     bare = field_circuit(scs, None)
     # every plateau above the knee: the base is not determined, and T'_d0 is bounded from below
     assert not bare.base.determined and not bare.T_d0_prime.identifiable
-    assert bare.T_d0_prime.value < TABLE1.T_d0_prime
+    assert bare.T_d0_prime.value < TABLE1.T_d0_prime and bare.T_d0_prime.bound == "at least"
     assert "at least" in bare.T_d0_prime.note and "--saturation" in bare.T_d0_prime.note
     held = field_circuit(scs, CURVE)
     assert held.base.determined and held.base.scatter < 0.005

@@ -96,3 +96,28 @@ def test_an_estimate_that_moves_with_one_test_file_left_out_is_withheld_naming_i
     by_channels(few, scenarios[:3], opt, None)
     pipeline._each_test_file_left_out(few, scenarios[:3], opt, lambda _: None)  # files A and B: no check
     assert few.estimates["X_d"].identifiable
+
+
+def test_a_withheld_value_is_null_in_the_json_and_a_bound_is_a_bound() -> None:
+    """The contract: a parameter not identified is null under ``parameters`` (and its std under
+    ``uncertainty``); the value withheld is kept apart with its reason, and a bound says so. It
+    was published as T'_d0 4.3701 +- 0.15 with ``identifiable: false`` beside it."""
+    from phid_ros.cli.tables import withheld_text
+    from phid_ros.ident.pipeline import IdentificationResult
+    from phid_ros.ident.results import Estimate
+
+    estimates = {n: Estimate(getattr(TABLE1, n), 0.001 * getattr(TABLE1, n)) for n in PARAMETER_NAMES}
+    estimates["T_d0_prime"] = Estimate(4.3701, 0.15, bound="at least")
+    estimates["T_d0_prime"].disqualify("T'_d0 is at least 4.37 s")
+    estimates["D"].disqualify("D poorly identified")
+    res = IdentificationResult(estimates, "fast", [])
+    assert res.published() == tuple(n for n in PARAMETER_NAMES if n not in ("D", "T_d0_prime"))
+    doc = res.to_json(TABLE1)
+    assert doc["parameters"]["T_d0_prime"] is None and doc["uncertainty"]["T_d0_prime"] is None
+    assert doc["parameters"]["D"] is None and doc["identifiable"]["D"] is False
+    assert doc["parameters"]["H"] == TABLE1.H and doc["identifiable"]["H"] is True
+    bound = doc["withheld"]["T_d0_prime"]
+    assert (bound["value"], bound["std"], bound["bound"]) == (4.3701, 0.15, "at least")
+    assert bound["error_pct"] == pytest.approx(100 * (4.3701 / TABLE1.T_d0_prime - 1))
+    assert doc["errors_pct"]["T_d0_prime"] is None and set(doc["withheld"]) == {"D", "T_d0_prime"}
+    assert withheld_text(estimates["T_d0_prime"]) == "≥ 4.37" and withheld_text(estimates["D"]) == "n.i."
