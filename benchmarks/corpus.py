@@ -138,6 +138,32 @@ def validate(work: Path) -> Figures:
     return verdicts(json.loads(out.read_text()))
 
 
+def record_check(work: Path) -> Figures:
+    """The monitor with the unit's record on file (issue 74): the catalogue replayed with its own
+    record and with one of X'_d 20 % high; the state, the failing events, the drift named, the cost."""
+    from bench_record_check import one_replay, own_record
+
+    from phid_ros.api import record_check as checked
+    from phid_ros.io.bags.recordings import read_recording
+    from phid_ros.stream.pipeline import MonitorPipeline
+    from phid_ros.stream.replay import replay as replayed
+
+    own, wrong = own_record(work), own_record(work, 1.2, "wrong")
+    out: Figures = {}
+    for name, dyr in (("own", own), ("X'_d +20 %", wrong)):
+        pipeline = MonitorPipeline()
+        pipeline.record_check = check = checked(dyr)
+        got = replayed(read_recording(ROOT / "bags" / "catalogue"), pipeline).verdicts
+        pipeline.close()
+        out[f"{name}: state at the end"] = figure(check.status()[0], 0.0, "verdict")
+        out[f"{name}: events failing"] = figure(f"{sum(not v.passed for v in got)} of {len(got)}", 0.0, "verdict")
+        out[f"{name}: drifting"] = figure(",".join(d.name for d in check.drift) or "none", 0.0, "verdict")
+    bare, (with_record, n, spent) = one_replay(None)[0], one_replay(str(own))
+    out["replay with / without the record"] = figure(round(with_record / bare, 2), TIME_TOLERANCE, "time")
+    out["record play-in ms an event"] = figure(round(1e3 * spent / max(n, 1)), TIME_TOLERANCE, "time")
+    return out
+
+
 def verdicts(doc: dict[str, Any]) -> Figures:
     checks = [c for s in doc["validation"]["scenarios"] for c in s["checks"]]
     worst = max(
@@ -439,6 +465,7 @@ SETS: dict[str, CorpusSet] = {
     "saturation": CorpusSet(saturation, False),
     "replay": CorpusSet(replay, True),
     "validate": CorpusSet(validate, False),
+    "record-check": CorpusSet(record_check, True),
     "trend-logs": CorpusSet(trend_logs, True),
     "pmu-exports": CorpusSet(pmu_exports, True),
     "comtrade": CorpusSet(comtrade, False),

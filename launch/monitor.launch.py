@@ -12,7 +12,8 @@ Every node option a user sets at start-up is a launch argument here, passed to t
 typed (a 'true' string is not a bool): autostart, reliable_qos, queue_depth, store_path,
 unit_id, sample_rate_hz, encoder_rate_hz, pmu_rate_hz, excitation_rate_hz,
 hamiltonian_rate_hz, min_interval_s, end_of_data_s, and for a plant's recorder not_recorded,
-plateau_s, held, saturation, control_systems:
+plateau_s, held, saturation, control_systems, and for the unit's record on file (checked at every
+event, verdicts on model_validation) record, record_warn_events, record_window:
 
     ros2 launch phid_ros monitor.launch.py play_bag:=day.mcap play_rate:=20 sample_rate_hz:=208.3332031 \
         not_recorded:=i_d,i_q,omega,delta,p_m held:=X_q=0.62 saturation:=0.1,0.4
@@ -61,6 +62,10 @@ PASSED = {
     "held": (str, ("recalibration_node",)),
     "saturation": (str, ("recalibration_node",)),
     "control_systems": (str, ("recalibration_node",)),
+    # the unit's record on file (its .dyr), checked at every event: model_validation, /diagnostics
+    "record": (str, ("recalibration_node",)),
+    "record_warn_events": (int, ("recalibration_node",)),
+    "record_window": (int, ("recalibration_node",)),
 }
 
 

@@ -269,6 +269,86 @@ class RecordValidation:
     warnings: list[str]  # the reader's
 
 
+class RecordOnFile:
+    """A unit's record as the transmission operator simulates it (machine, exciter, governor,
+    stabiliser: a PSS/E ``.dyr``), played in against events: the one way ``phid validate`` and the
+    monitor (``record:=``, ``phid replay --record``) check it, so their verdicts agree."""
+
+    def __init__(self, dyr: str | Path, bus: int | None = None, machine_id: str | None = None) -> None:
+        from phid_ros.controls.unit_validation import control_of
+        from phid_ros.export.dyr_read import read_unit
+
+        self.unit = unit = read_unit(dyr, bus, machine_id)
+        self.controls = {k: control_of(c.model, c.values) for k, c in unit.controls.items()}
+        models = [c.model for c in unit.controls.values()]
+        self.describe = " + ".join([f"{unit.machine} at bus {unit.bus} id '{unit.machine_id}'", *models])
+        c = unit.constants
+        self.curve = f"S(1.0) = {c['S10']:g}, S(1.2) = {c['S12']:g}" if c["S10"] or c["S12"] else "unsaturated"
+        self.saturation = (c["S10"], c["S12"]) if c["S12"] > c["S10"] > 0 else None
+
+    def parameters(self, p_m0: float) -> GeneratorParameters:
+        """The record's machine in phid's form at the operating point ``p_m0`` (PSS/E's D is
+        phid's less P_m0: its swing equation divides P_m by the speed)."""
+        return self.unit.parameters(p_m0)
+
+    def on_machine_base(self, scenarios: list[ScenarioData]) -> tuple[list[ScenarioData], list[str]]:
+        """The recorded E_fd on the record's machine base where the no-load tests show another."""
+        from phid_ros.controls.unit_validation import field_on_machine_base
+
+        return field_on_machine_base(scenarios, self.unit.open_circuit_field, self.curve, self.saturation)
+
+    def play(self, scenarios: Sequence[ScenarioData], f_nominal_hz: float, *, open_loop: bool = False) -> Any:
+        """Every scenario (E_fd already on the machine's base) played in with the record: the
+        MOD-026/027 checks (:class:`phid_ros.controls.unit_validation.UnitValidation`). Each event
+        is played alone at its own operating point (D in phid's form is PSS/E's plus that event's
+        P_m0), so an event's verdict is the same whichever events are played beside it."""
+        from phid_ros.controls.unit_validation import UnitValidation, validate_unit
+
+        parts = []
+        for s in scenarios:
+            params = self.parameters(operating_p_m0([s]))
+            parts.append(
+                validate_unit(
+                    [s],
+                    params,
+                    self.controls,
+                    f_nominal_hz,
+                    f"{self.describe} ({self.unit.source})",
+                    self.unit.effects(),
+                    close_loops=not open_loop,
+                )
+            )
+        notes = list(dict.fromkeys(n for part in parts for n in part.notes))
+        return UnitValidation(f"{self.describe} ({self.unit.source})", [c for p in parts for c in p.scenarios], notes)
+
+    def not_simulated(self) -> list[str]:
+        return [f"not simulated: {n}" for n in self.unit.not_simulated()]
+
+
+def record_check(dyr: str | Path, bus: int | None = None, machine_id: str | None = None, settings: Any = None) -> Any:
+    """The monitor's check of the record on file (:class:`phid_ros.stream.record_check.RecordCheck`):
+    each window cut as ``phid validate`` cuts a recording's events and played by the same
+    :meth:`RecordOnFile.play`."""
+    from phid_ros.stream.recalibration import scenario_from_window
+    from phid_ros.stream.record_check import RecordCheck, RecordCheckSettings
+
+    record = RecordOnFile(dyr, bus, machine_id)
+    chosen = settings or RecordCheckSettings()
+
+    def play(scenarios: Sequence[ScenarioData], f_nominal_hz: float) -> Any:
+        return record.play(scenarios, f_nominal_hz, open_loop=chosen.open_loop)
+
+    describe = f"{record.describe} ({record.unit.source})"
+    return RecordCheck(describe, play, scenario_from_window, record.parameters, chosen, record.on_machine_base)
+
+
+def operating_p_m0(scenarios: Sequence[ScenarioData]) -> float:
+    """P_m before the events (the recorded P at rest, its median over the events)."""
+    import numpy as np
+
+    return float(np.median([np.mean(s["p_e"][s.pre_slice()]) for s in scenarios]))
+
+
 def validate_record(
     dyr: str | Path,
     path: str | Path,
@@ -283,12 +363,7 @@ def validate_record(
     recording at ``path``, as MOD-026/027 ask; the record's constants on the recording's base.
     ``open_loop``: the exciter driven by the recorded V_t, never closed through the machine
     (:mod:`phid_ros.controls.closed_loop`)."""
-    import numpy as np
-
-    from phid_ros.controls.unit_validation import control_of, field_on_machine_base, validate_unit
-    from phid_ros.export.dyr_read import read_unit
-
-    unit = read_unit(dyr, bus, machine_id)
+    record = RecordOnFile(dyr, bus, machine_id)
     source = str(path)
     if progress:
         progress(f"reading {source} and cutting its scenarios")
@@ -299,27 +374,12 @@ def validate_record(
     missing = [c for c in ("v_t", "p_e", "q_e") if any(c in s.absent for s in scenarios)]
     if missing:
         raise PhidError(f"{source}: not recorded: {', '.join(missing)}; the play-in needs V_t and checks P and Q")
-    c = unit.constants
-    curve = f"S(1.0) = {c['S10']:g}, S(1.2) = {c['S12']:g}" if c["S10"] or c["S12"] else "unsaturated"
-    saturation = (c["S10"], c["S12"]) if c["S12"] > c["S10"] > 0 else None
-    scenarios, base_notes = field_on_machine_base(scenarios, unit.open_circuit_field, curve, saturation)
-    # PSS/E's D is phid's less P_m0 (the record's swing equation divides P_m by the speed)
-    p_m0 = float(np.median([np.mean(s["p_e"][s.pre_slice()]) for s in scenarios]))
-    params = unit.parameters(p_m0)
-    controls = {k: control_of(c.model, c.values) for k, c in unit.controls.items()}
+    scenarios, base_notes = record.on_machine_base(scenarios)
+    p_m0 = operating_p_m0(scenarios)
+    params = record.parameters(p_m0)
     if progress:
         progress("playing the unit in")
-    models = [c.model for c in unit.controls.values()]
-    described = " + ".join([f"{unit.machine} at bus {unit.bus} id '{unit.machine_id}'", *models])
-    result = validate_unit(
-        scenarios,
-        params,
-        controls,
-        cut.f_nominal_hz,
-        f"{described} ({unit.source})",
-        unit.effects(),
-        close_loops=not open_loop,
-    )
+    result = record.play(scenarios, cut.f_nominal_hz, open_loop=open_loop)
     base = cut.recording.metadata.get("base_mva")
     on_base = f"{float(base):g} MVA" if base is not None else "not stated in the recording"
     result.notes[:0] = (
@@ -327,7 +387,7 @@ def validate_record(
         + base_notes
         + [
             f"the record's constants taken on the recording's machine base ({on_base}): PSS/E keeps MBASE in the .raw",
-            *(f"not simulated: {n}" for n in unit.not_simulated()),
+            *record.not_simulated(),
         ]
     )
     doc = {"validation": result.as_json(), "parameters": params.as_dict(), "p_m0": p_m0, **result_provenance(path)}

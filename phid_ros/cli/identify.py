@@ -38,8 +38,8 @@ def print_parameters(console: Console, res: IdentificationResult, truth: Generat
     for name in PARAMETER_NAMES:
         est = res.estimates.get(name)
         base = res.baseline.get(name)
-        shown = est is not None and name in published
-        v = est.value if shown else math.nan
+        shown = name in published
+        v = est.value if est is not None and shown else math.nan
         note = "missing" if est is None else ("" if est.identifiable else "not identified")
         if name in res.constraints.fixed:
             note = "held (--fix)"
@@ -49,8 +49,8 @@ def print_parameters(console: Console, res: IdentificationResult, truth: Generat
                 SPECS_BY_NAME[name].unit,
                 fmt(base.value if base else math.nan) + ("*" if base and base.at_bound else ""),
                 _err(base.value, t.get(name)) if base else "",
-                fmt(v, 5) if shown or est is None else withheld_text(est),
-                fmt(est.std if shown else math.nan, 2),
+                fmt(v, 5) if est is None or shown else withheld_text(est),
+                fmt(est.std if est is not None and shown else math.nan, 2),
                 _err(v, t.get(name)),
                 fmt(t[name]) if truth else "",
                 note,

@@ -276,10 +276,65 @@ def write_replay_report(
         html_table(head, prow) if prow else "<p>No recalibration was adopted.</p>",
         "<h2>Recalibrations</h2>",
         html_table(["t s", "events", "outcome", "why"], rc_rows),
+        *_record_sections(outputs, start),
         _figure("Stream health", _health_figure(health), "stream health over time"),
     ]
     intro = f"{span:.1f} s of data &middot; {len(outputs.events)} events &middot; {len(points)} adopted recalibrations"
     return _write(path, _page("phid replay", source, intro, sections))
+
+
+def _record_sections(outputs: Outputs, start: int) -> list[str]:
+    """The record on file against each event (``--record``): its checks, its state after each
+    event, the drift, and the overlays of the first failing events."""
+    if not outputs.verdicts:
+        return []
+    from phid_ros.cli.validate import overlay_figure
+
+    final = list({v.event_id: v for v in outputs.verdicts}.values())  # an event played again: its last
+    from phid_ros.controls.unit_validation import CHANNELS
+
+    rows = [
+        [
+            f"{(v.stream_time_ns - start) / NS:.1f}",
+            v.event_id,
+            c.standard,
+            CHANNELS[c.channel][1],
+            c.simulated_by,
+            f"{c.max_error:.4f}",
+            f"{c.band:.4f}",
+            "pass" if c.passed else "FAIL",
+            v.level,
+        ]
+        for v in final
+        for c in v.checks
+    ]
+    last = outputs.verdicts[-1]
+    head = [
+        "end s",
+        "event",
+        "standard",
+        "channel",
+        "simulated by",
+        "max |error| (pu)",
+        "band (pu)",
+        "verdict",
+        "state",
+    ]
+    overlays = "".join(
+        f"<h3>{html.escape(v.event_id)} ({html.escape(v.kind)})</h3>"
+        f'<img src="{png_data_uri(overlay_figure(v.overlay))}" alt="{html.escape(v.event_id)}">'
+        for v in final
+        if v.overlay is not None
+    )
+    drift = "".join(f"<li>{html.escape(d)}</li>" for d in last.drifting) or "<li>none</li>"
+    return [
+        f"<h2>The record on file against each event</h2><p><code>{html.escape(last.record)}</code>, played in as "
+        f"<code>phid validate</code> plays it. State at the end: <b>{html.escape(last.level)}</b>: "
+        f"{html.escape(last.status)}</p>",
+        html_table(head, rows, text_columns=(1,)),
+        "<h3>Drifting from the record (the last recalibration's determined parameters)</h3><ul>" + drift + "</ul>",
+        f"<h3>Failing events, recorded against simulated</h3>{overlays}" if overlays else "",
+    ]
 
 
 # -- track -------------------------------------------------------------------------------------------

@@ -285,6 +285,12 @@ def _add_replay(sub: Subparsers) -> None:
         "--report", metavar="OUT.html", help="write an HTML report: events, parameters and stream health over time"
     )
     p.add_argument(
+        "--record",
+        metavar="UNIT.dyr",
+        help="the unit's record on file (machine, exciter, governor, stabiliser), played into every usable event "
+        "as phid validate plays it; verdicts on model_validation and /diagnostics (the node's record parameter)",
+    )
+    p.add_argument(
         "--fix",
         action="append",
         default=[],

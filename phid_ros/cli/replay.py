@@ -13,6 +13,7 @@ from phid_ros.model.conventions import NS
 from phid_ros.stream.messages import LEVELS
 from phid_ros.stream.pipeline import MonitorPipeline, Outputs
 from phid_ros.stream.recalibration import RecalibrationOutcome
+from phid_ros.stream.record_check import EventVerdict, RecordCheck
 from phid_ros.stream.replay import replay
 
 if TYPE_CHECKING:
@@ -93,6 +94,7 @@ class OutputCollector:
                         stream_now_ns=self.pipeline.aligner.stream_now_ns,
                         stale_ns=self.pipeline.aligner.stale_ns,
                         unit=self.pipeline.settings.unit,
+                        record=self.pipeline.record_check,
                     ),
                 )
                 self._next_diag += self._diag_period
@@ -233,6 +235,8 @@ def print_summary(
             f"{n_energy} samples published at {pipeline.settings.hamiltonian_rate_hz:g} Hz",
             highlight=False,
         )
+    if pipeline.record_check is not None:
+        print_record_verdicts(console, start, pipeline.record_check, pipeline.record_check.verdicts)
     hrows = []
     for name, h in pipeline.health.items():
         level, msg = pipeline.status(name)
@@ -240,6 +244,32 @@ def print_summary(
     hcols = [Col("stream", "left"), Col("level", "left"), Col("status", "left", text=True), Col("samples")]
     hcols += [Col("dropped"), Col("gaps (lost)"), Col("clock jumps")]
     print_table(console, "stream health", hcols, hrows)
+
+
+def print_record_verdicts(console: Console, start: int, record: RecordCheck, verdicts: list[EventVerdict]) -> None:
+    """Each event played into the record on file: its checks' worst, the verdict; then the record's state."""
+    from phid_ros.cli.tables import Col, print_table
+    from phid_ros.controls.unit_validation import CHANNELS
+
+    rows = []
+    for v in verdicts:
+        worst = v.worst()
+        failed = ", ".join(CHANNELS[c.channel][1] for c in v.failed())
+        rows.append(
+            [
+                f"{(v.stream_time_ns - start) / NS:.1f}",
+                v.event_id,
+                v.kind,
+                str(len(v.checks)),
+                f"{CHANNELS[worst.channel][1]} {worst.max_error:.4f} / {worst.band:.4f}" if worst else "",
+                "pass" if v.passed else f"FAIL ({failed})",
+            ]
+        )
+    cols = [Col("end s"), Col("event", "left", breakable=True), Col("kind", "left", keep=3), Col("checks", keep=2)]
+    cols += [Col("worst: |error| / band pu", "left"), Col("verdict", "left", text=True)]
+    print_table(console, f"the record on file against each event: {record.describe}", cols, rows)
+    level, message = record.status()
+    console.print(f"record on file: {level}: {message}", highlight=False, markup=False)
 
 
 def replay_command(args: Any, console: Any) -> int:
@@ -260,6 +290,8 @@ def replay_command(args: Any, console: Any) -> int:
     out_path = Path(args.out)
     refuse_inputs([out_path, args.store, args.report], [args.bag])
     refuse_inputs([out_path], [args.store])
+    if args.record:
+        refuse_inputs([out_path, args.store, args.report], [args.record])
     check_output(out_path, args.force)
     # the recording is read part by part as it is played: memory holds one part, not the file
     constraints = parse_constraints(args.fix, saturation=args.saturation)  # a typo said before the reading
@@ -277,6 +309,10 @@ def replay_command(args: Any, console: Any) -> int:
         identify=IdentifyOptions(baseline=False, constraints=constraints),
     )
     pipeline = MonitorPipeline(settings)
+    if args.record:  # read before the replay: a record it cannot read is said now, not at the first event
+        from phid_ros.api import record_check
+
+        pipeline.record_check = record_check(args.record)
     if len(pipeline.store):
         # a kept store is the deployment's memory: its events take part in every recalibration, so
         # a replay into it differs from one into an empty store, and says so

@@ -227,7 +227,8 @@ def _parameter_table(res: IdentificationResult, truth: GeneratorParameters | Non
             if truth:
                 row.append(pct(100 * (b.value / t[n] - 1)) if b and math.isfinite(b.value) else "")
         withheld = e is not None and n not in published
-        row += [withheld_text(e) if withheld else _cell(v), _cell(e.std if e and not withheld else math.nan, 2)]
+        shown = withheld_text(e) if e is not None and withheld else _cell(v)
+        row += [shown, _cell(e.std if e and not withheld else math.nan, 2)]
         if truth:
             row += [pct(100 * (v / t[n] - 1)) if math.isfinite(v) else "", _cell(t[n], 4)]
         row += [", ".join(e.drivers) if e else "", _note(e)]

@@ -63,6 +63,7 @@ OUTPUT_TOPICS: dict[str, tuple[str, str]] = {
     "parameters": ("parameters", "phid_msgs/msg/GeneratorParameters"),
     "controls": ("control_parameters", "phid_msgs/msg/ControlParameters"),  # exciter, governor, stabiliser
     "tracked_parameters": ("tracked_parameters", "phid_msgs/msg/GeneratorParameters"),
+    "model_validation": ("model_validation", "phid_msgs/msg/ModelValidation"),  # the record on file, per event
     "hamiltonian": ("hamiltonian", "phid_msgs/msg/HamiltonianState"),
     "diagnostics": ("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray"),  # absolute: the ROS convention
 }

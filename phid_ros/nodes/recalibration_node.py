@@ -3,8 +3,9 @@
 Subscribes (relative, remappable): event_windows (from ingest_node), the four sensor topics
 (for the Hamiltonian and stream health) and /phid/scenarios (markers, when a recording has
 them). Publishes: parameters and control_parameters (the exciter, governor and stabiliser
-fitted beside them; transient local), hamiltonian, /diagnostics, and with tracking_enabled,
-tracked_parameters. Services (std_srvs/Trigger): ~/recalibrate, ~/reset.
+fitted beside them; transient local), hamiltonian, /diagnostics, with tracking_enabled
+tracked_parameters, and with ``record`` (the unit's .dyr) model_validation, the record's verdict
+on each event. Services (std_srvs/Trigger): ~/recalibrate, ~/reset.
 A managed (lifecycle) node: see :class:`phid_ros.nodes.common.MonitorNode`.
 """
 
@@ -28,6 +29,7 @@ from phid_ros.stream.pipeline import MonitorPipeline, Outputs
 # once: the first set releases about 5.5 min of samples (1650 at 5 Hz) in one burst, which a
 # 100-deep reliable queue dropped in part (2685 of 3301 arrived at 20x playback).
 HAMILTONIAN_DEPTH = 5000
+VERDICTS_KEPT = 10  # the record's verdicts a late subscriber still gets
 
 
 class RecalibrationNode(common.MonitorNode):
@@ -45,6 +47,14 @@ class RecalibrationNode(common.MonitorNode):
             unit=self.values["unit_id"] or self.get_namespace(),
         )
         self.pipeline = MonitorPipeline(settings)
+        if self.values["record"]:  # the unit's record on file, checked at every event
+            from phid_ros.api import record_check
+            from phid_ros.stream.record_check import RecordCheckSettings
+
+            chosen = RecordCheckSettings(
+                window=self.values["record_window"], warn_events=self.values["record_warn_events"]
+            )
+            self.pipeline.record_check = record_check(self.values["record"], settings=chosen)
         windows, window_type = OUTPUT_TOPICS["windows"]  # the ingest node's output is our input
         self.subscription(self.types[window_type], windows, self._on_window, common.reliable_qos())
         self.subscription(
@@ -56,6 +66,8 @@ class RecalibrationNode(common.MonitorNode):
             "controls": self.publisher("controls", common.latched_qos(len(CONTROL_KINDS))),
             "tracked_parameters": self.publisher("tracked_parameters", common.latched_qos()),
             "hamiltonian": self.publisher("hamiltonian", common.reliable_qos(HAMILTONIAN_DEPTH)),
+            # one a checked event; a late subscriber (a planner's dashboard) gets the last few
+            "model_validation": self.publisher("model_validation", common.latched_qos(VERDICTS_KEPT)),
         }
         self.diag_pub = self.publisher("diagnostics", common.reliable_qos(10))
         self.service(Trigger, "~/recalibrate", self._recalibrate)
@@ -112,6 +124,7 @@ class RecalibrationNode(common.MonitorNode):
                 stale_ns=self.pipeline.aligner.stale_ns,
                 level=common.byte_level,
                 unit=self.pipeline.settings.unit,
+                record=self.pipeline.record_check,
             )
         )
 

@@ -95,4 +95,8 @@ def emit(
     for p in out.tracked:
         add("tracked_parameters", p.t_ns, m.tracked_message(types, p, seq, bools))
         done.notes += p.alarms
+    for v in out.verdicts:
+        add("model_validation", v.stream_time_ns, m.verdict_message(types, v, seq, bools))
+        if v.level != "OK":
+            done.notes.append(f"record on file {v.level}: {v.status}")
     return done

@@ -24,6 +24,7 @@ from phid_ros.stream.align import StreamHealth
 from phid_ros.stream.detector import Event, EventWindow
 from phid_ros.stream.energy import EnergySamples
 from phid_ros.stream.recalibration import RecalibrationOutcome
+from phid_ros.stream.record_check import EventVerdict, RecordCheck
 from phid_ros.stream.tracker import TRACKED, TrackPoint
 
 Types = Mapping[str, Callable[..., Any]]
@@ -199,6 +200,28 @@ def hamiltonian_messages(types: Types, e: EnergySamples) -> list[Any]:
     ]
 
 
+def verdict_message(types: Types, v: EventVerdict, seq: Seq = numpy_seq, bools: Seq = numpy_bools) -> Any:
+    """The record's verdict on one event (phid_msgs/ModelValidation), each check as
+    ``phid validate``'s JSON holds it."""
+    return types["phid_msgs/msg/ModelValidation"](
+        header=header(types, v.stream_time_ns),
+        event_id=v.event_id,
+        kind=v.kind,
+        record=v.record,
+        passed=bool(v.passed),
+        channels=[c.channel for c in v.checks],
+        standards=[c.standard for c in v.checks],
+        max_errors=seq([c.max_error for c in v.checks]),
+        bands=seq([c.band for c in v.checks]),
+        check_passed=bools([bool(c.passed) for c in v.checks]),
+        simulated_by=[c.simulated_by for c in v.checks],
+        notes=list(v.notes),
+        level=v.level,
+        status=v.status,
+        drifting=list(v.drifting),
+    )
+
+
 def diagnostics_message(
     types: Types,
     now_ns: int,
@@ -210,6 +233,7 @@ def diagnostics_message(
     stale_ns: int = 2 * NS,
     level: Callable[[int], Any] = int,
     unit: str = "",
+    record: RecordCheck | None = None,
 ) -> Any:
     """diagnostic_msgs/DiagnosticArray: one status per stream, one for recalibration.
 
@@ -221,6 +245,7 @@ def diagnostics_message(
     ``now_ns`` is the receiver's clock; ``stream_now_ns`` the newest stamp of any stream, so a
     stream that stopped while the others go on is STALE on a replayed recording too. ``level``
     makes the message's ``byte`` field: an int for the rosbags typestore, ``bytes([v])`` for rclpy.
+    ``record``: the unit's record on file (the monitor's ``record``), its state one status more.
     """
     kv = types["diagnostic_msgs/msg/KeyValue"]
     status_cls = types["diagnostic_msgs/msg/DiagnosticStatus"]
@@ -269,6 +294,17 @@ def diagnostics_message(
                 message=recalibration_status,
                 hardware_id=hardware_id,
                 values=[],
+            )
+        )
+    if record is not None:  # the unit's record on file: OK while it passes, WARN, ERROR (record_check.py)
+        record_level, message = record.status()
+        statuses.append(
+            status_cls(
+                level=level(LEVELS[record_level]),
+                name=f"{prefix}: record on file",
+                message=message,
+                hardware_id=hardware_id,
+                values=[kv(key=k, value=v) for k, v in record.diagnostic_values()],
             )
         )
     return types["diagnostic_msgs/msg/DiagnosticArray"](header=header(types, now_ns), status=statuses)

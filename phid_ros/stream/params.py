@@ -163,6 +163,24 @@ RECALIBRATION: tuple[Tunable, ...] = (
             runtime=False,
         ),
         Tunable(
+            "record",
+            str,
+            "",
+            "the unit's record on file (a PSS/E .dyr: machine, exciter, governor, stabiliser), played into every "
+            "usable event as phid validate plays it; its verdicts on model_validation (empty: none)",
+            runtime=False,
+        ),
+        Tunable(
+            "record_warn_events",
+            int,
+            2,
+            "the record's state is WARN when it failed a check on this many of the last record_window events",
+            1,
+            100,
+            runtime=False,
+        ),
+        Tunable("record_window", int, 5, "the last events the record's state is judged on", 1, 100, runtime=False),
+        Tunable(
             "held",
             str,
             "",

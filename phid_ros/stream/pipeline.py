@@ -23,6 +23,7 @@ from phid_ros.stream.align import Aligner, Run, StreamHealth
 from phid_ros.stream.detector import Detector, DetectorSettings, Event, EventWindow, stale_data
 from phid_ros.stream.energy import EnergySamples, energy
 from phid_ros.stream.recalibration import RecalibrationOutcome, RecalibrationPolicy, Recalibrator
+from phid_ros.stream.record_check import EventVerdict, RecordCheck
 from phid_ros.stream.recorder import RecorderBuffer
 from phid_ros.stream.ring import RingBuffer
 from phid_ros.stream.store import EventStore
@@ -85,6 +86,7 @@ class Outputs:
     recalibrations: list[RecalibrationOutcome] = field(default_factory=list)
     energy: list[EnergySamples] = field(default_factory=list)
     tracked: list[TrackPoint] = field(default_factory=list)
+    verdicts: list[EventVerdict] = field(default_factory=list)  # the record on file, event by event
 
     def extend(self, other: Outputs) -> None:
         self.events += other.events
@@ -92,6 +94,7 @@ class Outputs:
         self.recalibrations += other.recalibrations
         self.energy += other.energy
         self.tracked += other.tracked
+        self.verdicts += other.verdicts
 
     def light(self) -> Outputs:
         """The same outputs without their bulk arrays (windows' samples, all but the last energy
@@ -104,7 +107,7 @@ class Outputs:
             for e in self.energy[-1:]
         ]
         recalibrations = [dataclasses.replace(r, result=r.result and r.result.light()) for r in self.recalibrations]
-        return Outputs(list(self.events), windows, recalibrations, energy, list(self.tracked))
+        return Outputs(list(self.events), windows, recalibrations, energy, list(self.tracked), list(self.verdicts))
 
 
 RECORDER_STREAM_NAMES = frozenset(s.name for s in RECORDER_STREAMS)
@@ -136,6 +139,8 @@ class MonitorPipeline:
         self._energy_applied: set[int] = set()  # outcomes (by start time) already taken over
         self._hold_limit_ns = int((s.ring_seconds - s.detector.context_s) * NS)
         self.latest_ns: int | None = None
+        # the unit's record on file, checked against every usable window (None: not asked for)
+        self.record_check: RecordCheck | None = None
 
     # -- input ---------------------------------------------------------------------------
     def ingest(self, stream: str, t0_ns: int, period_ns: int, arrays: dict, receive_ns: int | None = None) -> None:
@@ -232,8 +237,18 @@ class MonitorPipeline:
                 out.recalibrations += self.recalibrator.finish(self.latest_ns)
         else:
             out.recalibrations += self.recalibrator.poll(self.latest_ns)
+        self._against_record(out.recalibrations)
         self._energy_upto(self.latest_ns, out)
         return out
+
+    def _against_record(self, outcomes: Sequence[RecalibrationOutcome]) -> None:
+        """Each recalibration's determined parameters against the record on file (its drift)."""
+        if self.record_check is None:
+            return
+        for r in outcomes:
+            found = r.result.estimates if r.accepted and r.result is not None else r.determined
+            if found:
+                self.record_check.compare(found)
 
     def add_window(self, window: EventWindow) -> Outputs:
         """A window cut elsewhere (by the ingest node): label it, store it, maybe recalibrate. Its
@@ -330,8 +345,19 @@ class MonitorPipeline:
             if self.settings.keep_windows:
                 self.store.add(w)
             out.windows.append(w)
+            self._check_record(w, out)
             if w.usable and self.settings.auto_recalibrate and w.event.role == "identify":
                 self.recalibrator.request(int(w.t_ns[-1]) if len(w.t_ns) else w.event.inception_ns)
+
+    def _check_record(self, w: EventWindow, out: Outputs) -> None:
+        """The window played into the record on file; its verdict kept with the window."""
+        check = self.record_check
+        if check is None or not w.usable:
+            return
+        for verdict in check.check(w, self.settings.identify.f_nominal_hz):
+            out.verdicts.append(verdict)  # an earlier event's, played again, replaces its verdict
+            if self.settings.keep_windows:
+                self.store.add_verdict(verdict.event_id, check.describe, verdict.passed, verdict.as_json())
 
     def _energy_upto(self, latest_ns: int | None, out: Outputs) -> None:
         """The Hamiltonian at the set rate, each sample with the set in force at its stamp.

@@ -20,13 +20,17 @@ so two processes on one store each add their events and lose none.
 from __future__ import annotations
 
 import hashlib
+import json
 import math
 import sqlite3
+from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from phid_ros.errors import PhidError
+from phid_ros.io.files.results import json_ready
 from phid_ros.io.files.sqlite_schema import check_intact, migrate, table_columns
 from phid_ros.model.channels import CHANNELS
 from phid_ros.stream.detector import Event, EventWindow
@@ -48,6 +52,12 @@ SCHEMA_STEPS = (
     """
     ALTER TABLE events ADD COLUMN regulator TEXT NOT NULL DEFAULT '';
     ALTER TABLE events ADD COLUMN reference_step REAL
+    """,
+    # 4: the verdict of the unit's record on file for each event (stream/record_check.py), by record
+    """
+    CREATE TABLE IF NOT EXISTS verdicts (
+        event_id TEXT NOT NULL, record TEXT NOT NULL, passed INTEGER NOT NULL, verdict TEXT NOT NULL,
+        PRIMARY KEY (event_id, record))
     """,
 )
 COLUMNS = (
@@ -244,6 +254,25 @@ class EventStore:
             e.reference_step,
         )
 
+    def add_verdict(self, event_id: str, record: str, passed: bool, verdict: Mapping[str, Any]) -> None:
+        """The record's verdict on a stored event (its JSON), beside the window; the same event
+        checked again against the same record replaces its verdict."""
+        with self._write():
+            self._db.execute(
+                "INSERT OR REPLACE INTO verdicts VALUES (?, ?, ?, ?)",
+                (event_id, record, int(passed), json.dumps(json_ready(verdict))),
+            )
+
+    def verdicts(self, record: str | None = None) -> list[dict[str, Any]]:
+        """The verdicts kept, by event time, each with its record (all records, or one)."""
+        q = "SELECT v.record, v.verdict FROM verdicts v LEFT JOIN events e ON e.event_id = v.event_id"
+        args: tuple = ()
+        if record is not None:
+            q += " WHERE v.record = ?"
+            args = (record,)
+        q += " ORDER BY e.inception_ns, v.event_id"
+        return [{"record": r, **json.loads(doc)} for r, doc in self._db.execute(q, args)]
+
     # -- reading -------------------------------------------------------------------------
     def __len__(self) -> int:
         return int(self._db.execute("SELECT COUNT(*) FROM events").fetchone()[0])
@@ -279,6 +308,7 @@ class EventStore:
     def clear(self) -> None:
         with self._write():
             self._db.execute("DELETE FROM events")
+            self._db.execute("DELETE FROM verdicts")
 
     def integrity(self) -> str:
         """SQLite's full integrity check plus ours: every stored blob has the size its row says."""

@@ -398,3 +398,34 @@ def test_autostart_configures_and_activates_and_a_bad_value_fails_configure_in_o
     assert not node.subscriptions and not node.publishers  # nothing half-made is left
     assert node.set_parameters([Parameter("store_path", ":memory:")])[-1].successful
     assert node.trigger_configure() == R.SUCCESS
+
+
+def test_the_record_on_file_gets_the_same_verdicts_on_the_node_as_in_replay(ros, tmp_path):
+    """The recalibration node with ``record`` (the unit's .dyr) publishes one ModelValidation an
+    event it keeps and the record's state on /diagnostics: replay's verdicts, to the last digit."""
+    from phid_ros.api import record_check
+    from phid_ros.model.parameters import TABLE1
+    from phid_ros.stream.pipeline import MonitorPipeline
+    from phid_ros.stream.replay import replay
+    from test.stream.test_record_check import record_of
+
+    dyr = record_of(tmp_path, "wrong", TABLE1.replace(X_d_prime=1.2 * TABLE1.X_d_prime))
+    rec = read_recording(BAGS / "catalogue")
+    ingest, recal = make_nodes(ros, record=str(dyr))
+    play(ros, rec, ingest, recal)
+    recal.pipeline.recalibrator.join()
+    recal.process()
+    sent = published(recal, "/generator/model_validation")
+    reference = MonitorPipeline()
+    reference.record_check = record_check(dyr)
+    expect = {v.event_id: v for v in replay(rec, reference).verdicts}
+    reference.close()
+    assert len(sent) == len(recal.pipeline.store) == 17  # V3's window: the data end before its end
+    for msg in sent:
+        v = expect[msg.event_id]
+        assert list(msg.max_errors) == [c.max_error for c in v.checks] and msg.passed == v.passed
+    assert any(not msg.passed for msg in sent) and sent[-1].level in ("WARN", "ERROR")
+    recal.publish_diagnostics()
+    [diag] = published(recal, "/diagnostics")[-1:]
+    [status] = [s for s in diag.status if s.name.endswith("record on file")]
+    assert status.level in (b"\x01", b"\x02") and "X'_d: record 0.6" in status.message

@@ -11,16 +11,16 @@ from typing import Any
 from phid_ros.errors import ResultsError
 
 
-def _clean(obj: Any) -> Any:
+def json_ready(obj: Any) -> Any:
     """JSON has no NaN/Inf: write them as null so every reader can parse the file."""
     if isinstance(obj, float):
         return obj if math.isfinite(obj) else None
     if isinstance(obj, Mapping):
-        return {str(k): _clean(v) for k, v in obj.items()}
+        return {str(k): json_ready(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
-        return [_clean(v) for v in obj]
+        return [json_ready(v) for v in obj]
     if hasattr(obj, "item") and callable(obj.item):  # numpy scalars
-        return _clean(obj.item())
+        return json_ready(obj.item())
     return obj
 
 
@@ -29,7 +29,7 @@ def write_json(path: str | Path, data: Mapping[str, Any]) -> Path:
 
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
-    return write_text(p, json.dumps(_clean(data), indent=2, sort_keys=False) + "\n")
+    return write_text(p, json.dumps(json_ready(data), indent=2, sort_keys=False) + "\n")
 
 
 def read_json(path: str | Path) -> dict[str, Any]:

@@ -67,7 +67,8 @@ def test_an_event_store_from_before_digests_gains_the_column(tmp_path):
     store = EventStore(path, unit="G1")
     store.close()
     db = _db(path)
-    assert user_version(db) == len(STORE_STEPS) == 3 and "digest" in table_columns(db, "events")
+    assert user_version(db) == len(STORE_STEPS) == 4 and "digest" in table_columns(db, "events")
+    assert "record" in table_columns(db, "verdicts")  # 4: the record on file's verdicts
 
 
 def test_a_history_from_before_user_version_is_taken_as_version_1_and_upgraded(tmp_path):
