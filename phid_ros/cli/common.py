@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import sys
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
@@ -80,6 +81,29 @@ def figure_backend() -> None:
 
     matplotlib.use("Agg")
     matplotlib.rcParams["text.parse_math"] = False
+
+
+SUPERSCRIPTS = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
+
+
+def power_of_ten(value: float, _position: object = None) -> str:
+    """A log axis's tick as Unicode (10⁵, 10⁻²): matplotlib's own writes TeX (``mathdefault{10^{5}}``),
+    shown raw with mathtext off (:func:`figure_backend`); a tick between the decades is left blank."""
+    if not value > 0:
+        return ""
+    exponent = math.log10(value)
+    if abs(exponent - round(exponent)) > 1e-9:
+        return ""
+    return "1" if round(exponent) == 0 else "10" + str(round(exponent)).translate(SUPERSCRIPTS)
+
+
+def log_ticks(ax: Any) -> None:
+    """Both axes of a log-log plot ticked as :func:`power_of_ten` writes them."""
+    from matplotlib.ticker import FuncFormatter, NullFormatter
+
+    for axis in (ax.xaxis, ax.yaxis):
+        axis.set_major_formatter(FuncFormatter(power_of_ten))
+        axis.set_minor_formatter(NullFormatter())
 
 
 WITHHELD_LABEL = "withheld (not identifiable): no value drawn"

@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from phid_ros.cli.common import figure_backend
+from phid_ros.cli.common import figure_backend, log_ticks
 from phid_ros.cli.report import STYLE, html_table, png_data_uri
 from phid_ros.cli.tables import CHANNEL_LABELS, axis_label, effect_values_text, fmt, pct, signed_int
 from phid_ros.diagnose.fit import evaluate
@@ -77,6 +77,7 @@ def _spectra(before: list[PlayIn], after: list[PlayIn], sigma: dict[str, float])
         symbol, unit = CHANNEL_LABELS[c]
         ax.set_title(f"{symbol} residual", fontsize=9)
         ax.grid(alpha=0.3, which="both")
+        log_ticks(ax)
     axes[0][0].legend(fontsize=7)
     for ax in axes[-1]:
         ax.set_xlabel("frequency (Hz)")

@@ -81,7 +81,11 @@ def _events_figure(
     handles = [plt.Line2D([], [], color=c, label=k.replace("_", " ")) for k, c in KIND_COLORS.items()]
     handles.append(plt.Line2D([], [], color="k", ls="--", label="window not usable"))
     if marks:
-        handles.append(plt.Line2D([], [], color="#2e8b57", marker="v", ls="", label="recalibration adopted"))
+        handles.append(
+            plt.Line2D(
+                [], [], color="#2e8b57", marker="v", ls="", label="recalibration adopted (or its partial set published)"
+            )
+        )
         handles.append(plt.Line2D([], [], color="#c0392b", marker="v", ls="", label="recalibration not adopted"))
     axes[0].legend(handles=handles, fontsize=7, ncol=3, loc="lower left")
     axes[-1].set_xlabel("time from the start of the recording (s)")
@@ -228,12 +232,20 @@ def write_replay_report(
     start = overview.span_ns()[0]
     usable = {w.event.event_id: w.usable for w in outputs.windows}
     events = [(e.kind, (e.inception_ns - start) / NS, usable.get(e.event_id, False)) for e in outputs.events]
-    marks = [((r.stream_time_ns - start) / NS, "#2e8b57" if r.accepted else "#c0392b") for r in outputs.recalibrations]
-    points = [
-        ParameterPoint((r.stream_time_ns - start) / NS, dict(r.result.estimates))
-        for r in outputs.recalibrations
-        if r.accepted and r.result is not None
+    # a partial set (the parameters a recorder's channels determine, before any set of eight) is
+    # published as the terminal says: drawn and tabled with its values, not marked "not adopted"
+    published = [r for r in outputs.recalibrations if (r.accepted and r.result is not None) or r.determined]
+    marks = [
+        ((r.stream_time_ns - start) / NS, "#2e8b57" if r in published else "#c0392b") for r in outputs.recalibrations
     ]
+    points = [
+        ParameterPoint(
+            (r.stream_time_ns - start) / NS,
+            dict(r.result.estimates) if r.accepted and r.result is not None else dict(r.determined),
+        )
+        for r in published
+    ]
+    partial = sum(not r.accepted for r in published)
     replay_alarms(points)
     health = HealthLog()
     for t_ns, snap in health_log:
@@ -279,7 +291,10 @@ def write_replay_report(
         *_record_sections(outputs, start),
         _figure("Stream health", _health_figure(health), "stream health over time"),
     ]
-    intro = f"{span:.1f} s of data &middot; {len(outputs.events)} events &middot; {len(points)} adopted recalibrations"
+    adopted = f"{len(points) - partial} adopted recalibrations"
+    if partial:
+        adopted += f" &middot; {partial} partial set(s) published (the parameters the channels determine)"
+    intro = f"{span:.1f} s of data &middot; {len(outputs.events)} events &middot; {adopted}"
     return _write(path, _page("phid replay", source, intro, sections))
 
 

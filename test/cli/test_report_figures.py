@@ -171,3 +171,21 @@ def test_the_history_draws_what_its_table_prints_and_says_where_nothing_is_ident
     assert not ax_xd.collections  # no ±2σ band without a std
     assert not list(ax_d.get_yticks()) and "withheld in every recording" in ax_d.texts[0].get_text()
     assert all(TABLE1.D not in line.get_ydata() for line in ax_d.get_lines())
+
+
+def test_log_ticks_are_unicode_powers_of_ten_not_raw_tex() -> None:
+    """With mathtext off (a user's name with ``$`` in it), matplotlib's log ticks printed as raw
+    TeX (``$\\mathdefault{10^{5}}$``) on the diagnosis's spectra; now 10⁵."""
+    import matplotlib.pyplot as plt
+
+    from phid_ros.cli.common import figure_backend, log_ticks, power_of_ten
+
+    assert [power_of_ten(v) for v in (1e5, 1e-2, 1.0, 3e3, 0.0)] == ["10⁵", "10⁻²", "1", "", ""]
+    figure_backend()
+    fig, ax = plt.subplots()
+    ax.loglog([1, 10, 100, 1e5], [1e-2, 1, 10, 1e3])
+    log_ticks(ax)
+    fig.canvas.draw()
+    labels = [t.get_text() for t in ax.get_yticklabels() + ax.get_xticklabels() if t.get_text()]
+    assert labels and not any("$" in t or "mathdefault" in t for t in labels) and "10⁵" in labels
+    plt.close(fig)

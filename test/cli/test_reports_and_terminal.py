@@ -267,3 +267,18 @@ def test_a_withheld_value_is_not_drawn(monkeypatch):
     assert [line.get_label() for line in ax_d.get_lines()] == [WITHHELD_LABEL]
     assert any(3.49 in line.get_ydata() for line in ax_h.get_lines())
     plt.close(fig)
+
+
+def test_the_replay_report_shows_the_partial_set_the_terminal_publishes(outputs):
+    """The catalogue's first recalibration (at 30 s, one torque step) publishes X'_d and T'_d0 on
+    their own; the terminal says so, and the report said "0 adopted", marked it red and showed no
+    value. Now it is counted, drawn green and tabled with its two values, the others "—"."""
+    tmp, text = outputs
+    assert "recalibration at 30.0 s with 1 event(s): partial set published: X'_d, T'_d0" in text["replay"]
+    page = (tmp / "replay.html").read_text()
+    assert "2 adopted recalibrations &middot; 1 partial set(s) published" in page
+    first = re.search(r"<tr><td[^>]*>30\.0</td>(.*?)</tr>", page)
+    assert first is not None
+    cells = re.findall(r"<td[^>]*>(.*?)</td>", first.group(1))
+    # H, D, X_d, X_q withheld; X'_d and T'_d0 with their stds
+    assert cells[:4] == ["—"] * 4 and cells[4].startswith("0.49") and cells[6].startswith("1.43")
