@@ -351,7 +351,7 @@ def operating_p_m0(scenarios: Sequence[ScenarioData]) -> float:
 
 def validate_record(
     dyr: str | Path,
-    path: str | Path,
+    path: str | Path | Sequence[str | Path],
     *,
     bus: int | None = None,
     machine_id: str | None = None,
@@ -360,15 +360,21 @@ def validate_record(
     open_loop: bool = False,
 ) -> RecordValidation:
     """A unit's PSS/E record (machine, exciter, governor) played in against each event of the
-    recording at ``path``, as MOD-026/027 ask; the record's constants on the recording's base.
-    ``open_loop``: the exciter driven by the recorded V_t, never closed through the machine
-    (:mod:`phid_ros.controls.closed_loop`)."""
+    recording at ``path`` (or of several recordings of the unit, cut as ``phid identify`` cuts
+    them: each event named by its file, the same recording given twice counted once), as
+    MOD-026/027 ask; the record's constants on the recording's base. ``open_loop``: the exciter
+    driven by the recorded V_t, never closed through the machine (:mod:`phid_ros.controls.closed_loop`)."""
     record = RecordOnFile(dyr, bus, machine_id)
-    source = str(path)
-    if progress:
-        progress(f"reading {source} and cutting its scenarios")
-    cut = cut_scenarios(path, thresholds)  # part by part: the windows, not the hours
-    scenarios = cut.scenarios
+    paths = [path] if isinstance(path, (str, Path)) else list(path)
+    unit = cut_unit(paths, thresholds, progress)  # part by part: the windows, not the hours
+    source = unit.source
+    cut = unit.cuts[0]
+    scenarios = []
+    for one, got in zip(unit.paths, unit.cuts, strict=True):
+        if len(unit.paths) > 1:
+            for sc in got.scenarios:
+                sc.name = f"{Path(one).stem}/{sc.name}"
+        scenarios += got.scenarios
     if not scenarios:
         raise PhidError(f"{source}: no step or disturbance to validate against")
     missing = [c for c in ("v_t", "p_e", "q_e") if any(c in s.absent for s in scenarios)]
@@ -383,15 +389,18 @@ def validate_record(
     base = cut.recording.metadata.get("base_mva")
     on_base = f"{float(base):g} MVA" if base is not None else "not stated in the recording"
     result.notes[:0] = (
-        cut.problems
+        unit.notes
+        + [p for c in unit.cuts for p in c.problems]
         + base_notes
         + [
             f"the record's constants taken on the recording's machine base ({on_base}): PSS/E keeps MBASE in the .raw",
             *record.not_simulated(),
         ]
     )
-    doc = {"validation": result.as_json(), "parameters": params.as_dict(), "p_m0": p_m0, **result_provenance(path)}
-    return RecordValidation(result, params, p_m0, doc, list(cut.recording.warnings))
+    doc = {"validation": result.as_json(), "parameters": params.as_dict(), "p_m0": p_m0}
+    doc.update(result_provenance(*unit.paths))
+    warnings = [w for c in unit.cuts for w in c.recording.warnings]
+    return RecordValidation(result, params, p_m0, doc, warnings)
 
 
 def identify_cut(

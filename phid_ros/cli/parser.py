@@ -405,7 +405,12 @@ def _add_validate(sub: Subparsers) -> None:
         help="MOD-026/027: a unit's .dyr (machine, exciter, governor) against a recording's steps and disturbances",
     )
     p.add_argument("dyr", help="PSS/E dynamic data: GENROU or GENSAL, and the unit's exciter and governor if any")
-    p.add_argument("input", help="rosbag2 folder, .mcap file, or CSV manifest.json")
+    p.add_argument(
+        "input",
+        nargs="+",
+        help="rosbag2 folder, .mcap file, or CSV manifest.json; several recordings of the unit (a no-load and an "
+        "on-line day) are validated together, as phid identify reads them",
+    )
     p.add_argument("--bus", type=POSITIVE_INT, help="the machine's bus in the .dyr (needed where it holds several)")
     p.add_argument("--id", help="the machine's id at its bus")
     p.add_argument("--json", metavar="OUT", help="write the checks (per scenario and channel) here")

@@ -27,8 +27,8 @@ from phid_ros.io.files.results import write_json
 def validate_command(args: Any, console: Console) -> int:
     from phid_ros.io.files.outputs import refuse_inputs
 
-    refuse_inputs([args.json, args.report], [args.dyr, args.input])
-    with ProgressLine(f"reading {args.input} and cutting its scenarios") as progress:
+    refuse_inputs([args.json, args.report], [args.dyr, *args.input])
+    with ProgressLine(f"reading {' + '.join(args.input)} and cutting its scenarios") as progress:
         found = validate_record(
             args.dyr,
             args.input,
@@ -43,7 +43,7 @@ def validate_command(args: Any, console: Console) -> int:
     if args.json:
         write_json(args.json, found.document)
     if args.report:
-        write_report(args.report, found.result, str(args.input))
+        write_report(args.report, found.result, " + ".join(args.input))
     print_result(console, found.result)
     return 0 if found.result.passed() else 1
 
