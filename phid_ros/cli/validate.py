@@ -118,7 +118,8 @@ def why_larger_than_identify(result: UnitValidation) -> str:
     )
 
 
-UNITS = {"q_e": "Q (pu)", "v_f": "E_fd (pu, machine base)", "p_e": "P (pu)", "p_m": "P_m (pu)"}
+UNITS = {"q_e": "Q (pu)", "v_f": "E_fd (pu, machine base)", "p_e": "P (pu)", "p_m": "P_m (pu)", "v_t": "V_t (pu)"}
+ZOOM_S = 3.0  # an overlay shows this long either side of where its check is decided (its largest error)
 
 
 def check_rows(result: UnitValidation) -> list[list[str]]:
@@ -150,25 +151,60 @@ def overlay_figure(s: ScenarioCheck) -> Any:
     shown = list(s.checks)
     columns = min(2, len(shown))
     rows = -(-len(shown) // columns)
-    fig, axes = plt.subplots(rows, columns, figsize=(5.6 * columns, 3.4 * rows), squeeze=False, layout="constrained")
+    fig, axes = plt.subplots(
+        rows, columns, figsize=(5.6 * columns, 3.4 * rows + 0.5), squeeze=False, layout="constrained"
+    )
     for ax, c in zip(axes.flat, shown):
         rec, sim = s.recorded[c.channel], s.simulated[c.channel]
-        ax.fill_between(s.t, rec - c.band, rec + c.band, color="0.85", lw=0, label=f"band ±{c.band:.3g} pu", zorder=1)
+        ax.fill_between(s.t, rec - c.band, rec + c.band, color="0.85", lw=0, label="band about the recording", zorder=1)
         colour = "tab:red" if not c.passed else "tab:blue"
-        ax.plot(s.t, sim, color=colour, lw=1.8, alpha=0.85, label=f"simulated ({c.simulated_by})", zorder=2)
-        ax.plot(s.t, rec, color="0.15", lw=0.5, alpha=0.8, label="recorded", zorder=3)
+        ax.plot(s.t, sim, color=colour, lw=1.4, alpha=0.85, label="simulated", zorder=2)
+        ax.plot(s.t, rec, color="0.1", lw=0.8, label="recorded", zorder=3)  # on top: never hidden
         verdict = "pass" if c.passed else "FAIL"
+        where = _decided_at(s.t, rec, sim)
         ax.set_title(
-            f"{c.standard} {CHANNELS[c.channel][1]}: max |error| {c.max_error:.3g} pu, band {c.band:.3g} pu: {verdict}",
+            f"{c.standard} {CHANNELS[c.channel][1]} ({c.simulated_by}): max |error| {c.max_error:.3g} pu, "
+            f"band ±{c.band:.3g} pu: {verdict}",
             fontsize=9,
         )
-        ax.set_xlabel("t (s)")
+        if where is not None and s.t[-1] - s.t[0] > 3 * ZOOM_S:
+            # a step's failing 40-90 ms cannot be seen in a 48 s window: shown where it is decided
+            ax.set_xlim(max(s.t[0], where - ZOOM_S), min(s.t[-1], where + ZOOM_S))
+            ax.autoscale_view(scalex=False)
+            _fit_y(ax, s.t, rec, sim, c.band)
+        ax.set_xlabel("t (s)" if where is None else f"t (s), around the largest error at {where:.2f} s")
         ax.set_ylabel(UNITS.get(c.channel, c.channel))
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=7, loc="best")
     for ax in list(axes.flat)[len(shown) :]:
         ax.set_visible(False)
+    handles, labels = axes.flat[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", ncols=3, fontsize=8)  # off the traces
     return fig
+
+
+def _decided_at(t: Any, rec: Any, sim: Any) -> float | None:
+    """Where the check is decided: the time of the largest |simulated - recorded| (None: no finite one)."""
+    import numpy as np
+
+    gap = np.abs(np.asarray(sim, float) - np.asarray(rec, float))
+    if not np.isfinite(gap).any():
+        return None
+    return float(t[int(np.nanargmax(gap))])
+
+
+def _fit_y(ax: Any, t: Any, rec: Any, sim: Any, band: float) -> None:
+    """The y axis to what the zoomed window shows (the band included)."""
+    import numpy as np
+
+    lo, hi = ax.get_xlim()
+    inside = (t >= lo) & (t <= hi)
+    values = np.concatenate(
+        [np.asarray(rec, float)[inside] + d for d in (-band, band)] + [np.asarray(sim, float)[inside]]
+    )
+    values = values[np.isfinite(values)]
+    if values.size:
+        pad = 0.05 * max(float(np.ptp(values)), 1e-6)
+        ax.set_ylim(float(values.min()) - pad, float(values.max()) + pad)
 
 
 def overlays_html(result: UnitValidation) -> str:

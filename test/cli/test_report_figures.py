@@ -189,3 +189,29 @@ def test_log_ticks_are_unicode_powers_of_ten_not_raw_tex() -> None:
     labels = [t.get_text() for t in ax.get_yticklabels() + ax.get_xticklabels() if t.get_text()]
     assert labels and not any("$" in t or "mathdefault" in t for t in labels) and "10⁵" in labels
     plt.close(fig)
+
+
+def test_a_validation_overlay_zooms_to_where_its_check_is_decided() -> None:
+    """A 48 s window around a step whose failing 60 ms could not be seen: the overlay shows 3 s
+    either side of the largest error, V_t with its unit, the recording on top and the legend off
+    the traces (below the panels)."""
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from phid_ros.cli.common import figure_backend
+    from phid_ros.cli.validate import overlay_figure
+    from phid_ros.controls.unit_validation import ChannelCheck, ScenarioCheck
+
+    figure_backend()
+    t = np.arange(0.0, 48.0, 0.01)
+    rec = np.where(t > 20.0, 1.05, 1.0)
+    sim = rec + np.where((t > 20.0) & (t < 20.06), 0.02, 0.0)
+    check = ChannelCheck("v_t", "MOD-026", 0.02, 0.01, False, "SEXS")
+    fig = overlay_figure(ScenarioCheck("step", "field_step", t, {"v_t": rec}, {"v_t": sim}, [check]))
+    [ax] = [a for a in fig.axes if a.get_visible()]
+    lo, hi = ax.get_xlim()
+    assert 16.9 < lo < 17.1 and 22.9 < hi < 23.1 and ax.get_ylabel() == "V_t (pu)"
+    assert ax.get_legend() is None and len(fig.legends) == 1
+    recorded = next(line for line in ax.get_lines() if line.get_label() == "recorded")
+    assert recorded.get_zorder() > max(line.get_zorder() for line in ax.get_lines() if line is not recorded)
+    plt.close(fig)
