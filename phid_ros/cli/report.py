@@ -90,27 +90,38 @@ def _scenario_figure(res: IdentificationResult) -> str | None:
         {s.kind for s in used},
         key=lambda k: KIND_ORDER.index(k) if k in KIND_ORDER else 9,
     )
-    if not kinds:
+    # a channel no scenario recorded (a recorder's day: no speed, no I_d, I_q) is not drawn as an
+    # empty axis; the caption names what was left out
+    signals = [(n, label) for n, label in SIGNALS if any(s.has(n) for s in used)]
+    if not kinds or not signals:
         return None
     fig, axes = plt.subplots(
-        len(SIGNALS), len(kinds), figsize=(4.2 * len(kinds) + 1, 11), sharex="col", squeeze=False, layout="constrained"
+        len(signals),
+        len(kinds),
+        figsize=(4.2 * len(kinds) + 1, 1.6 * len(signals) + 1.4),
+        sharex="col",
+        squeeze=False,
+        layout="constrained",
     )
     for col, kind in enumerate(kinds):
         for s in (s for s in used if s.kind == kind):
             k0 = max(0, s.k_event - int(0.5 / s.dt))
             k1 = min(s.n, s.k_event + int(5.0 / s.dt))
             t = (np.arange(k0, k1) - s.k_event) * s.dt
-            for row, (name, _) in enumerate(SIGNALS):
-                x = s[name][k0:k1] - (1.0 if name == "omega" else 0.0)
-                axes[row][col].plot(t, x, lw=0.8, label=s.name)
+            for row, (name, _) in enumerate(signals):
+                if s.has(name):
+                    x = s[name][k0:k1] - (1.0 if name == "omega" else 0.0)
+                    axes[row][col].plot(t, x, lw=0.8, label=s.name)
         axes[0][col].set_title(kind.replace("_", " ") + " scenarios", fontsize=10)
         axes[0][col].legend(fontsize=6)
         axes[-1][col].set_xlabel("time after the event (s)")
-    for row, (_, label) in enumerate(SIGNALS):
+    for row, (_, label) in enumerate(signals):
         axes[row][0].set_ylabel(label)
         for ax in axes[row]:
             ax.grid(alpha=0.3)
-    fig.suptitle("Identification scenarios: measured signals (cf. paper Fig. 1)")
+    missing = [label.split(" (")[0] for n, label in SIGNALS if (n, label) not in signals]
+    left_out = f"; not recorded, not drawn: {', '.join(missing)}" if missing else ""
+    fig.suptitle(f"Identification scenarios: measured signals (cf. paper Fig. 1){left_out}")
     return png_data_uri(fig)
 
 
@@ -272,6 +283,20 @@ def _validation_table(res: IdentificationResult) -> str:
     return html_table(vhead, vrows)
 
 
+def _validation_section(res: IdentificationResult) -> str:
+    """The held-out validation (Tables 8-9), or why there is none: no empty table, no footnote on
+    columns that are not there (a recorder's day is validated by its no-load playback instead)."""
+    if res.validation is None or not res.validation.scenarios:
+        why = next((p for p in res.problems if p.startswith("validation skipped")), "no validation scenario was played")
+        return f"<h2>Validation</h2><p>Not run: {html.escape(why)}.</p>"
+    return (
+        f"<h2>Validation against the {html.escape(res.validation.against)}</h2>"
+        + _validation_table(res)
+        + "<p>RMSE, MAE and STD of the combined state-trajectory error (Table 9); MOD-026: simulated P and Q "
+        "within ±0.05 pu of the measurement.</p>"
+    )
+
+
 def _controls_section(controls: Mapping[str, ControlFit | str]) -> str:
     """The exciter and governor as the terminal names them: the model, each constant (PSS/E's names)
     with its std and whether the data determine it, and the fit's errors; or why no model is named."""
@@ -345,7 +370,6 @@ def write_report(
     for name, img in _validation_figures(res, truth):
         figs.append(f'<h3>Validation: {html.escape(name)}</h3><img src="{img}" alt="validation {html.escape(name)}">')
     problems = "".join(f"<li>{html.escape(p)}</li>" for p in res.problems) or "<li>none</li>"
-    against = res.validation.against if res.validation else "—"
     doc = f"""<!doctype html><html><head><meta charset="utf-8"><title>phid identify: {html.escape(source)}</title>
 <style>{STYLE}</style></head><body>
 <h1>Three-stage identification</h1>
@@ -358,10 +382,7 @@ def write_report(
 <h2>Excitation and turbine-governor</h2>
 {_controls_section(controls or {})}
 {_day_section(res, controls)}
-<h2>Validation against the {against}</h2>
-{_validation_table(res)}
-<p>RMSE, MAE and STD of the combined state-trajectory error (Table 9); MOD-026: simulated P and Q within
-±0.05 pu of the measurement.</p>
+{_validation_section(res)}
 <h2>Notes</h2><ul>{problems}</ul>
 {"".join(figs)}
 </body></html>"""

@@ -276,3 +276,23 @@ def test_the_monitor_on_a_trend_log_publishes_what_identify_finds(folder, trend_
     for name, e in partial.items():
         assert e.value == pytest.approx(doc["parameters"][name], rel=0.01), name
     assert out.recalibrations[-1].controls["exciter"]  # fitted beside the machine, or said why not
+
+
+def test_the_identify_report_of_a_recorder_s_day_draws_what_was_recorded(folder, trend_bag, monkeypatch) -> None:
+    """A trend log has no speed, no I_d, I_q: the report drew them as empty axes, titled an empty
+    table "Validation against the —" and footnoted its absent columns. Now the scenario figure
+    holds the recorded channels alone (the rest named in its title), and the validation says why
+    it did not run."""
+    from phid_ros.cli import report
+
+    drawn = []
+    real = report.png_data_uri
+    monkeypatch.setattr(report, "png_data_uri", lambda fig: drawn.append(fig) or real(fig))
+    out = folder[0] / "day.html"
+    assert main(["identify", str(trend_bag), "--report", str(out)]) == 0
+    page = out.read_text()
+    assert "Validation against the —" not in page and "<h2>Validation</h2><p>Not run: validation skipped" in page
+    scenario_figure = next(f for f in drawn if "Identification scenarios" in f._suptitle.get_text())
+    labels = {ax.get_ylabel() for ax in scenario_figure.axes if ax.get_ylabel()}
+    assert labels == {"V_t (pu)", "P_e (pu)", "Q_e (pu)"}
+    assert "not recorded, not drawn: Δω, I_d, I_q" in scenario_figure._suptitle.get_text()
