@@ -201,7 +201,7 @@ def cut_unit(
 @dataclass
 class UnitIdentification:
     """What ``phid identify`` finds: the machine's parameters, its exciter and governor, and the
-    results document ``--json`` writes (the contract in the README)."""
+    results document ``--json`` writes (the contract in docs/contracts.md)."""
 
     scenarios: list[ScenarioData]
     result: IdentificationResult

@@ -177,7 +177,7 @@ def _add_field_imports(sub: Subparsers) -> None:
             required=True,
             action="append",
             metavar="MAP.yaml",
-            help="channel map (YAML or JSON; README); repeat for a unit's no-load and on-line maps: each "
+            help="channel map (YAML or JSON; docs/guide/field-recordings.md); repeat for a unit's no-load and on-line maps: each "
             "recording is read through the fullest map it fits",
         )
         _add_recording_output(p)

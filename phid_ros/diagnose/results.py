@@ -1,4 +1,4 @@
-"""The diagnosis as JSON (the ``phid diagnose --json`` contract the README states, and more)."""
+"""The diagnosis as JSON (the ``phid diagnose --json`` contract docs/contracts.md states, and more)."""
 
 from __future__ import annotations
 

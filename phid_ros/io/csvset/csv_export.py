@@ -2,7 +2,7 @@
 
 One CSV per scenario (columns ``t`` and the channels, ``t`` from 0 at the scenario's
 first sample) and a ``manifest.json`` naming each file with its kind, role and generator
-damping, as the contract in the README says. For tests and benchmarks of the CSV path,
+damping, as the contract (docs/contracts.md) says. For tests and benchmarks of the CSV path,
 and for users who want our simulations in a spreadsheet or another tool.
 """
 

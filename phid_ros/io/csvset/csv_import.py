@@ -1,4 +1,4 @@
-"""Import the CSV scenario set (the README's contract: manifest.json + one CSV per scenario).
+"""Import the CSV scenario set (the contract in docs/contracts.md: manifest.json + one CSV per scenario).
 
 Columns ``t, v_t, theta_t, i_d, i_q, omega, delta, v_f, p_m, p_e, q_e`` (s, pu,
 rad). The contract says extra columns are ignored; we report them (and with
