@@ -177,8 +177,8 @@ def _add_field_imports(sub: Subparsers) -> None:
             required=True,
             action="append",
             metavar="MAP.yaml",
-            help="channel map (YAML or JSON; docs/guide/field-recordings.md); repeat for a unit's no-load and on-line maps: each "
-            "recording is read through the fullest map it fits",
+            help="channel map (YAML or JSON; docs/guide/field-recordings.md); repeat for a unit's no-load and "
+            "on-line maps: each recording is read through the fullest map it fits",
         )
         _add_recording_output(p)
         _add_block_size(p)
