@@ -303,38 +303,16 @@ def _record_sections(outputs: Outputs, start: int) -> list[str]:
     event, the drift, and the overlays of the first failing events."""
     if not outputs.verdicts:
         return []
-    from phid_ros.cli.validate import overlay_figure
+    from phid_ros.cli.validate import CHECK_CELLS, check_cells, overlay_figure
 
     final = list({v.event_id: v for v in outputs.verdicts}.values())  # an event played again: its last
-    from phid_ros.controls.unit_validation import CHANNELS
-
     rows = [
-        [
-            f"{(v.stream_time_ns - start) / NS:.1f}",
-            v.event_id,
-            c.standard,
-            CHANNELS[c.channel][1],
-            c.simulated_by,
-            f"{c.max_error:.4f}",
-            f"{c.band:.4f}",
-            "pass" if c.passed else "FAIL",
-            v.level,
-        ]
+        [f"{(v.stream_time_ns - start) / NS:.1f}", v.event_id, *check_cells(c), v.level]
         for v in final
         for c in v.checks
     ]
-    last = outputs.verdicts[-1]
-    head = [
-        "end s",
-        "event",
-        "standard",
-        "channel",
-        "simulated by",
-        "max |error| (pu)",
-        "band (pu)",
-        "verdict",
-        "state",
-    ]
+    last = max(final, key=lambda v: v.stream_time_ns)  # the newest event's: the state at the end
+    head = ["end s", "event", *CHECK_CELLS, "state"]
     overlays = "".join(
         f"<h3>{html.escape(v.event_id)} ({html.escape(v.kind)})</h3>"
         f'<img src="{png_data_uri(overlay_figure(v.overlay))}" alt="{html.escape(v.event_id)}">'

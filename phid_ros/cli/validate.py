@@ -17,6 +17,7 @@ from phid_ros.cli.tables import Col, print_table
 from phid_ros.controls.unit_validation import (
     CHANNELS,
     STANDARD_OF,
+    ChannelCheck,
     ScenarioCheck,
     UnitValidation,
 )
@@ -122,25 +123,28 @@ UNITS = {"q_e": "Q (pu)", "v_f": "E_fd (pu, machine base)", "p_e": "P (pu)", "p_
 ZOOM_S = 3.0  # an overlay shows this long either side of where its check is decided (its largest error)
 
 
-def check_rows(result: UnitValidation) -> list[list[str]]:
-    """One row per check, the terminal's and the report's: what was compared, its error and band, the verdict."""
+def check_cells(c: ChannelCheck) -> list[str]:
+    """One check as a table shows it: what was compared, by what, its error and band, the verdict
+    (``CHECK_CELLS`` heads them); validate's tables and the replay report's record section."""
     return [
-        [
-            s.scenario,
-            s.kind,
-            c.standard,
-            CHANNELS[c.channel][1],
-            c.simulated_by,
-            f"{c.max_error:.4f}",
-            f"{c.band:.4f}",
-            "pass" if c.passed else "FAIL",
-        ]
-        for s in result.scenarios
-        for c in s.checks
+        c.standard,
+        CHANNELS[c.channel][1],
+        c.simulated_by,
+        f"{c.max_error:.4f}",
+        f"{c.band:.4f}",
+        "pass" if c.passed else "FAIL",
     ]
 
 
-CHECK_HEADERS = ["scenario", "kind", "standard", "channel", "simulated by", "max |error| (pu)", "band (pu)", "verdict"]
+CHECK_CELLS = ["standard", "channel", "simulated by", "max |error| (pu)", "band (pu)", "verdict"]
+
+
+def check_rows(result: UnitValidation) -> list[list[str]]:
+    """One row per check, the terminal's and the report's: the scenario, its kind, then :func:`check_cells`."""
+    return [[s.scenario, s.kind, *check_cells(c)] for s in result.scenarios for c in s.checks]
+
+
+CHECK_HEADERS = ["scenario", "kind", *CHECK_CELLS]
 
 
 def overlay_figure(s: ScenarioCheck) -> Any:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -163,3 +164,23 @@ def test_drift_compares_d_in_the_record_s_torque_form() -> None:
     est["H"] = Estimate(TABLE1.H, math.nan)  # no std: not judged
     [d] = check.compare(est)
     assert d.name == "X_q" and d.sigmas == pytest.approx(0.1 * TABLE1.X_q / 0.01)
+
+
+def test_phid_replay_with_a_record_prints_and_reports_its_verdicts(records, tmp_path, capsys) -> None:
+    from phid_ros.cli.main import main
+
+    _, wrong, _ = records
+    report = tmp_path / "replay.html"
+    args = ["replay", str(CATALOGUE), "--out", str(tmp_path / "o.mcap"), "--record", str(wrong)]
+    assert main([*args, "--report", str(report)]) == 0
+    out = capsys.readouterr().out
+    assert "the record on file against each event" in out and "FAIL (Q" in out
+    assert "record on file: ERROR:" in out and "drifting from the record: X'_d: record 0.6" in out
+    page = report.read_text()
+    assert "<h2>The record on file against each event</h2>" in page and "State at the end: <b>ERROR</b>" in page
+    assert len(re.findall(r'<td class="text">fault@', page)) == 2 * 5  # Q and P of each of the five faults
+    assert "Failing events, recorded against simulated" in page and page.count('src="data:image/png') == 3 + 4
+    assert (
+        main(["replay", str(CATALOGUE), "--out", str(tmp_path / "p.mcap"), "--record", str(tmp_path / "no.dyr")]) == 2
+    )
+    assert "no.dyr" in capsys.readouterr().err
