@@ -292,14 +292,12 @@ def _real(folder: str) -> Path:
     return path
 
 
-MOSTAR_PUBLISHED = (
-    "1 'GENSAL' 1 3.77 0.0552 0.0823 2.3362 0.0 1.12 0.642 0.354 0.24 0.1 0.1 0.4 /\n"
-    "1 'ESST5B' 1 0.0127 505.3 0.00518 0.982 2.237 -8.384 1.701 21.98 0.0263 0.00511 1 1 1 1 1 1 1 1 /\n"
-)
+EXAMPLE = ROOT / "docs" / "examples" / "mostar"  # the guide's recipe's maps and the published record
+MOSTAR_PUBLISHED = (EXAMPLE / "published.dyr").read_text()
 
 
 def mostar(work: Path) -> Figures:
-    """The Mostar commissioning day with the folder's own maps, as the README's recipe runs it:
+    """The Mostar commissioning day with the folder's own maps, as a user first meets it:
     identify with the datasheet's X_q and curve, and the published record validated on the day."""
     day = _real("mostar-dev")
     bag = _imported(work, sorted(day.glob("*.csv")), [day / "map_noload.yaml", day / "map_online.yaml"])
@@ -313,6 +311,41 @@ def mostar(work: Path) -> Figures:
     (work / "published.dyr").write_text(MOSTAR_PUBLISHED)
     phid("validate", work / "published.dyr", bag, "--json", work / "v.json")
     out.update({f"published record: {k}": v for k, v in verdicts(json.loads((work / "v.json").read_text())).items()})
+    return out
+
+
+def mostar_recipe(work: Path) -> Figures:
+    """The guide's recipe (docs/guide/field-recordings.md), with the maps and the record it ships
+    (docs/examples/mostar): import, identify, export onto the published record, validate both,
+    and the monitor with phid's record on file."""
+    day = _real("mostar-dev")
+    bag = _imported(work, sorted(day.glob("*.csv")), [EXAMPLE / "map_noload.yaml", EXAMPLE / "map_online.yaml"])
+    doc = identify_json(work, bag, "--fix", "X_q=0.62", "--saturation", "0.1,0.4")
+    out: Figures = {}
+    for n in ("X_d", "X_d_prime", "T_d0_prime"):
+        value = doc["parameters"][n] if doc["identifiable"][n] else None
+        out[n] = figure(value, 0.005 * (value or 1.0))
+    exciter = (doc.get("controls") or {}).get("exciter") or {}
+    out["exciter named"] = figure(exciter.get("model") or "none", 0.0, "verdict")
+    base = ["--format", "psse-dyr", "--model", "GENSAL", "--base", EXAMPLE / "published.dyr", "--allow-flagged"]
+    phid("export", work / "identify.json", *base, "--out", work / "unit.dyr")
+    for name, dyr in (("phid's record", work / "unit.dyr"), ("published record", EXAMPLE / "published.dyr")):
+        phid("validate", dyr, bag, "--json", work / "v.json")
+        out.update({f"{name}: {k}": v for k, v in verdicts(json.loads((work / "v.json").read_text())).items()})
+    text = phid(
+        "replay",
+        bag,
+        "--out",
+        work / "r.mcap",
+        "--fix",
+        "X_q=0.62",
+        "--saturation",
+        "0.1,0.4",
+        "--record",
+        work / "unit.dyr",
+    )
+    state = re.search(r"^record on file: (OK|WARN|ERROR):", text, re.M)
+    out["monitor, phid's record: state"] = figure(state[1] if state else None, 0.0, "verdict")
     return out
 
 
@@ -472,6 +505,7 @@ SETS: dict[str, CorpusSet] = {
     "polled-log": CorpusSet(polled_log, True),
     "build-ups": CorpusSet(build_ups, True),
     "mostar-dev": CorpusSet(mostar, False),
+    "mostar-recipe": CorpusSet(mostar_recipe, False),
     "zakucac-dev": CorpusSet(zakucac, True),
     "zakucac-steps": CorpusSet(zakucac_steps, False),
     "usn-lab-2kva": CorpusSet(usn_lab, True),

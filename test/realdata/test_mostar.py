@@ -58,26 +58,17 @@ def _imported(folder: Path, online: str, noload: str) -> Path:
     return out
 
 
+EXAMPLE = Path(__file__).resolve().parents[2] / "docs" / "examples" / "mostar"  # the guide's recipe's files
+
+
 @pytest.fixture(scope="module")
 def sheet_day(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The day imported with what the test sheet and the controller add to the folder's maps: the
-    regulator's and the stabiliser's outputs mapped, the manual test said manual (the map's own
-    comment calls RR_* manual), the reference steps as stepped (+5 % on line, +10 % at no load)."""
+    """The day imported with the maps the guide's recipe ships (docs/examples/mostar): the
+    folder's own plus what the test sheet and the controller add, the regulator's and the
+    stabiliser's outputs mapped, the manual test said manual (the folder's map calls RR_* manual),
+    the reference steps as stepped (+5 % on line, +10 % at no load)."""
     folder = tmp_path_factory.mktemp("mostar_sheet")
-    online = (
-        (DAY / "map_online.yaml")
-        .read_text()
-        .replace("RR_MR_Step10: {kind: field_step}", "RR_MR_Step10: {kind: field_step, regulator: manual}")
-        .replace("AVR_MR_PSS_ON: {kind: voltage_step}", "AVR_MR_PSS_ON: {kind: voltage_step, reference_step: 0.05}")
-        .replace(
-            "  v_f: {name: SFS_Meas_UfRel, unit: pu}\n",
-            "  v_f: {name: SFS_Meas_UfRel, unit: pu}\n  v_r: SFS_Reg_Uc\n  v_s: SFS_PSS_VSL\n",
-        )
-    )
-    noload = (DAY / "map_noload.yaml").read_text().replace(
-        "  v_f: {name: SFS_Meas_UfRel, unit: pu}\n", "  v_f: {name: SFS_Meas_UfRel, unit: pu}\n  v_r: SFS_Reg_Uc\n"
-    ) + "scenarios:\n  AVR_PH_Step10: {reference_step: 0.1}\n"
-    return _imported(folder, online, noload)
+    return _imported(folder, (EXAMPLE / "map_online.yaml").read_text(), (EXAMPLE / "map_noload.yaml").read_text())
 
 
 def test_no_load_tests_import_as_open_circuit_beside_the_on_line_ones() -> None:
@@ -462,10 +453,7 @@ def test_the_controller_s_own_channels_give_the_stabiliser_and_an_exciter_on_the
                 assert abs(a - b) <= 2 * (sa + sb), (name, a, sa, b, sb)
 
 
-PUBLISHED_FIT = (
-    "1 'GENSAL' 1 3.77 0.0552 0.0823 2.3362 0.0 1.12 0.642 0.354 0.24 0.1 0.1 0.4 /\n"
-    "1 'ESST5B' 1 0.0127 505.3 0.00518 0.982 2.237 -8.384 1.701 21.98 0.0263 0.00511 1 1 1 1 1 1 1 1 /\n"
-)
+PUBLISHED_FIT = (EXAMPLE / "published.dyr").read_text()  # the published GENSAL + ESST5B fit (SOURCE.md)
 # the folder's SOURCE.md datasheet as the record a plant engineer writes from it (GENSAL's order:
 # T'_d0 T''_d0 T''_q0 H D X_d X_q X'_d X'' X_l S(1.0) S(1.2)); no control models
 DATASHEET = "1 'GENSAL' 1 3.77 0.0552 0.0823 2.137 0.0 1.183 0.62 0.371 0.215 0.1 0.1 0.4 /\n"
