@@ -27,12 +27,17 @@ from typing import Any
 from phid_ros.controls.unit_validation import CHANNELS, ChannelCheck, ScenarioCheck, UnitValidation
 from phid_ros.ident.results import Estimate
 from phid_ros.ident.scenario import ScenarioData
+from phid_ros.ident.terminal import at_no_load
 from phid_ros.model.parameters import PARAMETER_NAMES, SYMBOLS, GeneratorParameters
 from phid_ros.stream.detector import EventWindow
 
 OK, WARN, ERROR = "OK", "WARN", "ERROR"
 MAX_OVERLAYS = 8  # failing events whose traces are kept for the report
-KEPT_SCENARIOS = 200  # events whose scenarios are kept to be played again when the field's base changes
+# the scenarios kept to read the field's base from, and to play again when it changes: every
+# no-load test (up to this many; the base is read from them) and the latest on-line events (a
+# 30 s window at 1 kHz is about 3 MB: a monitor running for months must not keep them all)
+KEPT_NO_LOAD = 50
+KEPT_RECENT = 20
 PLAYED_IN = ("v_t", "p_e", "q_e")  # what an event needs to be played into the record and checked
 LEVEL_ORDER = {OK: 0, WARN: 1, ERROR: 2}
 
@@ -145,7 +150,8 @@ class RecordCheck:
     The field's base comes from the no-load tests seen so far: an event played before one was
     seen (an on-line test first in the day) is played again when the base it gives changes, and
     its verdict revised (said in its notes), so that at the end every verdict is validate's on
-    the same windows. The scenarios of the last ``KEPT_SCENARIOS`` events are kept for that."""
+    the same windows (for the ``KEPT_RECENT`` latest events; every no-load test's is kept, up to
+    ``KEPT_NO_LOAD``, for the base)."""
 
     describe: str
     play: Player
@@ -168,8 +174,7 @@ class RecordCheck:
         if not scenario.has(*PLAYED_IN):
             return []  # phid validate refuses such a recording: the play-in needs V_t, P and Q
         self._scenarios[window.event.event_id] = (scenario, window)
-        while len(self._scenarios) > KEPT_SCENARIOS:
-            del self._scenarios[next(iter(self._scenarios))]
+        self._forget()
         names = list(self._scenarios)
         based, notes = self.on_base([sc for sc, _ in self._scenarios.values()])
         by_event = dict(zip(names, based, strict=True))
@@ -192,6 +197,13 @@ class RecordCheck:
             verdict.level, verdict.status = self.status()
             verdict.drifting = [d.text() for d in self.drift]
         return ([verdict] if verdict.checked else []) + revised
+
+    def _forget(self) -> None:
+        """Keep every no-load test (up to ``KEPT_NO_LOAD``) and the ``KEPT_RECENT`` latest others."""
+        no_load = [k for k, (sc, _) in self._scenarios.items() if at_no_load(sc)]
+        others = [k for k in self._scenarios if k not in set(no_load)]
+        for k in no_load[:-KEPT_NO_LOAD] + others[:-KEPT_RECENT]:
+            del self._scenarios[k]
 
     def _verdict(
         self, scenario: ScenarioData, window: EventWindow, f_nominal_hz: float, base: list[str]
