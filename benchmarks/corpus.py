@@ -327,7 +327,15 @@ def mostar_recipe(work: Path) -> Figures:
         out[n] = figure(value, 0.005 * (value or 1.0))
     exciter = (doc.get("controls") or {}).get("exciter") or {}
     out["exciter named"] = figure(exciter.get("model") or "none", 0.0, "verdict")
-    base: list[str | Path] = ["--format", "psse-dyr", "--model", "GENSAL", "--base", EXAMPLE / "published.dyr", "--allow-flagged"]
+    base: list[str | Path] = [
+        "--format",
+        "psse-dyr",
+        "--model",
+        "GENSAL",
+        "--base",
+        EXAMPLE / "published.dyr",
+        "--allow-flagged",
+    ]
     phid("export", work / "identify.json", *base, "--out", work / "unit.dyr")
     for name, dyr in (("phid's record", work / "unit.dyr"), ("published record", EXAMPLE / "published.dyr")):
         phid("validate", dyr, bag, "--json", work / "v.json")
