@@ -67,8 +67,22 @@ def _events_figure(
     import matplotlib.pyplot as plt
 
     start = overview.span_ns()[0]
-    fig, axes = plt.subplots(2, 1, figsize=(10, 4.6), sharex=True, layout="constrained")
-    for ax, (channel, label) in zip(axes, (("v_t", "V_t (pu)"), ("p_m", "P_m (pu)"))):
+    # a channel never recorded is not drawn as an empty axis: P_e in P_m's place on a recorder's
+    # day (P_m never carried), said on its axis; neither: V_t alone
+    power = next(
+        (
+            (c, label)
+            for c, label in (("p_m", "P_m (pu)"), ("p_e", "P_e (pu), P_m not recorded"))
+            if len(overview.envelope(c)[0])
+        ),
+        None,
+    )
+    drawn = [("v_t", "V_t (pu)")] + ([power] if power else [])
+    fig, axes = plt.subplots(
+        len(drawn), 1, figsize=(10, 2.3 * len(drawn)), sharex=True, squeeze=False, layout="constrained"
+    )
+    axes = axes[:, 0]
+    for ax, (channel, label) in zip(axes, drawn):
         t_ns, lo, hi = overview.envelope(channel)
         # min and max of each bin, so that a 100 ms fault dip is not decimated away
         ax.plot(np.repeat((t_ns - start) / NS, 2), np.column_stack((lo, hi)).ravel(), color="0.35", lw=0.6)

@@ -16,7 +16,8 @@ from numpy.typing import NDArray
 
 from phid_ros.io.recording import Recording
 
-DRAWN = (("pt_ct", "v_t"), ("encoder", "p_m"))
+# V_t, P_m, and P_e for a recorder that never carried P_m (a report draws it in P_m's place)
+DRAWN = (("pt_ct", "v_t"), ("encoder", "p_m"), ("pt_ct", "p_e"))
 MAX_BINS = 8000
 
 

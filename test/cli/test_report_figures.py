@@ -215,3 +215,24 @@ def test_a_validation_overlay_zooms_to_where_its_check_is_decided() -> None:
     recorded = next(line for line in ax.get_lines() if line.get_label() == "recorded")
     assert recorded.get_zorder() > max(line.get_zorder() for line in ax.get_lines() if line is not recorded)
     plt.close(fig)
+
+
+def test_the_replay_report_draws_p_e_where_p_m_was_never_recorded(monkeypatch) -> None:
+    """On a recorder's day (no encoder stream) the events figure drew an empty P_m axis; it draws
+    P_e in its place, said on the axis, and P_m where the recording has it."""
+    from pathlib import Path
+
+    from phid_ros.cli import monitor_report
+    from phid_ros.cli.common import figure_backend
+    from phid_ros.io.bags.recordings import read_recording
+    from phid_ros.io.overview import Overview
+    from phid_ros.io.recording import Recording
+
+    figure_backend()
+    drawn = []
+    monkeypatch.setattr(monitor_report, "png_data_uri", lambda fig: drawn.append(fig) or "data:")
+    rec = read_recording(Path(__file__).resolve().parents[2] / "bags" / "validation.mcap")
+    recorder = Recording({"pt_ct": rec.streams["pt_ct"]}, [], rec.metadata)
+    for recording, labels in ((rec, ["V_t (pu)", "P_m (pu)"]), (recorder, ["V_t (pu)", "P_e (pu), P_m not recorded"])):
+        monitor_report._events_figure(Overview.of(recording), [], [])
+        assert [ax.get_ylabel() for ax in drawn.pop().axes] == labels
