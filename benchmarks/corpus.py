@@ -296,11 +296,9 @@ EXAMPLE = ROOT / "docs" / "examples" / "mostar"  # the guide's recipe's maps and
 MOSTAR_PUBLISHED = (EXAMPLE / "published.dyr").read_text()
 
 
-def mostar(work: Path) -> Figures:
-    """The Mostar commissioning day with the folder's own maps, as a user first meets it:
-    identify with the datasheet's X_q and curve, and the published record validated on the day."""
-    day = _real("mostar-dev")
-    bag = _imported(work, sorted(day.glob("*.csv")), [day / "map_noload.yaml", day / "map_online.yaml"])
+def _mostar_identified(work: Path, bag: Path) -> Figures:
+    """identify on the Mostar day with the datasheet's X_q and curve: what the day determines,
+    and the exciter named (``work/identify.json`` holds the result)."""
     doc = identify_json(work, bag, "--fix", "X_q=0.62", "--saturation", "0.1,0.4")
     out: Figures = {}
     for n in ("X_d", "X_d_prime", "T_d0_prime"):
@@ -308,6 +306,15 @@ def mostar(work: Path) -> Figures:
         out[n] = figure(value, 0.005 * (value or 1.0))
     exciter = (doc.get("controls") or {}).get("exciter") or {}
     out["exciter named"] = figure(exciter.get("model") or "none", 0.0, "verdict")
+    return out
+
+
+def mostar(work: Path) -> Figures:
+    """The Mostar commissioning day with the folder's own maps, as a user first meets it:
+    identify with the datasheet's X_q and curve, and the published record validated on the day."""
+    day = _real("mostar-dev")
+    bag = _imported(work, sorted(day.glob("*.csv")), [day / "map_noload.yaml", day / "map_online.yaml"])
+    out = _mostar_identified(work, bag)
     (work / "published.dyr").write_text(MOSTAR_PUBLISHED)
     phid("validate", work / "published.dyr", bag, "--json", work / "v.json")
     out.update({f"published record: {k}": v for k, v in verdicts(json.loads((work / "v.json").read_text())).items()})
@@ -320,13 +327,7 @@ def mostar_recipe(work: Path) -> Figures:
     and the monitor with phid's record on file."""
     day = _real("mostar-dev")
     bag = _imported(work, sorted(day.glob("*.csv")), [EXAMPLE / "map_noload.yaml", EXAMPLE / "map_online.yaml"])
-    doc = identify_json(work, bag, "--fix", "X_q=0.62", "--saturation", "0.1,0.4")
-    out: Figures = {}
-    for n in ("X_d", "X_d_prime", "T_d0_prime"):
-        value = doc["parameters"][n] if doc["identifiable"][n] else None
-        out[n] = figure(value, 0.005 * (value or 1.0))
-    exciter = (doc.get("controls") or {}).get("exciter") or {}
-    out["exciter named"] = figure(exciter.get("model") or "none", 0.0, "verdict")
+    out = _mostar_identified(work, bag)
     base: list[str | Path] = [
         "--format",
         "psse-dyr",

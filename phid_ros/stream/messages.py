@@ -252,6 +252,12 @@ def diagnostics_message(
     unit_name = unit.strip("/")
     hardware_id = unit_name or "generator"
     prefix = f"{node}/{unit_name}" if unit_name else node
+
+    def status(number: int, what: str, message: str, values: list[Any]) -> Any:
+        return status_cls(
+            level=level(number), name=f"{prefix}: {what}", message=message, hardware_id=hardware_id, values=values
+        )
+
     statuses = []
     for name, h in health.items():
         name_level, message = h.status(now_ns, stream_now_ns=stream_now_ns, stale_ns=stale_ns)
@@ -276,37 +282,15 @@ def diagnostics_message(
                 ("clock_jumps", h.clock_jumps),
             )
         ]
-        statuses.append(
-            status_cls(
-                level=level(LEVELS[name_level]),
-                name=f"{prefix}: {name} stream",
-                message=message,
-                hardware_id=hardware_id,
-                values=values,
-            )
-        )
+        statuses.append(status(LEVELS[name_level], f"{name} stream", message, values))
+
     if recalibration_status is not None:
         recal_level = 0 if recalibration_status.startswith("ok") else (2 if "failed" in recalibration_status else 1)
-        statuses.append(
-            status_cls(
-                level=level(recal_level),
-                name=f"{prefix}: recalibration",
-                message=recalibration_status,
-                hardware_id=hardware_id,
-                values=[],
-            )
-        )
+        statuses.append(status(recal_level, "recalibration", recalibration_status, []))
     if record is not None:  # the unit's record on file: OK while it passes, WARN, ERROR (record_check.py)
         record_level, message = record.status()
-        statuses.append(
-            status_cls(
-                level=level(LEVELS[record_level]),
-                name=f"{prefix}: record on file",
-                message=message,
-                hardware_id=hardware_id,
-                values=[kv(key=k, value=v) for k, v in record.diagnostic_values()],
-            )
-        )
+        values = [kv(key=k, value=v) for k, v in record.diagnostic_values()]
+        statuses.append(status(LEVELS[record_level], "record on file", message, values))
     return types["diagnostic_msgs/msg/DiagnosticArray"](header=header(types, now_ns), status=statuses)
 
 
