@@ -367,6 +367,18 @@ def validate_record(
     record = RecordOnFile(dyr, bus, machine_id)
     paths = [path] if isinstance(path, (str, Path)) else list(path)
     unit = cut_unit(paths, thresholds, progress)  # part by part: the windows, not the hours
+    return validate_cut(record, unit, progress=progress, open_loop=open_loop)
+
+
+def validate_cut(
+    record: RecordOnFile,
+    unit: UnitCut,
+    *,
+    progress: Callable[[str], None] | None = None,
+    open_loop: bool = False,
+) -> RecordValidation:
+    """The record played in against the events of a unit's recordings already cut (``phid
+    validate``, and ``phid fleet`` with a unit's record on file, which has cut them to identify)."""
     source = unit.source
     cut = unit.cuts[0]
     scenarios = []

@@ -13,7 +13,16 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from phid_ros.cli.common import warn
 from phid_ros.cli.tables import CONCISE_LEGEND, Col, estimate_text, print_table
 from phid_ros.errors import PhidError
-from phid_ros.fleet.history import Change, History, Row, changes, iter_units
+from phid_ros.fleet.history import (
+    SISTER_SIGMAS,
+    Change,
+    History,
+    Row,
+    changes,
+    designs_of,
+    iter_units,
+    sister_gaps,
+)
 from phid_ros.fleet.run import HISTORY_FILE, FleetOptions, run_fleet
 from phid_ros.model.conventions import utc_of_stamp
 from phid_ros.model.parameters import PARAMETER_NAMES, SYMBOLS
@@ -102,6 +111,9 @@ def print_summary(console: Console, rows: list[Row]) -> None:
         if failed:
             flags.append(f"{failed} failed")
         latest = good[-1] if good else None
+        if latest and latest.verdicts:
+            bad = sum(not v["passed"] for v in latest.verdicts)
+            flags.append(f"record on file: {bad} of {len(latest.verdicts)} events fail")
         effects = ", ".join(e["name"] for e in latest.effects) if latest and latest.effects else ""
         table.append(
             [unit, _iso(latest.start_ns)[:10] if latest else "—", str(len(good)), str(failed)]
@@ -109,6 +121,74 @@ def print_summary(console: Console, rows: list[Row]) -> None:
             + ["; ".join(flags + ([effects] if effects else [])) or "—"]
         )
     print_table(console, "fleet: latest identified set per unit", cols, table, CONCISE_LEGEND)
+    print_sisters(console, rows)
+
+
+def print_sisters(console: Console, rows: list[Row], unit: str | None = None) -> None:
+    """Each design's units compared (those of ``unit``'s design only, when given)."""
+    gaps = sister_gaps(rows)
+    for design, units in designs_of(rows).items():
+        if unit is not None and unit not in units:
+            continue
+        mine = [g for g in gaps if g.design == design and unit in (None, g.first.unit, g.second.unit)]
+        head = f"sister units of design {design} ({', '.join(units)})"
+        if not mine:
+            console.print(
+                f"{head}: agree within {SISTER_SIGMAS:g} σ on every parameter both identified", highlight=False
+            )
+            continue
+        console.print(f"{head} disagree beyond {SISTER_SIGMAS:g} σ:", highlight=False)
+        for g in mine:
+            console.print(f"  {g.text()}", highlight=False, soft_wrap=True)
+
+
+def verdict_rows(rows: list[Row]) -> list[list[str]]:
+    """One line per event played into the record on file: when, what, how many checks passed,
+    the worst check (its error against its band)."""
+    out = []
+    for r in rows:
+        for v in r.verdicts:
+            checks = v["checks"]
+            worst = max(checks, key=lambda c: c["max_error"] / c["band"] if c["band"] > 0 else math.inf)
+            ratio = worst["max_error"] / worst["band"] if worst["band"] > 0 else math.inf
+            when = v.get("event_ns")
+            out.append(
+                [
+                    utc_of_stamp(when).strftime("%Y-%m-%d %H:%M:%S") if when is not None else "—",
+                    v["scenario"],
+                    f"{sum(c['passed'] for c in checks)} of {len(checks)}",
+                    f"{worst['channel']} ({worst['standard']})",
+                    f"{ratio:.3f}",
+                    "pass" if v["passed"] else "FAIL",
+                ]
+            )
+    return out
+
+
+def print_verdicts(console: Console, unit: str, rows: list[Row]) -> None:
+    records = sorted({r.record for r in rows if r.record})
+    if not records:
+        return
+    table = verdict_rows(rows)
+    if not table:
+        console.print(f"record on file {', '.join(records)}: no event it could be played against", highlight=False)
+        return
+    cols = [
+        Col("event (UTC)", "left", key=True),
+        Col("event", "left", breakable=True),
+        Col("checks passed", "left"),
+        Col("worst check", "left"),
+        Col("err / band"),
+        Col("", "left"),
+    ]
+    failed = sum(row[-1] == "FAIL" for row in table)
+    print_table(
+        console,
+        f"unit {unit}: the record on file at each event ({Path(records[-1]).name})",
+        cols,
+        table,
+        f"played in as phid validate plays it; {failed} of {len(table)} events failed a check",
+    )
 
 
 def print_history(console: Console, unit: str, rows: list[Row], flagged: list[Change]) -> None:
@@ -140,8 +220,11 @@ def history_command(args: Any, console: Console) -> int:
         if not rows:
             known = ", ".join(h.units()) or "none"
             raise PhidError(f"{path}: no recordings of unit {args.unit!r} (units in this history: {known})")
+        everyone = h.rows()
     flagged = changes(rows, args.sigmas)
     print_history(console, args.unit, rows, flagged)
+    print_verdicts(console, args.unit, rows)
+    print_sisters(console, everyone, args.unit)
     for c in flagged:
         console.print(
             f"{SYMBOLS[c.parameter]} changed {c.relative:+.2%} ({c.sigmas:.1f} σ) between "
@@ -153,6 +236,6 @@ def history_command(args: Any, console: Console) -> int:
     if args.report:
         from phid_ros.cli.history_report import write_report
 
-        write_report(args.report, args.unit, rows, flagged)
+        write_report(args.report, args.unit, rows, flagged, sister_gaps(everyone))
         console.print(f"wrote {args.report}", highlight=False)
     return 0

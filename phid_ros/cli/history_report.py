@@ -13,7 +13,7 @@ import numpy as np
 from phid_ros.cli.common import figure_backend, mark_withheld
 from phid_ros.cli.report import STYLE, html_table, png_data_uri
 from phid_ros.cli.tables import CONCISE_LEGEND, estimate_text
-from phid_ros.fleet.history import Change, Row
+from phid_ros.fleet.history import Change, Row, SisterGap
 from phid_ros.io.files.outputs import write_text
 from phid_ros.model.conventions import utc_of_stamp
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, SYMBOLS
@@ -93,7 +93,72 @@ def _figure(rows: list[Row], flagged: list[Change]) -> str:
     return png_data_uri(fig)
 
 
-def write_report(path: str | Path, unit: str, rows: list[Row], flagged: list[Change]) -> Path:
+def _record_figure(rows: list[Row]) -> str:
+    """The record on file's error per channel at each event, as a fraction of its band (1: the
+    band's edge), over the events' times: a record going stale climbs toward the line."""
+    import matplotlib.pyplot as plt
+
+    by_channel: dict[str, list[tuple[datetime, float, bool]]] = {}
+    for r in rows:
+        for v in r.verdicts:
+            when = _when(v.get("event_ns"))
+            if when is None:
+                continue
+            for c in v["checks"]:
+                ratio = c["max_error"] / c["band"] if c["band"] > 0 else math.nan
+                by_channel.setdefault(f"{c['channel']} ({c['standard']})", []).append((when, ratio, c["passed"]))
+    fig, ax = plt.subplots(figsize=(10, 3.6))
+    ax_: Any = ax  # matplotlib's stubs take no datetime axis
+    for k, (channel, points) in enumerate(sorted(by_channel.items())):
+        points.sort(key=lambda p: p[0])
+        t = [p[0] for p in points]
+        ax_.plot(t, [p[1] for p in points], "o-", color=f"C{k}", label=channel, ms=4)
+        bad = [p for p in points if not p[2]]
+        if bad:
+            ax_.plot([p[0] for p in bad], [p[1] for p in bad], "x", color="red", ms=9, mew=2)
+    ax.axhline(1.0, color="red", lw=1, ls="--", label="band")
+    ax.set_ylabel("max |error| / band")
+    ax.set_ylim(bottom=0)
+    ax.grid(alpha=0.3)
+    times = [p[0] for points in by_channel.values() for p in points]
+    if times:
+        ax_.set_xlim(*time_span(times))
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.25), ncol=4, fontsize=8)
+    fig.autofmt_xdate()
+    fig.suptitle("the record on file at each event (red cross: a check failed)")
+    fig.tight_layout()
+    return png_data_uri(fig)
+
+
+def _record_section(rows: list[Row]) -> str:
+    from phid_ros.cli.fleet import verdict_rows
+
+    records = sorted({Path(r.record).name for r in rows if r.record})
+    if not records:
+        return ""
+    table = verdict_rows(rows)
+    title = f"<h2>The record on file ({html.escape(', '.join(records))})</h2>"
+    if not table:
+        return title + "<p>no event it could be played against</p>"
+    head = ["event (UTC)", "event", "checks passed", "worst check", "err / band", ""]
+    return (
+        title + "<p>Each event of the recordings played into the record as <code>phid validate</code> plays it.</p>"
+        f'<img src="{_record_figure(rows)}" alt="the record\'s errors per channel over time">'
+        + html_table(head, table, text_columns=(1, 2, 3, 5))
+    )
+
+
+def _sisters_section(unit: str, gaps: list[SisterGap]) -> str:
+    mine = [g for g in gaps if unit in (g.first.unit, g.second.unit)]
+    if not mine:
+        return ""
+    items = "".join(f"<li>{html.escape(g.text())}</li>" for g in mine)
+    return f"<h2>Sister units that disagree</h2><ul>{items}</ul>"
+
+
+def write_report(
+    path: str | Path, unit: str, rows: list[Row], flagged: list[Change], gaps: list[SisterGap] | None = None
+) -> Path:
     figure_backend()
     head = ["recorded (UTC)"] + [f"{SYMBOLS[n]} ({SPECS_BY_NAME[n].unit})" for n in PARAMETER_NAMES]
     head += ["recording", "note"]
@@ -122,6 +187,8 @@ def write_report(path: str | Path, unit: str, rows: list[Row], flagged: list[Cha
 <h1>Parameter history of unit {html.escape(unit)}</h1>
 <h2>Flagged changes</h2><ul>{alarms}</ul>
 <img src="{figure}" alt="parameters over time">
+{_sisters_section(unit, gaps or [])}
+{_record_section(rows)}
 <h2>Recordings</h2>
 <p>{html.escape(CONCISE_LEGEND)}</p>
 {html_table(head, body, text_columns=(len(head) - 2, len(head) - 1))}

@@ -18,7 +18,7 @@ from typing import Any
 
 from phid_ros.errors import PhidError
 from phid_ros.io.files.sqlite_schema import check_intact, migrate, table_columns
-from phid_ros.model.parameters import PARAMETER_NAMES
+from phid_ros.model.parameters import PARAMETER_NAMES, SYMBOLS
 
 DRIFT_SIGMAS = 4.0  # a change between consecutive well-identified sets beyond this many σ is flagged
 STATUSES = ("ok", "failed")
@@ -51,6 +51,12 @@ class Row:
     worker: str = ""
     finished_utc: str = ""
     method_version: str = ""  # phid_ros.provenance.method_version() of the code that made the row
+    # the unit's record on file (its .dyr) played into each event of the recording, as phid
+    # validate plays it: the record's path and content, and one verdict per event (Verdict.as_json)
+    record: str = ""
+    record_hash: str = ""
+    verdicts: list[dict[str, Any]] = field(default_factory=list)
+    design: str = ""  # the units of one design (sister units) share it: the inventory's key
 
     def well_identified(self, name: str) -> bool:
         v, s = self.values.get(name, math.nan), self.stds.get(name, math.nan)
@@ -63,8 +69,8 @@ class Row:
         )
 
 
-ADDED_COLUMNS = ("method_version",)  # by schema steps after the first
-_DOCUMENTS = ("flags", "effects", "controls")  # JSON columns
+ADDED_COLUMNS = ("method_version", "record", "record_hash", "design")  # by schema steps after the first
+_DOCUMENTS = ("flags", "effects", "controls", "verdicts")  # JSON columns
 _SCALARS = [f.name for f in fields(Row) if f.name not in ("values", "stds", "identifiable", *_DOCUMENTS)]
 _PARAM_COLUMNS = [c for n in PARAMETER_NAMES for c in (n, f"{n}_std", f"{n}_identifiable")]
 _COLUMNS = _SCALARS + _PARAM_COLUMNS + list(_DOCUMENTS)
@@ -92,6 +98,11 @@ SCHEMA_STEPS = (
     "ALTER TABLE runs ADD COLUMN method_version TEXT NOT NULL DEFAULT ''",
     # 3: the exciter and governor identify names (a fleet identified units without their controls)
     "ALTER TABLE runs ADD COLUMN controls TEXT NOT NULL DEFAULT '{}'",
+    # 4: the record on file checked at each event, and the design sister units share
+    "ALTER TABLE runs ADD COLUMN record TEXT NOT NULL DEFAULT ''"
+    "; ALTER TABLE runs ADD COLUMN record_hash TEXT NOT NULL DEFAULT ''"
+    "; ALTER TABLE runs ADD COLUMN verdicts TEXT NOT NULL DEFAULT '[]'"
+    "; ALTER TABLE runs ADD COLUMN design TEXT NOT NULL DEFAULT ''",
 )
 
 
@@ -138,10 +149,11 @@ class History:
         self.close()
 
     # -- what is done ---------------------------------------------------------------------
-    def done(self, unit: str, content_hash: str, method: str) -> bool:
-        """Whether this recording of this unit has a row made by this method version."""
-        q = "SELECT 1 FROM runs WHERE unit=? AND content_hash=? AND method_version=?"
-        return self.db.execute(q, (unit, content_hash, method)).fetchone() is not None
+    def done(self, unit: str, content_hash: str, method: str, record_hash: str = "") -> bool:
+        """Whether this recording of this unit has a row made by this method version, checked
+        against this record on file (``""``: none): a record given or changed is played again."""
+        q = "SELECT 1 FROM runs WHERE unit=? AND content_hash=? AND method_version=? AND record_hash=?"
+        return self.db.execute(q, (unit, content_hash, method, record_hash)).fetchone() is not None
 
     def failed(self, unit: str, content_hash: str, method: str) -> bool:
         q = "SELECT 1 FROM runs WHERE unit=? AND content_hash=? AND method_version=? AND status='failed'"
@@ -168,7 +180,7 @@ class History:
         values: list[Any] = [getattr(row, c) for c in _SCALARS]
         for n in PARAMETER_NAMES:
             values += [_real(row.values.get(n)), _real(row.stds.get(n)), int(bool(row.identifiable.get(n)))]
-        values += [json.dumps(row.flags), json.dumps(row.effects), json.dumps(row.controls)]
+        values += [json.dumps(getattr(row, d)) for d in _DOCUMENTS]
         marks = ", ".join("?" * len(_COLUMNS))
         try:
             self.db.execute(f"INSERT OR REPLACE INTO runs ({', '.join(_COLUMNS)}) VALUES ({marks})", values)
@@ -177,6 +189,11 @@ class History:
                 f"{self.path}: cannot record {row.recording} of {row.unit}: {exc}; the rows before it are kept, "
                 "and a rerun of phid fleet does the rest"
             ) from None
+
+    def set_design(self, unit: str, design: str) -> None:
+        """The inventory says which design a unit is of now: every row of it says so (a design
+        declared after its recordings were identified needs no rerun)."""
+        self.db.execute("UPDATE runs SET design=? WHERE unit=? AND design<>?", (design, unit, design))
 
     def rows(self, unit: str | None = None) -> list[Row]:
         """Rows of one unit (or all), in recording time order (failures without a time last)."""
@@ -203,6 +220,7 @@ def _row(r: dict[str, Any]) -> Row:
     row.flags = json.loads(r["flags"] or "[]")
     row.effects = json.loads(r["effects"] or "[]")
     row.controls = json.loads(r["controls"] or "{}")
+    row.verdicts = json.loads(r["verdicts"] or "[]")
     return row
 
 
@@ -246,3 +264,68 @@ def iter_units(rows: Sequence[Row]) -> Iterator[tuple[str, list[Row]]]:
     for r in rows:
         units.setdefault(r.unit, []).append(r)
     yield from units.items()
+
+
+SISTER_SIGMAS = 2.0  # sister units' latest values further apart than this many combined σ: said
+
+
+@dataclass(frozen=True)
+class SisterGap:
+    """Two units of one design whose latest well-identified values of a parameter differ by more
+    than ``SISTER_SIGMAS`` combined standard deviations: one design, one machine, so one of the
+    two sets (or a unit) is not what it should be."""
+
+    design: str
+    parameter: str
+    first: Row
+    second: Row
+    sigmas: float
+
+    @property
+    def relative(self) -> float:
+        return self.second.values[self.parameter] / self.first.values[self.parameter] - 1.0
+
+    def text(self) -> str:
+        a, b = self.first, self.second
+        name = SYMBOLS[self.parameter]
+        return (
+            f"{name}: sister units {a.unit} {a.values[self.parameter]:.4g} ± {a.stds[self.parameter]:.2g} and "
+            f"{b.unit} {b.values[self.parameter]:.4g} ± {b.stds[self.parameter]:.2g} ({self.relative:+.1%}, "
+            f"{self.sigmas:.1f} σ apart; design {self.design})"
+        )
+
+
+def latest_well_identified(rows: Sequence[Row], name: str) -> Row | None:
+    timed = [r for r in rows if r.well_identified(name) and r.start_ns is not None]
+    return max(timed, key=lambda r: r.start_ns or 0, default=None)
+
+
+def sister_gaps(rows: Sequence[Row], sigmas: float = SISTER_SIGMAS) -> list[SisterGap]:
+    """For every design with two or more units, each parameter's latest well-identified value of
+    each unit against every sister's; the pairs beyond ``sigmas`` combined σ."""
+    designs: dict[str, dict[str, list[Row]]] = {}
+    for r in rows:
+        if r.design:
+            designs.setdefault(r.design, {}).setdefault(r.unit, []).append(r)
+    found: list[SisterGap] = []
+    for design, units in sorted(designs.items()):
+        names = sorted(units)
+        for name in PARAMETER_NAMES:
+            latest = [(u, latest_well_identified(units[u], name)) for u in names]
+            for i, (_, a) in enumerate(latest):
+                for _, b in latest[i + 1 :]:
+                    if a is None or b is None:
+                        continue
+                    z = abs(b.values[name] - a.values[name]) / math.hypot(a.stds[name], b.stds[name])
+                    if z > sigmas:
+                        found.append(SisterGap(design, name, a, b, z))
+    return found
+
+
+def designs_of(rows: Sequence[Row]) -> dict[str, list[str]]:
+    """Each design and its units (only designs of two or more units: one unit has no sister)."""
+    units: dict[str, set[str]] = {}
+    for r in rows:
+        if r.design:
+            units.setdefault(r.design, set()).add(r.unit)
+    return {d: sorted(u) for d, u in sorted(units.items()) if len(u) > 1}

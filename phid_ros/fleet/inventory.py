@@ -6,6 +6,13 @@ A folder tree is ``INVENTORY/UNIT/…``: every ``*.mcap`` file, rosbag2 folder (
 YAML file (a list of ``{unit, recording}`` or a mapping unit → list of recordings) or a CSV
 file with the header ``unit,recording``; relative paths are relative to the list's folder.
 
+A unit may carry its **record on file** (the ``.dyr`` the transmission operator simulates: every
+event of its recordings is played into it, as ``phid validate`` plays it) and its **design** (units
+of one design, sister units, are compared): in a tree, the one ``*.dyr`` directly in the unit's
+folder and a ``design.txt`` there holding the design's name; in a YAML mapping, ``UNIT: {recordings:
+[...], record: unit.dyr, design: NAME}``; in a YAML list or a CSV, optional ``record`` and ``design``
+keys or columns (one value per unit).
+
 A recording's identity is the SHA-256 of its content (every file of a rosbag2 folder, the
 manifest and its CSVs for a scenario set), so a renamed or copied recording is still known
 and a rewritten one is new.
@@ -33,6 +40,11 @@ class InventoryError(PhidError):
 class Item:
     unit: str
     path: Path  # absolute: a remote worker reads the same path (a shared file system)
+    record: Path | None = None  # the unit's record on file (a .dyr), absolute
+    design: str = ""  # sister units share it
+
+
+DESIGN_FILE = "design.txt"
 
 
 def discover(inventory: str | Path) -> tuple[list[Item], list[str]]:
@@ -68,8 +80,21 @@ def _from_tree(root: Path) -> tuple[list[Item], list[str]]:
         found = list(_recordings_under(entry, seen, warnings))
         if not found:
             warnings.append(f"unit {entry.name}: no recordings under {entry}")
-        items += [Item(entry.name, p.resolve()) for p in found]
+        record, design = _unit_files(entry)
+        items += [Item(entry.name, p.resolve(), record, design) for p in found]
     return items, warnings
+
+
+def _unit_files(folder: Path) -> tuple[Path | None, str]:
+    """A unit folder's record on file (its one ``*.dyr``) and its design (``design.txt``)."""
+    records = sorted(p for p in folder.glob("*.dyr") if p.is_file())
+    if len(records) > 1:
+        names = ", ".join(p.name for p in records)
+        raise InventoryError(f"{folder}: {len(records)} records on file ({names}); a unit has one: keep one .dyr")
+    design = ""
+    if (folder / DESIGN_FILE).is_file():
+        design = (folder / DESIGN_FILE).read_text(encoding="utf-8", errors="replace").strip()
+    return (records[0].resolve() if records else None), design
 
 
 def _recordings_under(folder: Path, seen: dict[Path, Path], warnings: list[str]) -> Iterable[Path]:
@@ -126,16 +151,19 @@ def _is_manifest(path: Path) -> bool:
     return isinstance(scenarios, list) and all(isinstance(s, dict) and "file" in s for s in scenarios)
 
 
+Entry = tuple[str, str, str, str]  # unit, recording, record on file ("" none), design ("" none)
+
+
 def _from_list(path: Path) -> tuple[list[Item], list[str]]:
-    pairs = _read_yaml_list(path) if path.suffix.lower() in (".yaml", ".yml") else _read_csv_list(path)
+    entries = _read_yaml_list(path) if path.suffix.lower() in (".yaml", ".yml") else _read_csv_list(path)
     items: list[Item] = []
     warnings: list[str] = []
     listed: dict[tuple[str, Path], int] = {}
-    for k, (unit, rec) in enumerate(pairs):
+    of_unit = _unit_keys(path, entries)
+    for k, (unit, rec, _, _) in enumerate(entries):
         if not unit or not rec:
             raise InventoryError(f"{path}: entry {k + 1}: needs both a unit and a recording")
-        p = Path(rec)
-        p = p if p.is_absolute() else path.parent / p
+        p = _beside(path, rec)
         if p.is_symlink() and not p.exists():  # kept: its row says it failed, so nothing is silently left out
             warnings.append(f"{path}: entry {k + 1}: {rec} is a dangling link (to {os.readlink(p)})")
         key = (unit, p.resolve())
@@ -143,30 +171,70 @@ def _from_list(path: Path) -> tuple[list[Item], list[str]]:
             warnings.append(f"{path}: entry {k + 1}: {rec} of {unit} is entry {listed[key]} again; skipped")
             continue
         listed[key] = k + 1
-        items.append(Item(unit, key[1]))
+        record, design = of_unit.get(unit, (None, ""))
+        items.append(Item(unit, key[1], record, design))
     return items, warnings
 
 
-def _read_yaml_list(path: Path) -> list[tuple[str, str]]:
+def _beside(listing: Path, name: str) -> Path:
+    p = Path(name)
+    return p if p.is_absolute() else listing.parent / p
+
+
+def _unit_keys(path: Path, entries: list[Entry]) -> dict[str, tuple[Path | None, str]]:
+    """Each unit's record on file and design, one of each per unit (two are refused: which is it?)."""
+    found: dict[str, dict[str, str]] = {}
+    for k, (unit, _, record, design) in enumerate(entries):
+        for key, value in (("record", record), ("design", design)):
+            if not value:
+                continue
+            was = found.setdefault(unit, {}).setdefault(key, value)
+            if was != value:
+                raise InventoryError(f"{path}: entry {k + 1}: unit {unit} has {key} {value!r} here and {was!r} before")
+    out: dict[str, tuple[Path | None, str]] = {}
+    for unit, keys in found.items():
+        dyr = _beside(path, keys["record"]).resolve() if keys.get("record") else None
+        if dyr is not None and not dyr.is_file():
+            raise InventoryError(f"{path}: unit {unit}: record on file {dyr}: no such file")
+        out[unit] = (dyr, keys.get("design", ""))
+    return out
+
+
+def _read_yaml_list(path: Path) -> list[Entry]:
     from phid_ros.io.files.yaml_doc import YamlDocError, load_yaml
 
     try:
         doc = load_yaml(path, all_text=True)  # unit 0412 and recording 0412.mcap as written
     except YamlDocError as exc:
         raise InventoryError(str(exc)) from None
-    if isinstance(doc, dict):  # unit: [recordings]
-        pairs = []
+    if isinstance(doc, dict):  # unit: [recordings], or unit: {recordings: [...], record: ..., design: ...}
+        entries: list[Entry] = []
         for unit, recs in doc.items():
+            record = design = ""
+            if isinstance(recs, dict):
+                unknown = sorted(set(recs) - {"recordings", "record", "design"})
+                if unknown:
+                    raise InventoryError(
+                        f"{path}: unit {unit}: unknown key(s) {', '.join(map(str, unknown))} "
+                        "(a unit has recordings, record, design)"
+                    )
+                record, design = str(recs.get("record") or ""), str(recs.get("design") or "")
+                recs = recs.get("recordings")
             if not isinstance(recs, list):
                 raise InventoryError(f"{path}: unit {unit}: expected a list of recordings, got {type(recs).__name__}")
-            pairs += [(str(unit), str(r)) for r in recs]
-        return pairs
+            entries += [(str(unit), str(r), record, design) for r in recs]
+        return entries
     if isinstance(doc, list) and all(isinstance(e, dict) for e in doc):
-        return [(str(e.get("unit") or ""), str(e.get("recording") or "")) for e in doc]
+        return [_entry(e) for e in doc]
     raise InventoryError(f"{path}: expected a list of {{unit, recording}} or a mapping unit -> recordings")
 
 
-def _read_csv_list(path: Path) -> list[tuple[str, str]]:
+def _entry(e: dict[str, object]) -> Entry:
+    unit, recording, record, design = (str(e.get(k) or "") for k in ("unit", "recording", "record", "design"))
+    return unit, recording, record, design
+
+
+def _read_csv_list(path: Path) -> list[Entry]:
     try:
         with path.open(newline="", encoding="utf-8") as f:
             rows = list(csv.DictReader(f))
@@ -174,4 +242,12 @@ def _read_csv_list(path: Path) -> list[tuple[str, str]]:
         raise InventoryError(f"{path}: not a readable CSV list ({exc})") from None
     if rows and not {"unit", "recording"} <= set(rows[0]):
         raise InventoryError(f"{path}: header must name 'unit' and 'recording', got {sorted(rows[0])}")
-    return [((r.get("unit") or "").strip(), (r.get("recording") or "").strip()) for r in rows]
+    return [
+        (
+            (r.get("unit") or "").strip(),
+            (r.get("recording") or "").strip(),
+            (r.get("record") or "").strip(),
+            (r.get("design") or "").strip(),
+        )
+        for r in rows
+    ]

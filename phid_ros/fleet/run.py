@@ -94,6 +94,8 @@ def run_fleet(
     result = FleetRun(recordings=len(items), warnings=warnings)
     method = method_version()
     with fleet_lock(out), History(out / HISTORY_FILE) as history:
+        for unit, design in {i.unit: i.design for i in items}.items():
+            history.set_design(unit, design)
         todo: list[tuple[Item, str]] = []
         for k, item in enumerate(items):
             if on_hashing:
@@ -102,11 +104,11 @@ def run_fleet(
                 h = f"missing:{item.path}"
                 if not history.done(item.unit, h, method):
                     row = Row(item.unit, str(item.path), h, "failed", __version__, error=f"{item.path}: no such file")
-                    row.method_version = method
+                    row.method_version, row.design = method, item.design
                     _store(history, result, row, on_row, len(items))
                 continue
             h = _hash(history, item.path)
-            if history.done(item.unit, h, method) and not (
+            if history.done(item.unit, h, method, _record_hash(history, item)) and not (
                 options.retry_failed and history.failed(item.unit, h, method)
             ):
                 result.skipped += 1
@@ -117,6 +119,10 @@ def run_fleet(
         if todo:
             _run_tasks(todo, history, result, options, on_cluster, on_row)
     return result
+
+
+def _record_hash(history: History, item: Item) -> str:
+    return _hash(history, item.record) if item.record is not None else ""
 
 
 def _hash(history: History, path: Path) -> str:
@@ -146,7 +152,8 @@ def _run_tasks(
             on_cluster(client)
         futures = {}
         for item, h in todo:
-            fut = client.submit(process_recording, item.unit, str(item.path), h, options.diagnose, pure=False)
+            record = str(item.record) if item.record is not None else None
+            fut = client.submit(process_recording, item.unit, str(item.path), h, options.diagnose, record, pure=False)
             futures[fut] = (item, h)
         result.submitted = len(futures)
         for fut in as_completed(futures, loop=client.loop):
@@ -156,6 +163,7 @@ def _run_tasks(
             except Exception as exc:  # a task that could not finish: the worker died under it every time
                 row = Row(item.unit, str(item.path), h, "failed", __version__, error=_lost(exc))
                 row.method_version = method_version()
+            row.record, row.record_hash, row.design = str(item.record or ""), _record_hash(history, item), item.design
             _store(history, result, row, on_row, result.recordings - result.skipped)
 
 

@@ -21,6 +21,7 @@ from phid_ros.model.parameters import PARAMETER_NAMES
 from phid_ros.provenance import method_version
 
 if TYPE_CHECKING:  # the pipeline (and scipy.optimize) loads when a task runs, not when this is imported
+    from phid_ros.api import UnitCut
     from phid_ros.ident.pipeline import IdentificationResult
 
 
@@ -29,11 +30,16 @@ def one_line(exc: BaseException) -> str:
     return text if isinstance(exc, PhidError) else f"{type(exc).__name__}: {text}"
 
 
-def process_recording(unit: str, path: str, content_hash: str, diagnose: bool = False) -> Row:
-    """Identify (and with ``diagnose`` also diagnose) one recording of one unit."""
+def process_recording(
+    unit: str, path: str, content_hash: str, diagnose: bool = False, record: str | None = None
+) -> Row:
+    """Identify (and with ``diagnose`` also diagnose) one recording of one unit; with the unit's
+    ``record`` on file (a ``.dyr``), play each of its events into the record as ``phid validate``
+    does and keep the verdicts."""
     t0 = time.perf_counter()
     row = Row(unit, path, content_hash, "failed", __version__, worker=f"{socket.gethostname()}:{os.getpid()}")
     row.method_version = method_version()
+    row.record = record or ""
     try:
         _identify_into(row, path, diagnose)
         row.status = "ok"
@@ -65,6 +71,28 @@ def _identify_into(row: Row, path: str, diagnose: bool) -> None:
     row.flags += [p for p in res.problems if "kept the label" not in p]
     if diagnose:
         _diagnose_into(row, scenarios, res, unit.recording.f_nominal_hz)
+    if row.record:
+        _check_record(row, unit)
+
+
+def _check_record(row: Row, unit: UnitCut) -> None:
+    """Each event played into the record on file, one verdict each (ScenarioCheck.as_json, with
+    the event's stamp); a record that cannot be read or played is said, the identification kept."""
+    from phid_ros.api import RecordOnFile, validate_cut
+
+    stamps = {sc.name: int(sc.frame.t_ns[sc.k_event]) for cut in unit.cuts for sc in cut.scenarios}
+    try:
+        found = validate_cut(RecordOnFile(row.record), unit)
+    except PhidError as exc:
+        row.flags.append(f"record on file not checked: {one_line(exc)}")
+        return
+    for sc in found.result.scenarios:
+        if not sc.checks:
+            continue
+        verdict = sc.as_json()
+        verdict["event_ns"] = stamps.get(sc.scenario)
+        verdict["loop_closed"] = sc.loop_closed
+        row.verdicts.append(verdict)
 
 
 def _diagnose_into(row: Row, scenarios: list, res: IdentificationResult, f_hz: float) -> None:

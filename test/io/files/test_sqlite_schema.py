@@ -88,7 +88,8 @@ def test_a_history_from_before_user_version_is_taken_as_version_1_and_upgraded(t
         assert row.method_version == ""  # made by 0.1.0: no method recorded, so never taken as current
         assert row.controls == {}  # made before the fleet identified the exciter and governor
         assert not h.done("G1", "h", "0.2.0+abc") and h.done_before("G1", "h")
-    assert user_version(_db(path)) == len(HISTORY_STEPS) == 3
+        assert (row.record, row.record_hash, row.verdicts, row.design) == ("", "", [], "")  # 4: before records
+    assert user_version(_db(path)) == len(HISTORY_STEPS) == 4
 
 
 def _damage(path) -> None:
