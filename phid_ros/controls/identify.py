@@ -501,17 +501,24 @@ def fit_model(
             v[p.name] = float(np.exp(xi)) if lg else float(xi)
         return model.completed(v)
 
+    def wall() -> list[Array]:
+        return [c.output + OUTSIDE_LIMITS * np.maximum(np.ptp(c.output), 1e-3) for c in fit]
+
     def predicted(x: Array) -> list[Array]:
         values = values_at(x)
         if not through_limits:
-            return simulate_cases(model, values, fit)
-        refs = dict(zip(stepped, (float(r) for r in x[n_model:])))
-        try:
-            return [limited_output(model, values, c, refs.get(i, c.known_reference()))[0] for i, c in enumerate(fit)]
-        except LimitsError:
-            # limits that cannot hold an operating point at these constants (an input limit below
-            # E_fd / K_A as K_A falls): a wall the search turns back from, not an answer
-            return [c.output + OUTSIDE_LIMITS * np.maximum(np.ptp(c.output), 1e-3) for c in fit]
+            out = simulate_cases(model, values, fit)
+        else:
+            refs = dict(zip(stepped, (float(r) for r in x[n_model:])))
+            try:
+                out = [limited_output(model, values, c, refs.get(i, c.known_reference()))[0] for i, c in enumerate(fit)]
+            except LimitsError:
+                # limits that cannot hold an operating point at these constants (an input limit below
+                # E_fd / K_A as K_A falls): a wall the search turns back from, not an answer
+                return wall()
+        # a play that diverged at these constants (a build-up's ceiling through an input limit on
+        # Zakucac's day): a wall too; least_squares stopped with "Residuals are not finite"
+        return out if all(np.all(np.isfinite(p)) for p in out) else wall()
 
     def residual(x: Array) -> Array:
         return np.concatenate([c.output - p for c, p in zip(fit, predicted(x))])
@@ -700,7 +707,9 @@ def _binding(
         # a limit out of reach; a loading factor where it vanishes
         far = {**values, name: 1e9 if name in uppers else 0.0 if name == model.loading else -1e9}
         free = [limited_output(model, far, c, refs.get(c.name, 0.0))[0] for c in cases]
-        if max(float(np.max(np.abs(a - b))) for a, b in zip(played, free)) < WANTED_NOISES * max(noise, 1e-9):
+        with np.errstate(invalid="ignore"):  # a play that diverged without the limit: the limit acts
+            moved = max(float(np.max(np.abs(a - b))) for a, b in zip(played, free))
+        if moved < WANTED_NOISES * max(noise, 1e-9):  # NaN: not idle
             idle.append(name)
     return played, idle
 

@@ -383,6 +383,18 @@ def _field_circuit(
             for e in f.events
         ],
         "plateaus": [{"v_t": v, "i_fd": i, "scenario": n} for v, i, n in f.plateaus],
+        # the open-circuit curve's measured points on that base (empty where it is not determined)
+        "saturation_at_plateaus": [{"v_t": v, "S": sat, "scenario": n} for v, sat, n in f.saturation_at_plateaus()],
+        "build_ups": [
+            {
+                "scenario": b.scenario,
+                "air_gap_line": b.c,  # V_t per unit of the recorded I_f
+                "air_gap_line_rel_std": b.rel_std,
+                "rotor_circuits_tau_s": b.tau,
+                "rotor_circuits_t_s": b.t_k,
+            }
+            for b in f.build_ups
+        ],
     }
     if f.leakage is not None:  # the field's leakage flux: the test files' T'_d0 against their dI/dV
         res.route_details["field_circuit"]["leakage"] = {

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Collection, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.integrate import cumulative_trapezoid
@@ -82,6 +82,19 @@ def field_current_base(
     if saturation is None and traversed:
         cs = np.array([c for c, _ in traversed])
         c = float(np.mean(cs))
+        below = c * i / v - 1.0 < -SATURATION_GAP if len(v) else np.zeros(0, dtype=bool)
+        if below.any():
+            # saturation only ever raises the field current a voltage takes: a static point of the
+            # same machine below the line says the rise's field current was not the curve's
+            k = int(np.argmin(c * i / v))
+            return FieldCurrentBase(
+                float(np.min(v / i)),
+                False,
+                f"not determined: the no-load plateau at V_t {v[k]:.3f} pu lies {100 * (1 - c * i[k] / v[k]):.1f} % "
+                "below the air-gap line the build-up(s) from standstill traversed "
+                f"({', '.join(n for _, n in traversed)}), which no open-circuit curve allows",
+                math.nan,
+            )
         return FieldCurrentBase(
             c,
             True,
@@ -163,6 +176,15 @@ class FieldCircuitResult:
     events: list[FieldEvent]
     plateaus: list[tuple[float, float, str]]  # (V_t, I_f, scenario)
     leakage: FieldLeakage | None = None
+    build_ups: list[BuildUpLine] = field(default_factory=list)  # the air-gap lines build-ups traversed
+
+    def saturation_at_plateaus(self) -> list[tuple[float, float, str]]:
+        """(V_t, S(V_t), scenario) at each no-load plateau on the field current's base: the
+        open-circuit curve's measured points, S = X_ad I_fd / V_t - 1 (IEEE 115's, the planning
+        models'), where the base is determined."""
+        if not self.base.determined:
+            return []
+        return [(v, self.base.scale * i / v - 1.0, n) for v, i, n in self.plateaus]
 
 
 LEAKAGE_SPREAD = 0.5  # of dI/dV between the test files: less cannot tell the leakage's share
@@ -280,28 +302,96 @@ def by_file(values: Sequence[tuple[str, float]]) -> tuple[float, float, int]:
 
 
 BUILD_UP_POINTS = 5  # samples of a build-up on the linear part, at least, to draw the air-gap line
+TOP_SHARE = 0.97  # of the plateau's V_t after a build-up: where its rise has reached the top
+DECAY_SECONDS = 10.0  # after the top: where the rotor's other circuits' current is seen to die away
+# the time constants tried for those circuits (dampers, the poles' iron, lumped as one), s
+ROTOR_CIRCUIT_T = tuple(float(x) for x in np.geomspace(0.05, 5.0, 41))
+ROTOR_CIRCUIT_RMS = 1.1  # fits within this of the best one's RMS: the air-gap line's spread among them
 
 
-def build_up_line(s: ScenarioData) -> tuple[float, float] | None:
-    """c (X_ad I_fd per recorded I_f) on the air-gap line, from a build-up from standstill: the
-    event's plateau before it below PLATEAU_FLOOR (the remanence), the one after above the linear
-    part, and V_t against I_f on the way up, between LINEAR_PART's voltages, a line (its offset the
-    remanence's voltage and the dampers' share while the flux rises steadily); None for any other
-    event. A black start's build-up traverses the whole open-circuit curve: its linear part is the
-    air-gap line that plateaus above the knee cannot give. Returns (c, its relative std from the
-    line's fit)."""
+@dataclass(frozen=True)
+class BuildUpLine:
+    """The air-gap line a build-up from standstill traversed: ``c``, V_t per recorded I_f, and its
+    relative std; and the rotor's other circuits the rise drove (``tau`` s of field current per pu
+    of V_t per s above the open-circuit curve, dying away in ``t_k`` s)."""
+
+    c: float
+    rel_std: float
+    tau: float
+    t_k: float
+    scenario: str
+
+    def note(self) -> str:
+        return (
+            f"{self.scenario}: the field current rose above the open-circuit curve by {self.tau:.2g} s x dV_t/dt "
+            f"(the rotor's other circuits, dying away in {self.t_k:.2g} s at the top), taken out of the air-gap line"
+        )
+
+
+def _lagged(x: np.ndarray, dt: float, t_k: float) -> np.ndarray:
+    """``x`` through a first-order lag of ``t_k`` from rest (exact for samples held over ``dt``)."""
+    from scipy.signal import lfilter
+
+    a = math.exp(-dt / t_k)
+    return np.asarray(lfilter([1.0 - a], [1.0, -a], x), dtype=float)
+
+
+def build_up_line(s: ScenarioData) -> BuildUpLine | None:
+    """The air-gap line from a build-up from standstill: the event's plateau before it below
+    PLATEAU_FLOOR (the remanence), the one after above the linear part; None for any other event.
+    A black start's build-up traverses the whole open-circuit curve: its linear part is the
+    air-gap line that plateaus above the knee cannot give.
+
+    But on the way up the field current is not the open-circuit curve's: a rising flux drives
+    currents in the rotor's other circuits (dampers, the poles' iron) that the field's makes up,
+    so I_f runs above the curve by tau dV_t/dt and, at the top, dies away onto it (Zakucac's
+    unit A: 855 A at 16 kV on the rise, 795 A three seconds later; taken as it is, the rise's line
+    put the plateau at 16 kV below the air-gap line, and T'_d0 6 % short). Fitted together: on the
+    rise's linear part I_f = g V_t + I_0 + K L(dV_t/dt), over the DECAY_SECONDS after the top
+    I_f = a + b (V_t - V_top) + K L(dV_t/dt), L a first-order lag of T_k (tried over
+    ROTOR_CIRCUIT_T): linear in (g, I_0, a, b, K) for each T_k; the best T_k's g is the line
+    (c = 1/g), its std the fit's and the spread of g among the T_k that fit nearly as well."""
     v, i = s["v_t"], s["i_fd"]
     before = v[: max(departure(s) - int(round(LEAD_SECONDS / s.dt)), 10)]  # as one_event takes its plateau
-    if float(np.mean(before)) >= PLATEAU_FLOOR or float(np.mean(v[s.steady_slice()])) < LINEAR_PART[1]:
+    v_end = float(np.mean(v[s.steady_slice()]))
+    if float(np.mean(before)) >= PLATEAU_FLOOR or v_end < LINEAR_PART[1]:
         return None
-    top = np.flatnonzero(v >= LINEAR_PART[1])
-    rising = slice(0, int(top[0])) if top.size else slice(0, 0)
-    part = np.flatnonzero((v[rising] >= LINEAR_PART[0]) & (v[rising] <= LINEAR_PART[1]))
-    if part.size < BUILD_UP_POINTS or np.ptp(i[part]) <= 0:
+    reached = np.flatnonzero(v >= TOP_SHARE * v_end)
+    if not reached.size:
         return None
-    coef, cov = np.polyfit(i[part], v[part], 1, cov=True)
-    slope = float(coef[0])
-    return (slope, float(np.sqrt(cov[0, 0])) / slope) if slope > 0 else None
+    top = int(reached[0])
+    k = np.arange(len(v))
+    part = np.flatnonzero((v >= LINEAR_PART[0]) & (v <= LINEAR_PART[1]) & (k < top))
+    decay = np.flatnonzero((k >= top) & (k <= top + int(round(DECAY_SECONDS / s.dt))))
+    if part.size < BUILD_UP_POINTS or decay.size < BUILD_UP_POINTS or np.ptp(i[part]) <= 0:
+        return None
+    rate = np.gradient(v, s.dt)
+    rows = np.r_[part, decay]
+    design = np.zeros((rows.size, 5))
+    design[: part.size, 0], design[: part.size, 1] = v[part], 1.0
+    design[part.size :, 2], design[part.size :, 3] = 1.0, v[decay] - v[top]
+    fits = []
+    for t_k in ROTOR_CIRCUIT_T:
+        design[:, 4] = _lagged(rate, s.dt, t_k)[rows]
+        coef, *_ = np.linalg.lstsq(design, i[rows], rcond=None)
+        r = i[rows] - design @ coef
+        fits.append((float(np.sqrt(np.mean(r * r))), t_k, coef, r))
+    best = min(fits, key=lambda f: f[0])
+    rms, t_k, coef, r = best
+    g = float(coef[0])
+    if not g > 0:
+        return None
+    design[:, 4] = _lagged(rate, s.dt, t_k)[rows]
+    dof = max(rows.size - design.shape[1], 1)
+    cov = float(r @ r) / dof * np.linalg.pinv(design.T @ design)
+    near = [float(f[2][0]) for f in fits if f[0] <= ROTOR_CIRCUIT_RMS * rms]
+    rel = math.hypot(math.sqrt(max(float(cov[0, 0]), 0.0)) / g, (max(near) - min(near)) / (2.0 * g))
+    return BuildUpLine(1.0 / g, rel, float(coef[4]) / g, t_k, s.name)
+
+
+def build_up_lines(scs: Sequence[ScenarioData]) -> dict[str, BuildUpLine]:
+    """The air-gap line of each build-up from standstill among the field events, by scenario."""
+    return {s.name: line for s in scs if (line := build_up_line(s)) is not None}
 
 
 def field_circuit(scenarios: Sequence[ScenarioData], saturation: tuple[float, float] | None) -> FieldCircuitResult:
@@ -310,8 +400,8 @@ def field_circuit(scenarios: Sequence[ScenarioData], saturation: tuple[float, fl
         raise FieldCircuitError("no no-load event with V_t, E_fd and I_fd recorded and V_t moving between two plateaus")
     events = [one_event(s) for s in scs]
     plateaus = [(v, i, e.scenario) for e in events for v, i in (e.before, e.after) if v >= PLATEAU_FLOOR]
-    lines = {s.name: line for s in scs if (line := build_up_line(s)) is not None}
-    traversed = [(c, name) for name, (c, _) in lines.items()]
+    lines = build_up_lines(scs)
+    traversed = [(line.c, name) for name, line in lines.items()]
     base = field_current_base([p[0] for p in plateaus], [p[1] for p in plateaus], saturation, traversed)
     mean, spread, n_files = by_file([(e.scenario, e.time_per_base) for e in events])
     tau = base.scale * mean
@@ -325,10 +415,13 @@ def field_circuit(scenarios: Sequence[ScenarioData], saturation: tuple[float, fl
         # dampers leave (a 96 ms recorder's edges of the field forcing)
         fits = [e.fit_share for e in events if e.scenario in lines and math.isfinite(e.fit_share)]
         sd = tau * math.hypot(
-            float(np.sqrt(np.mean([r * r for _, r in lines.values()]))), max(fits) if fits else math.nan
+            float(np.sqrt(np.mean([line.rel_std**2 for line in lines.values()]))), max(fits) if fits else math.nan
         )
     values = ", ".join(f"{base.scale * e.time_per_base:.3g} s" for e in events)
     est = Estimate(tau, sd, drivers=[e.scenario for e in events][:3])
+    if saturation is None:
+        for line in lines.values():
+            est.add_note(line.note())
     est.add_note(
         f"T'_d0 from the field circuit at no load (the integral of E_fd - X_ad I_fd over each event per V_t it "
         f"moved; {len(events)} event(s) in {n_files} file(s): {values}); the field current's base: {base.source}"
@@ -357,7 +450,7 @@ def field_circuit(scenarios: Sequence[ScenarioData], saturation: tuple[float, fl
             "GENROU's form take the leakage flux as saturating and one T'_d0: the one given is the events' mean, "
             "which a record plays"
         )
-    return FieldCircuitResult(est, base, events, plateaus, leak)
+    return FieldCircuitResult(est, base, events, plateaus, leak, list(lines.values()) if saturation is None else [])
 
 
 @dataclass
@@ -409,7 +502,8 @@ def machine_field(scenarios: Sequence[ScenarioData], saturation: tuple[float, fl
     plateaus = [p for p in plateaus if p[0] >= PLATEAU_FLOOR]
     if not plateaus:
         return None
-    base = field_current_base([p[0] for p in plateaus], [p[2] for p in plateaus], saturation)
+    traversed = [(line.c, line.scenario) for line in build_up_lines(field_events(scenarios)).values()]
+    base = field_current_base([p[0] for p in plateaus], [p[2] for p in plateaus], saturation, traversed)
     means: dict[str, list[tuple[float, float]]] = {}
     for s in with_field:
         for part in _steady_parts(s):
