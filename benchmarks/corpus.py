@@ -269,7 +269,9 @@ def polled_log(work: Path) -> Figures:
 
 def build_ups(work: Path) -> Figures:
     """Sister units' black-start build-ups from standstill (our look-alike of Zakucac's fast
-    recorder, S(1.0) 0.1, the controller's ceiling): T'_d0 of each against its truth."""
+    recorder, S(1.0) 0.1, the controller's ceiling), and unit C's with the rotor's other circuits
+    drawing current on the way up (tau 0.4 s, dying away in 1 s, as Zakucac's): T'_d0 of each
+    against its truth."""
     from test.io.field.field_sets import build_up_log
 
     (work / "map.yaml").write_text(
@@ -277,8 +279,8 @@ def build_ups(work: Path) -> Figures:
         "  v_t: {name: Ug_kV, unit: kV_ll}\n  v_f: {name: Uf_V, unit: V}\n  i_fd: {name: If_A, unit: A}\n"
     )
     out: Figures = {}
-    for unit, t_d0, seed in (("A", 11.0, 0), ("B", 11.5, 1)):
-        build_up_log(work / f"{unit}.csv", t_d0, seed=seed)
+    for unit, t_d0, seed, rotor in (("A", 11.0, 0, None), ("B", 11.5, 1, None), ("C", 11.0, 2, (0.4, 1.0))):
+        build_up_log(work / f"{unit}.csv", t_d0, seed=seed, rotor_circuit=rotor)
         doc = identify_json(work, _imported(work, [work / f"{unit}.csv"], [work / "map.yaml"], f"{unit}.mcap"))
         value, ok = doc["parameters"]["T_d0_prime"], doc["identifiable"]["T_d0_prime"]
         out[f"unit {unit} T_d0_prime error"] = figure((value - t_d0) / t_d0 if ok and value else None)
