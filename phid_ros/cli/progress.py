@@ -19,6 +19,7 @@ from __future__ import annotations
 import sys
 import threading
 import time
+from collections.abc import Callable
 from types import TracebackType
 from typing import Any, TextIO
 
@@ -34,8 +35,18 @@ LIVE_FRAME = 13  # the spinner, the elapsed time (0:00:00) and the spaces betwee
 class ProgressLine:
     """Context manager; ``update(step)`` says what the command is doing now."""
 
-    def __init__(self, first: str = "", *, stream: TextIO | None = None, quiet_s: float | None = None) -> None:
+    def __init__(
+        self,
+        first: str = "",
+        *,
+        stream: TextIO | None = None,
+        quiet_s: float | None = None,
+        source: Callable[[], str | None] | None = None,
+    ) -> None:
+        """``source``: asked every poll what the command is doing now (a step another thread
+        works through, which no ``update`` call reports); its answer, when not None, is the step."""
         self.stream = stream if stream is not None else sys.stderr
+        self.source = source
         self.quiet_s = QUIET_S if quiet_s is None else quiet_s
         self.live = bool(getattr(self.stream, "isatty", lambda: False)())
         self._step = first
@@ -52,6 +63,9 @@ class ProgressLine:
         self._t0 = time.monotonic()
         if self.live:
             self._start_live()
+            if self.source is not None:
+                self._thread = threading.Thread(target=self._plain_loop, name="phid-progress", daemon=True)
+                self._thread.start()
         else:
             self._maybe_print()  # without a quiet time the first step shows at once, not at the first poll
             self._thread = threading.Thread(target=self._plain_loop, name="phid-progress", daemon=True)
@@ -63,7 +77,7 @@ class ProgressLine:
             self._step = step
         if self._rich is not None and self._task is not None:
             self._rich.update(self._task, description=self._fitted(step))
-        elif self._thread is not None:
+        elif self._thread is not None and self._rich is None:
             # a step is shown when it begins, not at the next poll: a step shorter than a poll
             # would otherwise be missing from the log, depending on the machine's speed
             self._maybe_print()
@@ -90,7 +104,10 @@ class ProgressLine:
     # -- plain lines -------------------------------------------------------------------------
     def _plain_loop(self) -> None:
         while not self._stop.wait(POLL_S):
-            self._maybe_print()
+            if self.source is not None and (step := self.source()) is not None and step != self._step:
+                self.update(step)
+            elif self._rich is None:
+                self._maybe_print()
 
     def _maybe_print(self) -> None:
         # the lock covers the decision and the write: the poll thread and update() both print

@@ -343,15 +343,26 @@ def replay_command(args: Any, console: Any) -> int:
             collector(out)
             events += len(out.events)
 
+        played_s = 0.0
+
+        def doing() -> str:
+            # the file is read ahead of the play (all of a short one at once): its share is said
+            # while it grows, then what the pipeline's recalibration is busy with, which is where
+            # a commissioning day's minutes go (its exciter search), not "100 % of the file (still)"
+            share = round(100 * parts.fraction)
+            read = f", {share} % of the file read" if share < 100 else ""
+            line = f"replaying: {played_s:.0f} s of stream time{read}, {events} event(s)"
+            busy = pipeline.recalibrator.activity
+            return f"{line}; {busy}" if busy else line
+
         def played(seconds: float) -> None:
+            nonlocal played_s
+            played_s = seconds
             # on a terminal the line is redrawn; in a log it is written every few seconds of wall time
-            progress.update(
-                f"replaying: {seconds:.0f} s of stream time, {100 * parts.fraction:.0f} % of the file, "
-                f"{events} event(s)"
-            )
+            progress.update(doing())
 
         try:
-            with ProgressLine(f"replaying {args.bag}") as progress:
+            with ProgressLine(f"replaying {args.bag}", source=doing) as progress:
                 outputs = replay(
                     read_on(),
                     pipeline,

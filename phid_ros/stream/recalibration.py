@@ -199,6 +199,8 @@ class Recalibrator:
     # governor's fit on the catalogue's windows takes 14 s of a 17 s replay and the issue's users
     # ask for the exciter and the stabiliser)
     controls: tuple[str, ...] = ("exciter", "stabiliser")
+    # what the running recalibration is doing, for a progress line ("" while none runs)
+    activity: str = ""
 
     def request(self, stream_time_ns: int, *, force: bool = False) -> str:
         """Ask for a run; returns what happened (started, coalesced, or why not)."""
@@ -284,7 +286,11 @@ class Recalibrator:
                     scenarios.append(made)
             # the next run's windows are among these and newer ones: the cache holds one run's
             self._scenarios = {k: self._scenarios[k] for k in map(_window_key, windows)}
+            self.activity = f"recalibrating on {len(scenarios)} event window(s): the machine"
             result = identify(scenarios, self.options)
+            if self.controls:
+                fitting = " and the ".join(self.controls)
+                self.activity = f"recalibrating on {len(scenarios)} event window(s): the {fitting}"
             controls = self._controls(scenarios, result) if self.controls else {}
             outcome = self._judge(result, ids, stream_time_ns, time.perf_counter() - t0)
             outcome.controls = controls
@@ -300,6 +306,7 @@ class Recalibrator:
                 stream_time_ns,
                 time.perf_counter() - t0,
             )
+        self.activity = ""
         with self._lock:
             self.runs += 1
             self._done.append(outcome)

@@ -95,3 +95,26 @@ def test_a_long_step_on_an_80_column_terminal_keeps_the_spinner_and_the_elapsed_
         assert len(line) <= 80 and re.search(r"\d:\d\d:\d\d$", line), line
         assert line.split(" ", 1)[1].startswith("fitting 5 candidates with the base parameters: magnetic_saturation")
         assert "…" in line
+
+
+def test_a_source_tells_what_another_thread_is_doing_in_a_log(monkeypatch):
+    monkeypatch.setattr(progress_module, "MIN_GAP_S", 0.0)
+    out = io.StringIO()
+    doing = ["replaying: 480 s of stream time, 9 event(s)"]
+    with ProgressLine("reading", stream=out, quiet_s=0.0, source=lambda: doing[-1]):
+        time.sleep(0.5)
+        doing.append("replaying: 480 s of stream time, 9 event(s); recalibrating on 9 event window(s): the exciter")
+        time.sleep(0.5)
+    steps = [LINE.match(line).group(1) for line in out.getvalue().splitlines()]
+    assert steps[-2:] == doing
+
+
+def test_replay_says_what_its_recalibration_does_once_the_file_is_read(tmp_path, capsys, monkeypatch):
+    """A commissioning day's replay said "100 % of the file" from its second second and then
+    "(still)" through minutes of recalibration; it says what the recalibration is doing."""
+    monkeypatch.setattr(progress_module, "QUIET_S", 0.0)
+    monkeypatch.setattr(progress_module, "MIN_GAP_S", 0.0)
+    assert main(["replay", str(BAGS / "catalogue"), "--out", str(tmp_path / "out.mcap")]) == 0
+    steps = [m.group(1) for line in capsys.readouterr().err.splitlines() if (m := LINE.match(line))]
+    assert any(re.search(r"; recalibrating on \d+ event window\(s\): the (machine|exciter)", s) for s in steps), steps
+    assert not any("100 % of the file" in s for s in steps)
