@@ -34,6 +34,10 @@ Array = NDArray[np.float64]
 def first_order_response(u: Array, tau: float, dt: float, axis: int = -1) -> Array:
     """Response ``L[u]`` of ``tau dx/dt = u - x`` from ``x(0) = 0``, with ``u`` linear between samples."""
     a, b0, b1 = first_order_coefficients(tau, dt)
+    if np.ndim(u) == 1:
+        y = compiled_filters.first_order_1d(np.asarray(u, dtype=float), a, b0, b1)
+        if y is not None:
+            return y
     u = np.moveaxis(np.asarray(u, dtype=float), axis, 0)
     v = b1 * u
     v[1:] += b0 * u[:-1]

@@ -127,3 +127,18 @@ def test_the_compiled_filters_take_read_only_integer_and_empty_input_as_numpy_do
     np.testing.assert_allclose(got[0], all_pole(x, (-0.5,), axis=0), rtol=1e-12)
     np.testing.assert_allclose(got[1], first_order_response_kept(x.T, 0.1, 1e-3, 5), rtol=1e-12)
     np.testing.assert_allclose(got_int, first_order_response_kept(ints, 0.1, 1e-3, 5), rtol=1e-12)
+
+
+@pytest.mark.parametrize("n", [0, 1, 2, 83, 4003])
+def test_the_one_dimensional_first_order_response_is_the_column_s_bit_for_bit(n) -> None:
+    """The control fits' fused 1-D pass against the numpy input stage and the recursion (the 2-D
+    path, one column), on read-only and strided input too."""
+    from phid_ros.numerics import first_order_response
+
+    u = np.cumsum(RNG.standard_normal(2 * n))[::2]  # strided
+    want = first_order_response(u.reshape(-1, 1), 0.37, 0.15, axis=0).ravel()
+    np.testing.assert_array_equal(first_order_response(u, 0.37, 0.15), want)
+    u.setflags(write=False)
+    np.testing.assert_array_equal(first_order_response(u, 0.37, 0.15), want)
+    ints = np.arange(n)
+    np.testing.assert_array_equal(first_order_response(ints, 0.37, 0.15), first_order_response(1.0 * ints, 0.37, 0.15))
