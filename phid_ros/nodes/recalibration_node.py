@@ -55,11 +55,16 @@ class RecalibrationNode(common.MonitorNode):
                 window=self.values["record_window"], warn_events=self.values["record_warn_events"]
             )
             self.pipeline.record_check = record_check(self.values["record"], settings=chosen)
-        windows, window_type = OUTPUT_TOPICS["windows"]  # the ingest node's output is our input
-        self.subscription(self.types[window_type], windows, self._on_window, common.reliable_qos())
+        # the markers' subscription first: an executor takes ready messages in the order the
+        # subscriptions were made, and a window names its event from the markers in hand. With the
+        # windows' first, a window queued behind a long callback (an event played into the record,
+        # a second or so) was taken before its own marker, queued beside it: on a real Jazzy launch
+        # at 20x the dampingless S02 went unnamed and was played as damped (a verdict 1 % off replay's)
         self.subscription(
             self.types["phid_msgs/msg/ScenarioMarker"], SCENARIO_TOPIC, self._on_marker, common.reliable_qos()
         )
+        windows, window_type = OUTPUT_TOPICS["windows"]  # the ingest node's output is our input
+        self.subscription(self.types[window_type], windows, self._on_window, common.reliable_qos())
         self.publishers_by_key = {
             "parameters": self.publisher("parameters", common.latched_qos()),
             # one message per control system (exciter, governor, stabiliser) at each recalibration

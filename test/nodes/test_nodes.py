@@ -78,6 +78,10 @@ def test_wiring_topics_qos_services_parameters(ros):
     assert params.qos.durability == DurabilityPolicy.TRANSIENT_LOCAL
     assert {p.topic for p in recal.publishers} >= {"/generator/hamiltonian", "/diagnostics"}
     assert set(recal.services) == {"/generator/recalibration_node/recalibrate", "/generator/recalibration_node/reset"}
+    # an executor takes ready messages in the subscriptions' order: a window's marker before it
+    # (a window taken first, behind a long callback, went unnamed on a real launch)
+    order = [s.topic for s in recal.subscriptions]
+    assert order.index("/phid/scenarios") < order.index("/generator/event_windows")
     for node, table in ((ingest, INGEST), (recal, RECALIBRATION)):
         for t in table:
             d = node.descriptors[t.name]
