@@ -14,13 +14,7 @@ from test.realdata.test_mostar import REALDATA
 
 PLANT = REALDATA / "zakucac-dev"
 pytestmark = pytest.mark.skipif(not PLANT.is_dir(), reason=f"{PLANT} is absent (the real recordings are not shipped)")
-MAP = """machine: {mva: 160, kv: 16, f_nominal_hz: 50}
-time: time
-channels:
-  v_t: {name: Ug_kV, unit: kV_ll}
-  v_f: {name: Uf_V, unit: V}
-  i_fd: {name: If_A, unit: A}
-"""
+MAP = (Path(__file__).resolve().parents[2] / "docs" / "examples" / "zakucac" / "map_noload.yaml").read_text()
 
 
 def _field_circuit(tmp_path: Path, name: str):
@@ -77,3 +71,44 @@ def test_unit_a_s_build_up_identified_with_its_polled_steps_publishes_the_build_
     doc = json.loads(out.read_text())
     assert doc["identifiable"]["T_d0_prime"] and 11.5 < doc["parameters"]["T_d0_prime"] < 12.5
     assert [e["scenario"] for e in doc["stages"]["field_circuit"]["events"]] == ["build_up/cs_recex-zakuca1a-003@5.2s"]
+
+
+GUIDE = Path(__file__).resolve().parents[2] / "docs" / "guide" / "field-recordings.md"
+EXAMPLE = Path(__file__).resolve().parents[2] / "docs" / "examples" / "zakucac"
+
+
+def test_the_guide_s_zakucac_recipe_runs_as_written_and_gives_its_figures(tmp_path) -> None:
+    """The black-start and island recipe of docs/guide/field-recordings.md, its lines run in a
+    plain shell: the sisters' T'_d0 within their stds of each other, the rotor's circuits alike
+    (tau about 0.4 s, dying away in about 1 s), unit A's separation giving H and unit B's
+    withheld (its std 65 % of the value), as the guide says."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    venv = Path(sys.prefix)
+    if not (venv / "bin" / "phid").is_file():
+        pytest.skip(f"{venv} has no phid script (the README's set-up installs one)")
+    block = GUIDE.read_text().split("```bash\nZAKUCAC=", 1)[1].split("```", 1)[0]
+    lines = [line for line in ("ZAKUCAC=" + block).splitlines() if line.strip()]
+    assert lines[0] == "ZAKUCAC=../shared/realdata/zakucac-dev" and lines[1] == "EX=docs/examples/zakucac"
+    lines[0], lines[1] = f"ZAKUCAC={PLANT}", f"EX={EXAMPLE}"
+    env = {k: v for k, v in os.environ.items() if k not in ("VIRTUAL_ENV", "PYTHONPATH")}
+    env["PATH"] = f"{venv / 'bin'}:/usr/bin:/bin"
+    done = subprocess.run(["bash", "-ec", "\n".join(lines)], cwd=tmp_path, env=env, capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr[-2000:]
+    doc = {
+        n: json.loads((tmp_path / f"{n}.json").read_text())
+        for n in ("a_build_up", "b_build_up", "a_island", "b_island")
+    }
+    t = [
+        (doc[n]["parameters"]["T_d0_prime"], doc[n]["uncertainty"]["T_d0_prime"]) for n in ("a_build_up", "b_build_up")
+    ]
+    assert abs(t[0][0] - t[1][0]) < 2 * (t[0][1] ** 2 + t[1][1] ** 2) ** 0.5 and 11.5 < t[0][0] < 12.5
+    for n in ("a_build_up", "b_build_up"):
+        [line] = doc[n]["stages"]["field_circuit"]["build_ups"]
+        assert 0.3 < line["rotor_circuits_tau_s"] < 0.5 and 0.5 < line["rotor_circuits_t_s"] < 2.0
+    assert doc["a_island"]["identifiable"]["H"] and 3.0 < doc["a_island"]["parameters"]["H"] < 4.5
+    held = doc["b_island"]["withheld"]["H"]
+    assert doc["b_island"]["parameters"]["H"] is None and held["std"] / held["value"] > 0.5

@@ -11,18 +11,7 @@ import unittest
 
 import pytest
 
-rclpy = pytest.importorskip(
-    "rclpy",
-    reason="rclpy is not installable here (not on PyPI, not in Debian); "
-    "this launch test runs under colcon test on a ROS 2 Jazzy machine",
-)
-pytest.importorskip("launch_testing", reason="launch_testing comes with ROS 2")
-
-import launch  # noqa: E402
-import launch_testing.actions  # noqa: E402
-from ament_index_python.packages import get_package_share_directory  # noqa: E402
-from launch.actions import IncludeLaunchDescription  # noqa: E402
-from launch.launch_description_sources import PythonLaunchDescriptionSource  # noqa: E402
+from test.ros.launching import monitor_description, rclpy
 
 STORE = f"/tmp/phid_lifecycle_test_{os.getpid()}.sqlite"
 NODES = ("/generator/ingest_node", "/generator/recalibration_node")
@@ -30,12 +19,7 @@ NODES = ("/generator/ingest_node", "/generator/recalibration_node")
 
 @pytest.mark.launch_test
 def generate_test_description():
-    share = get_package_share_directory("phid_ros")
-    monitor = IncludeLaunchDescription(
-        PythonLaunchDescriptionSource(os.path.join(share, "launch", "monitor.launch.py")),
-        launch_arguments={"autostart": "false", "store_path": STORE}.items(),
-    )
-    return launch.LaunchDescription([monitor, launch_testing.actions.ReadyToTest()])
+    return monitor_description({"autostart": "false", "store_path": STORE}, check_fields=False)
 
 
 class TestTheNodesFollowTheirLifecycle(unittest.TestCase):

@@ -13,18 +13,7 @@ from pathlib import Path
 
 import pytest
 
-rclpy = pytest.importorskip(
-    "rclpy",
-    reason="rclpy is not installable here (not on PyPI, not in Debian); "
-    "this launch test runs under colcon test on a ROS 2 Jazzy machine",
-)
-pytest.importorskip("launch_testing", reason="launch_testing comes with ROS 2")
-
-import launch  # noqa: E402
-import launch_testing.actions  # noqa: E402
-from ament_index_python.packages import get_package_share_directory  # noqa: E402
-from launch.actions import IncludeLaunchDescription, SetEnvironmentVariable  # noqa: E402
-from launch.launch_description_sources import PythonLaunchDescriptionSource  # noqa: E402
+from test.ros.launching import monitor_description, rclpy, share_directory
 
 BAG = str(Path(__file__).resolve().parents[2] / "bags" / "catalogue")
 STORE = f"/tmp/phid_launch_test_{os.getpid()}.sqlite"
@@ -39,16 +28,9 @@ def generate_test_description():
     # The reference is computed before the nodes start: computed later, the first events
     # would be published before this test subscribes to them.
     REFERENCE["expect"], REFERENCE["usable_ids"], REFERENCE["n_events"], REFERENCE["n_energy"] = replay_reference()
-    share = get_package_share_directory("phid_ros")
-    monitor = IncludeLaunchDescription(
-        PythonLaunchDescriptionSource(os.path.join(share, "launch", "monitor.launch.py")),
-        # end_of_data_s 10 (3 by default): on a loaded CI machine the player paused 3 s mid-bag, which
-        # read as the input's end and ran the owed recalibration early (the final set then differed)
-        launch_arguments={"play_bag": BAG, "play_rate": "20", "store_path": STORE, "end_of_data_s": "10.0"}.items(),
-    )
-    return launch.LaunchDescription(
-        [SetEnvironmentVariable("ROS_PYTHON_CHECK_FIELDS", "1"), monitor, launch_testing.actions.ReadyToTest()]
-    )
+    # end_of_data_s 10 (3 by default): on a loaded CI machine the player paused 3 s mid-bag, which
+    # read as the input's end and ran the owed recalibration early (the final set then differed)
+    return monitor_description({"play_bag": BAG, "play_rate": "20", "store_path": STORE, "end_of_data_s": "10.0"})
 
 
 def replay_reference():
@@ -151,7 +133,7 @@ class TestTheMonitorEqualsReplay(unittest.TestCase):
         from phid_ros.io.topics import DEFAULT_NAMESPACE, STREAMS, topic_for
         from phid_ros.stream.dashboard import layout_topics
 
-        share = Path(get_package_share_directory("phid_ros"))
+        share = Path(share_directory())
         named = layout_topics(json.loads((share / "config" / "foxglove_monitor.json").read_text()))
         inputs = {topic_for(s.name, DEFAULT_NAMESPACE) for s in STREAMS}
         for topic in sorted(named):

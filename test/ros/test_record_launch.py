@@ -7,7 +7,6 @@ Jazzy machine (colcon test); skipped with the reason where rclpy is absent.
 """
 
 import json
-import os
 import tempfile
 import time
 import unittest
@@ -15,18 +14,7 @@ from pathlib import Path
 
 import pytest
 
-rclpy = pytest.importorskip(
-    "rclpy",
-    reason="rclpy is not installable here (not on PyPI, not in Debian); "
-    "this launch test runs under colcon test on a ROS 2 Jazzy machine",
-)
-pytest.importorskip("launch_testing", reason="launch_testing comes with ROS 2")
-
-import launch  # noqa: E402
-import launch_testing.actions  # noqa: E402
-from ament_index_python.packages import get_package_share_directory  # noqa: E402
-from launch.actions import IncludeLaunchDescription, SetEnvironmentVariable  # noqa: E402
-from launch.launch_description_sources import PythonLaunchDescriptionSource  # noqa: E402
+from test.ros.launching import monitor_description, rclpy
 
 BAG = str(Path(__file__).resolve().parents[2] / "bags" / "catalogue")
 WORK = Path(tempfile.mkdtemp(prefix="phid_record_launch_"))
@@ -70,19 +58,8 @@ def replay_verdicts(dyr: Path) -> dict:
 def generate_test_description():
     dyr = wrong_record()
     REFERENCE["verdicts"] = replay_verdicts(dyr)  # before the nodes start, as test_monitor_launch
-    share = get_package_share_directory("phid_ros")
-    monitor = IncludeLaunchDescription(
-        PythonLaunchDescriptionSource(os.path.join(share, "launch", "monitor.launch.py")),
-        launch_arguments={
-            "play_bag": BAG,
-            "play_rate": "20",
-            "store_path": STORE,
-            "end_of_data_s": "10.0",
-            "record": str(dyr),
-        }.items(),
-    )
-    return launch.LaunchDescription(
-        [SetEnvironmentVariable("ROS_PYTHON_CHECK_FIELDS", "1"), monitor, launch_testing.actions.ReadyToTest()]
+    return monitor_description(
+        {"play_bag": BAG, "play_rate": "20", "store_path": STORE, "end_of_data_s": "10.0", "record": str(dyr)}
     )
 
 

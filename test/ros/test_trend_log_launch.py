@@ -8,7 +8,6 @@ recalibration node inside each window, the partial set and the exciter are repla
 declared stream is healthy. Runs under colcon test on a ROS 2 Jazzy machine; skipped elsewhere.
 """
 
-import os
 import tempfile
 import time
 import unittest
@@ -16,18 +15,7 @@ from pathlib import Path
 
 import pytest
 
-rclpy = pytest.importorskip(
-    "rclpy",
-    reason="rclpy is not installable here (not on PyPI, not in Debian); "
-    "this launch test runs under colcon test on a ROS 2 Jazzy machine",
-)
-pytest.importorskip("launch_testing", reason="launch_testing comes with ROS 2")
-
-import launch  # noqa: E402
-import launch_testing.actions  # noqa: E402
-from ament_index_python.packages import get_package_share_directory  # noqa: E402
-from launch.actions import IncludeLaunchDescription, SetEnvironmentVariable  # noqa: E402
-from launch.launch_description_sources import PythonLaunchDescriptionSource  # noqa: E402
+from test.ros.launching import monitor_description, rclpy
 
 FOLDER = Path(tempfile.mkdtemp(prefix="phid_trend_launch_"))
 STORE = str(FOLDER / "events.sqlite")
@@ -38,19 +26,8 @@ REFERENCE = {}
 def generate_test_description():
     bag, options = trend_log_bag()
     REFERENCE.update(replay_reference(bag, options))
-    share = get_package_share_directory("phid_ros")
-    monitor = IncludeLaunchDescription(
-        PythonLaunchDescriptionSource(os.path.join(share, "launch", "monitor.launch.py")),
-        launch_arguments={
-            "play_bag": str(bag),
-            "play_rate": "20",
-            "store_path": STORE,
-            "end_of_data_s": "10.0",
-            **options,
-        }.items(),
-    )
-    return launch.LaunchDescription(
-        [SetEnvironmentVariable("ROS_PYTHON_CHECK_FIELDS", "1"), monitor, launch_testing.actions.ReadyToTest()]
+    return monitor_description(
+        {"play_bag": str(bag), "play_rate": "20", "store_path": STORE, "end_of_data_s": "10.0", **options}
     )
 
 
