@@ -226,3 +226,22 @@ def test_a_non_windup_lead_lag_leaves_its_limit_where_the_input_allows_and_goes_
     small[500:] = 1.1
     free = nonwindup_lead_lag(small, t_c, t_b, dt, -8.384, 2.237, 1.0)
     assert np.allclose(free, 1.0 + lead_lag(small - 1.0, t_c, t_b, dt), atol=1e-12)
+
+
+def test_the_compiled_non_windup_lead_lag_is_the_python_loop_bit_for_bit() -> None:
+    """The loop compiled (numba) gives the numbers of the same loop run as Python, limits hit
+    both ways, a lead above and below its lag (1 - r of either sign)."""
+    from phid_ros.controls.models import _nonwindup_lead_lag_loop
+
+    python_loop = getattr(_nonwindup_lead_lag_loop, "py_func", None)
+    if python_loop is None:
+        pytest.skip("numba not installed: the Python loop is the only one")
+    rng = np.random.default_rng(3)
+    u = 6.0 * np.sin(np.arange(4000) / 300.0) + rng.normal(0.0, 0.3, 4000)
+    reached = set()
+    for r in (0.077, 1.0, 4.2):
+        args = (u, r, 0.999, 0.0005, 0.0005, -2.0, 1.5, 0.1)
+        y = python_loop(*args)
+        assert np.array_equal(_nonwindup_lead_lag_loop(*args), y)
+        reached |= {float(v) for v in (y.max(), y.min()) if v in (1.5, -2.0)}
+    assert reached == {1.5, -2.0}
