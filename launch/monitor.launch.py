@@ -5,7 +5,7 @@
     ros2 launch phid_ros monitor.launch.py play_bag:=/path/to/phid_ros/bags/catalogue play_rate:=20
 
 With play_bag set, the launch also runs `ros2 bag play <bag> --clock 200 --rate <play_rate>
---delay <play_delay>` once both nodes are active (the lifecycle transition, by autostart or a
+--delay <play_delay> --wait-for-all-acked 10000` once both nodes are active (the lifecycle transition, by autostart or a
 manager), and the nodes use the bag's clock (use_sim_time is forced on), so the whole pipeline runs on
 recorded time. (On Jazzy `--clock` takes an optional frequency, so the bag must come first.)
 Every node option a user sets at start-up is a launch argument here, passed to the nodes
@@ -25,7 +25,8 @@ and activates itself; with autostart:=false they wait unconfigured for
 reliable_qos defaults to `auto`: reliable when this launch plays the bag, best effort (the
 sensor-data convention, config/phid.yaml) otherwise. `ros2 bag play` offers reliable, so a
 reliable subscription gets every message; best effort lost the last encoder message of the
-catalogue (200 samples) once in a loaded CI run. A live driver that offers best effort
+catalogue (200 samples) once in a loaded CI run, and reliable lost it too (100 samples) while the
+player exited before the nodes acknowledged it, hence --wait-for-all-acked. A live driver that offers best effort
 cannot match a reliable subscription, hence best effort without a bag.
 """
 
@@ -136,6 +137,11 @@ def generate_launch_description() -> LaunchDescription:
             # discovery: the nodes' subscriptions matched before the first message goes out
             "--delay",
             LaunchConfiguration("play_delay"),
+            # the player exits once it has sent the last message; a reliable message the nodes
+            # had not yet acknowledged went with it (the catalogue's last encoder block, 100
+            # samples, in a loaded CI run): it waits for every acknowledgement, 10 s at most
+            "--wait-for-all-acked",
+            "10000",
         ],
         condition=IfCondition(playing),
         output="screen",
