@@ -11,7 +11,7 @@ LAYERS = (
     {"errors", "__version__"},
     {"jit", "extras", "provenance"},
     {"cluster", "model", "compiled_filters"},
-    {"numerics"},
+    {"numerics", "tall_least_squares"},
     {"io"},
     {"sim"},
     {"ident"},

@@ -478,7 +478,7 @@ def fit_model(
     the small-signal constants are fitted and checked on the small-signal tests alone.
     ``played_through_limits``: the cases played through :meth:`ControlModel.limited` whatever
     limits are fitted (a stabiliser fitted through an exciter that reached its own)."""
-    from scipy.optimize import least_squares
+    from phid_ros import tall_least_squares
 
     limits = dict(limits or {})
     held_limits = dict(held_limits or {})
@@ -536,8 +536,10 @@ def fit_model(
     inset = 0.02 * (hi - lo)
     x0 = np.clip(x0, lo + inset, hi - inset)
 
-    def solve(start: Array) -> Any:
-        return least_squares(residual, start, bounds=(lo, hi), x_scale="jac", max_nfev=MAX_EVALUATIONS)
+    # the cases' rows (every sample of every case) compressed to k + 1 for the solver: its SVD of
+    # the full Jacobian at every step was half the exciter search of a commissioning day
+    def solve(start: Array) -> tall_least_squares.Solution:
+        return tall_least_squares.solve(residual, start, lo, hi, MAX_EVALUATIONS)
 
     sol = solve(x0)
 
@@ -549,8 +551,7 @@ def fit_model(
             x[keep], x[i] = y, value
             return residual(x)
 
-        sol = least_squares(res, start[keep], bounds=(lo[keep], hi[keep]), x_scale="jac", max_nfev=PROFILE_EVALUATIONS)
-        return float(sol.cost)
+        return tall_least_squares.solve(res, start[keep], lo[keep], hi[keep], PROFILE_EVALUATIONS).cost
 
     # a second opinion from a start moved away in every constant (alternate signs): where both
     # fits explain the data equally well but a constant differs, the data do not determine it,

@@ -21,7 +21,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.linalg.lapack import dgeqrf
 from scipy.optimize import least_squares
 
 from phid_ros import jit
@@ -31,6 +30,8 @@ from phid_ros.ident.plant_playin import PlayIn, play_in, residual_matrix
 from phid_ros.ident.scenario import ScenarioData
 from phid_ros.model.conventions import DEFAULT_F_NOMINAL_HZ
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME
+from phid_ros.tall_least_squares import compress
+from phid_ros.tall_least_squares import square_sum as _square_sum
 
 Array = NDArray[np.float64]
 FD_STEP = 1e-5  # relative (log-scale) finite-difference step; the play-in is deterministic
@@ -292,13 +293,6 @@ class FitError(PhidError):
     """A fit cannot start: the play-in diverges at every start tried."""
 
 
-def _square_sum(r: Array) -> float:
-    """The sum of squares the solver takes, inf where a residual or the sum is not finite."""
-    with np.errstate(over="ignore", invalid="ignore"):
-        total = float(r @ r)
-    return total if np.all(np.isfinite(r)) and math.isfinite(total) else math.inf
-
-
 START_BACKOFFS = 8  # halvings of a predicted start's step back toward the problem's own start
 
 
@@ -341,32 +335,6 @@ def chosen_start(residual: Callable[[Array], Array], predicted: Array | None, ow
         return finite_start(residual, own, own)
     x = finite_start(residual, predicted, own)
     return x if _square_sum(residual(x)) <= _square_sum(residual(own)) else np.asarray(own, dtype=float)
-
-
-def compress(A: Array) -> Array:
-    """The Jacobian J~ ((k + 1) x k) that, with the residual ||r|| e_1, is the tall [r, J] ``A`` to the solver.
-
-    ``A`` is overwritten (column-major, it is factorised where it lies).
-
-    R of the QR factorisation [r, J] = Q R (its first row's sign chosen so R[0, 0] = ||r||) gives
-    J~ = R[:, 1:], and Q'[r, J] = R: the pair (||r|| e_1, J~) has the sum of squares, J'r and J'J of
-    (r, J), and so the same Gauss-Newton model, gradient, column scales and covariance. scipy's
-    trust-region solver takes an SVD of its Jacobian at every step; on the play-in's rows (six
-    channels at every 2 ms of every window) that SVD cost as much as the play-ins themselves
-    (38 s of 129 s of phid diagnose bags/saturation, one worker).
-    """
-    m, n = A.shape
-    R = np.zeros((n, n))
-    # LAPACK's Householder QR in place on the column-major A (numpy's qr copied it and took 2.7x
-    # as long: 20 against 7.3 ms on 126 000 x 15); R is the upper triangle of what it returns
-    qr, _, _, info = dgeqrf(A, overwrite_a=True)
-    if info != 0:
-        raise ValueError(f"QR of the Jacobian failed (LAPACK info {info})")
-    top = np.triu(qr[: min(m, n)])
-    R[: top.shape[0]] = top
-    if R[0, 0] < 0:
-        R[0] = -R[0]
-    return R[:, 1:]
 
 
 def _std(
