@@ -492,6 +492,48 @@ ANDES_EXST1_UNIT = """1 'GENROU' 1  1.437 0.03 0.1351 0.03 6.5 2.0
 """
 
 
+def andes_diagnosis(machine: str) -> Callable[[Path], Figures]:
+    """ANDES's GENROU with one hidden effect each (test/andes_plant.py's machines, the paper's
+    catalogue at 12 s, the simulator's sensor noise, seed 0: the slow study's sets, cached),
+    diagnosed as a user runs it: the effects named, the gap closed, what is not determined and
+    the base parameters against the machine's."""
+
+    def run(work: Path) -> Figures:
+        try:
+            import andes  # noqa: F401
+        except ImportError:
+            raise Skip("ANDES is not installed (pip install '.[test]')") from None
+        from phid_ros.sim.scenarios import paper_catalogue, with_duration
+        from test.andes_plant import MACHINES, TRUTH, write_set
+
+        folder = CACHE / f"andes-{machine}"
+        manifest = folder / "manifest.json"
+        if not manifest.is_file():
+            write_set(folder, MACHINES[machine], [with_duration(s, 12.0) for s in paper_catalogue()], seed=0)
+        truth = work / "truth.json"
+        truth.write_text(json.dumps({"parameters": TRUTH[machine]}))
+        out = work / "diag.json"
+        phid("diagnose", manifest, "--json", out, "--truth", truth, "--workers", "2")
+        doc = json.loads(out.read_text())
+        names = ",".join(sorted(e["name"] for e in doc["effects"])) or "none"
+        ratio = doc["rmse_after"] / doc["rmse_before"] if doc["rmse_before"] else None
+        withheld = sorted(n for n, ok in doc["identifiable"].items() if not ok)
+        errors = doc["errors_pct"]["after"]
+        worst = max((abs(e) for n, e in errors.items() if n != "D" and n not in withheld), default=None)
+        return {
+            "effects named": figure(names, 0.0, "verdict"),
+            "gap left (after/before)": figure(ratio, 0.02),
+            "not determined": figure(",".join(withheld) or "none", 0.0, "verdict"),
+            "largest base error % (determined, D apart)": figure(worst, 0.2),
+            "D error %": figure(errors.get("D"), 2.0),
+        }
+
+    return run
+
+
+ANDES_DIAGNOSIS = ("genrou-4th", "genrou-sat", "genrou-sub-typical", "genrou-sub-fast", "genrou-sub", "genrou-sat-sub")
+
+
 @dataclass(frozen=True)
 class CorpusSet:
     run: Callable[[Path], Figures]
@@ -516,6 +558,7 @@ SETS: dict[str, CorpusSet] = {
     "usn-lab-2kva": CorpusSet(usn_lab, True),
     "itaipu-event": CorpusSet(itaipu, True),
     "andes-exst1": CorpusSet(andes_exst1, False),
+    **{f"andes-diagnose-{m}": CorpusSet(andes_diagnosis(m), False) for m in ANDES_DIAGNOSIS},
 }
 
 

@@ -95,7 +95,7 @@ class TestTheMonitorOnARecorderEqualsReplay(unittest.TestCase):
 
         def on_diag(msg):
             for s in msg.status:
-                got["diag"][s.name] = bytes(s.level)
+                got["diag"].setdefault(s.name, []).append((bytes(s.level), s.message))
 
         def latched(depth):
             return QoSProfile(
@@ -131,4 +131,12 @@ class TestTheMonitorOnARecorderEqualsReplay(unittest.TestCase):
         self.assertEqual(exciter[-1].why.split(":")[0], REFERENCE["exciter_why"])
         streams = {k: v for k, v in got["diag"].items() if k.endswith("stream")}
         self.assertEqual(len(streams), 5, streams)  # the four sensor streams and the field controller's
-        self.assertTrue(all(level == b"\x00" for level in streams.values()), streams)
+        # healthy while the bag plays: OK, or stale only for want of any data on the receiver's clock
+        # (before the first block, and after the last: the player's /clock runs on at 20x while it
+        # waits for the acknowledgements, and a stream is then rightly stale); never a warning
+        for name, seen in streams.items():
+            self.assertIn(b"\x00", [level for level, _ in seen], name)
+            odd = [
+                (level, m) for level, m in seen if level != b"\x00" and not m.startswith(("no data yet", "no data for"))
+            ]
+            self.assertFalse(odd, name)
