@@ -145,7 +145,7 @@ def print_summary(
     ``start``: the recording's first stamp, times are shown from it."""
     from phid_ros.cli.tables import CONCISE_LEGEND, Col, estimate_text, fmt, print_table
     from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, SYMBOLS
-    from phid_ros.stream.detector import severity_text, window_status
+    from phid_ros.stream.detector import lost_measurement_text, severity_text, window_status
 
     usable = {w.event.event_id: window_status(w) for w in outputs.windows}
     settled = {w.event.event_id: w.settled for w in outputs.windows}
@@ -170,12 +170,7 @@ def print_summary(
     ]
     print_table(console, f"events found ({len(outputs.events)}); t from the start of the recording", cols, rows)
     for lost, back in pipeline.detector.lost_measurements:
-        until = f"back at {(back - start) / NS:.1f} s" if back is not None else "not back by the end"
-        console.print(
-            f"V_t measurement lost at no load at {(lost - start) / NS:.1f} s, {until}: no event taken from it "
-            "(an open-circuit voltage cannot fall within 20 ms)",
-            highlight=False,
-        )
+        console.print(lost_measurement_text(lost, back, start, ended=True), highlight=False)
     for r in outputs.recalibrations:
         console.print(recalibration_text(r, start), highlight=False, markup=False)
     last = next((r for r in reversed(outputs.recalibrations) if r.accepted and r.result is not None), None)

@@ -33,6 +33,9 @@ MIN_WINDOW_S = 2.0  # an event with less than this between its neighbours is not
 # (the fastest open-circuit decay is the subtransient one, T''_d0 of tens of ms, and only with
 # the field short-circuited)
 LOST_MEASUREMENT_S = 0.02
+# ... and V_t at this share of its level the second before counts as measured: not yet lost
+# just before the fall, back once it returns (the events of the next QUIET_S are the return's)
+MEASURED_SHARE = 0.8
 # the plateau before an event: its level over the last PLATEAU_LEVEL_S, left where a channel
 # strays from it by more than PLATEAU_SHARE of the event's own move
 PLATEAU_LEVEL_S = 1.0
@@ -109,8 +112,7 @@ def events_of_file(
         # the measurement's return is an event of the measurement too
         lost = (lost_until >= 0 and k <= lost_until + quiet) or (no_load and kind == "fault" and fell_at_once(v, k, dt))
         if lost and k >= lost_until:  # lost until the measurement comes back
-            before = float(np.median(v[max(0, k - int(round(1.0 / dt))) : k]))
-            back = np.flatnonzero(v[k:] >= 0.8 * before)
+            back = np.flatnonzero(v[k:] >= MEASURED_SHARE * level_before(v, k, max(1, int(round(1.0 / dt)))))
             lost_until = k + int(back[0]) if back.size else n
         if no_load and kind == "fault":
             kind = "field_step"
@@ -235,8 +237,15 @@ def _last_end(e: tuple[str, int, int | None]) -> int:
 def fell_at_once(v: Array, k: int, dt: float) -> bool:
     """V_t lost half its pre-event value within LOST_MEASUREMENT_S of the event: at no load, a
     measurement lost (an open-circuit machine's voltage follows its field flux, never that fast)."""
-    span = max(1, int(round(1.0 / dt)))
-    before = float(np.median(v[max(0, k - span) : k])) if k > 0 else float(v[0])
+    before = level_before(v, k, max(1, int(round(1.0 / dt))))
     m = max(1, int(round(LOST_MEASUREMENT_S / dt)))
     a = max(0, k - m)
-    return bool(np.min(v[a : k + m + 1]) < 0.5 * before and np.max(v[a:k]) > 0.8 * before) if k > a else False
+    return (
+        bool(np.min(v[a : k + m + 1]) < 0.5 * before and np.max(v[a:k]) > MEASURED_SHARE * before) if k > a else False
+    )
+
+
+def level_before(v: Array, k: int, span: int) -> float:
+    """V_t's level before sample ``k``: the median of the ``span`` samples before it (the first
+    sample at the start), what a lost measurement is judged against and must come back to."""
+    return float(np.median(v[max(0, k - span) : k])) if k > 0 else float(v[0])

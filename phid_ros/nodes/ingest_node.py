@@ -12,6 +12,7 @@ from __future__ import annotations
 from typing import Any
 
 from phid_ros.nodes import common
+from phid_ros.stream.detector import lost_measurement_text
 from phid_ros.stream.emit import emit
 from phid_ros.stream.params import INGEST, pipeline_settings
 from phid_ros.stream.pipeline import MonitorPipeline
@@ -37,8 +38,8 @@ class IngestNode(common.MonitorNode):
         # a recording's end), so an event in its last seconds is published, not held forever
         lost_before = len(self.pipeline.detector.lost_measurements)
         out = self.pipeline.process(final=self.input.ended(self.values["end_of_data_s"]))
-        for at, _ in self.pipeline.detector.lost_measurements[lost_before:]:
-            self.get_logger().warning(f"V_t measurement lost at no load at stamp {at} ns: no event taken from it")
+        for at, back in self.pipeline.detector.lost_measurements[lost_before:]:
+            self.get_logger().warning(lost_measurement_text(at, back, ended=False))
         done = emit(self.types, out, self.publishers_by_key, common.float_seq, list)
         for p in done:
             self.publishers_by_key[p.key].publish(p.message)

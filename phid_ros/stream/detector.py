@@ -30,7 +30,15 @@ from datetime import datetime, timezone
 import numpy as np
 from numpy.typing import NDArray
 
-from phid_ros.ident.file_events import QUIET_S, at_no_load, fell_at_once, moves_terminal
+from phid_ros.ident.file_events import (
+    LOST_MEASUREMENT_S,
+    MEASURED_SHARE,
+    QUIET_S,
+    at_no_load,
+    fell_at_once,
+    level_before,
+    moves_terminal,
+)
 from phid_ros.ident.scenario import DEFAULT_THRESHOLDS, StepThresholds, find_events
 from phid_ros.model.channels import CHANNEL_INDEX, CHANNELS, Frame
 from phid_ros.model.conventions import NS, split_stamp
@@ -239,8 +247,7 @@ class Detector:
             self._measurement_back(t, signals["v_t"], end)
 
     def _lose_measurement(self, t: NDArray[np.int64], v: NDArray[np.float64], k: int) -> None:
-        span = max(1, int(NS / self.period_ns))
-        self._lost_level = float(np.median(v[max(0, k - span) : k])) if k > 0 else float(v[0])
+        self._lost_level = level_before(v, k, max(1, int(NS / self.period_ns)))
         self._lost_until_ns = None
         self.lost_measurements.append((int(t[k]), None))
         self._measurement_back(t, v, int(t[-1]) + 1)
@@ -251,7 +258,7 @@ class Detector:
         measurement's."""
         assert self._lost_level is not None
         lost_at, _ = self.lost_measurements[-1]
-        back = np.flatnonzero((v >= 0.8 * self._lost_level) & (t > lost_at) & (t < decided))
+        back = np.flatnonzero((v >= MEASURED_SHARE * self._lost_level) & (t > lost_at) & (t < decided))
         if back.size:
             at = int(t[int(back[0])])
             self._lost_until_ns = at + int(QUIET_S * NS)
@@ -457,6 +464,20 @@ def window_status(w: EventWindow) -> str:
     if not w.usable:
         return w.reason
     return f"ok, shortened: {w.reason}" if w.reason else "ok"
+
+
+def lost_measurement_text(lost_ns: int, back_ns: int | None, start_ns: int | None = None, *, ended: bool) -> str:
+    """What the front ends say of a V_t measurement lost at no load (``Detector.lost_measurements``):
+    times from ``start_ns`` in seconds, else as stamps; ``ended``: the input is over."""
+
+    def at(t: int) -> str:
+        return f"{(t - start_ns) / NS:.1f} s" if start_ns is not None else f"stamp {t} ns"
+
+    until = f"back at {at(back_ns)}" if back_ns is not None else ("not back by the end" if ended else "not back yet")
+    return (
+        f"V_t measurement lost at no load at {at(lost_ns)}, {until}: no event taken from it "
+        f"(an open-circuit voltage cannot fall within {LOST_MEASUREMENT_S * 1e3:.0f} ms)"
+    )
 
 
 def severity_text(kind: str, severity: float, settled: dict[str, float] | None = None) -> str:

@@ -1,7 +1,7 @@
 import numpy as np
 
 from phid_ros.model.channels import CHANNELS
-from phid_ros.stream.detector import Detector, DetectorSettings
+from phid_ros.stream.detector import Detector, DetectorSettings, lost_measurement_text
 from phid_ros.stream.ring import RingBuffer
 
 MS = 1_000_000
@@ -94,6 +94,13 @@ def test_a_voltage_measurement_lost_at_no_load_is_no_fault() -> None:
     found = _play(det, ring, x, period)
     assert [(e.kind, e.inception_ns // period) for e in found] == [("voltage_step", k_step)]
     assert det.lost_measurements == [(k_lost * period, k_back * period)]
+    # what replay prints at the end and the ingest node logs when it sees the loss, one sentence
+    assert lost_measurement_text(k_lost * period, k_back * period, 0, ended=True).startswith(
+        "V_t measurement lost at no load at 8.0 s, back at 14.0 s: no event taken from it"
+    )
+    said = lost_measurement_text(k_lost * period, None, ended=False)
+    assert said.startswith(f"V_t measurement lost at no load at stamp {k_lost * period} ns, not back yet")
+    assert said.endswith("(an open-circuit voltage cannot fall within 20 ms)")
 
 
 def test_a_de_excitation_at_no_load_is_a_field_step_not_a_fault() -> None:
