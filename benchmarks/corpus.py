@@ -402,7 +402,15 @@ def zakucac_steps(work: Path) -> Figures:
     steps = sorted(plant.glob("watch_cs_watch-zakuca1a-*.csv"))
     doc = identify_json(work, _imported(work, steps, [work / "map.yaml"], "a_steps.mcap"))
     value = doc["parameters"]["T_d0_prime"] if doc["identifiable"]["T_d0_prime"] else None
-    return {"unit A small steps T_d0_prime (s)": figure(value, 0.01 * (value or 1.0))}
+    exciter = (doc.get("controls") or {}).get("exciter") or {}
+    determined = sorted(n for n, ok in (exciter.get("identifiable") or {}).items() if ok)
+    return {
+        "unit A small steps T_d0_prime (s)": figure(value, 0.01 * (value or 1.0)),
+        # the map plays the recorded set-point (v_ref) as the exciter's input
+        "exciter named": figure(exciter.get("model") or "none", 0.0, "verdict"),
+        "exciter constants determined": figure(",".join(determined) or "none", 0.0, "verdict"),
+        "exciter fit error (pu)": figure(exciter.get("fit_rmse_pu"), 0.0005),
+    }
 
 
 ZAKUCAC_ON_LINE = """machine: {mva: 160, kv: 16, f_nominal_hz: 50}

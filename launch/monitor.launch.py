@@ -89,6 +89,7 @@ def generate_launch_description() -> LaunchDescription:
         ("pmu", LaunchConfiguration("pmu_topic")),
         ("excitation", LaunchConfiguration("excitation_topic")),
         ("field_controller", LaunchConfiguration("field_controller_topic")),
+        ("set_point", LaunchConfiguration("set_point_topic")),
     ]
     common = {"use_sim_time": sim_time}
     sections = {n: node_parameters(n) for n in ("ingest_node", "recalibration_node")}
@@ -183,6 +184,11 @@ def generate_launch_description() -> LaunchDescription:
                 "field_controller_topic",
                 default_value="field_controller",
                 description="an excitation controller's field current / regulator / stabiliser topic (optional)",
+            ),
+            DeclareLaunchArgument(
+                "set_point_topic",
+                default_value="set_point",
+                description="the voltage regulator's recorded set-point topic (optional)",
             ),
             *nodes,
         ]

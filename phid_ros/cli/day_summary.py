@@ -12,7 +12,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from phid_ros.controls.identify import ControlFit, regulator_out_of_loop, switched_on
+from phid_ros.controls.identify import ControlFit, recorded_set_point, regulator_out_of_loop, switched_on
 from phid_ros.ident.file_events import time_in_file
 from phid_ros.ident.pipeline import IdentificationResult
 from phid_ros.ident.scenario import ScenarioData, file_of
@@ -63,7 +63,9 @@ def day_summary(res: IdentificationResult, controls: Mapping[str, ControlFit | s
         if s.name in on_line:
             e = on_line[s.name]
             gave.append(f"X'_d {float(e['X_d_prime']):.3g}, X_d {float(e['X_d']):.3g} (field circuit on line)")
-        if s.name in references:
+        if s.name in references and recorded_set_point(s) is not None:
+            gave.append("exciter: the recorded set-point")
+        elif s.name in references:
             gave.append(f"exciter: reference step {references[s.name]:+.3g}")
         if s.has("v_s") and switched_on(s) is not None:
             gave.append("stabiliser output (on)")

@@ -144,7 +144,9 @@ class ControlCase:
     output: Array
     stepped: bool  # a reference step at the event
     levels: OperatingLevels | None = None  # an exciter's operating levels: what its limits are against
-    reference: float | None = None  # the step's size where the test sheet says it (signed); fitted otherwise
+    # the step's size where the test sheet says it (signed), 1 where the recorded set-point is the
+    # input (``inputs.reference_step`` then holds it as it moved); fitted otherwise
+    reference: float | None = None
 
     def known_reference(self) -> float:
         """The reference step this case is played with when it is not fitted: the test sheet's, 0 unstepped."""
@@ -223,7 +225,8 @@ def control_case(
         dev[out_channel] = np.zeros(s.n)
         stepped_kinds = ()
     k = fit_stride(s.dt)
-    step = (np.arange(s.n) >= s.k_event).astype(float)[::k]
+    set_point = recorded_set_point(s) if kind == "exciter" else None
+    step = (np.arange(s.n) >= s.k_event).astype(float)[::k] if set_point is None else set_point[::k]
     zero = np.zeros(len(step))
     x = ControlInputs(
         s.dt * k,
@@ -243,11 +246,27 @@ def control_case(
         levels = OperatingLevels(float(np.mean(s["v_t"][pre])) + x.v_t, float(np.mean(s[out_channel][pre])), 0.0)
     stepped = s.kind in stepped_kinds
     reference = None
-    if stepped and s.reference_step is not None:
+    if set_point is not None:
+        # the set-point as recorded is the exciter's input: played as it moved, not a step sized
+        stepped, reference = bool(np.any(set_point != 0.0)), 1.0
+    elif stepped and s.reference_step is not None:
         # the test sheet's size, signed by the event's own direction (a step up, then the return)
         moved = float(np.mean(s["v_t"][s.steady_slice()])) - float(np.mean(s["v_t"][pre]))
         reference = math.copysign(s.reference_step, moved)
     return ControlCase(s.name, x, np.ascontiguousarray(dev[out_channel][::k]), stepped, levels, reference)
+
+
+def recorded_set_point(s: ScenarioData) -> Array | None:
+    """The regulator's recorded set-point (``v_ref``) as a deviation from its value before the
+    event, on the scenario's samples; None where it is not recorded or not finite throughout. Its
+    level before is a recorded value (the median of the pre-event samples), so a set-point that
+    did not move is exactly zero there."""
+    if not s.has("v_ref"):
+        return None
+    v = np.asarray(s["v_ref"], float)
+    if not np.all(np.isfinite(v)):
+        return None
+    return v - float(np.median(v[s.pre_slice()]))
 
 
 def switched_on(s: ScenarioData) -> int | None:

@@ -68,7 +68,9 @@ class ControlInputs:
     dt: float
     v_t: Array  # terminal voltage deviation, pu
     speed: Array  # rotor speed deviation, pu
-    reference_step: Array  # the unit step at the scenario's reference change (zeros if none)
+    # the unit step at the scenario's reference change (zeros if none), or the recorded set-point's
+    # deviation, played with a reference of 1 (:func:`phid_ros.controls.identify.recorded_set_point`)
+    reference_step: Array
     p_m0: float = float("nan")  # mechanical power before the event, pu (a hydro turbine's operating point)
     p_e: Array | None = None  # electrical power deviation, pu (a stabiliser's input), where recorded
     v_s: Array | None = None  # a stabiliser's output deviation, pu, where recorded (joins the regulator's error)

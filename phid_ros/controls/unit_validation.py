@@ -41,6 +41,7 @@ from phid_ros.controls.identify import (
     control_case,
     fit_stride,
     limited_output,
+    recorded_set_point,
     regulator_out_of_loop,
     simulate_cases,
     simulate_references,
@@ -353,13 +354,16 @@ def validate_unit(
                 put[channel], by[channel] = level + response[0], control.model.name
                 if kind == "exciter":
                     closing = _Closing(control, stabiliser, level, response[1])
-                if response[1]:
+                if kind == "exciter" and recorded_set_point(s) is not None:
+                    mine.append("exciter reference: the recorded set-point v_ref, as it moved")
+                elif response[1]:
                     said = s.reference_step is not None and s.kind in KINDS[kind][2]
                     how = "the test sheet's" if said else f"sized on the recorded {channel}"
                     mine.append(f"{kind} reference step {response[1]:+.4g} ({how})")
             elif control is not None:
                 mine.append(f"{kind} {control.model.name} not played in: the recording lacks {KINDS[kind][0][0]}")
-            if control is not None and s.kind in KINDS[kind][2] and not s.has(channel):
+            given = kind == "exciter" and recorded_set_point(s) is not None
+            if control is not None and s.kind in KINDS[kind][2] and not s.has(channel) and not given:
                 # a reference step of a size neither the recording nor the scenario gives: the unit
                 # is not played through this test, and none of its channels says anything of the model
                 unchecked.update(STANDARD_OF.values())

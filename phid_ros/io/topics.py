@@ -33,9 +33,10 @@ STREAMS_BY_NAME: dict[str, StreamSpec] = {s.name: s for s in STREAMS}
 STREAM_OF_CHANNEL: dict[str, str] = {c: s.name for s in STREAMS for c in s.channels}
 
 # What a recorder keeps beside the sensor streams: an excitation controller's field current,
-# regulator output and stabiliser output. Not a frame's channels (the online pipeline neither
-# needs nor waits for them): an import writes them, identify reads them on each scenario's
-# stamps (the field base, a limit's flat top, the stabiliser's output).
+# regulator output and stabiliser output, and the regulator's set-point. Not a frame's channels
+# (the online pipeline neither needs nor waits for them): an import writes them, identify reads
+# them on each scenario's stamps (the field base, a limit's flat top, the stabiliser's output,
+# the exciter's input as it was moved).
 RECORDER_STREAMS: tuple[StreamSpec, ...] = (
     StreamSpec(
         "field_controller",
@@ -43,6 +44,7 @@ RECORDER_STREAMS: tuple[StreamSpec, ...] = (
         ("i_fd", "v_r", "v_s"),
         "excitation controller's field current, regulator output and stabiliser output",
     ),
+    StreamSpec("set_point", "phid_msgs/msg/SetPointBlock", ("v_ref",), "voltage regulator's set-point"),
 )
 RECORDER_CHANNELS: tuple[str, ...] = tuple(c for s in RECORDER_STREAMS for c in s.channels)
 # every stream a recording may carry, by name

@@ -88,6 +88,7 @@ PLAUSIBLE: dict[str, tuple[float, float]] = {
     "i_fd": (-30.0, 30.0),
     "v_r": (-100.0, 100.0),
     "v_s": (-10.0, 10.0),
+    "v_ref": (0.0, 3.0),  # the regulator's set-point, pu of the rated terminal voltage
 }
 
 # What a channel's typical magnitude says it was recorded in, when it is not per unit.

@@ -265,6 +265,7 @@ def msg_types() -> dict[str, Any]:
         PmuBlock,
         PtCtBlock,
         ScenarioMarker,
+        SetPointBlock,
     )
     from std_msgs.msg import Header
 
@@ -286,6 +287,7 @@ def msg_types() -> dict[str, Any]:
         "phid_msgs/msg/PmuBlock": PmuBlock,
         "phid_msgs/msg/PtCtBlock": PtCtBlock,
         "phid_msgs/msg/ScenarioMarker": ScenarioMarker,
+        "phid_msgs/msg/SetPointBlock": SetPointBlock,
     }
 
 

@@ -1,7 +1,7 @@
 """ingest_node: sensor topics -> aligned ring buffer -> disturbance events and event windows.
 
 Subscribes (relative, remappable): pt_ct, encoder, pmu, excitation, and a recorder's field_controller
-when there is one (its field current goes with each window).
+and set_point when there are (its field current and the regulator's set-point go with each window).
 Publishes: events (DisturbanceEvent), event_windows (EventWindow), ~/diagnostics is left to
 the recalibration node, which also watches the streams. A managed (lifecycle) node: see
 :class:`phid_ros.nodes.common.MonitorNode`.

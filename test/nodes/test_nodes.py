@@ -71,7 +71,7 @@ def test_wiring_topics_qos_services_parameters(ros):
     ingest, recal = make_nodes(ros)
     subs = {s.topic: s for s in ingest.subscriptions}
     sensors = {"/generator/pt_ct", "/generator/encoder", "/generator/pmu", "/generator/excitation"}
-    assert set(subs) == sensors | {"/generator/field_controller"}  # the recorder's own: optional
+    assert set(subs) == sensors | {"/generator/field_controller", "/generator/set_point"}  # a recorder's own: optional
     assert all(s.qos.reliability == ReliabilityPolicy.BEST_EFFORT for s in subs.values())  # sensor data QoS
     assert {p.topic for p in ingest.publishers} == {"/generator/events", "/generator/event_windows"}
     params = next(p for p in recal.publishers if p.topic == "/generator/parameters")

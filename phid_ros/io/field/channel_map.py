@@ -19,6 +19,7 @@ One format for COMTRADE and PMU exports (YAML or JSON)::
       p_m: {name: PMECH, unit: MW}
       v_r: UREG                                         # the regulator's output, the controller's units
       v_s: VPSS                                         # the stabiliser's output, as recorded
+      v_ref: UREF                                       # the regulator's set-point, pu of the rated V_t
     scenarios:                                          # optional, by recording file stem
       trip_0412: {kind: fault, role: identify, event_time_s: 0.1}
 
@@ -71,6 +72,7 @@ QUANTITIES: dict[str, tuple[str, tuple[str, ...], str]] = {
     # an excitation controller's own signals, as it records them (:data:`phid_ros.io.topics.RECORDER_STREAMS`)
     "v_r": ("controller", ("pu",), "pu"),  # the voltage regulator's output
     "v_s": ("controller", ("pu",), "pu"),  # the power system stabiliser's output
+    "v_ref": ("controller", ("pu",), "pu"),  # the voltage regulator's set-point, pu of the rated V_t
 }
 FIELD_QUANTITIES = ("v_f", "i_fd")
 WAVEFORMS = ("v_a", "v_b", "v_c", "i_a", "i_b", "i_c")

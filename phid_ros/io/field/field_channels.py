@@ -375,7 +375,7 @@ def left_behind(tables: Sequence[ScenarioTable]) -> str:
     return (
         "recorded but named by no channel map, so not imported: "
         + "; ".join(f"{c} ({where(n)})" for c, n in files.items())
-        + " (map them to use them: v_r takes a regulator's output, v_s a stabiliser's)"
+        + " (map them to use them: v_r takes a regulator's output, v_s a stabiliser's, v_ref the regulator's set-point)"
     )
 
 
