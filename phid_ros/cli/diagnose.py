@@ -51,7 +51,9 @@ def print_parameters(console: Console, doc: dict[str, Any]) -> None:
         cols += [Col("truth"), Col("err ident."), Col("err after")]
     rows = []
     for n in PARAMETER_NAMES:
-        row = [SYMBOLS[n], fmt(doc["parameters_identified"][n]), fmt(doc["parameters_base_refit"][n])]
+        # a value the identification left at a search bound is a bound, not a value
+        bound = " at bound" if n in doc.get("parameters_identified_at_bound", ()) else ""
+        row = [SYMBOLS[n], fmt(doc["parameters_identified"][n]) + bound, fmt(doc["parameters_base_refit"][n])]
         # n.d.: the data do not determine it (a two-point profile, diagnose.determinability.determined)
         row.append(fmt(doc["parameters"][n]) + ("" if is_determined(doc, n) else " n.d."))
         if truth:

@@ -149,7 +149,8 @@ def _parameters_table(doc: dict[str, Any]) -> str:
     for n in PARAMETER_NAMES:
         row = [
             SYMBOLS[n],
-            fmt(doc["parameters_identified"][n]),
+            fmt(doc["parameters_identified"][n])
+            + (" (at its search bound)" if n in doc.get("parameters_identified_at_bound", ()) else ""),
             fmt(doc["parameters_base_refit"][n]),
             fmt(doc["parameters"][n]) + ("" if is_determined(doc, n) else " (not determined by these data)"),
         ]

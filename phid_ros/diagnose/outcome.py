@@ -68,6 +68,9 @@ class Diagnosis:
     held: list[str] = field(default_factory=list)  # base parameters kept at their identified values
     # per named effect, whether the data determine each of its numeric parameters (determined())
     effects_identifiable: dict[str, dict[str, bool]] = field(default_factory=dict)
+    # the base parameters the three-stage identification left at a search bound: its value there
+    # is a bound, not an identified value (the diagnosis searches them over their whole range)
+    identified_at_bound: tuple[str, ...] = ()
 
     @property
     def named(self) -> list[str]:

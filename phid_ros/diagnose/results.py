@@ -63,6 +63,7 @@ def to_json(
         "identifiable": d.identifiable,
         "held": d.held,
         "parameters_identified": d.identified,
+        "parameters_identified_at_bound": list(d.identified_at_bound),
         "parameters_base_refit": d.base_fit.model.base,
         "fit": {"chi2_before": d.base_fit.chi2, "chi2_after": d.final.chi2, "samples": d.final.n},
         "rounds": [

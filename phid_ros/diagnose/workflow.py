@@ -185,6 +185,7 @@ def _diagnose(
         problems.append(_not_determined_when_unexplained(current_score, identifiable, opt))
     return Diagnosis(
         identified={n: float(identified.get(n, math.nan)) for n in PARAMETER_NAMES},
+        identified_at_bound=tuple(opt.wide),
         base_fit=base_fit,
         final=current,
         rounds=rounds,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 
 import pytest
 
@@ -28,8 +29,11 @@ def test_diagnose_names_the_hidden_saturation_in_the_shipped_bag(tmp_path, capsy
     assert doc["rmse_after"] < 0.05 * doc["rmse_before"]  # README: 21.6 -> 0.31
     assert abs(doc["errors_pct"]["after"]["T_d0_prime"]) < 1.0 < abs(doc["errors_pct"]["identified"]["T_d0_prime"])
     assert set(doc["gap_before"]["by_channel"]) == {"omega", "delta", "i_d", "i_q", "p_e", "q_e"}
+    # the identification's T'_d0 and T'_q0 sat on their search bounds: shown as bounds, never as values
+    assert sorted(doc["parameters_identified_at_bound"]) == ["T_d0_prime", "T_q0_prime"]
     page = report.read_text()
     assert page.count("data:image/png;base64,") == 2 and "magnetic_saturation" in page
+    assert page.count("(at its search bound)") == 2
     captured = capsys.readouterr()
     out = captured.out
     assert "missing physics: magnetic_saturation" in out
@@ -37,6 +41,7 @@ def test_diagnose_names_the_hidden_saturation_in_the_shipped_bag(tmp_path, capsy
     # as warnings after it (six of them read as the diagnosis having failed)
     assert "the first identification (column 'identified') showed the missing physics as:" in out
     assert "  - stage 3: T_d0_prime = 15 s is at its search bound" in out
+    assert re.search(r"T'_d0 +15 at bound", out), out
     assert "search bound" not in captured.err
     assert "…" not in out and max(len(line) for line in out.splitlines() if line.startswith(" ")) <= 80
     if chromium() is not None:  # rendered as a reader sees it (the other reports: test_reports_and_terminal.py)
