@@ -41,7 +41,7 @@ class OutputCollector:
         self.sink = sink  # each batch goes out as it is made (to a bag writer); else kept in .messages
         self.messages: list[tuple[int, str, str, object]] = []
         self.counts: dict[str, int] = {}
-        self.last_status: str | None = None
+        self.last_recalibration: RecalibrationOutcome | None = None
         self._diag_period = diagnostics_period_ns
         self._next_diag: int | None = None
         self._batch: list[tuple[int, str, str, object]] = []
@@ -68,7 +68,7 @@ class OutputCollector:
         from phid_ros.stream.emit import emit
 
         for r in out.recalibrations:
-            self.last_status = r.status
+            self.last_recalibration = r
         for p in emit(self.types, out):
             self._add(p.key, p.log_ns, p.message)
         now = self.pipeline.latest_ns
@@ -90,7 +90,7 @@ class OutputCollector:
                         self.types,
                         self._next_diag,
                         self.pipeline.health,
-                        self.last_status,
+                        self.last_recalibration,
                         stream_now_ns=self.pipeline.aligner.stream_now_ns,
                         stale_ns=self.pipeline.aligner.stale_ns,
                         unit=self.pipeline.settings.unit,

@@ -24,6 +24,7 @@ from phid_ros.stream import messages as m
 from phid_ros.stream.emit import emit
 from phid_ros.stream.params import RECALIBRATION, pipeline_settings
 from phid_ros.stream.pipeline import MonitorPipeline, Outputs
+from phid_ros.stream.recalibration import RecalibrationOutcome
 
 # The Hamiltonian is held until the recalibration that covers it is known, then published at
 # once: the first set releases about 5.5 min of samples (1650 at 5 Hz) in one burst, which a
@@ -33,7 +34,7 @@ VERDICTS_KEPT = 10  # the record's verdicts a late subscriber still gets
 
 
 class RecalibrationNode(common.MonitorNode):
-    last_status: str | None = None  # the last recalibration's, for /diagnostics
+    last_recalibration: RecalibrationOutcome | None = None  # for /diagnostics: its level and status
 
     def __init__(self) -> None:
         prepare_identification()  # before any callback can wait on a first compile (seconds, once per machine)
@@ -110,7 +111,7 @@ class RecalibrationNode(common.MonitorNode):
 
     def _publish(self, out: Outputs) -> None:
         for r in out.recalibrations:
-            self.last_status = r.status
+            self.last_recalibration = r
         done = emit(self.types, out, self.publishers_by_key, common.float_seq, list)
         for p in done:
             self.publishers_by_key[p.key].publish(p.message)
@@ -124,7 +125,7 @@ class RecalibrationNode(common.MonitorNode):
                 self.types,
                 now,
                 self.pipeline.health,
-                self.last_status,
+                self.last_recalibration,
                 stream_now_ns=self.pipeline.aligner.stream_now_ns,
                 stale_ns=self.pipeline.aligner.stale_ns,
                 level=common.byte_level,

@@ -226,7 +226,7 @@ def diagnostics_message(
     types: Types,
     now_ns: int,
     health: Mapping[str, StreamHealth],
-    recalibration_status: str | None,
+    recalibration: RecalibrationOutcome | None,
     node: str = "phid",
     *,
     stream_now_ns: int | None = None,
@@ -284,9 +284,8 @@ def diagnostics_message(
         ]
         statuses.append(status(LEVELS[name_level], f"{name} stream", message, values))
 
-    if recalibration_status is not None:
-        recal_level = 0 if recalibration_status.startswith("ok") else (2 if "failed" in recalibration_status else 1)
-        statuses.append(status(recal_level, "recalibration", recalibration_status, []))
+    if recalibration is not None:
+        statuses.append(status(LEVELS[recalibration.level], "recalibration", recalibration.status, []))
     if record is not None:  # the unit's record on file: OK while it passes, WARN, ERROR (record_check.py)
         record_level, message = record.status()
         values = [kv(key=k, value=v) for k, v in record.diagnostic_values()]

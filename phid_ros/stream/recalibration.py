@@ -86,6 +86,13 @@ class RecalibrationOutcome:
     # the exciter, governor and stabiliser fitted on the same events (by kind: the fit, or why none),
     # as phid identify fits them beside the machine; empty when the deployment does not ask for them
     controls: dict[str, ControlFit | str] = field(default_factory=dict)
+    failed: bool = False  # the run raised (its status says what): no result at all
+
+    @property
+    def level(self) -> str:
+        """The run's diagnostic level (diagnostic_updater's): OK where its set was adopted, ERROR
+        where the run failed, WARN otherwise (the last good set kept, a partial set, too few events)."""
+        return "OK" if self.accepted else ("ERROR" if self.failed else "WARN")
 
     def said(self) -> tuple[str, str]:
         """(outcome, why) in the words of what happened to the set in force, for a reader: the first
@@ -305,6 +312,7 @@ class Recalibrator:
                 ids,
                 stream_time_ns,
                 time.perf_counter() - t0,
+                failed=True,
             )
         self.activity = ""
         with self._lock:

@@ -79,11 +79,19 @@ def test_diagnostics_name_their_unit_so_a_plant_s_monitors_group_apart(types: di
     from phid_ros.stream.messages import diagnostics_message
 
     health = {"pt_ct": StreamHealth("pt_ct", expected_rate_hz=1000.0)}
-    named = diagnostics_message(types, T0, health, "ok", unit="/plant/unit3")
+    adopted = RecalibrationOutcome(True, "ok", None, None, ["e1"], T0, 0.1)
+    named = diagnostics_message(types, T0, health, adopted, unit="/plant/unit3")
     assert [(s.name, s.hardware_id) for s in named.status] == [
         ("phid/plant/unit3: pt_ct stream", "plant/unit3"),
         ("phid/plant/unit3: recalibration", "plant/unit3"),
     ]
+    # the recalibration's level is the outcome's, not read back from its sentence: adopted OK, a run
+    # that raised ERROR, a kept set or a partial one WARN (whatever their wording says)
+    failed = RecalibrationOutcome(False, "ok? no: it raised", None, None, ["e1"], T0, 0.1, failed=True)
+    kept = RecalibrationOutcome(False, "kept last good set: recalibration failed once", None, None, ["e1"], T0, 0.1)
+    for outcome, level in ((adopted, 0), (failed, 2), (kept, 1)):
+        [_, recal] = diagnostics_message(types, T0, health, outcome).status
+        assert (recal.level, recal.message) == (level, outcome.status)
     plain = diagnostics_message(types, T0, health, None)
     assert [(s.name, s.hardware_id) for s in plain.status] == [("phid: pt_ct stream", "generator")]
 
