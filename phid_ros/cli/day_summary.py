@@ -13,7 +13,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 from phid_ros.controls.identify import ControlFit, recorded_set_point, regulator_out_of_loop, switched_on
-from phid_ros.ident.file_events import time_in_file
 from phid_ros.ident.pipeline import IdentificationResult
 from phid_ros.ident.scenario import ScenarioData, file_of
 from phid_ros.ident.terminal import at_no_load
@@ -43,8 +42,7 @@ def _held_by(s: ScenarioData) -> str:
 
 def _event_time(s: ScenarioData) -> float:
     """The event's time in its test file, or in its window where it was not cut from a file."""
-    t = time_in_file(s.notes)
-    return s.k_event * s.dt if t is None else t
+    return s.k_event * s.dt if s.file_time_s is None else s.file_time_s
 
 
 def day_summary(res: IdentificationResult, controls: Mapping[str, ControlFit | str] | None = None) -> list[TestRow]:

@@ -16,8 +16,7 @@ name.
 
 from __future__ import annotations
 
-import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -66,18 +65,8 @@ class FileEvent:
 
 
 def event_note(e: FileEvent, dt: float, file: str) -> str:
-    """The note a scenario cut from a file's event carries (read back by :func:`time_in_file`)."""
+    """The note a scenario cut from a file's event carries (its time there: ``ScenarioData.file_time_s``)."""
     return f"event {e.describe(dt)} of {file}"
-
-
-def time_in_file(notes: Sequence[str]) -> float | None:
-    """The event's time in its test file, read back from the note its scenario was cut with
-    (:func:`event_note`); None where the scenario was not cut from a file's events."""
-    for n in notes:
-        found = re.match(r"event \w+ at (-?[0-9.]+) s \(window ", n)
-        if found:
-            return float(found.group(1))
-    return None
 
 
 def events_of_file(

@@ -94,6 +94,9 @@ class ScenarioData:
     recorded: dict[str, Array] = field(default_factory=dict)
     # the test sheet's reference step, pu, unsigned (the event's own direction signs it), where it says
     reference_step: float | None = None
+    # the event's time in the test file it was cut from (s), where it was cut from a file's events
+    # (:func:`phid_ros.stream.scenarios.scenarios_from_recording`); None otherwise
+    file_time_s: float | None = None
     # what the stages derive from this scenario alone, kept for the next identification that reads
     # it (a recalibration every few minutes re-reads the same stored windows); not an init field,
     # so a scenario made from this one (dataclasses.replace, with_frame) starts without it
@@ -186,6 +189,7 @@ class ScenarioData:
             self.regulator,
             self.recorded,
             self.reference_step,
+            self.file_time_s,
         )
 
     def rows(self, a: int, b: int) -> ScenarioData:
@@ -206,6 +210,7 @@ class ScenarioData:
             self.regulator,
             {c: x[a:b] for c, x in self.recorded.items()},
             self.reference_step,
+            self.file_time_s,
         )
 
 
@@ -562,6 +567,7 @@ def resampled(s: ScenarioData, period_ns: int) -> ScenarioData:
         s.regulator,
         recorded,
         s.reference_step,
+        s.file_time_s,
     )
     return out
 

@@ -139,6 +139,7 @@ def with_channels(s: ScenarioData, channels: dict[str, Array], note: str) -> Sce
         s.regulator,
         s.recorded,
         s.reference_step,
+        s.file_time_s,
     )
 
 

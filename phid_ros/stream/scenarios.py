@@ -255,6 +255,7 @@ def _marked_scenarios(
                 continue
             made.steady_start = e.steady_start - e.start
             made.notes.append(event_note(e, frame.period_ns / NS, m.name))
+            made.file_time_s = e.event * frame.period_ns / NS
             out.append(made)
 
 

@@ -22,6 +22,7 @@ def test_each_no_load_step_says_the_t_d0_its_field_circuit_gave() -> None:
     # a trend log's channels: no stator currents, speed, rotor angle or P_m
     trend = frozenset({"i_d", "i_q", "omega", "delta", "p_m"})
     scs = [replace(s, absent=s.absent | trend) for s in no_load_steps({"up": 1.1, "deep": 0.6, "down": 0.9}, CURVE)]
+    scs[1] = replace(scs[1], file_time_s=53.76)  # cut from a file's events: its time in the file
     opt = IdentifyOptions(baseline=False, validate=False, constraints=Constraints(saturation=CURVE))
     res = identify(scs, opt)
     assert "T_d0_prime" in res.determined_by
@@ -32,4 +33,5 @@ def test_each_no_load_step_says_the_t_d0_its_field_circuit_gave() -> None:
         said = next(g for g in r.gave if g.endswith("(field circuit)"))
         assert float(said.split()[1]) == pytest.approx(TABLE1.T_d0_prime, rel=0.02)
     assert "exciter: reference step +0.1" in rows[0].gave and not any("exciter" in g for g in rows[1].gave)
-    assert rows[0].event_s == pytest.approx(scs[0].k_event * scs[0].dt, abs=0.05)
+    assert rows[0].event_s == pytest.approx(scs[0].k_event * scs[0].dt, abs=0.05)  # in its window
+    assert rows[1].event_s == 53.76
