@@ -8,6 +8,7 @@ most of it the diagnosis.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import tempfile
 from pathlib import Path
@@ -18,11 +19,17 @@ sys.path.insert(0, str(ROOT))
 from phid_ros.cli.main import main  # noqa: E402
 from test.browser import assert_readable, chromium, screenshot  # noqa: E402
 
-BAGS = ROOT / "bags"
+# every path a report shows is relative (the reports are made in their folder, the shipped bags
+# linked into it as ``bags``), so a screenshot never shows where the docs were built
+BAGS = Path("bags")
 FIGURES = {"identify": 4, "diagnose": 2, "replay": 3, "track": 3, "validate": 18, "history": 1}
 
 
-def make_reports(out: Path) -> None:
+def make_reports() -> None:
+    """The reports, made in the current folder from the bags linked there."""
+    if not BAGS.exists():
+        BAGS.symlink_to(ROOT / "bags", target_is_directory=True)
+    out = Path(".")
     runs = {
         "identify": ["identify", str(BAGS / "catalogue"), "--truth", str(BAGS / "catalogue.truth.json")],
         "diagnose": ["diagnose", str(BAGS / "saturation"), "--truth", str(BAGS / "saturation.truth.json")],
@@ -69,8 +76,14 @@ def run(argv: list[str] | None = None) -> int:
         return 2
     with tempfile.TemporaryDirectory() as tmp:
         out = args.reports or Path(tmp)
+        out = out.resolve()
         out.mkdir(parents=True, exist_ok=True)
-        make_reports(out)
+        here = Path.cwd()
+        os.chdir(out)
+        try:
+            make_reports()
+        finally:
+            os.chdir(here)
         for name, figures in FIGURES.items():
             assert_readable(out / f"{name}.html", figures)
             # validate's page holds every event's figure: its top (the checks' table and the first events) suffices
