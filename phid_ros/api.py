@@ -7,7 +7,10 @@ these; none of them needs the command line's parser or its terminal output.
 >>> from phid_ros.ident.pipeline import IdentifyOptions
 >>> rec = load_recording("bags/catalogue")
 >>> scenarios, result = identify_recording(rec, "bags/catalogue", IdentifyOptions(f_nominal_hz=rec.f_nominal_hz))
->>> result.parameters.H  # doctest: +SKIP
+>>> round(result.parameters["H"], 2)  # the catalogue's machine has H = 3.48 s
+3.48
+>>> result.estimates["H"].std < 0.01
+True
 """
 
 from __future__ import annotations

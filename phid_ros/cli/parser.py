@@ -168,7 +168,11 @@ def _add_field_imports(sub: Subparsers) -> None:
             "REC.cfg",
             "COMTRADE recordings (.cfg+.dat or .cff), one scenario each, through a channel map",
         ),
-        ("import-pmu", "EXPORT.csv", "PMU data-concentrator CSV exports, one scenario each, through a channel map"),
+        (
+            "import-pmu",
+            "EXPORT.csv",
+            "CSV exports (PMU data concentrators, trend logs, polled logs), one scenario each, through a channel map",
+        ),
     ):
         p = sub.add_parser(name, help=helptext)
         p.add_argument("recordings", nargs="+", metavar=what, help="the recordings (several make one scenario set)")
