@@ -51,3 +51,13 @@ def test_the_readme_tour_runs_as_written(tmp_path):
     for made in ("my_catalogue", "unit.json", "unit.html", "replay.mcap", "replay.html", "diag.json", "unit.dyr"):
         assert (tmp_path / made).exists(), made
     assert (tmp_path / "mod026.html").stat().st_size > 10_000
+
+
+def test_the_command_table_and_each_commands_help_name_the_same_guide():
+    from phid_ros.cli.parser import EXAMPLES
+
+    rows = [line for line in (ROOT / "README.md").read_text().splitlines() if line.startswith("| `phid ")]
+    for name, (_, guide) in EXAMPLES.items():
+        row = next(r for r in rows if f"`phid {name}`" in r)
+        assert f"docs/guide/{guide}" in row.split("|")[3], f"phid {name}: --help points to {guide}, the README to {row}"
+        assert (ROOT / "docs" / "guide" / guide).exists()

@@ -449,7 +449,7 @@ EXAMPLES: dict[str, tuple[tuple[str, ...], str]] = {
         ),
         "simulate.md",
     ),
-    "import-csv": (("phid import-csv my_set/manifest.json --out my_set.mcap",), "field-recordings.md"),
+    "import-csv": (("phid import-csv my_set/manifest.json --out my_set.mcap",), "simulate.md"),
     "import-comtrade": (("phid import-comtrade fault.cfg --map unit.yaml --out fault.mcap",), "field-recordings.md"),
     "import-pmu": (
         ("phid import-pmu logs/*.csv --map map_noload.yaml --map map_online.yaml --out day.mcap",),
@@ -468,7 +468,7 @@ EXAMPLES: dict[str, tuple[tuple[str, ...], str]] = {
     "fleet": (("phid fleet units/ --out fleet/ --workers 2",), "fleet.md"),
     "history": (("phid history G1 --fleet fleet/ --report G1.html",), "fleet.md"),
     "export": (("phid export result.json --format psse-dyr --model GENSAL --out unit.dyr",), "export.md"),
-    "validate": (("phid validate unit.dyr day.mcap --report mod026.html",), "export.md"),
+    "validate": (("phid validate unit.dyr day.mcap --report mod026.html",), "controls.md"),
     "characterise": (("phid characterise lab.yaml --json lab.json",), "field-recordings.md"),
     "info": (("phid info day.mcap",), "field-recordings.md"),
 }
