@@ -96,7 +96,7 @@ def method_text(result: UnitValidation) -> str:
 
 
 def verdict_text(result: UnitValidation, standard: str) -> str:
-    """``pass``, ``FAIL (k of n checks)``, or ``not tested`` with why (its control model never
+    """``pass``, ``FAIL (k of n checks failed)``, or ``not tested`` with why (its control model never
     played: a P or Q checked with the recorded E_fd or P_m tests the machine, not the control)."""
     checks = [c for s in result.scenarios for c in s.checks if c.standard == standard]
     verdict = result.verdict(standard)
@@ -104,7 +104,7 @@ def verdict_text(result: UnitValidation, standard: str) -> str:
         kind = next(k for k, v in STANDARD_OF.items() if v == standard)
         return f"not tested (no {kind} played: its output as recorded or held)"
     failed = sum(not c.passed for c in checks)
-    return "pass" if not failed else f"FAIL ({failed} of {len(checks)} checks)"
+    return "pass" if not failed else f"FAIL ({failed} of {len(checks)} checks failed)"
 
 
 def why_larger_than_identify(result: UnitValidation) -> str:

@@ -28,3 +28,30 @@ def test_validate_reads_several_recordings_as_identify_does(tmp_path, capsys) ->
         assert b["scenario"] == f"validation/{a['scenario']}" and b["checks"] == a["checks"]
     assert any("validation.mcap" in n and "once" in n for n in doc["validation"]["notes"]), doc["validation"]["notes"]
     assert doc["input"] == f"{CATALOGUE} + {VALIDATION}"
+
+
+def test_a_verdict_says_how_many_checks_failed_and_a_standard_never_played_is_not_tested() -> None:
+    import numpy as np
+
+    from phid_ros.cli.validate import verdict_text
+    from phid_ros.controls.unit_validation import ChannelCheck, ScenarioCheck, UnitValidation
+
+    def check(channel: str, standard: str, passed: bool) -> ChannelCheck:
+        return ChannelCheck(channel, standard, 0.02 if passed else 0.09, 0.05, passed, "SEXS")
+
+    t = np.zeros(1)
+    events = [
+        ScenarioCheck(
+            f"S{i}",
+            "voltage_step",
+            t,
+            {},
+            {},
+            [check("q_e", "MOD-026", ok), check("p_e", "MOD-027", True)],
+            made_by={"v_f": "SEXS", "p_m": "recorded"},
+        )
+        for i, ok in enumerate([True, False, False])
+    ]
+    unit = UnitValidation("GENSAL + SEXS", events, [])
+    assert verdict_text(unit, "MOD-026") == "FAIL (2 of 3 checks failed)"
+    assert verdict_text(unit, "MOD-027").startswith("not tested (no governor played")
