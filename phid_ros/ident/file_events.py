@@ -4,7 +4,7 @@ A real test file holds several events: an AVR reference step and its return 6-10
 ramp and then a step, a de-excitation. The paper's scenario has one event and takes its
 post-event steady state from the final fifth of the window; over a step-and-return file that
 mixes both plateaus (and the return's transient), so each event is cut into its own window:
-from the midpoint of the plateau before it to the midpoint of the plateau after it, its
+from the midpoint of the plateau before it (at most a minute back) to the midpoint of the plateau after it, its
 steady state the second half of the span after the event (the windows do not overlap, so no
 plateau counts twice).
 
@@ -40,6 +40,25 @@ MEASURED_SHARE = 0.8
 PLATEAU_LEVEL_S = 1.0
 PLATEAU_SHARE = 0.2
 MIN_TERMINAL_MOVE = 0.002  # pu: an event moves V_t, Q or P by at least this (a 1 % field step moves V_t 1.4 %)
+# a window reaches back for the plateau before its event at most this far: the field circuit's k_e
+# and the exciter's initial state are read there (1 s of it made the exciter's ceilings 3 % off),
+# and the online detector's ring holds no more (``DetectorSettings.plateau_s``); one rule for both
+STEP_PLATEAU_S = 60.0
+
+
+def plateau_samples(dt: float, plateau_s: float = STEP_PLATEAU_S) -> int:
+    """How many samples before its event a window reaches back at most."""
+    return max(1, int(round(plateau_s / dt)))
+
+
+def window_start(
+    signals: Mapping[str, Array], boundary: int, k: int, dt: float, plateau_s: float = STEP_PLATEAU_S
+) -> int:
+    """Where the window of the event at ``k`` begins: its plateau (:func:`plateau_start`) from
+    ``boundary`` (the file's start, or halfway from the event before), at most ``plateau_s`` back.
+    The online detector cuts a field step's window by this function too, so a test file's events
+    and the monitor's give the same samples to the stages and to ``phid validate``."""
+    return plateau_start(signals, max(boundary, k - plateau_samples(dt, plateau_s)), k, dt)
 
 
 @dataclass(frozen=True)
@@ -94,7 +113,7 @@ def events_of_file(
     lost_until = -1
     for i, (kind, k, k_clear) in enumerate(events):
         k_end = k_clear if k_clear is not None else k
-        start = plateau_start(signals, 0 if i == 0 else (_last_end(events[i - 1]) + k) // 2, k, dt)
+        start = window_start(signals, 0 if i == 0 else (_last_end(events[i - 1]) + k) // 2, k, dt)
         end = n if i == len(events) - 1 else (k_end + events[i + 1][1]) // 2
         if (end - start) * dt < MIN_WINDOW_S or k - start < 2:
             continue

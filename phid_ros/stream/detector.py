@@ -34,10 +34,13 @@ from phid_ros.ident.file_events import (
     LOST_MEASUREMENT_S,
     MEASURED_SHARE,
     QUIET_S,
+    STEP_PLATEAU_S,
     at_no_load,
     fell_at_once,
     level_before,
     moves_terminal,
+    plateau_samples,
+    window_start,
 )
 from phid_ros.ident.scenario import DEFAULT_THRESHOLDS, StepThresholds, find_events
 from phid_ros.model.channels import CHANNEL_INDEX, CHANNELS, Frame
@@ -50,9 +53,7 @@ PRE_EVENT_S = 1.0
 POST_EVENT_S = 29.0
 # A field step (an AVR reference step, a manual field step, a de-excitation) is a staged test: its
 # window reaches back for the plateau before it, as ``phid identify`` cuts a test file (halfway from
-# the event before, or from where the recording resumed), up to this far. The field circuit's k_e
-# and the exciter's initial state are read there; 1 s of it made the exciter's ceilings 3 % off.
-STEP_PLATEAU_S = 60.0
+# the event before, or from where the recording resumed), up to STEP_PLATEAU_S (file_events).
 
 
 @dataclass(frozen=True)
@@ -163,7 +164,8 @@ class Detector:
     _segment: int = 0
     _pending: list[Event] = field(default_factory=list)
     _last_cut: Event | None = None  # the event before the pending ones in this segment: where they start
-    _starts: dict[str, int] = field(default_factory=dict)  # a pending field step's window start, once decided
+    # a pending field step's window start and the boundary before it, once decided
+    _starts: dict[str, tuple[int, int]] = field(default_factory=dict)
     # the voltage measurement lost at no load: V_t before it, and (once back) until when the
     # events are the measurement's, not the machine's (None: not lost)
     _lost_level: float | None = None
@@ -292,42 +294,62 @@ class Detector:
         self._pending = []
         return new, out
 
-    def _start(self, before: Event | None, ev: Event) -> int:
-        """Where ``ev``'s window begins (and ``before``'s ends, one sample earlier): ``pre_s``
-        before it (the paper's 1 s). A field step, a staged test, wants the plateau before it, as
-        ``phid identify`` cuts a test file: from where the recording resumed when it paused after
-        ``before`` (another test's file; the segment's start without one), else halfway from
-        ``before``'s end to it; never more than ``plateau_s`` back."""
+    def _start(self, before: Event | None, ev: Event) -> tuple[int, int]:
+        """Where ``ev``'s window begins, and the stamp before which ``before``'s ends: ``pre_s``
+        before it (the paper's 1 s) for both. A field step, a staged test, is cut as ``phid
+        identify`` cuts a test file's events (:func:`~phid_ros.ident.file_events.window_start`,
+        counted in samples as there): from where the recording resumed when it paused after
+        ``before`` (another test's file; the ring's oldest without one), else from the sample
+        halfway from ``before``'s end to it, where ``before``'s window ends; its own window from its
+        plateau there, never more than ``plateau_s`` back."""
         s = self.settings
         if ev.kind != "field_step":
-            return ev.inception_ns - int(s.pre_s * NS)
+            t0 = ev.inception_ns - int(s.pre_s * NS)
+            return t0, t0
         if ev.event_id in self._starts:
             return self._starts[ev.event_id]
-        lo = ev.inception_ns - int(max(s.pre_s, s.plateau_s) * NS)
-        if before is not None:
-            lo = max(lo, (before.clearing_ns or before.inception_ns) + self.period_ns)
-        t, x = self.ring.window(lo, ev.inception_ns - self.period_ns)
+        dt = self.period_ns / NS
+        cap = plateau_samples(dt, max(s.pre_s, s.plateau_s))
+        # twice the cap back: a midpoint further than that is beyond the cap anyway
+        lo = ev.inception_ns - (2 * cap + 2) * self.period_ns
+        before_end = None if before is None else (before.clearing_ns or before.inception_ns)
+        after = int(max(2.0, 1.5 * s.pre_s) * NS)  # plateau_start reads the event's first second
+        t, x = self.ring.window(max(lo, before_end) if before_end is not None else lo, ev.inception_ns + after)
+        k = int(np.searchsorted(t, ev.inception_ns))
+        if k < 2:  # nothing before it held (the ring cleared): the paper's pre-event time
+            t0 = ev.inception_ns - int(s.pre_s * NS)
+            return t0, t0
         judged = [i for i, c in enumerate(CHANNELS) if c not in s.not_recorded]
-        paused = np.flatnonzero(~np.isfinite(x[:, judged]).any(axis=1))
-        if paused.size and paused[-1] + 1 < len(t):
-            start = int(t[paused[-1] + 1])  # the recording resumed: this test's file begins
-        elif before is None:
-            start = max(lo, self.ring.oldest_ns or lo)
-        else:
-            start = max(lo, ((before.clearing_ns or before.inception_ns) + ev.inception_ns) // 2)
+        paused = np.flatnonzero(~np.isfinite(x[:k, judged]).any(axis=1))
+        if paused.size:
+            boundary = int(paused[-1]) + 1  # the recording resumed: this test's file begins
+        elif before_end is None or before_end < int(t[0]):
+            boundary = 0  # the ring's oldest, or twice the cap back: the cap decides
+        else:  # the sample halfway, as a file's events are counted: (k_before + k) // 2
+            j = int(np.searchsorted(t, before_end))
+            boundary = j + (k - j) // 2
+        signals = {c: x[:, CHANNEL_INDEX[c]] for c in ("v_t", "q_e", "p_e")}
+        first = min(window_start(signals, min(boundary, k), k, dt, max(s.pre_s, s.plateau_s)), k - 1)
+        start = min(int(t[max(first, 0)]), ev.inception_ns - int(s.pre_s * NS))
+        if before_end is None or paused.size:
+            ends_before = start
+        elif before_end >= int(t[0]):
+            ends_before = int(t[min(boundary, k)])
+        else:  # halfway lies before what was read (beyond the cap): on the grid, counted from ``before``
+            ends_before = before_end + ((ev.inception_ns - before_end) // self.period_ns // 2) * self.period_ns
         # the ring holds what lies before the event once it is detected: decided once
-        self._starts[ev.event_id] = start = min(start, ev.inception_ns - int(s.pre_s * NS))
-        return start
+        self._starts[ev.event_id] = (start, min(ends_before, start))
+        return self._starts[ev.event_id]
 
     def _spans(self) -> list[tuple[int, int]]:
         """Each pending window's first and last stamp: from its start (:meth:`_start`) to ``post_s``
-        after its event or the sample before the next window begins."""
+        after its event or the sample before the next window's boundary."""
         post = int(self.settings.post_s * NS)
-        starts = [self._start(b, ev) for b, ev in zip([self._last_cut, *self._pending[:-1]], self._pending)]
+        bounds = [self._start(b, ev) for b, ev in zip([self._last_cut, *self._pending[:-1]], self._pending)]
         ends = [ev.inception_ns + post - self.period_ns for ev in self._pending]
         for i in range(len(ends) - 1):
-            ends[i] = min(ends[i], starts[i + 1] - self.period_ns)
-        return list(zip(starts, ends))
+            ends[i] = min(ends[i], bounds[i + 1][1] - self.period_ns)
+        return [(start, end) for (start, _), end in zip(bounds, ends)]
 
     def _readings(self) -> list[int]:
         """Each pending step's last stamp for its settled size: ``post_s`` after it, or the

@@ -209,29 +209,36 @@ def _marked_scenarios(
             continue
         pieces: list[FileEvent] = []
         whole_kind: str | None = m.kind
+        whole: FileEvent | None = None  # a file's one event: its window from the plateau before it
+        k_event = int(np.searchsorted(t, m.event_ns)) - a if m.event_ns else None
         if not m.event_ns:
-            pieces, whole_kind, plateau = _file_events(m, frame.rows(a, b), thresholds, source, problems)
-            a += plateau
+            pieces, whole_kind, whole = _file_events(m, frame.rows(a, b), thresholds, source, problems)
+            if whole is not None:
+                a, k_event = a + whole.start, whole.event - whole.start
         if whole_kind is None:  # its one event, or every one, is a lost measurement
             continue
         try:
             if not pieces:
-                out.append(
-                    make_scenario(
-                        m.name,
-                        frame.rows(a, b),
-                        kind=whole_kind,
-                        role=m.role,
-                        generator_damping=m.generator_damping,
-                        k_event=int(np.searchsorted(t, m.event_ns)) - a if m.event_ns else None,
-                        k_clear=int(np.searchsorted(t, m.clearing_ns)) - a if m.clearing_ns else None,
-                        thresholds=thresholds,
-                        measurement_window_s=window_s,
-                        regulator=m.regulator,
-                        recorded={c: x[a:b] for c, x in kept.items()},
-                        reference_step=m.reference_step,
-                    )
+                made = make_scenario(
+                    m.name,
+                    frame.rows(a, b),
+                    kind=whole_kind,
+                    role=m.role,
+                    generator_damping=m.generator_damping,
+                    k_event=k_event,
+                    k_clear=int(np.searchsorted(t, m.clearing_ns)) - a if m.clearing_ns else None,
+                    thresholds=thresholds,
+                    measurement_window_s=window_s,
+                    regulator=m.regulator,
+                    recorded={c: x[a:b] for c, x in kept.items()},
+                    reference_step=m.reference_step,
                 )
+                if whole is not None:
+                    made.notes.append(f"{WHOLE_NOTE}: {whole.describe(frame.period_ns / NS)}")
+                if whole is not None and made.kind == "field_step":
+                    # its steady state the second half of the span after it, as the monitor takes it
+                    made.steady_start = whole.steady_start - whole.start
+                out.append(made)
         except ScenarioError as exc:
             problems.append(f"{source}: skipped {exc}")
         for e in pieces:
@@ -266,23 +273,24 @@ def event_name(recording: str, e: FileEvent, period_ns: int) -> str:
 
 def _file_events(
     m: ScenarioInfo, frame: Frame, thresholds: StepThresholds, source: str, problems: list[str]
-) -> tuple[list[FileEvent], str | None, int]:
+) -> tuple[list[FileEvent], str | None, FileEvent | None]:
     """A marked window without an event stamp (a test file imported whole) cut into its events,
-    when it holds more than one; ([], the kind to prepare it whole with, where its plateau before
-    the event begins) when it holds one or none (None: its one event is a lost measurement, left
-    out). The pieces' offsets are the window's; the plateau's too (0: the whole window)."""
+    when it holds more than one; ([], the kind to prepare it whole with, its one event or None)
+    when it holds one or none (kind None: its one event is a lost measurement, left out). The
+    offsets are the window's; the one event's window runs from its plateau to the window's end,
+    its event at the sample the monitor's detector finds it (the same function)."""
     if len(frame) < 2:
-        return [], m.kind, 0
+        return [], m.kind, None
     dt = frame.period_ns / NS
     events = events_of_file(frame.columns(), dt, thresholds=thresholds)
     if len(events) == 1 and events[0].lost_measurement:
         problems.append(f"{source}: skipped scenario {m.name}: {LOST_NOTE}")
-        return [], None, 0
+        return [], None, None
     for e in events:
         if e.joined:
             problems.append(f"{source}: {m.name}: {e.joined_note(dt)}")
     if len(events) == 1 and events[0].joined:  # one event whose transient held a second detection
-        return events, m.kind, 0
+        return events, m.kind, None
     if len(events) < 2:
         plateau = events[0].start if events else 0
         if plateau:
@@ -291,7 +299,7 @@ def _file_events(
                 f"{events[0].event * dt:.2f} s (what came before is not its steady state)"
             )
         # at no load a fall of V_t is the field's (a de-excitation), never a fault
-        return [], (events[0].kind if events and m.kind == "unknown" else m.kind), plateau
+        return [], (events[0].kind if events and m.kind == "unknown" else m.kind), (events[0] if events else None)
     kept = []
     for e in events:
         if e.lost_measurement:
@@ -303,10 +311,11 @@ def _file_events(
         + "; ".join(e.describe(dt) for e in events)
     )
     if not kept:  # every event the measurement's: nothing of the machine (whole, it read as a fault)
-        return [], None, 0
-    return kept, m.kind, 0
+        return [], None, None
+    return kept, m.kind, None
 
 
+WHOLE_NOTE = "its event found in the file as the monitor's detector finds it"
 LOST_NOTE = (
     "V_t fell at once at no load (or had not come back): a terminal-voltage measurement lost (VT), not the machine"
 )

@@ -166,21 +166,23 @@ def test_a_file_whose_every_event_is_the_measurement_s_is_no_scenario() -> None:
     sig["v_t"][k:back] = np.abs(np.random.default_rng(3).normal(0, 0.003, back - k))
     frame = Frame.of_columns(sig, int(round(DT * 1e9)))
     problems: list[str] = []
-    pieces, kind, plateau = _file_events(
+    pieces, kind, whole = _file_events(
         ScenarioInfo("Ispad", kind="fault"), frame, DEFAULT_THRESHOLDS, "day.mcap", problems
     )
-    assert (pieces, kind, plateau) == ([], None, 0)
+    assert (pieces, kind, whole) == ([], None, None)
     assert sum("measurement lost" in p for p in problems) == 2  # the loss and the return, each named
 
 
-def manual_on_line_file(events: list[tuple[float, float]], seconds: float = 150.0, seed: int = 4) -> dict:
-    """A manual on-line test as Mostar's RR_MR_Step10: Q ramped 0.37 -> 0.045 pu over 20-40 s by the
-    field-current regulator, then the field stepped at the given (time, +1 up / -1 back): Q +0.115,
-    V_t +0.014 through a 0.5 s lag."""
+def manual_on_line_file(
+    events: list[tuple[float, float]], seconds: float = 150.0, seed: int = 4, ramp: tuple[float, float] = (20.0, 40.0)
+) -> dict:
+    """A manual on-line test as Mostar's RR_MR_Step10: Q ramped 0.37 -> 0.045 pu over ``ramp`` (20-40
+    s there) by the field-current regulator, then the field stepped at the given (time, +1 up / -1
+    back): Q +0.115, V_t +0.014 through a 0.5 s lag."""
     rng = np.random.default_rng(seed)
     n = int(seconds / DT)
     t = np.arange(n) * DT
-    q = np.interp(t, [0.0, 20.0, 40.0, seconds], [0.37, 0.37, 0.045, 0.045])
+    q = np.interp(t, [0.0, *ramp, seconds], [0.37, 0.37, 0.045, 0.045])
     up = np.zeros(n)
     for at, sign in events:
         up += sign * np.where(t >= at, 1.0 - np.exp(-(t - at) / 0.5), 0.0)
@@ -205,12 +207,19 @@ def test_an_event_s_window_begins_on_the_plateau_before_it_not_across_a_ramp(eve
     """The Q ramp 100 s before a manual field step is not the step's steady state: averaged in,
     the pre-event Q read 0.12 pu for 0.045 (and the play-in began 0.38 pu away). The window begins
     where the ramp ended, whether the file holds the step alone or the step and its return."""
-    sig = manual_on_line_file(events)
+    sig = manual_on_line_file(events, ramp=(90.0, 110.0))
     found = events_of_file(sig, DT)
     assert [round(e.event * DT, 1) for e in found] == [at for at, _ in events]
     first = found[0]
-    assert 39.0 <= first.start * DT <= 41.0, first.start * DT
+    assert 109.0 <= first.start * DT <= 111.0, first.start * DT
     assert float(np.mean(sig["q_e"][first.start : first.event])) == pytest.approx(0.045, abs=0.002)
+
+
+def test_a_plateau_longer_than_a_minute_is_taken_for_its_last_minute() -> None:
+    """Mostar's manual step stood 99 s on its plateau: the window reaches back 60 s (the online
+    detector's ring holds no more, and the monitor must cut the window ``phid validate`` plays)."""
+    found = events_of_file(manual_on_line_file([(138.0, 1.0)]), DT)
+    assert found[0].event - found[0].start == int(round(60.0 / DT))
 
 
 def test_a_file_s_one_event_is_taken_from_its_plateau_and_said() -> None:
@@ -219,12 +228,13 @@ def test_a_file_s_one_event_is_taken_from_its_plateau_and_said() -> None:
     from phid_ros.io.recording import ScenarioInfo
     from phid_ros.stream.scenarios import _file_events
 
-    frame = Frame.of_columns(manual_on_line_file([(138.0, 1.0)]), int(round(DT * 1e9)))
+    frame = Frame.of_columns(manual_on_line_file([(138.0, 1.0)], ramp=(90.0, 110.0)), int(round(DT * 1e9)))
     problems: list[str] = []
-    pieces, kind, plateau = _file_events(
+    pieces, kind, whole = _file_events(
         ScenarioInfo("RR_MR_Step10", kind="field_step"), frame, DEFAULT_THRESHOLDS, "day.mcap", problems
     )
-    assert pieces == [] and kind == "field_step" and 39.0 <= plateau * DT <= 41.0
+    assert pieces == [] and kind == "field_step" and whole is not None and 109.0 <= whole.start * DT <= 111.0
+    assert round(whole.event * DT, 2) == 138.0
     assert any("RR_MR_Step10 taken from" in p and "the plateau before its event at 138.00 s" in p for p in problems)
 
 

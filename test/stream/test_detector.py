@@ -1,4 +1,5 @@
 import numpy as np
+import pytest
 
 from phid_ros.model.channels import CHANNELS
 from phid_ros.stream.detector import Detector, DetectorSettings, lost_measurement_text
@@ -202,3 +203,33 @@ def test_a_step_is_sized_as_its_test_sheet_states_it():
     assert severity_text("field_step", ev.severity, {}) == "ΔV_t +0.011 pu"  # no window: the first 0.2 s
     assert severity_text("torque_step", 0.1, steps) == "ΔP_m +0.100 pu"
     assert settled_steps(EventWindow(t_ns=t[:3], values=values[:3], period_ns=period, event=ev), ev.inception_ns) == {}
+
+
+@pytest.mark.parametrize("ramp", [(90.0, 110.0), (20.0, 40.0)], ids=["plateau-28s", "plateau-98s"])
+def test_a_test_file_s_events_are_cut_online_on_the_samples_the_file_rule_cuts(ramp) -> None:
+    """The monitor checks a record at every event as ``phid validate`` checks it on the test file
+    (issue 74): its windows must hold the same samples. A manual step and its return 5.5 s later,
+    after a Q ramp: each window from the plateau before it (at most 60 s back), the first ending on
+    the sample before halfway to the return. The detector began the return's window a sample late
+    (the midpoint taken in nanoseconds) and the step's 99 s back (no plateau rule, a 60 s cap the
+    file's rule did not have): Mostar's verdicts differed by 10 % in E_fd."""
+    from phid_ros.ident.file_events import events_of_file
+    from test.ident.test_file_events import DT, manual_on_line_file
+
+    period = int(round(DT * 1e9))
+    sig = manual_on_line_file([(138.0, 1.0), (143.5, -1.0)], seconds=160.0, ramp=ramp)
+    x = np.column_stack([sig[c] for c in CHANNELS])
+    ring = RingBuffer(int(300e9 / period), CHANNELS)
+    recorded = {c for c in CHANNELS if np.isfinite(sig[c]).any()}
+    det = Detector(ring, period, DetectorSettings(not_recorded=frozenset(set(CHANNELS) - recorded)))
+    windows = []
+    for k in range(0, len(x), 200):
+        ring.append(np.arange(k, min(k + 200, len(x)), dtype=np.int64) * period, x[k : k + 200])
+        windows += det.update()[1]
+    windows += det.flush()[1]
+    online = [
+        (int(w.t_ns[0]) // period, int(w.event.inception_ns) // period, int(w.t_ns[-1]) // period + 1) for w in windows
+    ]
+    offline = [(e.start, e.event, e.end) for e in events_of_file(sig, DT)]
+    assert len(offline) == 2 and offline[0][1] - offline[0][0] <= int(round(60.0 / DT))
+    assert online == offline
