@@ -24,9 +24,10 @@ from phid_ros.io.files.outputs import write_text
 from phid_ros.io.overview import Overview
 from phid_ros.model.conventions import NS
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, SYMBOLS
+from phid_ros.stream.levels import Level
 
 # (stamp ns, {stream: (level, dropped, gaps, clock jumps)}): one diagnostics stamp of a replay
-HealthSnapshot = tuple[int, dict[str, tuple[str, int, int, int]]]
+HealthSnapshot = tuple[int, dict[str, tuple[Level, int, int, int]]]
 
 if TYPE_CHECKING:
     from phid_ros.ident.results import Estimate
@@ -34,7 +35,8 @@ if TYPE_CHECKING:
     from phid_ros.stream.tracker import TrackPoint
 
 KIND_COLORS = {"fault": "#c0392b", "torque_step": "#1f5fbf", "voltage_step": "#2e8b57", "field_step": "#8e44ad"}
-LEVEL_COLORS = {"OK": "#2e8b57", "WARN": "#e69f00", "ERROR": "#c0392b", "STALE": "#888888"}
+LEVEL_COLORS = {Level.OK: "#2e8b57", Level.WARN: "#e69f00", Level.ERROR: "#c0392b", Level.STALE: "#888888"}
+LEVEL_NAMES = {Level.OK: "green", Level.WARN: "orange", Level.ERROR: "red", Level.STALE: "grey"}
 
 
 @dataclass
@@ -51,9 +53,9 @@ class HealthLog:
     """Each stream's level and cumulative counters at stamps over the recording."""
 
     t_s: list[float] = field(default_factory=list)
-    streams: dict[str, list[tuple[str, int, int, int]]] = field(default_factory=dict)  # level, dropped, gaps, jumps
+    streams: dict[str, list[tuple[Level, int, int, int]]] = field(default_factory=dict)  # level, dropped, gaps, jumps
 
-    def add(self, t_s: float, snapshot: dict[str, tuple[str, int, int, int]]) -> None:
+    def add(self, t_s: float, snapshot: dict[str, tuple[Level, int, int, int]]) -> None:
         self.t_s.append(t_s)
         for name, row in snapshot.items():
             self.streams.setdefault(name, []).append(row)
@@ -176,8 +178,7 @@ def _health_figure(log: HealthLog) -> str | None:
     ax_level.set_yticks(range(len(names)), names)
     ax_level.invert_yaxis()
     ax_level.set_title(
-        "diagnostic level: "
-        + ", ".join(f"{k} {v}" for k, v in (("OK", "green"), ("WARN", "orange"), ("ERROR", "red"), ("STALE", "grey"))),
+        "diagnostic level: " + ", ".join(f"{k} {v}" for k, v in LEVEL_NAMES.items()),
         fontsize=9,
     )
     ax_count.set_ylabel("count since start")
@@ -321,7 +322,7 @@ def _record_sections(outputs: Outputs, start: int) -> list[str]:
 
     final = list({v.event_id: v for v in outputs.verdicts}.values())  # an event played again: its last
     rows = [
-        [f"{(v.stream_time_ns - start) / NS:.1f}", v.event_id, *check_cells(c), v.level]
+        [f"{(v.stream_time_ns - start) / NS:.1f}", v.event_id, *check_cells(c), str(v.level)]
         for v in final
         for c in v.checks
     ]
@@ -336,7 +337,7 @@ def _record_sections(outputs: Outputs, start: int) -> list[str]:
     drift = "".join(f"<li>{html.escape(d)}</li>" for d in last.drifting) or "<li>none</li>"
     return [
         f"<h2>The record on file against each event</h2><p><code>{html.escape(last.record)}</code>, played in as "
-        f"<code>phid validate</code> plays it. State at the end: <b>{html.escape(last.level)}</b>: "
+        f"<code>phid validate</code> plays it. State at the end: <b>{last.level}</b>: "
         f"{html.escape(last.status)}</p>",
         html_table(head, rows, text_columns=(1,)),
         "<h3>Drifting from the record (the last recalibration's determined parameters)</h3><ul>" + drift + "</ul>",

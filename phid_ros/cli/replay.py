@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any
 from phid_ros.io.recording import Recording
 from phid_ros.io.topics import OUTPUT_TOPICS, output_topic
 from phid_ros.model.conventions import NS
-from phid_ros.stream.messages import LEVELS
+from phid_ros.stream.levels import Level, worst
 from phid_ros.stream.pipeline import MonitorPipeline, Outputs
 from phid_ros.stream.recalibration import RecalibrationOutcome
 from phid_ros.stream.record_check import EventVerdict, RecordCheck
@@ -99,7 +99,7 @@ class OutputCollector:
                 )
                 self._next_diag += self._diag_period
 
-    def _log_health(self, t_ns: int, snapshot: dict[str, tuple[str, int, int, int]]) -> None:
+    def _log_health(self, t_ns: int, snapshot: dict[str, tuple[Level, int, int, int]]) -> None:
         """One snapshot a diagnostics period; past HEALTH_LOG_MAX of them, neighbours are merged in
         pairs (the worse level, the later counters: they are running totals), so a day's replay
         keeps as many as an hour's (86 400 snapshots held 90 MB) and a short ERROR is not lost."""
@@ -108,7 +108,7 @@ class OutputCollector:
             return
         merged = []
         for (t0, a), (_, b) in zip(self.health_log[0::2], self.health_log[1::2]):
-            worse = {n: (max(a[n][0], b[n][0], key=LEVELS.__getitem__), *b[n][1:]) if n in a else b[n] for n in b}
+            worse = {n: (worst(a[n][0], b[n][0]), *b[n][1:]) if n in a else b[n] for n in b}
             merged.append((t0, worse))
         if len(self.health_log) % 2:
             merged.append(self.health_log[-1])
@@ -235,7 +235,7 @@ def print_summary(
     hrows = []
     for name, h in pipeline.health.items():
         level, msg = pipeline.status(name)
-        hrows.append([name, level, msg, str(h.samples), str(h.dropped), str(h.gaps - h.pauses), str(h.clock_jumps)])
+        hrows.append([name, str(level), msg, str(h.samples), str(h.dropped), str(h.gaps - h.pauses), str(h.clock_jumps)])
     hcols = [Col("stream", "left"), Col("level", "left"), Col("status", "left", text=True), Col("samples")]
     hcols += [Col("dropped"), Col("gaps (lost)"), Col("clock jumps")]
     print_table(console, "stream health", hcols, hrows)
@@ -248,7 +248,7 @@ def print_record_verdicts(console: Console, start: int, record: RecordCheck, ver
 
     rows = []
     for v in verdicts:
-        worst = v.worst()
+        top = v.worst()
         failed = ", ".join(CHANNELS[c.channel][1] for c in v.failed())
         rows.append(
             [
@@ -256,7 +256,7 @@ def print_record_verdicts(console: Console, start: int, record: RecordCheck, ver
                 v.event_id,
                 v.kind,
                 str(len(v.checks)),
-                f"{CHANNELS[worst.channel][1]} {worst.max_error:.4f} / {worst.band:.4f}" if worst else "",
+                f"{CHANNELS[top.channel][1]} {top.max_error:.4f} / {top.band:.4f}" if top else "",
                 "pass" if v.passed else f"FAIL ({failed})",
             ]
         )

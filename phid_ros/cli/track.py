@@ -21,6 +21,7 @@ from phid_ros.io.recording import Recording
 from phid_ros.io.topics import OUTPUT_TOPICS, output_topic
 from phid_ros.model.conventions import NS
 from phid_ros.model.parameters import SYMBOLS, TABLE1, GeneratorParameters
+from phid_ros.stream.levels import Level
 from phid_ros.stream.replay import track_recording
 from phid_ros.stream.tracker import TRACKED, TrackerSettings, TrackPoint
 
@@ -102,9 +103,13 @@ class HealthTally:
             gaps = np.cumsum(binned(st, "gaps"))
             jumps = np.cumsum(binned(st, "jumps"))
             levels = np.where(
-                share >= 0.99, "OK", np.where(share >= 0.9, "WARN", np.where(share > 0, "ERROR", "STALE"))
+                share >= 0.99,
+                Level.OK,
+                np.where(share >= 0.9, Level.WARN, np.where(share > 0, Level.ERROR, Level.STALE)),
             )
-            log.streams[name] = [(str(lv), int(m), int(g), int(j)) for lv, m, g, j in zip(levels, missing, gaps, jumps)]
+            log.streams[name] = [
+                (Level(lv), int(m), int(g), int(j)) for lv, m, g, j in zip(levels, missing, gaps, jumps)
+            ]
         return log
 
 

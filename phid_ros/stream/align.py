@@ -37,6 +37,7 @@ from numpy.typing import NDArray
 from phid_ros.io.topics import STREAMS, STREAMS_BY_NAME
 from phid_ros.model.channels import CHANNEL_INDEX, CHANNELS, PLAUSIBLE, Frame
 from phid_ros.model.conventions import NS
+from phid_ros.stream.levels import Level, worst
 
 RATE_BLOCKS = 50  # blocks a stream's rate is measured over
 GAP_SPANS = 10_000  # gaps remembered per stream to tell a pause from a loss (more are counted as losses)
@@ -136,44 +137,45 @@ class StreamHealth:
         rate_tolerance: float = 0.1,
         stale_ns: int = 2 * NS,
         max_lag_ns: int = NS,
-    ) -> tuple[str, str]:
+    ) -> tuple[Level, str]:
         """(level, message): OK, WARN, ERROR or STALE, as diagnostic_updater reports.
 
         ``now_ns`` is the receiver's clock (live nodes); ``stream_now_ns`` the newest stamp of
         any stream, which also works on a replayed recording where nothing is received late.
         """
         if self.not_recorded:
-            return "OK", "not recorded here (declared)"
+            return Level.OK, "not recorded here (declared)"
         if self.last_stamp_ns is None:
-            return "STALE", "no data yet"
+            return Level.STALE, "no data yet"
         if now_ns is not None and self.last_receive_ns is not None and now_ns - self.last_receive_ns > stale_ns:
-            return "STALE", f"no data for {(now_ns - self.last_receive_ns) / NS:.1f} s"
+            return Level.STALE, f"no data for {(now_ns - self.last_receive_ns) / NS:.1f} s"
         if stream_now_ns is not None and stream_now_ns - self.last_stamp_ns > stale_ns:
-            return "STALE", f"no samples for {(stream_now_ns - self.last_stamp_ns) / NS:.1f} s of stream time"
+            return Level.STALE, f"no samples for {(stream_now_ns - self.last_stamp_ns) / NS:.1f} s of stream time"
         rate = self.rate_hz()
         problems = []
-        level = "OK"
+        level = Level.OK
         if np.isfinite(rate) and abs(rate - self.expected_rate_hz) > rate_tolerance * self.expected_rate_hz:
             problems.append(f"rate {rate:.0f} Hz, expected {self.expected_rate_hz:.0f} Hz")
-            level = "WARN"
+            level = worst(level, Level.WARN)
         if self.lag_ns > max_lag_ns:
             problems.append(f"stamp lag {self.lag_ns / NS:.2f} s")
-            level = "WARN"
+            level = worst(level, Level.WARN)
         if self.dropped:
             problems.append(
                 f"{self.dropped} samples dropped (dup {self.duplicates}, order {self.out_of_order}, "
                 f"non-finite {self.nonfinite}, implausible {self.implausible}, zero stamp {self.zero_stamps}, "
                 f"wild stamp {self.wild_stamps}, malformed {self.malformed})"
             )
-            level = "WARN" if level == "OK" else level
+            level = worst(level, Level.WARN)
         if self.dead_channel:
             problems.append(f"{self.dead_channel} samples with a dead channel (no finite value in their message)")
-            level = "ERROR" if self.samples and self.dead_channel > 0.5 * self.samples else "WARN"
+            most = self.samples and self.dead_channel > 0.5 * self.samples
+            level = worst(level, Level.ERROR if most else Level.WARN)
         if self.missing > self.paused_missing:
             problems.append(f"{self.missing - self.paused_missing} samples missing in {self.gaps - self.pauses} gap(s)")
-            level = "WARN" if level == "OK" else level
+            level = worst(level, Level.WARN)
         if self.samples and self.dropped > 0.5 * self.samples:
-            level = "ERROR"
+            level = worst(level, Level.ERROR)
         said = "; ".join(problems) or f"{rate:.0f} Hz"
         if self.pauses:  # said, not judged: a pause between two tests is the recording's design
             said += f"; paused {self.pauses} time(s) between marked tests"

@@ -22,6 +22,7 @@ from typing import Any
 from phid_ros.io.topics import OUTPUT_TOPICS
 from phid_ros.stream import messages as m
 from phid_ros.stream.detector import EventWindow
+from phid_ros.stream.levels import Level
 from phid_ros.stream.pipeline import Outputs
 
 ALL_KEYS = frozenset(k for k in OUTPUT_TOPICS if k != "diagnostics")  # diagnostics go on a clock of their own
@@ -97,6 +98,6 @@ def emit(
         done.notes += p.alarms
     for v in out.verdicts:
         add("model_validation", v.stream_time_ns, m.verdict_message(types, v, seq, bools))
-        if v.level != "OK":
+        if v.level != Level.OK:
             done.notes.append(f"record on file {v.level}: {v.status}")
     return done

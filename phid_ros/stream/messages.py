@@ -23,13 +23,13 @@ from phid_ros.model.parameters import PARAMETER_NAMES
 from phid_ros.stream.align import StreamHealth
 from phid_ros.stream.detector import Event, EventWindow
 from phid_ros.stream.energy import EnergySamples
+from phid_ros.stream.levels import Level
 from phid_ros.stream.recalibration import RecalibrationOutcome
 from phid_ros.stream.record_check import EventVerdict, RecordCheck
 from phid_ros.stream.tracker import TRACKED, TrackPoint
 
 Types = Mapping[str, Callable[..., Any]]
 Seq = Callable[[Any], Any]
-LEVELS = {"OK": 0, "WARN": 1, "ERROR": 2, "STALE": 3}
 
 
 def numpy_seq(a: Any) -> np.ndarray:
@@ -216,7 +216,7 @@ def verdict_message(types: Types, v: EventVerdict, seq: Seq = numpy_seq, bools: 
         check_passed=bools([bool(c.passed) for c in v.checks]),
         simulated_by=[c.simulated_by for c in v.checks],
         notes=list(v.notes),
-        level=v.level,
+        level=str(v.level),
         status=v.status,
         drifting=list(v.drifting),
     )
@@ -253,9 +253,9 @@ def diagnostics_message(
     hardware_id = unit_name or "generator"
     prefix = f"{node}/{unit_name}" if unit_name else node
 
-    def status(number: int, what: str, message: str, values: list[Any]) -> Any:
+    def status(number: Level, what: str, message: str, values: list[Any]) -> Any:
         return status_cls(
-            level=level(number), name=f"{prefix}: {what}", message=message, hardware_id=hardware_id, values=values
+            level=level(int(number)), name=f"{prefix}: {what}", message=message, hardware_id=hardware_id, values=values
         )
 
     statuses = []
@@ -282,14 +282,14 @@ def diagnostics_message(
                 ("clock_jumps", h.clock_jumps),
             )
         ]
-        statuses.append(status(LEVELS[name_level], f"{name} stream", message, values))
+        statuses.append(status(name_level, f"{name} stream", message, values))
 
     if recalibration is not None:
-        statuses.append(status(LEVELS[recalibration.level], "recalibration", recalibration.status, []))
+        statuses.append(status(recalibration.level, "recalibration", recalibration.status, []))
     if record is not None:  # the unit's record on file: OK while it passes, WARN, ERROR (record_check.py)
         record_level, message = record.status()
         values = [kv(key=k, value=v) for k, v in record.diagnostic_values()]
-        statuses.append(status(LEVELS[record_level], "record on file", message, values))
+        statuses.append(status(record_level, "record on file", message, values))
     return types["diagnostic_msgs/msg/DiagnosticArray"](header=header(types, now_ns), status=statuses)
 
 

@@ -22,6 +22,7 @@ from phid_ros.model.parameters import GeneratorParameters
 from phid_ros.stream.align import Aligner, Run, StreamHealth
 from phid_ros.stream.detector import Detector, DetectorSettings, Event, EventWindow, stale_data
 from phid_ros.stream.energy import EnergySamples, energy
+from phid_ros.stream.levels import Level
 from phid_ros.stream.recalibration import RecalibrationOutcome, RecalibrationPolicy, Recalibrator
 from phid_ros.stream.record_check import EventVerdict, RecordCheck
 from phid_ros.stream.recorder import RecorderBuffer
@@ -294,7 +295,7 @@ class MonitorPipeline:
             h.mark_pauses(marked)
         return health
 
-    def status(self, name: str, now_ns: int | None = None) -> tuple[str, str]:
+    def status(self, name: str, now_ns: int | None = None) -> tuple[Level, str]:
         """One stream's diagnostic level and message, stale judged on both clocks."""
         return self.health[name].status(
             now_ns, stream_now_ns=self.aligner.stream_now_ns, stale_ns=self.aligner.stale_ns

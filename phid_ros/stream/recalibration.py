@@ -28,6 +28,7 @@ from phid_ros.ident.scenario import DEFAULT_THRESHOLDS, ScenarioData, ScenarioEr
 from phid_ros.model.conventions import NS
 from phid_ros.model.parameters import PARAMETER_NAMES, SYMBOLS, GeneratorParameters
 from phid_ros.stream.detector import EventWindow
+from phid_ros.stream.levels import Level
 from phid_ros.stream.store import EventStore
 
 ROTOR_CHANNELS = frozenset({"omega", "delta"})  # what a swing is read from (the encoder's stream)
@@ -89,10 +90,10 @@ class RecalibrationOutcome:
     failed: bool = False  # the run raised (its status says what): no result at all
 
     @property
-    def level(self) -> str:
+    def level(self) -> Level:
         """The run's diagnostic level (diagnostic_updater's): OK where its set was adopted, ERROR
         where the run failed, WARN otherwise (the last good set kept, a partial set, too few events)."""
-        return "OK" if self.accepted else ("ERROR" if self.failed else "WARN")
+        return Level.OK if self.accepted else (Level.ERROR if self.failed else Level.WARN)
 
     def said(self) -> tuple[str, str]:
         """(outcome, why) in the words of what happened to the set in force, for a reader: the first

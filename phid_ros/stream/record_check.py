@@ -30,8 +30,9 @@ from phid_ros.ident.scenario import ScenarioData
 from phid_ros.ident.terminal import at_no_load
 from phid_ros.model.parameters import PARAMETER_NAMES, SYMBOLS, GeneratorParameters
 from phid_ros.stream.detector import EventWindow
+from phid_ros.stream.levels import Level
 
-OK, WARN, ERROR = "OK", "WARN", "ERROR"
+OK, WARN, ERROR = Level.OK, Level.WARN, Level.ERROR
 MAX_OVERLAYS = 8  # failing events whose traces are kept for the report
 # the scenarios kept to read the field's base from, and to play again when it changes: every
 # no-load test (up to this many; the base is read from them) and the latest on-line events (a
@@ -39,7 +40,6 @@ MAX_OVERLAYS = 8  # failing events whose traces are kept for the report
 KEPT_NO_LOAD = 50
 KEPT_RECENT = 20
 PLAYED_IN = ("v_t", "p_e", "q_e")  # what an event needs to be played into the record and checked
-LEVEL_ORDER = {OK: 0, WARN: 1, ERROR: 2}
 
 
 @dataclass(frozen=True)
@@ -68,7 +68,7 @@ class EventVerdict:
     checks: list[ChannelCheck]
     notes: list[str]
     # the record's state once this event was judged (as /diagnostics says it), and its drift then
-    level: str = OK
+    level: Level = OK
     status: str = ""
     drifting: list[str] = field(default_factory=list)
     # the traces of a failing event (recorded, simulated), for the report's overlays; kept for the
@@ -99,7 +99,7 @@ class EventVerdict:
             "passed": self.passed,
             "checks": [c.as_json() for c in self.checks],
             "notes": self.notes,
-            "level": self.level,
+            "level": str(self.level),
             "status": self.status,
             "drifting": self.drifting,
         }
@@ -225,7 +225,7 @@ class RecordCheck:
     def recent(self) -> list[EventVerdict]:
         return self.verdicts[-self.settings.window :]
 
-    def status(self) -> tuple[str, str]:
+    def status(self) -> tuple[Level, str]:
         """The record's diagnostic level and message, naming the channel and the event."""
         recent = self.recent()
         if not recent:

@@ -8,6 +8,7 @@ import pytest
 
 from phid_ros.cli.main import main
 from phid_ros.model.parameters import TABLE1
+from phid_ros.stream.levels import Level
 from test.io.field.field_sets import FIELD_BASE_V, trend_log_set
 
 
@@ -260,7 +261,7 @@ def test_the_monitor_on_a_trend_log_publishes_what_identify_finds(folder, trend_
     finally:
         pipeline.close()
     assert {n: level for n, (level, _) in health.items()} == dict.fromkeys(
-        ("pt_ct", "encoder", "pmu", "excitation", "field_controller"), "OK"
+        ("pt_ct", "encoder", "pmu", "excitation", "field_controller"), Level.OK
     ), health
     assert "paused 6 time(s) between marked tests" in health["pt_ct"][1]
     starts = {m.name: m.start_ns for m in rec.scenarios}

@@ -8,6 +8,7 @@ import pytest
 
 from phid_ros.cli.main import main
 from phid_ros.io.bags.recordings import topic_table
+from phid_ros.stream.levels import Level
 
 BAGS = Path(__file__).resolve().parents[2] / "bags"
 
@@ -111,11 +112,11 @@ def test_the_replay_health_log_stays_bounded_and_keeps_a_short_error() -> None:
     pipeline = MonitorPipeline()
     collector = OutputCollector(pipeline)
     for k in range(3 * HEALTH_LOG_MAX):  # a day of one-second snapshots, one of them ERROR
-        collector._log_health(k, {"pt_ct": ("ERROR" if k == 12_345 else "OK", k, 0, 0)})
+        collector._log_health(k, {"pt_ct": (Level.ERROR if k == 12_345 else Level.OK, k, 0, 0)})
     pipeline.close()
     log = collector.health_log
     assert HEALTH_LOG_MAX // 2 <= len(log) <= HEALTH_LOG_MAX
-    [error] = [snap["pt_ct"] for _, snap in log if snap["pt_ct"][0] == "ERROR"]
+    [error] = [snap["pt_ct"] for _, snap in log if snap["pt_ct"][0] == Level.ERROR]
     assert 12_345 <= error[1] < 12_345 + 8  # its merged neighbours' later running total
     assert log[-1][1]["pt_ct"][1] == 3 * HEALTH_LOG_MAX - 1  # the running totals reach the end
     assert [t for t, _ in log] == sorted(t for t, _ in log)

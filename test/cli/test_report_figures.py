@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from phid_ros.cli.common import figure_backend
+from phid_ros.stream.levels import Level
 
 
 @pytest.fixture
@@ -128,7 +129,7 @@ def test_the_stream_health_counts_never_go_below_zero(drawn):
     _keep(figs, monkeypatch, monitor_report)
     log = monitor_report.HealthLog()
     for k in range(5):
-        log.add(float(k), {"pt_ct": ("OK", 0, 0, 0), "pmu": ("OK", 0, 0, 0)})
+        log.add(float(k), {"pt_ct": (Level.OK, 0, 0, 0), "pmu": (Level.OK, 0, 0, 0)})
     monitor_report._health_figure(log)
     [fig] = figs
     count_axis = fig.axes[1]

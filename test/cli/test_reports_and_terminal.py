@@ -11,6 +11,7 @@ import pytest
 
 from phid_ros.cli.main import main
 from phid_ros.io.bags.recordings import topic_table
+from phid_ros.stream.levels import Level
 from test.browser import assert_readable, chromium, screenshot
 
 BAGS = Path(__file__).resolve().parents[2] / "bags"
@@ -172,11 +173,11 @@ def test_track_health_over_time_marks_the_bin_with_a_gap(short_recording):
     rec = Recording({**short_recording.streams, "pmu": cut}, short_recording.scenarios, short_recording.metadata)
     log = health_over_time(rec, 2.0)
     levels = [row[0] for row in log.streams["pmu"]]
-    assert levels[2] == "ERROR" and levels.count("ERROR") == 1 and set(levels) <= {"OK", "ERROR"}
+    assert levels[2] == Level.ERROR and levels.count(Level.ERROR) == 1 and set(levels) <= {Level.OK, Level.ERROR}
     missing = np.array([row[1] for row in log.streams["pmu"]])
     assert missing[-1] == 500 and missing[1] == 0  # 0.5 s at 1 kHz, counted from the bin it fell in
     assert [row[2] for row in log.streams["pmu"]][-1] == 1  # one gap
-    assert all(row[0] == "OK" for row in log.streams["pt_ct"])  # the last, shorter bin is not a loss
+    assert all(row[0] == Level.OK for row in log.streams["pt_ct"])  # the last, shorter bin is not a loss
 
 
 def test_table_width_without_rich_s_measure_equals_rich_s():

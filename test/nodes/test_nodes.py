@@ -9,6 +9,7 @@ import numpy as np
 from phid_ros.io.bags.recordings import read_recording
 from phid_ros.io.recording import recording_messages
 from phid_ros.model.conventions import NS
+from phid_ros.stream.levels import Level
 
 BAGS = Path(__file__).resolve().parents[2] / "bags"
 
@@ -166,7 +167,7 @@ def test_wrong_rate_and_zero_stamps_are_reported(ros):
     h = recal.pipeline.health
     assert h["pmu"].zero_stamps > 0
     level, message = h["excitation"].status()
-    assert level in ("WARN", "ERROR") and "rate 500 Hz" in message
+    assert level in (Level.WARN, Level.ERROR) and "rate 500 Hz" in message
 
 
 def test_a_stream_slower_than_the_grid_is_judged_at_its_own_rate(ros):

@@ -20,6 +20,7 @@ from phid_ros.ident.pipeline import IdentifyOptions
 from phid_ros.io.bags.recordings import write_recording
 from phid_ros.io.field.channel_map import ChannelMapError, load_channel_map
 from phid_ros.io.field.pmu_csv import import_pmu_csv
+from phid_ros.stream.levels import Level
 
 
 def _realdata() -> Path:
@@ -676,7 +677,7 @@ def test_the_monitor_recalibrates_the_day_as_identify_does(sheet_day: Path) -> N
     for test in ("AVR_MR_PSS_ON", "AVR_PH_Step10", "RR_MR_Step10"):  # each step and its return
         assert used.count(test) == 2, used
     assert used.count("AVR_PH_Stop_INV") == used.count("RR_PH_Stop_INV") == 1  # the de-excitations
-    assert health == dict.fromkeys(("pt_ct", "encoder", "pmu", "excitation", "field_controller"), "OK"), health
+    assert health == dict.fromkeys(("pt_ct", "encoder", "pmu", "excitation", "field_controller"), Level.OK), health
     last = out.recalibrations[-1]
     assert set(last.determined) == {"X_d", "X_d_prime", "T_d0_prime"} and last.parameters is None
     found = identify_unit(cut_unit([sheet_day]), IdentifyOptions(baseline=False, validate=False, constraints=held))
@@ -747,5 +748,5 @@ def test_the_monitor_checks_the_record_on_file_at_every_event_of_the_day(
         if name == "ours":
             assert all(v.passed for v in final) and out.verdicts
     level, message = states["published"]
-    assert level == "ERROR" and "E_fd off by" in message and "T'_d0: record 3.77, identified 4.78" in message
-    assert states["ours"][0] == "OK"
+    assert level == Level.ERROR and "E_fd off by" in message and "T'_d0: record 3.77, identified 4.78" in message
+    assert states["ours"][0] == Level.OK

@@ -6,6 +6,7 @@ import pytest
 from phid_ros.io.topics import STREAMS
 from phid_ros.model.channels import CHANNELS
 from phid_ros.stream.align import Aligner
+from phid_ros.stream.levels import Level
 
 MS = 1_000_000
 COL = {c: i for i, c in enumerate(CHANNELS)}
@@ -121,7 +122,7 @@ def test_a_dead_channel_leaves_its_stream_s_live_channels_in_place():
     inside = (t >= 100 * MS) & (t < 200 * MS)
     assert np.isnan(x[inside, COL["omega"]]).all() and np.isfinite(x[inside, COL["p_m"]]).all()
     assert np.isfinite(x[~inside, COL["omega"]]).all()
-    assert h.status(stream_now_ns=int(t[-1]))[0] == "WARN"
+    assert h.status(stream_now_ns=int(t[-1]))[0] == Level.WARN
 
 
 def test_a_stream_that_never_starts_does_not_hold_the_others_back():
@@ -189,13 +190,13 @@ def test_health_status_in_diagnostic_updater_style():
     for k in range(10):
         feed(al, k * 100 * MS, 100)
     level, msg = al.health["pt_ct"].status()
-    assert level == "OK" and "1000 Hz" in msg
+    assert level == Level.OK and "1000 Hz" in msg
     slow = Aligner()
     for k in range(10):
         feed(slow, k * 100 * MS, 50, period=2 * MS)  # 500 Hz where 1 kHz is expected
     level, msg = slow.health["pmu"].status()
-    assert level == "WARN" and "rate 500 Hz" in msg
-    assert al.health["pmu"].status(now_ns=10**12)[0] == "STALE" or al.health["pmu"].last_receive_ns is None
+    assert level == Level.WARN and "rate 500 Hz" in msg
+    assert al.health["pmu"].status(now_ns=10**12)[0] == Level.STALE or al.health["pmu"].last_receive_ns is None
 
 
 def test_a_slower_stream_is_interpolated_between_its_own_samples_and_its_holes_stay_holes():

@@ -12,6 +12,7 @@ from phid_ros.io.bags.recordings import read_recording, write_messages
 from phid_ros.io.recording import ns_to_time, recording_messages
 from phid_ros.model.conventions import NS, stamp_ns
 from phid_ros.stream.detector import DetectorSettings
+from phid_ros.stream.levels import Level
 from phid_ros.stream.pipeline import MonitorPipeline, PipelineSettings
 from phid_ros.stream.replay import replay
 
@@ -154,8 +155,8 @@ def test_a_stream_that_stops_is_stale_on_stream_time(tmp_path, short_recording):
 
     p, _ = _run(_bag(tmp_path, short_recording, edit))
     level, message = p.aligner.status("excitation")
-    assert level == "STALE" and "stream time" in message
-    assert p.aligner.status("pt_ct")[0] == "OK"
+    assert level == Level.STALE and "stream time" in message
+    assert p.aligner.status("pt_ct")[0] == Level.OK
 
 
 def test_runs_a_stream_and_one_message_at_a_time_give_the_same_outputs(tmp_path, short_recording):

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from phid_ros.stream.detector import DetectorSettings
+from phid_ros.stream.levels import Level
 from phid_ros.stream.pipeline import MonitorPipeline, PipelineSettings
 from phid_ros.stream.replay import replay
 
@@ -58,7 +59,7 @@ def test_a_channel_declared_not_recorded_is_absent_not_dead(short_recording, tmp
     p = MonitorPipeline(settings)
     out = replay(rec, p)
     assert out.windows and all(w.usable for w in out.windows), [w.reason for w in out.windows]
-    assert p.aligner.status("encoder") == ("OK", "not recorded here (declared)")
+    assert p.aligner.status("encoder") == (Level.OK, "not recorded here (declared)")
     assert p.health["pmu"].dead_channel == 0 and p.health["encoder"].dropped == 0
     p.close()
 
