@@ -122,7 +122,7 @@ def diagnose_command(args: Any, console: Console) -> int:
             DiagnoseOptions.after(res, f_nominal_hz=f_hz, workers=args.workers, scheduler=args.scheduler),
             progress=progress.update,
         )
-    first_fit = [p for p in res.problems if "kept the label" not in p]
+    first_fit = [p for p in res.problems if p not in res.label_disputes]
     own = list(d.problems)
     d.problems[:0] = problems + first_fit
     doc = to_json(d, truth, truth_effects)

@@ -235,7 +235,8 @@ def print_summary(
     hrows = []
     for name, h in pipeline.health.items():
         level, msg = pipeline.status(name)
-        hrows.append([name, str(level), msg, str(h.samples), str(h.dropped), str(h.gaps - h.pauses), str(h.clock_jumps)])
+        counts = (h.samples, h.dropped, h.gaps - h.pauses, h.clock_jumps)
+        hrows.append([name, str(level), msg, *map(str, counts)])
     hcols = [Col("stream", "left"), Col("level", "left"), Col("status", "left", text=True), Col("samples")]
     hcols += [Col("dropped"), Col("gaps (lost)"), Col("clock jumps")]
     print_table(console, "stream health", hcols, hrows)

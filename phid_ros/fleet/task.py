@@ -68,7 +68,7 @@ def _identify_into(row: Row, path: str, diagnose: bool) -> None:
         row.values[name], row.stds[name], row.identifiable[name] = est.value, est.std, est.identifiable
         if est.note:
             row.flags.append(f"{name}: {est.note}")
-    row.flags += [p for p in res.problems if "kept the label" not in p]
+    row.flags += [p for p in res.problems if p not in res.label_disputes]
     if diagnose:
         _diagnose_into(row, scenarios, res, unit.recording.f_nominal_hz)
     if row.record:

@@ -68,6 +68,9 @@ class IdentificationResult:
     # with channels missing: parameter -> the route that determined it (ident/determinable.py)
     determined_by: dict[str, str] = field(default_factory=dict)
     route_details: dict[str, Any] = field(default_factory=dict)  # those routes' own figures (JSON "stages")
+    # of ``problems``, the scenarios whose label the signals dispute (kept): a diagnosis and a fleet's
+    # row say them where the scenarios are cut, not again as the identification's
+    label_disputes: list[str] = field(default_factory=list)
 
     def light(self) -> IdentificationResult:
         """The estimates and what was said of them, without the scenarios' samples and the stages'
@@ -78,6 +81,7 @@ class IdentificationResult:
             [],
             problems=list(self.problems),
             constraints=self.constraints,
+            label_disputes=list(self.label_disputes),
             determined_by=dict(self.determined_by),
         )
 
@@ -303,7 +307,9 @@ def identify(
     scs = list(scenarios)
     res = IdentificationResult({}, opt.method, scs, constraints=opt.constraints)
     for s in scs:
-        res.problems.extend(f"{s.name}: {n}" for n in s.notes if "kept the label" in n)
+        if s.label_kept:
+            res.label_disputes.append(f"{s.name}: {s.label_kept}")
+    res.problems.extend(res.label_disputes)
     ident = [s for s in scs if s.role == "identify"]
     if not ident:
         res.problems.append("no identification scenarios: nothing to identify")

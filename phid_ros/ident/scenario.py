@@ -97,6 +97,9 @@ class ScenarioData:
     # the event's time in the test file it was cut from (s), where it was cut from a file's events
     # (:func:`phid_ros.stream.scenarios.scenarios_from_recording`); None otherwise
     file_time_s: float | None = None
+    # the signals say another kind than its label, and the label was kept: what was said of it
+    # (a problem of the identification, said once; not an identification problem of its own)
+    label_kept: str = ""
     # what the stages derive from this scenario alone, kept for the next identification that reads
     # it (a recalibration every few minutes re-reads the same stored windows); not an init field,
     # so a scenario made from this one (dataclasses.replace, with_frame) starts without it
@@ -389,6 +392,7 @@ def make_scenario(
         raise ScenarioError(f"scenario {name}: no data on {', '.join(missing)}: every identification needs them")
     sig = frame.columns()
     notes: list[str] = [f"not recorded: {', '.join(c for c in CHANNELS if c in absent)}"] if absent else []
+    label_kept = ""
     if kind in STEP_SIGNAL and (k_event is None or k_event <= 0):
         try:
             found, k_ev, k_cl, reason = classify(sig, dt, thresholds=thresholds)
@@ -409,7 +413,8 @@ def make_scenario(
         except ScenarioError as exc:
             raise ScenarioError(f"scenario {name}: {exc}") from None
         if kind not in ("unknown", found):
-            notes.append(f"labelled {kind} but the signals say {found} ({reason}); kept the label")
+            label_kept = f"labelled {kind} but the signals say {found} ({reason}); kept the label"
+            notes.append(label_kept)
         else:
             kind = found
             notes.append(f"classified as {found}: {reason}")
@@ -436,6 +441,7 @@ def make_scenario(
         regulator=regulator,
         recorded={c: x for c, x in (recorded or {}).items() if len(x) == n and np.isfinite(x).any()},
         reference_step=reference_step,
+        label_kept=label_kept,
     )
 
 
