@@ -18,6 +18,7 @@ from typing import Any
 
 from phid_ros.controls.models import MODELS, ControlParameter
 from phid_ros.errors import PhidError
+from phid_ros.export.source import Origin, Source
 
 
 class ControlExportError(PhidError):
@@ -29,7 +30,7 @@ class ControlRecord:
     model: str
     kind: str
     values: dict[str, float]
-    sources: dict[str, str]
+    sources: dict[str, Source]
     flagged: list[str] = field(default_factory=list)
     kept_from: str = ""  # the existing record it was kept from (phid export --base), not identified
     icons: dict[str, int] = field(default_factory=dict)  # PSS/E's integers (none: the model's own, MODELS[m].icons)
@@ -41,12 +42,12 @@ class ControlRecord:
 
     @property
     def defaults(self) -> list[str]:
-        return [n for n, s in self.sources.items() if s.startswith("default")]
+        return [n for n, s in self.sources.items() if s.is_default]
 
     @property
     def absent(self) -> list[str]:
         """Constants at the value where their term vanishes: the data show no such term."""
-        return [n for n, s in self.sources.items() if s.startswith("default: absent")]
+        return [n for n, s in self.sources.items() if s.origin is Origin.ABSENT]
 
     def comment(self) -> str:
         return comment_text(self._comment_parts())
@@ -57,7 +58,7 @@ class ControlRecord:
         parts = [f"phid_ros export: {self.kind} identified from the recordings"]
         if self.flagged:
             parts.append("NOT IDENTIFIED: " + ", ".join(self.flagged))
-        widened = [n for n, s in self.sources.items() if s.startswith("default: widened")]
+        widened = [n for n, s in self.sources.items() if s.origin is Origin.WIDENED]
         unreached = [n for n in self.defaults if n not in self.absent and n not in widened]
         if unreached:
             parts.append("defaults (not reached in the recordings): " + ", ".join(unreached))
@@ -98,26 +99,32 @@ def build_control_records(
         reached = set(doc.get("limits_reached") or [])
         upper = model.output_limits[1] if model.output_limits else None
         values: dict[str, float] = {}
-        sources: dict[str, str] = {}
+        sources: dict[str, Source] = {}
         flagged = []
         for p in model.parameters:
             v = params.get(p.name)
             if p.held:
                 values[p.name] = float(v) if isinstance(v, (int, float)) else p.default
-                sources[p.name] = "held by the model's structure"
+                sources[p.name] = Source("held by the model's structure", Origin.HELD)
                 continue
             parent = next((q for q in model.parameters if q.name == p.within), None)
             if parent is not None and parent.absent is not None and _is_absent(params.get(parent.name), parent):
-                values[p.name], sources[p.name] = p.default, f"default: moot ({parent.name} absent)"
+                values[p.name], sources[p.name] = (
+                    p.default,
+                    Source(f"default: moot ({parent.name} absent)", Origin.MOOT),
+                )
                 continue
             if v is None or (p.limit and not ident.get(p.name) and p.name not in reached):
-                values[p.name], sources[p.name] = p.default, "default (a limit the recordings never reached)"
+                values[p.name] = p.default
+                sources[p.name] = Source("default (a limit the recordings never reached)", Origin.UNREACHED)
                 least = seen.get(p.name)
                 sign = 1.0 if p.name == upper else -1.0
                 if isinstance(least, (int, float)) and math.isfinite(least) and sign * least > sign * p.default:
                     # the default would cut what was recorded: the least the limit can be instead
                     values[p.name] = float(least)
-                    sources[p.name] = "default: widened to what the recordings reached (a limit never reached)"
+                    sources[p.name] = Source(
+                        "default: widened to what the recordings reached (a limit never reached)", Origin.WIDENED
+                    )
                 continue
             if not isinstance(v, (int, float)) or not math.isfinite(float(v)):
                 raise ControlExportError(f"{source}: controls.{kind}.{p.name} = {v!r}: not a number")
@@ -125,12 +132,13 @@ def build_control_records(
                 raise ControlExportError(f"{source}: controls.{kind}.{problem} (the fit's search range)")
             values[p.name] = float(v)
             if ident.get(p.name):
-                sources[p.name] = "identified"
+                sources[p.name] = Source("identified", Origin.IDENTIFIED)
             elif _is_absent(v, p):
                 # the fit pressed onto the value where the term vanishes (D_t 8e-12): absent
-                values[p.name], sources[p.name] = float(p.absent or 0.0), "default: absent (the data show no such term)"
+                values[p.name] = float(p.absent or 0.0)
+                sources[p.name] = Source("default: absent (the data show no such term)", Origin.ABSENT)
             else:
-                sources[p.name] = "identified, NOT determined"
+                sources[p.name] = Source("identified, NOT determined", Origin.IDENTIFIED)
                 flagged.append(p.name)
         if flagged and not allow_flagged:
             raise ControlExportError(

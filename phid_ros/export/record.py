@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, Any
 from phid_ros.controls.models import MODELS as CONTROL_MODELS
 from phid_ros.errors import PhidError
 from phid_ros.export.controls import ControlRecord, build_control_records, comment_text
+from phid_ros.export.source import Origin, Source
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME
 from phid_ros.sim.effects import leakage_default
 
@@ -80,7 +81,7 @@ class ExportError(PhidError):
 class MachineRecord:
     model: str
     values: dict[str, float]
-    sources: dict[str, str]
+    sources: dict[str, Source]
     mva: float
     kv: float
     bus: int
@@ -106,7 +107,7 @@ class MachineRecord:
 
     @property
     def defaults(self) -> list[str]:
-        return [f for f in self.fields if self.sources[f].startswith("default")]
+        return [f for f in self.fields if self.sources[f].is_default]
 
     def torque_form_damping(self) -> float:
         """D for a swing equation that divides P_m by the speed, as PSS/E's GENROU and GENSAL do,
@@ -169,9 +170,6 @@ def _effects(diagnosis: Mapping[str, Any] | None, source: str) -> dict[str, dict
             raise ExportError(f"{source}: an entry of 'effects' lacks its name or parameters")
         out[e["name"]] = dict(e["parameters"])
     return out
-
-
-EFFECT_SOURCE = "diagnosis: "  # a field's source when an effect parameter gave it: "diagnosis: <effect> <parameter>"
 
 
 def _undetermined_effect_parameters(diagnosis: Mapping[str, Any] | None) -> set[tuple[str, ...]]:
@@ -243,10 +241,10 @@ def build_record(
     _physical(chosen, source if diagnosis is None else f"{source} and {diagnosis_source}")
     f_nominal = float(result.get("f_nominal_hz", 50.0))
     values: dict[str, float] = {}
-    sources: dict[str, str] = {}
+    sources: dict[str, Source] = {}
     for name, f in BASE_FIELDS.items():
         values[f], origin, _ = chosen[name]
-        sources[f] = origin + (" NOT IDENTIFIED" if name in flagged else "")
+        sources[f] = origin.flag() if name in flagged else origin
     warnings: list[str] = []
     _fill_subtransient(values, sources, effects.get("subtransient_dynamics"), warnings)
     held_curve = (result.get("constraints") or {}).get("saturation")
@@ -254,7 +252,10 @@ def build_record(
     if existing is not None:
         kept += _keep_existing_effects(values, sources, existing, effects, held_curve)
     ra = effects.get("stator_resistance")
-    values["ra"], sources["ra"] = (float(ra["r_a"]), "diagnosis: stator_resistance r_a") if ra else (0.0, "default")
+    if ra:
+        values["ra"], sources["ra"] = float(ra["r_a"]), Source.of_effect("stator_resistance", "r_a")
+    else:
+        values["ra"], sources["ra"] = 0.0, Source("default", Origin.DEFAULT)
     if model == "GENSAL":
         _to_gensal(values, sources, warnings)
     # a field taken from an effect parameter the diagnosis did not determine is flagged as a base
@@ -262,10 +263,9 @@ def build_record(
     # fits the held-out data could not tell apart
     undetermined = _undetermined_effect_parameters(diagnosis)
     for f, src in sources.items():
-        taken = tuple(src[len(EFFECT_SOURCE) :].split(" ")[:2]) if src.startswith(EFFECT_SOURCE) else None
-        if taken in undetermined:
-            flagged.append(f"{f} ({' '.join(taken)})")
-            sources[f] = src + " NOT IDENTIFIED"
+        if src.effect is not None and src.effect in undetermined:
+            flagged.append(f"{f} ({' '.join(src.effect)})")
+            sources[f] = src.flag()
     if flagged and not allow_flagged:
         where = f"{source} and {diagnosis_source}" if diagnosis is not None else source
         raise ExportError(
@@ -314,7 +314,7 @@ def _keep_existing_controls(rec: MachineRecord, existing: Unit) -> None:
     for kind, c in existing.controls.items():
         mine = named.get(kind)
         if mine is None:
-            kept = {n: f"kept from {existing.source}" for n in c.values}
+            kept = {n: Source(f"kept from {existing.source}", Origin.KEPT) for n in c.values}
             rec.controls.append(ControlRecord(c.model, kind, dict(c.values), kept, [], existing.source, dict(c.icons)))
             continue
         if mine.model != c.model:
@@ -369,7 +369,7 @@ def _base_values(
     source: str,
     diagnosis_source: str,
     held: Mapping[str, Any],
-) -> dict[str, tuple[float, str, bool]]:
+) -> dict[str, tuple[float, Source, bool]]:
     """Each base parameter's (value, source, identified).
 
     With a diagnosis, its refit (with the named effects) is taken where it determined the value;
@@ -380,8 +380,9 @@ def _base_values(
     between +15 % and +63 % at the same fit: exporting the refit whole would publish those.
     """
     params, flags = result["parameters"], result["identifiable"]
-    out: dict[str, tuple[float, str, bool]] = {}
+    out: dict[str, tuple[float, Source, bool]] = {}
     refit = fitted = None
+    identified, refitted = Origin.IDENTIFIED, Origin.DIAGNOSIS
     if diagnosis is not None:
         refit = diagnosis.get("parameters")
         if not isinstance(refit, Mapping):
@@ -390,34 +391,38 @@ def _base_values(
     for name in PARAMETER_NAMES:
         ident_ok = flags.get(name) is True
         if name in held:
-            out[name] = (_number(params, name, source), f"held by the user ({name}, --fix)", ident_ok)
+            out[name] = (
+                _number(params, name, source),
+                Source(f"held by the user ({name}, --fix)", Origin.HELD),
+                ident_ok,
+            )
         elif refit is not None and name in (diagnosis or {}).get("held", ()):
-            note = f"identified ({name}; held at that value in the diagnosis)"
+            note = Source(f"identified ({name}; held at that value in the diagnosis)", identified)
             out[name] = (_number(params, name, source), note, ident_ok)
         elif refit is not None and (fitted is None or fitted.get(name) is True):
-            out[name] = (_number(refit, name, diagnosis_source), f"diagnosis refit ({name})", True)
+            out[name] = (_number(refit, name, diagnosis_source), Source(f"diagnosis refit ({name})", refitted), True)
         elif refit is not None and ident_ok:
-            note = f"identified ({name}; the diagnosis's refit did not determine it)"
+            note = Source(f"identified ({name}; the diagnosis's refit did not determine it)", identified)
             out[name] = (_number(params, name, source), note, True)
         elif refit is not None:  # determined by neither: the refit's, flagged (it has the named effects)
-            out[name] = (_number(refit, name, diagnosis_source), f"diagnosis refit ({name})", False)
+            out[name] = (_number(refit, name, diagnosis_source), Source(f"diagnosis refit ({name})", refitted), False)
         else:
-            out[name] = (_number(params, name, source), f"identified ({name})", ident_ok)
+            out[name] = (_number(params, name, source), Source(f"identified ({name})", identified), ident_ok)
     return out
 
 
-def _keep_existing(chosen: dict[str, tuple[float, str, bool]], existing: Unit, p_m0: float | None) -> list[str]:
+def _keep_existing(chosen: dict[str, tuple[float, Source, bool]], existing: Unit, p_m0: float | None) -> list[str]:
     """The base parameters the recordings did not determine (and the user did not hold), taken from
     the existing record: the names so taken. Its D is PSS/E's torque form: phid's adds P_m0."""
     params = existing.parameters(p_m0 or 0.0)
     kept = []
     for name in PARAMETER_NAMES:
         value, origin, identified = chosen[name]
-        if identified or origin.startswith("held"):
+        if identified or origin.origin is Origin.HELD:
             continue
         chosen[name] = (
             float(getattr(params, name)),
-            f"kept from {existing.source} (not determined by the recordings)",
+            Source(f"kept from {existing.source} (not determined by the recordings)", Origin.KEPT),
             True,
         )
         kept.append(name)
@@ -426,7 +431,7 @@ def _keep_existing(chosen: dict[str, tuple[float, str, bool]], existing: Unit, p
 
 def _keep_existing_effects(
     values: dict[str, float],
-    sources: dict[str, str],
+    sources: dict[str, Source],
     existing: Unit,
     effects: Mapping[str, Any],
     held_curve: Any,
@@ -440,18 +445,18 @@ def _keep_existing_effects(
     if not effects.get("magnetic_saturation") and not held_curve:
         fields += ["S10", "S12"]
     for f in fields:
-        values[f], sources[f] = float(c[f]), f"kept from {existing.source}"
+        values[f], sources[f] = float(c[f]), Source(f"kept from {existing.source}", Origin.KEPT)
     return fields
 
 
 def _fill_subtransient(
-    values: dict[str, float], sources: dict[str, str], effect: Mapping[str, Any] | None, warnings: list[str]
+    values: dict[str, float], sources: dict[str, Source], effect: Mapping[str, Any] | None, warnings: list[str]
 ) -> None:
     if effect:
         x_dpp, x_qpp = float(effect["x_dpp"]), float(effect["x_qpp"])
-        values["Xd2"], sources["Xd2"] = x_dpp, "diagnosis: subtransient_dynamics x_dpp"
-        values["Td20"], sources["Td20"] = float(effect["t_d0pp"]), "diagnosis: subtransient_dynamics t_d0pp"
-        values["Tq20"], sources["Tq20"] = float(effect["t_q0pp"]), "diagnosis: subtransient_dynamics t_q0pp"
+        values["Xd2"], sources["Xd2"] = x_dpp, Source.of_effect("subtransient_dynamics", "x_dpp")
+        values["Td20"], sources["Td20"] = float(effect["t_d0pp"]), Source.of_effect("subtransient_dynamics", "t_d0pp")
+        values["Tq20"], sources["Tq20"] = float(effect["t_q0pp"]), Source.of_effect("subtransient_dynamics", "t_q0pp")
         if abs(x_qpp - x_dpp) > 0.01 * x_dpp:
             warnings.append(
                 f"the diagnosis found X''_q = {x_qpp:.4g} and X''_d = {x_dpp:.4g}; the record has one X'' "
@@ -459,37 +464,37 @@ def _fill_subtransient(
             )
     else:
         values["Xd2"] = min(values["Xd1"], values["Xq1"])
-        sources["Xd2"] = "default: min(X'_d, X'_q), the damper of that axis inert"
-        values["Td20"], sources["Td20"] = DEFAULT_TD20_S, "default"
-        values["Tq20"], sources["Tq20"] = DEFAULT_TQ20_S, "default"
+        sources["Xd2"] = Source("default: min(X'_d, X'_q), the damper of that axis inert", Origin.DEFAULT)
+        values["Td20"], sources["Td20"] = DEFAULT_TD20_S, Source("default", Origin.DEFAULT)
+        values["Tq20"], sources["Tq20"] = DEFAULT_TQ20_S, Source("default", Origin.DEFAULT)
     x_l = float((effect or {}).get("x_l", math.nan))
     if math.isfinite(x_l):
-        values["Xl"], sources["Xl"] = x_l, "diagnosis: subtransient_dynamics x_l"
+        values["Xl"], sources["Xl"] = x_l, Source.of_effect("subtransient_dynamics", "x_l")
     else:  # the rule the diagnosis's damper model used too (GENROU's flux split needs X_l < X'')
         x_pp = min(float(effect["x_dpp"]), float(effect["x_qpp"])) if effect else values["Xd2"]
         values["Xl"] = float(leakage_default(x_pp))
-        sources["Xl"] = "default: min(0.15, 0.8 X'')"
+        sources["Xl"] = Source("default: min(0.15, 0.8 X'')", Origin.DEFAULT)
 
 
 def _fill_saturation(
     values: dict[str, float],
-    sources: dict[str, str],
+    sources: dict[str, Source],
     effect: Mapping[str, Any] | None,
     warnings: list[str],
     model: str,
     held: Mapping[str, Any] | None = None,
 ) -> None:
     if held:  # the datasheet's curve the identification held (--saturation): the record's, as given
-        values["S10"], sources["S10"] = float(held["S10"]), "held by the user (--saturation)"
-        values["S12"], sources["S12"] = float(held["S12"]), "held by the user (--saturation)"
+        values["S10"], sources["S10"] = float(held["S10"]), Source("held by the user (--saturation)", Origin.HELD)
+        values["S12"], sources["S12"] = float(held["S12"]), Source("held by the user (--saturation)", Origin.HELD)
         if effect:
             warnings.append(
                 f"the diagnosis found S(1.0) = {float(effect['s10']):.4g}, S(1.2) = {float(effect['s12']):.4g}; "
                 "the record keeps the curve the identification held (--saturation)"
             )
     elif effect:
-        values["S10"], sources["S10"] = float(effect["s10"]), "diagnosis: magnetic_saturation s10"
-        values["S12"], sources["S12"] = float(effect["s12"]), "diagnosis: magnetic_saturation s12"
+        values["S10"], sources["S10"] = float(effect["s10"]), Source.of_effect("magnetic_saturation", "s10")
+        values["S12"], sources["S12"] = float(effect["s12"]), Source.of_effect("magnetic_saturation", "s12")
         # a diagnosis from before the planning forms had S(1.0) exp(b (E'_q - 1)) on E'_q
         form = str(effect.get("form", "exponential on E'_q (phid before 2026-11)"))
         curve = str(effect.get("curve", "exponential"))
@@ -500,15 +505,16 @@ def _fill_saturation(
                 f"{wanted[0]} form with a quadratic curve: they agree at 1.0 and 1.2 pu, not between or beyond"
             )
     else:
-        values["S10"], sources["S10"] = 0.0, "default: no saturation"
-        values["S12"], sources["S12"] = 0.0, "default: no saturation"
+        values["S10"], sources["S10"] = 0.0, Source("default: no saturation", Origin.DEFAULT)
+        values["S12"], sources["S12"] = 0.0, Source("default: no saturation", Origin.DEFAULT)
 
 
-def _to_gensal(values: dict[str, float], sources: dict[str, str], warnings: list[str]) -> None:
+def _to_gensal(values: dict[str, float], sources: dict[str, Source], warnings: list[str]) -> None:
     # a salient-pole rotor has no q-axis field circuit: the fourth-order model's q-axis
     # transient circuit is its damper, so T'_q0 becomes T''_q0 unless the diagnosis named one
-    if sources["Tq20"].startswith("default"):
-        values["Tq20"], sources["Tq20"] = values["Tq10"], "identified T_q0_prime (GENSAL's q-axis damper)"
+    if sources["Tq20"].is_default:
+        values["Tq20"] = values["Tq10"]
+        sources["Tq20"] = Source("identified T_q0_prime (GENSAL's q-axis damper)", Origin.IDENTIFIED)
     warnings.append(
         f"GENSAL has no X'_q or T'_q0: X'_q = {values['Xq1']:.4g} is dropped (its q axis goes from X_q "
         f"to X'' = {values['Xd2']:.4g} with T''_q0 = {values['Tq20']:.4g} s)"
