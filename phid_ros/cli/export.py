@@ -60,7 +60,7 @@ def export_command(args: argparse.Namespace, console: Console) -> int:
             f"to a {args.format} file, which has no layout for them here; the .dyr carries them as written"
         )
     written = dict(rec.values)
-    sources = dict(rec.sources)
+    sources: dict[str, str] = dict(rec.sources)
     if args.format == "psse-dyr":
         written["D"] = rec.torque_form_damping()
         if rec.p_m0 is None:

@@ -323,7 +323,7 @@ class Aligner:
         stamps = [h.last_stamp_ns for h in self.health.values() if h.last_stamp_ns is not None]
         return max(stamps) if stamps else None
 
-    def status(self, name: str, now_ns: int | None = None) -> tuple[str, str]:
+    def status(self, name: str, now_ns: int | None = None) -> tuple[Level, str]:
         """One stream's diagnostic level and message, stale judged on both clocks."""
         return self.health[name].status(now_ns, stream_now_ns=self.stream_now_ns, stale_ns=self.stale_ns)
 
