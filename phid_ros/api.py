@@ -45,6 +45,8 @@ __all__ = [
     "result_provenance",
     "validate_record",
     "RecordValidation",
+    "export_record",
+    "ExportedRecord",
 ]
 
 
@@ -476,3 +478,99 @@ def characterise_sheet(path: str | Path) -> tuple[Any, Any]:
 
     sheet = load_test_sheet(path)
     return sheet, characterise(sheet.occ.i_f, sheet.occ.x, sheet.scc.i_f, sheet.scc.x)
+
+
+@dataclass
+class ExportedRecord:
+    """A planning record as ``phid export`` writes it: the record, its text in the format asked,
+    each field's value as written and its source (PSS/E's D in its torque form), and what the
+    front end should warn of (flagged or kept fields, the model's own notes, what the format
+    leaves out)."""
+
+    record: Any  # export.record.MachineRecord
+    text: str
+    written: dict[str, float]
+    sources: dict[str, str]
+    warnings: list[str]
+    left_out: list[str]  # control records the format cannot carry (a .dyd's)
+
+
+def export_record(
+    result_path: str | Path,
+    fmt: str,
+    *,
+    model: str = "GENROU",
+    mva: float | None = None,
+    kv: float = 20.0,
+    bus: int | None = None,
+    machine_id: str | None = None,
+    diagnosis_path: str | Path | None = None,
+    base: str | Path | None = None,
+    allow_flagged: bool = False,
+    f_nominal_hz: float | None = None,
+) -> ExportedRecord:
+    """An identification result (and its diagnosis) as a planning-model record in ``fmt``
+    (``psse-dyr``, ``pslf-dyd``, ``andes``), onto the unit's existing record ``base`` where given
+    (its bus and id, and what the recordings did not determine): ``phid export`` without its
+    terminal. Raises ``ExportError`` where a parameter is not identified (unless ``allow_flagged``)."""
+    from phid_ros.export.formats import PSLF_CONTROLS, WRITERS, pslf_left_out
+    from phid_ros.export.record import ExportError, build_record
+    from phid_ros.io.files.results import read_json
+
+    result = read_json(result_path)
+    diagnosis = read_json(diagnosis_path) if diagnosis_path else None
+    mva = mva if mva is not None else result.get("base_mva")
+    if mva is None:
+        raise ExportError(f"{result_path}: the result does not say the machine's MVA base; give it with --mva")
+    existing = None
+    at_bus, at_id = bus or 1, machine_id or "1"
+    if base:
+        from phid_ros.export.dyr_read import read_unit
+
+        existing = read_unit(base, bus, machine_id)
+        # the record goes where the unit's record is: a base at bus 5 was written at bus 1, unsaid
+        at_bus, at_id = bus or existing.bus, machine_id or existing.machine_id
+    rec = build_record(
+        result,
+        source=str(result_path),
+        model=model,
+        mva=float(mva),
+        kv=kv,
+        bus=at_bus,
+        machine_id=at_id,
+        diagnosis=diagnosis,
+        diagnosis_source=str(diagnosis_path or ""),
+        allow_flagged=allow_flagged,
+        existing=existing,
+    )
+    if f_nominal_hz is not None:
+        rec.f_nominal_hz = f_nominal_hz
+    warnings = []
+    if rec.flagged:
+        warnings.append(f"writing parameters that are NOT identified (--allow-flagged): {', '.join(rec.flagged)}")
+    if rec.kept:
+        warnings.append(f"kept from {rec.kept_from} (the recordings did not determine them): {', '.join(rec.kept)}")
+    warnings += rec.warnings
+    if existing is not None and existing.carried and fmt != "psse-dyr":
+        warnings.append(
+            f"{base}: {', '.join(r.model for r in existing.carried)} (records phid does not model) not written "
+            f"to a {fmt} file, which has no layout for them here; the .dyr carries them as written"
+        )
+    written = dict(rec.values)
+    sources: dict[str, str] = dict(rec.sources)
+    if fmt == "psse-dyr":
+        written["D"] = rec.torque_form_damping()
+        if rec.p_m0 is None:
+            warnings.append(
+                f"{result_path}: no operating point (identified before phid 0.3): D is written as identified, "
+                "but PSS/E divides P_m by the speed and needs D - P_m0; identify again to have it converted"
+            )
+        else:
+            sources["D"] += f", minus P_m0 = {rec.p_m0:.3g} (PSS/E's torque form)"
+    left_out = pslf_left_out(rec) if fmt == "pslf-dyd" else []
+    if left_out:
+        warnings.append(
+            f"{result_path}: the {', '.join(left_out)} record(s) are not written to a .dyd (PSLF's layout for "
+            f"them is not checked here; it is for {', '.join(PSLF_CONTROLS)}); the .dyr and ANDES formats carry them"
+        )
+    return ExportedRecord(rec, WRITERS[fmt](rec), written, sources, warnings, left_out)

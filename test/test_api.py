@@ -20,3 +20,17 @@ def test_the_api_docstring_example_runs_and_gives_the_catalogues_inertia() -> No
         os.chdir(here)
     assert attempted >= 6
     assert failed == 0
+
+
+def test_export_record_writes_what_phid_export_writes(tmp_path: Path) -> None:
+    """The library's export is the command's: the same record text, the same warnings' reasons."""
+    from phid_ros.api import export_record
+    from phid_ros.cli.main import main
+
+    result = tmp_path / "catalogue.json"
+    assert main(["identify", str(ROOT / "bags" / "catalogue"), "--json", str(result)]) == 0
+    assert main(["export", str(result), "--format", "psse-dyr", "--out", str(tmp_path / "cli.dyr")]) == 0
+    done = export_record(result, "psse-dyr")
+    assert done.text == (tmp_path / "cli.dyr").read_text()
+    assert done.record.model == "GENROU" and done.written["H"] == done.record.values["H"]
+    assert done.sources["D"].endswith("(PSS/E's torque form)") and done.written["D"] != done.record.values["D"]
