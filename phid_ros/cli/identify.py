@@ -170,13 +170,57 @@ def start_from_dyr(args: Any) -> dict[str, dict[str, float]]:
     return {kind: dict(settings.values) for kind, settings in unit.controls.items()}
 
 
+def read_sisters(paths: list[str]) -> list[tuple[str, dict[str, Any]]]:
+    """The sister units' results (``--sister``), read before the identification: a file that is not
+    a results document is refused by name, not found out after minutes."""
+    from phid_ros.io.files.results import ResultsError, read_json
+
+    out = []
+    for path in paths:
+        doc = read_json(path)
+        if not isinstance(doc.get("parameters"), dict) or not isinstance(doc.get("uncertainty"), dict):
+            raise ResultsError(f"{path}: not an identification's results (no 'parameters' and 'uncertainty'): --sister")
+        out.append((path, doc))
+    return out
+
+
+def compare_sisters(here: str, doc: dict[str, Any], sisters: list[tuple[str, dict[str, Any]]]) -> dict[str, Any]:
+    """This identification against each sister unit's result, by the fleet's rule (``sister_gaps``:
+    both well identified and further apart than SISTER_SIGMAS combined stds): one design, one
+    machine, so one of the two sets (or a unit) is not what it should be."""
+    from phid_ros.fleet.history import SISTER_SIGMAS, row_of_result, sister_gaps
+
+    design = "declared with --sister"
+    mine = row_of_result(here, doc, design)
+    apart = []
+    for path, other in sisters:
+        for g in sister_gaps([mine, row_of_result(path, other, design)]):
+            ours, theirs = (g.first, g.second) if g.first is mine else (g.second, g.first)
+            n = g.parameter
+            v, s, w, t = ours.values[n], ours.stds[n], theirs.values[n], theirs.stds[n]
+            said = (
+                f"{SYMBOLS[n]}: {v:.4g} ± {s:.2g} here, {w:.4g} ± {t:.2g} in the sister unit's {path} "
+                f"({w / v - 1.0:+.1%} there, {g.sigmas:.1f} σ apart: one design, so one of the two is not "
+                "what it should be)"
+            )
+            apart.append(
+                {"parameter": n, "sister": path, "here": v, "here_std": s, "there": w, "there_std": t}
+                | {"sigmas": g.sigmas, "said": said}
+            )
+    return {"compared_with": [p for p, _ in sisters], "sigmas": SISTER_SIGMAS, "apart": apart}
+
+
 def identify_command(args: Any, console: Console) -> int:
     from phid_ros.io.files.outputs import refuse_inputs
 
-    refuse_inputs([args.json, args.report], [*args.input, args.truth, getattr(args, "start_from", None)])
+    refuse_inputs(
+        [args.json, args.report],
+        [*args.input, args.truth, getattr(args, "start_from", None), *(getattr(args, "sister", None) or [])],
+    )
     control_starts = start_from_dyr(args) if getattr(args, "start_from", None) else {}
     # a typo said before the reading
     constraints = parse_constraints(args.fix, args.bounds, args.start, args.saturation)
+    sisters = read_sisters(getattr(args, "sister", None) or [])
     t_start = time.perf_counter()
     with ProgressLine(f"reading {' + '.join(args.input)}") as progress:
         # read part by part where the recording allows: only the scenarios' windows are kept
@@ -201,6 +245,10 @@ def identify_command(args: Any, console: Console) -> int:
     source = unit.source
     res.timing = {"read": round(t_read, 6), **res.timing}
     doc["timing_s"] = res.timing
+    if sisters:
+        doc["sisters"] = compare_sisters(source, doc, sisters)
+        for gap in doc["sisters"]["apart"]:
+            warn(gap["said"])
     if args.json:
         t0 = time.perf_counter()
         write_json(args.json, doc)

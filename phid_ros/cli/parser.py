@@ -204,6 +204,14 @@ def _add_identify(sub: Subparsers) -> None:
     )
     p.add_argument("--truth", metavar="TRUTH.json", help="true parameters (e.g. <bag>.truth.json) for errors")
     p.add_argument("--report", metavar="OUT.html", help="write a self-contained HTML report")
+    p.add_argument(
+        "--sister",
+        action="append",
+        default=[],
+        metavar="RESULT.json",
+        help="a sister unit's result (one design, identified from its own recordings): each parameter "
+        "both identify further apart than 2 combined stds is said, and kept in the JSON; repeatable",
+    )
     p.add_argument("--no-baseline", action="store_true", help="skip the IEEE 115 baseline column")
     p.add_argument("--seed", type=int, default=0, help="seed of the stochastic optimisers (default 0)")
     p.add_argument(

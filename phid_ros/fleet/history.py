@@ -295,6 +295,29 @@ class SisterGap:
         )
 
 
+def row_of_result(unit: str, doc: dict[str, Any], design: str) -> Row:
+    """An identification's results document (``phid identify --json``) as a history row of
+    ``unit`` and ``design``: what a sister comparison reads (withheld values are null there)."""
+
+    def numbers(key: str) -> dict[str, float]:
+        got = doc.get(key) or {}
+        return {n: float(got[n]) if isinstance(got.get(n), (int, float)) else math.nan for n in PARAMETER_NAMES}
+
+    flags = doc.get("identifiable") or {}
+    return Row(
+        unit,
+        unit,
+        "",
+        "ok",
+        "",
+        start_ns=0,
+        values=numbers("parameters"),
+        stds=numbers("uncertainty"),
+        identifiable={n: flags.get(n) is True for n in PARAMETER_NAMES},
+        design=design,
+    )
+
+
 def latest_well_identified(rows: Sequence[Row], name: str) -> Row | None:
     timed = [r for r in rows if r.well_identified(name) and r.start_ns is not None]
     return max(timed, key=lambda r: r.start_ns or 0, default=None)

@@ -161,3 +161,37 @@ def test_a_nan_window_is_skipped_by_name_and_the_rest_identified(tmp_path, short
         f"skipped scenario {sc.name}: channel theta_t has 20 NaN" in p and str(path) in p for p in doc["problems"]
     )
     assert [e["name"] for e in doc["events"]] == [short_recording.scenarios[0].name, short_recording.scenarios[2].name]
+
+
+def test_a_sister_unit_s_result_is_compared_parameter_by_parameter(tmp_path, capsys) -> None:
+    """Sister units of one design (issue 71): a parameter both identify further apart than two
+    combined stds is said and kept in the JSON; a sister that agrees says nothing; a file that is
+    not a result is refused by name before the identification."""
+    import json
+
+    from phid_ros.cli.main import main
+
+    mine = tmp_path / "mine.json"
+    assert main(["identify", "bags/catalogue", "--no-baseline", "--json", str(mine)]) == 0
+    doc = json.loads(mine.read_text())
+    same, apart = tmp_path / "same.json", tmp_path / "apart.json"
+    same.write_text(json.dumps(doc))
+    doc["parameters"]["T_d0_prime"] *= 1.3
+    apart.write_text(json.dumps(doc))
+    out = tmp_path / "with_sisters.json"
+    capsys.readouterr()
+    args = ["identify", "bags/catalogue", "--no-baseline", "--sister", str(same), "--sister", str(apart)]
+    assert main([*args, "--json", str(out)]) == 0
+    said = capsys.readouterr()
+    sisters = json.loads(out.read_text())["sisters"]
+    assert sisters["compared_with"] == [str(same), str(apart)]
+    assert [(g["parameter"], g["sister"]) for g in sisters["apart"]] == [("T_d0_prime", str(apart))]
+    gap = sisters["apart"][0]
+    assert gap["there"] == pytest.approx(1.3 * gap["here"]) and gap["sigmas"] > 2.0
+    assert "T'_d0: 1.436 ± 0.00083 here, 1.867 ± 0.00083 in the sister unit's" in said.err
+    assert "+30.0% there" in said.err
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"H": 3.5}')
+    assert main(["identify", "bags/catalogue", "--sister", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert "bad.json: not an identification's results" in err and "identified parameters" not in err
