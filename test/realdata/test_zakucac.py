@@ -112,3 +112,37 @@ def test_the_guide_s_zakucac_recipe_runs_as_written_and_gives_its_figures(tmp_pa
     assert doc["a_island"]["identifiable"]["H"] and 3.0 < doc["a_island"]["parameters"]["H"] < 4.5
     held = doc["b_island"]["withheld"]["H"]
     assert doc["b_island"]["parameters"]["H"] is None and held["std"] / held["value"] > 0.5
+
+
+def test_the_set_point_from_its_raise_and_lower_commands_follows_the_recorded_one(tmp_path) -> None:
+    """The polled logs record the AVR's set-point and its raise/lower commands both (SOURCE.md):
+    read from the commands alone at one ramp rate for both units (0.0043 pu/s; 0.0042-0.0046 fitted
+    file by file), from each file's first set-point, it stays within 0.005 pu of the recorded one
+    over every lowering and raising (0.0009-0.0047 pu: the commands are polled every 0.15 s)."""
+    import csv
+
+    import numpy as np
+
+    from phid_ros.io.field.channel_map import load_channel_map
+    from phid_ros.io.field.pmu_csv import import_pmu_csv
+
+    files = sorted(PLANT.glob("watch_cs_watch-*.csv"))
+    assert len(files) >= 5
+    starts = {}
+    for f in files:
+        with f.open() as fh:
+            starts[f.stem] = float(next(csv.DictReader(fh))["Ug_ref_pu"])
+    commands = MAP.replace(
+        "  v_ref: {name: Ug_ref_pu, unit: pu}",
+        "  v_ref_raise: {name: Vref_raise_pulse}\n  v_ref_lower: {name: Vref_lower_pulse}",
+    ).replace("channels:", "set_point: {rate_pu_per_s: 0.0043}\nchannels:")
+    commands += "scenarios:\n" + "".join(f"  {s}: {{set_point_start_pu: {v!r}}}\n" for s, v in starts.items())
+    (tmp_path / "recorded.yaml").write_text(MAP)
+    (tmp_path / "commands.yaml").write_text(commands)
+    worst = []
+    for f in files:
+        recorded = import_pmu_csv([f], load_channel_map(tmp_path / "recorded.yaml")).streams["set_point"]
+        rebuilt = import_pmu_csv([f], load_channel_map(tmp_path / "commands.yaml")).streams["set_point"]
+        assert np.array_equal(recorded.t_ns, rebuilt.t_ns)
+        worst.append(float(np.max(np.abs(rebuilt.channels["v_ref"] - recorded.channels["v_ref"]))))
+    assert max(worst) < 0.005, worst

@@ -73,7 +73,12 @@ QUANTITIES: dict[str, tuple[str, tuple[str, ...], str]] = {
     "v_r": ("controller", ("pu",), "pu"),  # the voltage regulator's output
     "v_s": ("controller", ("pu",), "pu"),  # the power system stabiliser's output
     "v_ref": ("controller", ("pu",), "pu"),  # the voltage regulator's set-point, pu of the rated V_t
+    # where the set-point itself is not recorded: its raise and lower commands (on while held,
+    # 0/1), integrated at the regulator's ramp rate (the map's set_point: {rate_pu_per_s, start_pu})
+    "v_ref_raise": ("command", ("binary",), "binary"),
+    "v_ref_lower": ("command", ("binary",), "binary"),
 }
+PULSES = ("v_ref_raise", "v_ref_lower")
 FIELD_QUANTITIES = ("v_f", "i_fd")
 WAVEFORMS = ("v_a", "v_b", "v_c", "i_a", "i_b", "i_c")
 SCALE = {"V": 1.0, "kV": 1e3, "V_ll": 1.0, "kV_ll": 1e3, "A": 1.0, "kA": 1e3, "W": 1.0, "kW": 1e3, "MW": 1e6}
@@ -109,6 +114,10 @@ class ChannelMap:
     date_column: str | None = None  # trend logs: a date column beside a time-of-day one
     phasor_window_cycles: float = 0.0  # PMU exports: the cycles the PMU's phasor filter spans (0: unknown)
     rotation: str = "abc"  # the waveforms' phase sequence as the recorder's labels turn (abc or acb)
+    # the set-point's ramp while a raise or lower command is held (pu/s), and its value where a
+    # recording begins (a scenario's own ``set_point_start_pu`` first): for v_ref from its pulses
+    set_point_rate: float | None = None
+    set_point_start: float = 1.0
 
     @property
     def v_base(self) -> float:  # per phase, RMS volts
@@ -162,7 +171,7 @@ class ChannelMap:
         kind = QUANTITIES[spec.quantity][0]
         if kind == "field" and spec.base is not None:
             return x / spec.base
-        if spec.unit == "pu" or kind in ("speed", "field", "controller"):
+        if spec.unit == "pu" or kind in ("speed", "field", "controller", "command"):
             return x
         if kind == "angle":
             return x * SCALE[spec.unit]
@@ -272,6 +281,14 @@ def load_channel_map(path: str | Path) -> ChannelMap:
     scenarios = doc.get("scenarios") or {}
     if not isinstance(scenarios, Mapping) or not all(isinstance(v, Mapping) for v in scenarios.values()):
         raise ChannelMapError(f"{where}: scenarios must map a recording's file stem to {{kind, role, event_time_s}}")
+    set_point = doc.get("set_point") or {}
+    if not isinstance(set_point, Mapping) or set(set_point) - {"rate_pu_per_s", "start_pu"}:
+        raise ChannelMapError(f"{where}: set_point takes rate_pu_per_s and start_pu only")
+    if any(q in raw for q in PULSES) and "rate_pu_per_s" not in set_point:
+        raise ChannelMapError(
+            f"{where}: {' and '.join(q for q in PULSES if q in raw)} mapped without the set-point's ramp rate: "
+            "give set_point: {rate_pu_per_s: ..., start_pu: ...} (the regulator's, pu of rated V_t a second)"
+        )
     rotation = doc.get("rotation", "abc")
     if rotation not in ROTATIONS:
         raise ChannelMapError(f"{where}: rotation {rotation!r} must be one of {', '.join(ROTATIONS)}")
@@ -290,6 +307,8 @@ def load_channel_map(path: str | Path) -> ChannelMap:
         phasor_window_cycles=_positive(m, "phasor_window_cycles", f"{where}: machine")
         if "phasor_window_cycles" in m
         else 0.0,
+        set_point_rate=_positive(set_point, "rate_pu_per_s", f"{where}: set_point") if set_point else None,
+        set_point_start=_positive(set_point, "start_pu", f"{where}: set_point") if "start_pu" in set_point else 1.0,
     )
     _one_quantity_a_column(cmap.channels, where)
     for spec in cmap.channels.values():

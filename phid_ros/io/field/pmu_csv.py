@@ -22,6 +22,7 @@ import numpy as np
 from phid_ros.errors import PhidError
 from phid_ros.io.csvset.csv_import import decimal_comma_fields, is_number, read_header_line
 from phid_ros.io.field.channel_map import (
+    PULSES,
     WAVEFORMS,
     ChannelMap,
     check_recording,
@@ -368,8 +369,8 @@ def _polled_channel_notes(name: str, t: np.ndarray, cmap: ChannelMap, values: di
     errors, held = [], []
     for q, spec in cmap.channels.items():
         col = values.get(spec.name)
-        if col is None or col.bad is not None or not col.parts:
-            continue
+        if col is None or col.bad is not None or not col.parts or q in PULSES:
+            continue  # a command is on or off: held between changes by what it is, not by the source
         x = np.concatenate(col.parts) if len(col.parts) > 1 else col.parts[0]
         if len(x) < 3:
             continue

@@ -493,3 +493,33 @@ def test_the_same_recording_under_a_second_name_is_refused_by_its_content(tmp_pa
         Exception, match=r"step_0\.csv: holds the same samples as .*copy\.csv: one recording given twice"
     ):
         import_pmu_csv([tmp_path / "copy.csv", tmp_path / "step_0.csv"], cmap)
+
+
+def test_a_set_point_only_its_raise_and_lower_commands_record_is_integrated_at_the_ramp_rate(tmp_path) -> None:
+    """Zakucac's controller logs its set-point's raise and lower commands (issue 71): where a log
+    carries only those, v_ref is its start plus the map's ramp rate times the time a command was
+    held. Lowered 3 s and raised 1 s at 0.005 pu/s from 0.98: 0.965, then 0.97. The rate is
+    required (a pulse alone says nothing of how far it moves the set-point); a scenario's own start
+    overrides the map's."""
+    t = np.arange(0.0, 20.0, 0.01)
+    lower = ((t >= 5.0) & (t < 8.0)).astype(float)
+    raise_ = ((t >= 12.0) & (t < 13.0)).astype(float)
+    rows = ["Timestamp,UG,UF,UP,DN"] + [
+        f"{a:.3f},{1.0 - 0.01 * d:.6f},0.37,{u:g},{d:g}" for a, u, d in zip(t, raise_, lower)
+    ]
+    (tmp_path / "steps.csv").write_text("\n".join(rows) + "\n")
+    pulses = "  v_ref_raise: {name: UP}\n  v_ref_lower: {name: DN}\n"
+    (tmp_path / "no_rate.yaml").write_text(NO_LOAD_MAP + pulses)
+    with pytest.raises(ChannelMapError, match=r"no_rate\.yaml: v_ref_raise and v_ref_lower mapped without the"):
+        load_channel_map(tmp_path / "no_rate.yaml")
+    text = NO_LOAD_MAP.replace("channels:", "set_point: {rate_pu_per_s: 0.005, start_pu: 1.0}\nchannels:") + pulses
+    (tmp_path / "map.yaml").write_text(text + "scenarios:\n  steps: {set_point_start_pu: 0.98}\n")
+    rec = import_pmu_csv([tmp_path / "steps.csv"], load_channel_map(tmp_path / "map.yaml"))
+    sp = rec.streams["set_point"]
+    at = (sp.t_ns - sp.t_ns[0]) / 1e9
+    v_ref = sp.channels["v_ref"]
+    assert v_ref[at < 5.0] == pytest.approx(0.98, abs=1e-12)
+    assert v_ref[(at > 8.1) & (at < 12.0)] == pytest.approx(0.965, abs=1e-4)
+    assert v_ref[at > 13.1] == pytest.approx(0.970, abs=1e-4)
+    said = " ".join(rec.warnings)
+    assert "steps.csv: v_ref from its raise/lower commands at 0.005 pu/s from 0.98 pu (0.9650-0.9800 pu)" in said
