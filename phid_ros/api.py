@@ -47,6 +47,9 @@ __all__ = [
     "RecordValidation",
     "export_record",
     "ExportedRecord",
+    "replay_to_bag",
+    "ReplayRun",
+    "ReplayProgress",
 ]
 
 
@@ -574,3 +577,116 @@ def export_record(
             f"them is not checked here; it is for {', '.join(PSLF_CONTROLS)}); the .dyr and ANDES formats carry them"
         )
     return ExportedRecord(rec, WRITERS[fmt](rec), written, sources, warnings, left_out)
+
+
+@dataclass
+class ReplayProgress:
+    """Where a replay is: stream time played, the share of the file read, events found, and what
+    the recalibration is busy with ("" when idle): what ``phid replay``'s progress line says."""
+
+    played_s: float
+    read_share: float
+    events: int
+    busy: str
+
+
+@dataclass
+class ReplayRun:
+    """A recording played through the online pipeline into an output bag, as ``phid replay``
+    does it: the pipeline (closed; its health, detector, record check and parameters kept), the
+    outputs (without their arrays), the messages written (``collector.counts``, its health log),
+    the recording's overview (for a report), its first stamp, the reading's warnings, the wall
+    time, and how many events a kept store held before."""
+
+    pipeline: Any  # stream.pipeline.MonitorPipeline
+    outputs: Any  # stream.pipeline.Outputs
+    collector: Any  # stream.output_bag.OutputCollector
+    overview: Any  # io.overview.Overview
+    start_ns: int
+    warnings: list[str]
+    wall_s: float
+    stored_before: int
+
+
+def replay_to_bag(
+    bag: str | Path,
+    out: str | Path,
+    *,
+    record: str | Path | None = None,
+    store: str | Path | None = None,
+    unit: str = "",
+    constraints: Any = None,
+    rate: float | None = None,
+    progress: Callable[[ReplayProgress], None] | None = None,
+    started: Callable[[Any], None] | None = None,
+) -> ReplayRun:
+    """``bag`` replayed through the nodes' pipeline, read part by part (memory holds one part),
+    its outputs written to ``out`` (a rosbag2 folder or an .mcap) as they are made: ``out``'s
+    ``.partial`` until the end, so an interruption leaves what was published so far (and the
+    events in ``store``). ``record``: the unit's record on file, checked at every event (read
+    first: a record it cannot read is refused before the replay). ``constraints``: held
+    parameters (``ident.constraints.parse_constraints``). ``started`` gets the pipeline before the
+    first sample (to say what a kept store holds); ``progress`` gets a ``ReplayProgress`` as the
+    stream time advances. ``rate``: paced at this multiple of real time (None: as fast as it goes)."""
+    import itertools
+
+    from phid_ros.ident.pipeline import IdentifyOptions
+    from phid_ros.io.bags.recordings import open_message_writer
+    from phid_ros.io.files.outputs import atomic_output
+    from phid_ros.io.overview import Overview
+    from phid_ros.io.parts import recording_parts
+    from phid_ros.io.recording import not_recorded
+    from phid_ros.stream.output_bag import OutputCollector
+    from phid_ros.stream.pipeline import MonitorPipeline, PipelineSettings
+    from phid_ros.stream.replay import replay
+
+    parts = recording_parts(bag)
+    part_iter = iter(parts)
+    first = next(part_iter)
+    # the grid at the PT/CT rate, as phid identify aligns the recording (a node: its sample_rate_hz)
+    settings = PipelineSettings(
+        period_ns=first.streams["pt_ct"].period_ns if "pt_ct" in first.streams else PipelineSettings.period_ns,
+        store_path=str(store) if store else ":memory:",
+        unit=unit or parts.metadata.get("unit", ""),
+        not_recorded=not_recorded(parts.metadata),
+        identify=IdentifyOptions(baseline=False, **({"constraints": constraints} if constraints is not None else {})),
+    )
+    pipeline = MonitorPipeline(settings)
+    if record:  # read before the replay: a record it cannot read is said now, not at the first event
+        pipeline.record_check = record_check(record)
+    stored_before = len(pipeline.store)
+    if started is not None:
+        started(pipeline)
+    overview = Overview()
+    start_ns = min((int(s.t_ns[0]) for s in first.streams.values() if len(s)), default=0)
+
+    def read_on() -> Any:
+        for part in itertools.chain([first], part_iter):
+            overview.add(part)
+            yield part
+
+    events = 0
+    t0 = time.perf_counter()
+    with atomic_output(Path(out), keep_partial=True) as tmp:
+        writer = open_message_writer(tmp, {"source": f"phid replay {bag}"}, background=True)
+        collector = OutputCollector(pipeline, sink=writer.write)
+
+        def collect(o: Any) -> None:
+            nonlocal events
+            collector(o)
+            events += len(o.events)
+
+        def played(seconds: float) -> None:
+            if progress is not None:
+                progress(ReplayProgress(seconds, parts.fraction, events, pipeline.recalibrator.activity))
+
+        try:
+            outputs = replay(read_on(), pipeline, rate=rate, on_outputs=collect, keep_arrays=False, progress=played)
+        except BaseException:
+            writer.close()
+            pipeline.close()
+            raise
+        writer.close()
+    wall = time.perf_counter() - t0
+    pipeline.close()
+    return ReplayRun(pipeline, outputs, collector, overview, start_ns, list(parts.warnings), wall, stored_before)

@@ -34,3 +34,19 @@ def test_export_record_writes_what_phid_export_writes(tmp_path: Path) -> None:
     assert done.text == (tmp_path / "cli.dyr").read_text()
     assert done.record.model == "GENROU" and done.written["H"] == done.record.values["H"]
     assert done.sources["D"].endswith("(PSS/E's torque form)") and done.written["D"] != done.record.values["D"]
+
+
+def test_replay_to_bag_writes_what_phid_replay_writes(tmp_path: Path) -> None:
+    """The library's replay is the command's: the same output bag, byte for byte, and the pipeline
+    it returns closed with what the terminal summary reads."""
+    from phid_ros.api import replay_to_bag
+    from phid_ros.cli.main import main
+
+    bag = ROOT / "bags" / "catalogue"
+    assert main(["replay", str(bag), "--out", str(tmp_path / "cli.mcap")]) == 0
+    seen = []
+    run = replay_to_bag(bag, tmp_path / "api.mcap", progress=seen.append)
+    assert (tmp_path / "api.mcap").read_bytes() == (tmp_path / "cli.mcap").read_bytes()
+    assert run.outputs.events and sum(run.collector.counts.values()) > 1000
+    assert seen and seen[-1].played_s > 600 and seen[-1].events == len(run.outputs.events)
+    assert not (tmp_path / "api.mcap.partial").exists()

@@ -25,9 +25,7 @@ from phid_ros.io.overview import Overview
 from phid_ros.model.conventions import NS
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, SYMBOLS
 from phid_ros.stream.levels import Level
-
-# (stamp ns, {stream: (level, dropped, gaps, clock jumps)}): one diagnostics stamp of a replay
-HealthSnapshot = tuple[int, dict[str, tuple[Level, int, int, int]]]
+from phid_ros.stream.output_bag import HealthSnapshot
 
 if TYPE_CHECKING:
     from phid_ros.ident.results import Estimate

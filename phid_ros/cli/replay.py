@@ -2,120 +2,17 @@
 
 from __future__ import annotations
 
-import time
-from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from phid_ros.io.recording import Recording
-from phid_ros.io.topics import OUTPUT_TOPICS, output_topic
 from phid_ros.model.conventions import NS
-from phid_ros.stream.levels import Level, worst
+from phid_ros.stream.output_bag import BAG_TOPICS, OutputCollector
 from phid_ros.stream.pipeline import MonitorPipeline, Outputs
 from phid_ros.stream.recalibration import RecalibrationOutcome
 from phid_ros.stream.record_check import EventVerdict, RecordCheck
-from phid_ros.stream.replay import replay
 
 if TYPE_CHECKING:
     from rich.console import Console
-
-    from phid_ros.cli.monitor_report import HealthSnapshot
-
-HEALTH_LOG_MAX = 8000  # diagnostics snapshots kept for the report
-BAG_TOPICS = {key: (output_topic(key), msgtype) for key, (_, msgtype) in OUTPUT_TOPICS.items()}
-
-
-class OutputCollector:
-    """Turns pipeline outputs into (log time, topic, type, message) for the output bag."""
-
-    def __init__(
-        self,
-        pipeline: MonitorPipeline,
-        diagnostics_period_ns: int = NS,
-        sink: Callable[[int, str, str, object], None] | None = None,
-    ) -> None:
-        from phid_ros.io.msg_schemas import typestore
-
-        self.types = typestore().types
-        self.pipeline = pipeline
-        self.sink = sink  # each batch goes out as it is made (to a bag writer); else kept in .messages
-        self.messages: list[tuple[int, str, str, object]] = []
-        self.counts: dict[str, int] = {}
-        self.last_recalibration: RecalibrationOutcome | None = None
-        self._diag_period = diagnostics_period_ns
-        self._next_diag: int | None = None
-        self._batch: list[tuple[int, str, str, object]] = []
-        # each stream's health at every diagnostics stamp, for the report: (stamp, {stream: (level, dropped,
-        # gaps, clock jumps)})
-        self.health_log: list[HealthSnapshot] = []
-
-    def _add(self, key: str, log_ns: int, msg: object) -> None:
-        topic, msgtype = BAG_TOPICS[key]
-        self._batch.append((int(log_ns), topic, msgtype, msg))
-        self.counts[topic] = self.counts.get(topic, 0) + 1
-
-    def __call__(self, out: Outputs) -> None:
-        self._collect(out)
-        batch, self._batch = sorted(self._batch, key=lambda x: x[0]), []
-        if self.sink is None:
-            self.messages.extend(batch)
-        else:
-            for item in batch:
-                self.sink(*item)
-
-    def _collect(self, out: Outputs) -> None:
-        from phid_ros.stream import messages as m
-        from phid_ros.stream.emit import emit
-
-        for r in out.recalibrations:
-            self.last_recalibration = r
-        for p in emit(self.types, out):
-            self._add(p.key, p.log_ns, p.message)
-        now = self.pipeline.latest_ns
-        if now is not None:
-            if self._next_diag is None:
-                self._next_diag = now
-            while now >= self._next_diag:
-                self._log_health(
-                    self._next_diag,
-                    {
-                        n: (self.pipeline.status(n)[0], h.dropped, h.gaps - h.pauses, h.clock_jumps)
-                        for n, h in self.pipeline.health.items()
-                    },
-                )
-                self._add(
-                    "diagnostics",
-                    self._next_diag,
-                    m.diagnostics_message(
-                        self.types,
-                        self._next_diag,
-                        self.pipeline.health,
-                        self.last_recalibration,
-                        stream_now_ns=self.pipeline.aligner.stream_now_ns,
-                        stale_ns=self.pipeline.aligner.stale_ns,
-                        unit=self.pipeline.settings.unit,
-                        record=self.pipeline.record_check,
-                    ),
-                )
-                self._next_diag += self._diag_period
-
-    def _log_health(self, t_ns: int, snapshot: dict[str, tuple[Level, int, int, int]]) -> None:
-        """One snapshot a diagnostics period; past HEALTH_LOG_MAX of them, neighbours are merged in
-        pairs (the worse level, the later counters: they are running totals), so a day's replay
-        keeps as many as an hour's (86 400 snapshots held 90 MB) and a short ERROR is not lost."""
-        self.health_log.append((t_ns, snapshot))
-        if len(self.health_log) <= HEALTH_LOG_MAX:
-            return
-        merged = []
-        for (t0, a), (_, b) in zip(self.health_log[0::2], self.health_log[1::2]):
-            worse = {n: (worst(a[n][0], b[n][0]), *b[n][1:]) if n in a else b[n] for n in b}
-            merged.append((t0, worse))
-        if len(self.health_log) % 2:
-            merged.append(self.health_log[-1])
-        self.health_log = merged
-
-    def sorted(self) -> list[tuple[int, str, str, object]]:
-        return sorted(self.messages, key=lambda x: x[0])
 
 
 def check_output(out: Path, force: bool) -> None:
@@ -269,19 +166,13 @@ def print_record_verdicts(console: Console, start: int, record: RecordCheck, ver
 
 
 def replay_command(args: Any, console: Any) -> int:
-    import itertools
     import resource
 
+    from phid_ros.api import ReplayProgress, replay_to_bag
     from phid_ros.cli.common import warn
     from phid_ros.cli.progress import ProgressLine
     from phid_ros.ident.constraints import parse_constraints
-    from phid_ros.ident.pipeline import IdentifyOptions
-    from phid_ros.io.bags.recordings import open_message_writer
-    from phid_ros.io.files.outputs import atomic_output, partial_path, refuse_inputs
-    from phid_ros.io.overview import Overview
-    from phid_ros.io.parts import recording_parts
-    from phid_ros.io.recording import not_recorded
-    from phid_ros.stream.pipeline import PipelineSettings
+    from phid_ros.io.files.outputs import partial_path, refuse_inputs
 
     out_path = Path(args.out)
     refuse_inputs([out_path, args.store, args.report], [args.bag])
@@ -289,109 +180,73 @@ def replay_command(args: Any, console: Any) -> int:
     if args.record:
         refuse_inputs([out_path, args.store, args.report], [args.record])
     check_output(out_path, args.force)
-    # the recording is read part by part as it is played: memory holds one part, not the file
     constraints = parse_constraints(args.fix, saturation=args.saturation)  # a typo said before the reading
-    with ProgressLine(f"reading {args.bag}"):
-        parts = recording_parts(args.bag)
-        part_iter = iter(parts)
-        first = next(part_iter)
-    unit = args.unit or parts.metadata.get("unit", "")
-    # the grid at the PT/CT rate, as phid identify aligns the recording (a node: its sample_rate_hz)
-    settings = PipelineSettings(
-        period_ns=first.streams["pt_ct"].period_ns if "pt_ct" in first.streams else PipelineSettings.period_ns,
-        store_path=args.store or ":memory:",
-        unit=unit,
-        not_recorded=not_recorded(parts.metadata),
-        identify=IdentifyOptions(baseline=False, constraints=constraints),
-    )
-    pipeline = MonitorPipeline(settings)
-    if args.record:  # read before the replay: a record it cannot read is said now, not at the first event
-        from phid_ros.api import record_check
+    now = ReplayProgress(0.0, 0.0, 0, "")
+    live: list[MonitorPipeline] = []  # the pipeline, once made: what its recalibration does, read as it goes
 
-        pipeline.record_check = record_check(args.record)
-    if len(pipeline.store):
-        # a kept store is the deployment's memory: its events take part in every recalibration, so
-        # a replay into it differs from one into an empty store, and says so
-        console.print(
-            f"store {args.store}: {len(pipeline.store)} events from earlier runs take part in the recalibrations "
-            "(an empty store, or none, gives the same result on every run)",
-            highlight=False,
-            markup=False,
-        )
-    overview = Overview()
-    start_ns = min((int(s.t_ns[0]) for s in first.streams.values() if len(s)), default=0)
+    def started(pipeline: MonitorPipeline) -> None:
+        live.append(pipeline)
+        if len(pipeline.store):
+            # a kept store is the deployment's memory: its events take part in every recalibration,
+            # so a replay into it differs from one into an empty store, and says so
+            console.print(
+                f"store {args.store}: {len(pipeline.store)} events from earlier runs take part in the "
+                "recalibrations (an empty store, or none, gives the same result on every run)",
+                highlight=False,
+                markup=False,
+            )
 
-    def read_on() -> Iterator[Recording]:
-        for part in itertools.chain([first], part_iter):
-            overview.add(part)
-            yield part
+    def doing() -> str:
+        # the file is read ahead of the play (all of a short one at once): its share is said while
+        # it grows, then what the pipeline's recalibration is busy with, which is where a
+        # commissioning day's minutes go (its exciter search), not "100 % of the file (still)"
+        share = round(100 * now.read_share)
+        read = f", {share} % of the file read" if share < 100 else ""
+        line = f"replaying: {now.played_s:.0f} s of stream time{read}, {now.events} event(s)"
+        busy = live[0].recalibrator.activity if live else now.busy
+        return f"{line}; {busy}" if busy else line
 
-    t0 = time.perf_counter()
-    # outputs go to OUT.partial as they are made and become OUT at the end: an interruption
-    # leaves what was published so far, readable, and the events already in the store
-    with atomic_output(out_path, keep_partial=True) as tmp:
-        writer = open_message_writer(tmp, {"source": f"phid replay {args.bag}"}, background=True)
-        collector = OutputCollector(pipeline, sink=writer.write)
-        events = 0
+    try:
+        with ProgressLine(f"replaying {args.bag}", source=doing) as progress:
 
-        def collect(out: Outputs) -> None:
-            nonlocal events
-            collector(out)
-            events += len(out.events)
+            def played(p: ReplayProgress) -> None:
+                nonlocal now
+                now = p
+                # on a terminal the line is redrawn; in a log it is written every few seconds of wall time
+                progress.update(doing())
 
-        played_s = 0.0
-
-        def doing() -> str:
-            # the file is read ahead of the play (all of a short one at once): its share is said
-            # while it grows, then what the pipeline's recalibration is busy with, which is where
-            # a commissioning day's minutes go (its exciter search), not "100 % of the file (still)"
-            share = round(100 * parts.fraction)
-            read = f", {share} % of the file read" if share < 100 else ""
-            line = f"replaying: {played_s:.0f} s of stream time{read}, {events} event(s)"
-            busy = pipeline.recalibrator.activity
-            return f"{line}; {busy}" if busy else line
-
-        def played(seconds: float) -> None:
-            nonlocal played_s
-            played_s = seconds
-            # on a terminal the line is redrawn; in a log it is written every few seconds of wall time
-            progress.update(doing())
-
-        try:
-            with ProgressLine(f"replaying {args.bag}", source=doing) as progress:
-                outputs = replay(
-                    read_on(),
-                    pipeline,
-                    rate=args.rate,
-                    on_outputs=collect,
-                    keep_arrays=False,
-                    progress=played,
-                )
-        except BaseException:
-            writer.close()
-            pipeline.close()
+            run = replay_to_bag(
+                args.bag,
+                out_path,
+                record=args.record,
+                store=args.store,
+                unit=args.unit or "",
+                constraints=constraints,
+                rate=args.rate,
+                progress=played,
+                started=started,
+            )
+    except BaseException:
+        if partial_path(out_path).exists():
             warn(f"replay stopped: what was published so far is in {partial_path(out_path)}")
-            raise
-        writer.close()
-    for w in parts.warnings:
+        raise
+    for w in run.warnings:
         warn(w)
-    wall = time.perf_counter() - t0
-    start, end = overview.span_ns()
+    start, end = run.overview.span_ns()
     span = (end - start) / NS
-    print_summary(console, start_ns, pipeline, outputs, collector)
+    print_summary(console, run.start_ns, run.pipeline, run.outputs, run.collector)
     if args.report:
         from phid_ros.cli.monitor_report import write_replay_report
 
         with ProgressLine(f"writing {args.report}"):
-            write_replay_report(args.report, overview, outputs, collector.health_log, source=str(args.bag))
+            write_replay_report(args.report, run.overview, run.outputs, run.collector.health_log, source=str(args.bag))
         console.print(f"wrote {args.report}", highlight=False)
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     # the one line that differs between two replays of the same bag: it is measured, not replayed
     console.print(
-        f"wrote {sum(collector.counts.values())} messages to {out_path}; "
-        f"timing: {span:.1f} s replayed in {wall:.2f} s wall time ({span / wall:.0f}x real time), "
-        f"{pipeline.samples_in / wall / 1e6:.2f} M channel-samples/s, peak memory {peak:.0f} MB",
+        f"wrote {sum(run.collector.counts.values())} messages to {out_path}; "
+        f"timing: {span:.1f} s replayed in {run.wall_s:.2f} s wall time ({span / run.wall_s:.0f}x real time), "
+        f"{run.pipeline.samples_in / run.wall_s / 1e6:.2f} M channel-samples/s, peak memory {peak:.0f} MB",
         highlight=False,
     )
-    pipeline.close()
     return 0

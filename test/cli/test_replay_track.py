@@ -106,7 +106,7 @@ def test_replay_aligns_on_the_recordings_own_rate(tmp_path, capsys):
 
 
 def test_the_replay_health_log_stays_bounded_and_keeps_a_short_error() -> None:
-    from phid_ros.cli.replay import HEALTH_LOG_MAX, OutputCollector
+    from phid_ros.stream.output_bag import HEALTH_LOG_MAX, OutputCollector
     from phid_ros.stream.pipeline import MonitorPipeline
 
     pipeline = MonitorPipeline()

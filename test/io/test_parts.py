@@ -7,11 +7,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from phid_ros.cli.replay import OutputCollector
 from phid_ros.io.bags.recordings import read_recording
 from phid_ros.io.msg_schemas import typestore
 from phid_ros.io.overview import Overview
 from phid_ros.io.parts import recording_parts
+from phid_ros.stream.output_bag import OutputCollector
 from phid_ros.stream.pipeline import MonitorPipeline, PipelineSettings
 from phid_ros.stream.replay import replay
 from phid_ros.stream.store import EventStore
