@@ -50,6 +50,8 @@ __all__ = [
     "replay_to_bag",
     "ReplayRun",
     "ReplayProgress",
+    "track_file",
+    "TrackRun",
 ]
 
 
@@ -690,3 +692,63 @@ def replay_to_bag(
     wall = time.perf_counter() - t0
     pipeline.close()
     return ReplayRun(pipeline, outputs, collector, overview, start_ns, list(parts.warnings), wall, stored_before)
+
+
+@dataclass
+class TrackRun:
+    """A recording tracked hop by hop, as ``phid track`` does it: the hops, the recording's
+    overview (for a report), its first stamp, the reading's warnings and the wall time."""
+
+    points: list[Any]  # stream.tracker.TrackPoint
+    overview: Any  # io.overview.Overview
+    start_ns: int
+    warnings: list[str]
+    wall_s: float
+
+
+def track_file(
+    bag: str | Path,
+    base: GeneratorParameters,
+    window_s: float,
+    hop_s: float,
+    *,
+    out: str | Path | None = None,
+    on_point: Callable[[Any, float], None] | None = None,
+    on_part: Callable[[Recording], None] | None = None,
+) -> TrackRun:
+    """The sliding-window tracker over ``bag``, read part by part (memory holds one part and the
+    window), X_d and X_q held at ``base``: ``phid track`` without its terminal. ``on_point`` gets
+    each hop as it is estimated, with the share of the file read; ``on_part`` each part as it is
+    read (a health tally). ``out``: the hops as ``tracked_parameters`` messages, written whole
+    at the end (never a half-written file)."""
+    import itertools
+
+    from phid_ros.io.overview import Overview
+    from phid_ros.io.parts import recording_parts
+    from phid_ros.stream.output_bag import write_tracked
+    from phid_ros.stream.replay import track_recording
+    from phid_ros.stream.tracker import TrackerSettings
+
+    parts = recording_parts(bag)
+    part_iter = iter(parts)
+    first = next(part_iter)
+    start = min(int(s.t_ns[0]) for s in first.streams.values() if len(s))
+    overview = Overview()
+
+    def read_on() -> Any:
+        for part in itertools.chain([first], part_iter):
+            overview.add(part)
+            if on_part is not None:
+                on_part(part)
+            yield part
+
+    def hop(p: Any) -> None:
+        if on_point is not None:
+            on_point(p, parts.fraction)
+
+    t0 = time.perf_counter()
+    points = track_recording(read_on(), base, TrackerSettings(window_s=window_s, hop_s=hop_s), hop)
+    wall = time.perf_counter() - t0
+    if out is not None and points:
+        write_tracked(points, out)
+    return TrackRun(points, overview, start, list(parts.warnings), wall)

@@ -6,6 +6,8 @@ import doctest
 import os
 from pathlib import Path
 
+import pytest
+
 import phid_ros.api
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -50,3 +52,18 @@ def test_replay_to_bag_writes_what_phid_replay_writes(tmp_path: Path) -> None:
     assert run.outputs.events and sum(run.collector.counts.values()) > 1000
     assert seen and seen[-1].played_s > 600 and seen[-1].events == len(run.outputs.events)
     assert not (tmp_path / "api.mcap.partial").exists()
+
+
+def test_track_file_tracks_what_phid_track_tracks(tmp_path: Path) -> None:
+    """The library's tracker is the command's: the same hops, the same output messages."""
+    from phid_ros.api import track_file
+    from phid_ros.cli.main import main
+    from phid_ros.model.parameters import TABLE1
+
+    bag = ROOT / "bags" / "catalogue"
+    assert main(["track", str(bag), "--window", "120", "--hop", "60", "--out", str(tmp_path / "cli.mcap")]) == 0
+    seen = []
+    run = track_file(bag, TABLE1, 120.0, 60.0, out=tmp_path / "api.mcap", on_point=lambda p, read: seen.append(read))
+    assert (tmp_path / "api.mcap").read_bytes() == (tmp_path / "cli.mcap").read_bytes()
+    assert len(run.points) == len(seen) >= 5 and seen == sorted(seen) and 0 < seen[0] < seen[-1] <= 1.0
+    assert run.points[0].t_ns - run.start_ns == pytest.approx(120e9, abs=1e9)

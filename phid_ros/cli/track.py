@@ -2,9 +2,6 @@
 
 from __future__ import annotations
 
-import itertools
-import time
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -13,17 +10,11 @@ from phid_ros.cli.monitor_report import HealthLog
 from phid_ros.cli.progress import ProgressLine
 from phid_ros.cli.tables import CONCISE_LEGEND, estimate_text
 from phid_ros.errors import PhidError
-from phid_ros.io.bags.recordings import write_messages
-from phid_ros.io.files.outputs import atomic_output
-from phid_ros.io.overview import Overview
-from phid_ros.io.parts import recording_parts
 from phid_ros.io.recording import Recording
-from phid_ros.io.topics import OUTPUT_TOPICS, output_topic
 from phid_ros.model.conventions import NS
 from phid_ros.model.parameters import SYMBOLS, TABLE1, GeneratorParameters
 from phid_ros.stream.levels import Level
-from phid_ros.stream.replay import track_recording
-from phid_ros.stream.tracker import TRACKED, TrackerSettings, TrackPoint
+from phid_ros.stream.tracker import TRACKED, TrackPoint
 
 
 def health_over_time(rec: Any, bin_s: float) -> HealthLog:
@@ -136,6 +127,7 @@ def base_parameters(args: Any) -> GeneratorParameters:
 def track_command(args: Any, console: Any) -> int:
     if args.hop > args.window:
         raise PhidError(f"--hop {args.hop:g} s is longer than --window {args.window:g} s: samples would be skipped")
+    from phid_ros.api import track_file
     from phid_ros.io.files.outputs import refuse_inputs
 
     refuse_inputs([args.out, args.report], [args.bag, args.base])
@@ -143,41 +135,36 @@ def track_command(args: Any, console: Any) -> int:
         if Path(args.out).exists():
             raise PhidError(f"{args.out}: already exists, not overwriting")
     base = base_parameters(args)  # checked before the recording is read
-    # read part by part as it is tracked: memory holds one part and the tracker's window
-    with ProgressLine(f"reading {args.bag}"):
-        parts = recording_parts(args.bag)
-        part_iter = iter(parts)
-        first = next(part_iter)
-    start = min(int(s.t_ns[0]) for s in first.streams.values() if len(s))
-    console.print(f"sliding-window tracking ({args.window:g} s window, {args.hop:g} s hop)", highlight=False)
-    console.print(CONCISE_LEGEND, style="dim", highlight=False)
-    console.print(f"{'t s':>7} " + " ".join(f"{SYMBOLS[n]:>11}" for n in TRACKED), highlight=False)
-    overview, health = Overview(), HealthTally(args.hop)
+    health = HealthTally(args.hop)
+    first: list[int] = []
 
-    def read_on() -> Iterator[Recording]:
-        for part in itertools.chain([first], part_iter):
-            overview.add(part)
-            health.add(part)
-            yield part
-
-    def show(p: TrackPoint) -> None:
+    def show(p: TrackPoint, read: float) -> None:
+        start = first[0] if first else p.t_ns
         progress.print_above(console, hop_line(start, p), highlight=False)
         for a in p.alarms:
             progress.print_above(console, f"{'':>8}alarm: {a}", style="bold red", highlight=False, markup=False)
-        progress.update(f"tracking: {(p.t_ns - start) / NS:.0f} s, {100 * parts.fraction:.0f} % of the file")
+        progress.update(f"tracking: {(p.t_ns - start) / NS:.0f} s, {100 * read:.0f} % of the file")
 
-    t0 = time.perf_counter()
+    def tally(part: Recording) -> None:
+        if not first:  # the recording read: its table's head (an unreadable file says only why)
+            first.append(min(int(s.t_ns[0]) for s in part.streams.values() if len(s)))
+            say = progress.print_above
+            say(console, f"sliding-window tracking ({args.window:g} s window, {args.hop:g} s hop)", highlight=False)
+            say(console, CONCISE_LEGEND, style="dim", highlight=False)
+            say(console, f"{'t s':>7} " + " ".join(f"{SYMBOLS[n]:>11}" for n in TRACKED), highlight=False)
+        health.add(part)
+
     with ProgressLine("tracking: the first window") as progress:
-        points = track_recording(read_on(), base, TrackerSettings(window_s=args.window, hop_s=args.hop), show)
-    for w in parts.warnings:
+        run = track_file(args.bag, base, args.window, args.hop, out=args.out, on_point=show, on_part=tally)
+    for w in run.warnings:
         warn(w)
-    wall = time.perf_counter() - t0
+    points = run.points
     if not points:
         raise PhidError(f"{args.bag}: shorter than one tracking window ({args.window:g} s)")
     alarmed = sorted({n for p in points for n in p.alarmed})
     console.print(
         f"{len(points)} hops; alarms raised for: {', '.join(SYMBOLS[n] for n in alarmed) or 'none'}; "
-        f"tracked in {wall:.1f} s (wall time)",
+        f"tracked in {run.wall_s:.1f} s (wall time)",
         highlight=False,
     )
     if args.report:
@@ -188,7 +175,7 @@ def track_command(args: Any, console: Any) -> int:
         with ProgressLine(f"writing {args.report}"):
             write_track_report(
                 args.report,
-                overview,
+                run.overview,
                 points,
                 health.log(),
                 str(args.bag),
@@ -197,13 +184,5 @@ def track_command(args: Any, console: Any) -> int:
             )
         console.print(f"wrote {args.report}", highlight=False)
     if args.out:
-        from phid_ros.io.msg_schemas import typestore
-        from phid_ros.stream.messages import tracked_message
-
-        types = typestore().types
-        topic, msgtype = output_topic("tracked_parameters"), OUTPUT_TOPICS["tracked_parameters"][1]
-        msgs = [(p.t_ns, topic, msgtype, tracked_message(types, p)) for p in points]
-        with atomic_output(args.out) as tmp:
-            write_messages(tmp, msgs)
-        console.print(f"wrote {len(msgs)} messages to {args.out}", highlight=False)
+        console.print(f"wrote {len(points)} messages to {args.out}", highlight=False)
     return 0

@@ -4,13 +4,15 @@ bag, and each stream's health at every diagnostics stamp for the report. ``phid 
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from pathlib import Path
 
 from phid_ros.io.topics import OUTPUT_TOPICS, output_topic
 from phid_ros.model.conventions import NS
 from phid_ros.stream.levels import Level, worst
 from phid_ros.stream.pipeline import MonitorPipeline, Outputs
 from phid_ros.stream.recalibration import RecalibrationOutcome
+from phid_ros.stream.tracker import TrackPoint
 
 # (stamp ns, {stream: (level, dropped, gaps, clock jumps)}): one diagnostics stamp of a replay
 HealthSnapshot = tuple[int, dict[str, tuple[Level, int, int, int]]]
@@ -110,3 +112,19 @@ class OutputCollector:
 
     def sorted(self) -> list[tuple[int, str, str, object]]:
         return sorted(self.messages, key=lambda x: x[0])
+
+
+def write_tracked(points: Sequence[TrackPoint], out: str | Path) -> int:
+    """The tracker's hops as ``tracked_parameters`` messages in a bag (written whole: an
+    interruption leaves no half-written file); the count written."""
+    from phid_ros.io.bags.recordings import write_messages
+    from phid_ros.io.files.outputs import atomic_output
+    from phid_ros.io.msg_schemas import typestore
+    from phid_ros.stream.messages import tracked_message
+
+    types = typestore().types
+    topic, msgtype = BAG_TOPICS["tracked_parameters"]
+    msgs = [(p.t_ns, topic, msgtype, tracked_message(types, p)) for p in points]
+    with atomic_output(out) as tmp:
+        write_messages(tmp, msgs)
+    return len(msgs)
