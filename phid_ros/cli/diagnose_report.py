@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from phid_ros.cli.common import figure_backend, log_ticks
-from phid_ros.cli.report import STYLE, html_table, png_data_uri
+from phid_ros.cli.html import STYLE, html_table, png_data_uri
 from phid_ros.cli.tables import CHANNEL_LABELS, axis_label, effect_values_text, fmt, pct, signed_int
 from phid_ros.diagnose.fit import evaluate
 from phid_ros.diagnose.outcome import Diagnosis

@@ -11,6 +11,7 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from phid_ros.cli.common import warn
+from phid_ros.cli.history_report import verdict_rows
 from phid_ros.cli.tables import CONCISE_LEGEND, Col, estimate_text, print_table
 from phid_ros.errors import PhidError
 from phid_ros.fleet.history import (
@@ -140,29 +141,6 @@ def print_sisters(console: Console, rows: list[Row], unit: str | None = None) ->
         console.print(f"{head} disagree beyond {SISTER_SIGMAS:g} σ:", highlight=False)
         for g in mine:
             console.print(f"  {g.text()}", highlight=False, soft_wrap=True)
-
-
-def verdict_rows(rows: list[Row]) -> list[list[str]]:
-    """One line per event played into the record on file: when, what, how many checks passed,
-    the worst check (its error against its band)."""
-    out = []
-    for r in rows:
-        for v in r.verdicts:
-            checks = v["checks"]
-            worst = max(checks, key=lambda c: c["max_error"] / c["band"] if c["band"] > 0 else math.inf)
-            ratio = worst["max_error"] / worst["band"] if worst["band"] > 0 else math.inf
-            when = v.get("event_ns")
-            out.append(
-                [
-                    utc_of_stamp(when).strftime("%Y-%m-%d %H:%M:%S") if when is not None else "—",
-                    v["scenario"],
-                    f"{sum(c['passed'] for c in checks)} of {len(checks)}",
-                    f"{worst['channel']} ({worst['standard']})",
-                    f"{ratio:.3f}",
-                    "pass" if v["passed"] else "FAIL",
-                ]
-            )
-    return out
 
 
 def print_verdicts(console: Console, unit: str, rows: list[Row]) -> None:

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from phid_ros.cli.common import figure_backend, mark_withheld
-from phid_ros.cli.report import STYLE, html_table, png_data_uri
+from phid_ros.cli.html import STYLE, html_table, png_data_uri
 from phid_ros.cli.tables import CONCISE_LEGEND, estimate_text
 from phid_ros.fleet.history import Change, Row, SisterGap
 from phid_ros.io.files.outputs import write_text
@@ -130,9 +130,30 @@ def _record_figure(rows: list[Row]) -> str:
     return png_data_uri(fig)
 
 
-def _record_section(rows: list[Row]) -> str:
-    from phid_ros.cli.fleet import verdict_rows
+def verdict_rows(rows: list[Row]) -> list[list[str]]:
+    """One line per event played into the record on file: when, what, how many checks passed,
+    the worst check (its error against its band)."""
+    out = []
+    for r in rows:
+        for v in r.verdicts:
+            checks = v["checks"]
+            worst = max(checks, key=lambda c: c["max_error"] / c["band"] if c["band"] > 0 else math.inf)
+            ratio = worst["max_error"] / worst["band"] if worst["band"] > 0 else math.inf
+            when = v.get("event_ns")
+            out.append(
+                [
+                    utc_of_stamp(when).strftime("%Y-%m-%d %H:%M:%S") if when is not None else "—",
+                    v["scenario"],
+                    f"{sum(c['passed'] for c in checks)} of {len(checks)}",
+                    f"{worst['channel']} ({worst['standard']})",
+                    f"{ratio:.3f}",
+                    "pass" if v["passed"] else "FAIL",
+                ]
+            )
+    return out
 
+
+def _record_section(rows: list[Row]) -> str:
     records = sorted({Path(r.record).name for r in rows if r.record})
     if not records:
         return ""

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from phid_ros.cli.common import figure_backend, mark_withheld
-from phid_ros.cli.report import STYLE, html_table, png_data_uri
+from phid_ros.cli.html import STYLE, html_table, png_data_uri
 from phid_ros.cli.tables import CONCISE_LEGEND, estimate_text
 from phid_ros.fleet.history import DRIFT_SIGMAS
 from phid_ros.io.files.outputs import write_text

@@ -11,8 +11,8 @@ from rich.console import Console
 
 from phid_ros.api import validate_record
 from phid_ros.cli.common import figure_backend, step_thresholds, warn
+from phid_ros.cli.html import STYLE, html_table, png_data_uri
 from phid_ros.cli.progress import ProgressLine
-from phid_ros.cli.report import STYLE, html_table, png_data_uri
 from phid_ros.cli.tables import Col, print_table
 from phid_ros.controls.unit_validation import (
     CHANNELS,

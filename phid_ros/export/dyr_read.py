@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 
 from phid_ros.controls.models import MODELS as CONTROL_MODELS
 from phid_ros.errors import ParameterError, PhidError
-from phid_ros.export.formats import PSSE_ORDER
+from phid_ros.export.psse import PSSE_ORDER
 from phid_ros.model.parameters import GeneratorParameters
 from phid_ros.sim.effects import PlantEffect
 from phid_ros.sim.effects.magnetic_saturation import MagneticSaturation, no_load_field

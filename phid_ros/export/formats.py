@@ -22,12 +22,8 @@ import json
 from collections.abc import Callable
 
 from phid_ros.controls.models import MODELS
+from phid_ros.export.psse import PSSE_ORDER
 from phid_ros.export.record import ExportError, MachineRecord
-
-PSSE_ORDER = {
-    "GENROU": ("Td10", "Td20", "Tq10", "Tq20", "H", "D", "Xd", "Xq", "Xd1", "Xq1", "Xd2", "Xl", "S10", "S12"),
-    "GENSAL": ("Td10", "Td20", "Tq20", "H", "D", "Xd", "Xq", "Xd1", "Xd2", "Xl", "S10", "S12"),
-}
 
 PSLF_NAMES = {
     "Td10": "tpdo",

@@ -7,7 +7,8 @@ import re
 
 import pytest
 
-from phid_ros.export.formats import PSLF_NAMES, PSSE_ORDER, andes_json, pslf_dyd, psse_dyr
+from phid_ros.export.formats import PSLF_NAMES, andes_json, pslf_dyd, psse_dyr
+from phid_ros.export.psse import PSSE_ORDER
 from phid_ros.export.record import build_record
 from phid_ros.model.parameters import PARAMETER_NAMES, TABLE1
 
