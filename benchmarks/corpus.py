@@ -155,7 +155,7 @@ def record_check(work: Path) -> Figures:
         pipeline.record_check = check = checked(dyr)
         got = replayed(read_recording(ROOT / "bags" / "catalogue"), pipeline).verdicts
         pipeline.close()
-        out[f"{name}: state at the end"] = figure(check.status()[0], 0.0, "verdict")
+        out[f"{name}: state at the end"] = figure(str(check.status()[0]), 0.0, "verdict")
         out[f"{name}: events failing"] = figure(f"{sum(not v.passed for v in got)} of {len(got)}", 0.0, "verdict")
         out[f"{name}: drifting"] = figure(",".join(d.name for d in check.drift) or "none", 0.0, "verdict")
     bare, (with_record, n, spent) = one_replay(None)[0], one_replay(str(own))
