@@ -12,7 +12,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from phid_ros.controls.identify import ControlFit, recorded_set_point, regulator_out_of_loop, switched_on
+from phid_ros.controls.cases import recorded_set_point, regulator_out_of_loop, switched_on
+from phid_ros.controls.fit import ControlFit
 from phid_ros.ident.pipeline import IdentificationResult
 from phid_ros.ident.scenario import ScenarioData, file_of
 from phid_ros.ident.terminal import at_no_load

@@ -13,7 +13,7 @@ from phid_ros.cli.common import figure_backend
 from phid_ros.cli.day_summary import HEADERS, day_summary
 from phid_ros.cli.html import STYLE, html_table, png_data_uri
 from phid_ros.cli.tables import pct, withheld_text
-from phid_ros.controls.identify import ControlFit
+from phid_ros.controls.fit import ControlFit
 from phid_ros.controls.unit_validation import UnitValidation
 from phid_ros.ident.pipeline import IdentificationResult
 from phid_ros.ident.results import Estimate

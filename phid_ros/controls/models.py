@@ -69,7 +69,7 @@ class ControlInputs:
     v_t: Array  # terminal voltage deviation, pu
     speed: Array  # rotor speed deviation, pu
     # the unit step at the scenario's reference change (zeros if none), or the recorded set-point's
-    # deviation, played with a reference of 1 (:func:`phid_ros.controls.identify.recorded_set_point`)
+    # deviation, played with a reference of 1 (:func:`phid_ros.controls.cases.recorded_set_point`)
     reference_step: Array
     p_m0: float = float("nan")  # mechanical power before the event, pu (a hydro turbine's operating point)
     p_e: Array | None = None  # electrical power deviation, pu (a stabiliser's input), where recorded
@@ -258,7 +258,7 @@ class ControlModel(ABC):
     # (lower, upper): the limits that bound the output itself, which a recorded flat top pins
     output_limits: ClassVar[tuple[str, str] | None] = None
     # (lower, upper): the limits on the regulator's input (its error), which no flat top shows:
-    # found where the fit wants them (:func:`phid_ros.controls.identify.wanted_input_limits`)
+    # found where the fit wants them (:func:`phid_ros.controls.limits.wanted_input_limits`)
     input_limits: ClassVar[tuple[str, str] | None] = None
     # the constant that lowers the output's ceiling with the field current (a static exciter's
     # rectifier loading K_C): fitted beside a ceiling the recordings reached

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from phid_ros.controls.identify import ControlFit
+from phid_ros.controls.fit import ControlFit
 from phid_ros.controls.unit_validation import (
     CHANNELS,
     Control,

@@ -23,21 +23,11 @@ from dataclasses import replace
 
 import numpy as np
 
-from phid_ros.controls.identify import (
-    KINDS,
-    NAMED_BELOW,
-    ControlCase,
-    ControlFit,
-    _judged,
-    _rmse,
-    _simplest_best,
-    acted_unrecorded,
-    control_case,
-    fit_model,
-    limited_output,
-    open_limits,
-)
+from phid_ros.controls.cases import KINDS, ControlCase, acted_unrecorded, control_case, rmse
+from phid_ros.controls.choice import NAMED_BELOW, judged, simplest_best
+from phid_ros.controls.fit import ControlFit, fit_model
 from phid_ros.controls.models import MODELS, ControlInputs, ControlModel, LimitsError, OperatingLevels, of_kind
+from phid_ros.controls.play import limited_output, open_limits
 from phid_ros.ident.scenario import ScenarioData
 
 
@@ -77,7 +67,7 @@ def _exciter_alone(exciter: type[ControlModel], held: Mapping[str, float], cases
     """The exciter's own error on the cases (its limits, each stepped case's reference fitted): what
     a stabiliser must explain clearly more of to be named."""
     played = [limited_output(exciter, held, c)[0] for c in cases]
-    return _rmse(cases, played)
+    return rmse(cases, played)
 
 
 def stabiliser_from_effect(
@@ -89,7 +79,9 @@ def stabiliser_from_effect(
     None where there is none such (the caller says why nothing is identified), else the fit or why
     not."""
     # the tests an exciter is fitted on (a fault's switching would weigh in every constant)
-    on = [s for s in scenarios if acted_unrecorded(s) and s.kind in KINDS["exciter"][3] and s.has("p_e", "v_t", "v_f")]
+    on = [
+        s for s in scenarios if acted_unrecorded(s) and s.kind in KINDS["exciter"].fitted and s.has("p_e", "v_t", "v_f")
+    ]
     if not on:
         return None
     names = ", ".join(sorted({s.name for s in on}))
@@ -142,13 +134,13 @@ def _fitted_through(
             if p.limit:
                 f.parameters[p.name], f.uncertainty[p.name], f.identifiable[p.name] = None, None, False
         fits.append(f)
-    best, alike = _simplest_best(fits)
-    err = _judged(best)
+    best, alike = simplest_best(fits)
+    err = judged(best)
     best.none_heldout_rmse = alone
     best.named = bool(math.isfinite(err) and err < NAMED_BELOW * alone)
     if not best.named:
         best.identifiable = dict.fromkeys(best.identifiable, False)
-    best.alternatives = {f.model: _judged(f) for f in alike}
+    best.alternatives = {f.model: judged(f) for f in alike}
     where = "held-out" if best.heldout_rmse is not None else "fit (no validation scenarios)"
     best.why = (
         f"{best.model}: from its effect on E_fd ({names}: its output not recorded) through the exciter "

@@ -34,21 +34,19 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from phid_ros.controls.closed_loop import ClosedLoop, LoopNotClosed, close_loop
-from phid_ros.controls.identify import (
+from phid_ros.controls.cases import (
     KINDS,
     ControlCase,
     control_case,
     fit_stride,
-    limited_output,
     recorded_set_point,
     regulator_out_of_loop,
-    simulate_cases,
-    simulate_references,
     switched_on,
     zero_phase,
 )
+from phid_ros.controls.closed_loop import ClosedLoop, LoopNotClosed, close_loop
 from phid_ros.controls.models import MODELS, ControlInputs, ControlModel, LimitsError, OperatingLevels
+from phid_ros.controls.play import limited_output, simulate_cases, simulate_references
 from phid_ros.ident.field_circuit import ON_BASE
 from phid_ros.ident.network_equivalent import thevenin_reactance
 from phid_ros.ident.plant_playin import OPEN_BREAKER_X, BehindReactance, behind_reactance, open_circuit_voltage
@@ -278,7 +276,7 @@ def _control_output(
     (:meth:`ControlModel.limited`) is played from ``level``, its output's pre-event value, and its
     reference step sized by a bounded search (the response is not linear in it). An exciter's
     error takes the ``stabiliser`` (:func:`_with_stabiliser`); ``v_t_rest``: its set point, where
-    not the scenario's pre-event V_t (:func:`~phid_ros.controls.identify.control_case`)."""
+    not the scenario's pre-event V_t (:func:`~phid_ros.controls.cases.control_case`)."""
     case: ControlCase | None = control_case(s, kind, output=False, v_t_rest=v_t_rest)
     if case is None:
         return None
@@ -357,13 +355,13 @@ def validate_unit(
                 if kind == "exciter" and recorded_set_point(s) is not None:
                     mine.append("exciter reference: the recorded set-point v_ref, as it moved")
                 elif response[1]:
-                    said = s.reference_step is not None and s.kind in KINDS[kind][2]
+                    said = s.reference_step is not None and s.kind in KINDS[kind].stepped
                     how = "the test sheet's" if said else f"sized on the recorded {channel}"
                     mine.append(f"{kind} reference step {response[1]:+.4g} ({how})")
             elif control is not None:
-                mine.append(f"{kind} {control.model.name} not played in: the recording lacks {KINDS[kind][0][0]}")
+                mine.append(f"{kind} {control.model.name} not played in: the recording lacks {KINDS[kind].needs[0]}")
             given = kind == "exciter" and recorded_set_point(s) is not None
-            if control is not None and s.kind in KINDS[kind][2] and not s.has(channel) and not given:
+            if control is not None and s.kind in KINDS[kind].stepped and not s.has(channel) and not given:
                 # a reference step of a size neither the recording nor the scenario gives: the unit
                 # is not played through this test, and none of its channels says anything of the model
                 unchecked.update(STANDARD_OF.values())

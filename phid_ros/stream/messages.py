@@ -112,7 +112,7 @@ def controls_messages(
 ) -> list[Any]:
     """One ControlParameters message per kind the run fitted (or said why not): the exciter, and
     the stabiliser and governor where recorded, published beside the machine's parameters."""
-    from phid_ros.controls.identify import ControlFit
+    from phid_ros.controls.fit import ControlFit
 
     out = []
     for kind, fit in outcome.controls.items():

@@ -21,7 +21,7 @@ import time
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 
-from phid_ros.controls.identify import ControlFit
+from phid_ros.controls.fit import ControlFit
 from phid_ros.ident.pipeline import IdentificationResult, IdentifyOptions, identify
 from phid_ros.ident.results import Estimate
 from phid_ros.ident.scenario import DEFAULT_THRESHOLDS, ScenarioData, ScenarioError, StepThresholds, make_scenario

@@ -76,7 +76,7 @@ def test_the_mod026_report_gives_error_band_and_verdict_per_check_and_labels_eve
 
 def test_the_identify_report_has_its_exciter_and_governor_and_a_note_per_parameter():
     from phid_ros.cli.report import MEASURED_STYLE, STYLES, _controls_section, _note
-    from phid_ros.controls.identify import ControlFit
+    from phid_ros.controls.fit import ControlFit
     from phid_ros.ident.results import Estimate
 
     fit = ControlFit(

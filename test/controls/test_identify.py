@@ -9,7 +9,8 @@ import math
 import numpy as np
 import pytest
 
-from phid_ros.controls.identify import ControlFit, controls_json, identify_controls
+from phid_ros.controls.fit import ControlFit
+from phid_ros.controls.identify import controls_json, identify_controls
 from phid_ros.controls.models import MODELS, SEXS, TGOV1, ControlInputs, OperatingLevels
 from phid_ros.model.channels import Frame
 
@@ -359,7 +360,7 @@ def test_an_exciter_recorded_on_a_controller_s_field_base_is_fitted_on_the_machi
     exported from it plays back on the base ``phid validate`` puts E_fd on."""
     from dataclasses import replace
 
-    from phid_ros.controls.identify import on_machine_field_base
+    from phid_ros.ident.field_base import on_machine_field_base
     from phid_ros.ident.terminal import with_channels
 
     controller = 2.68

@@ -14,7 +14,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from phid_ros.controls.identify import ControlFit, control_case, identify_controls, recorded_set_point
+from phid_ros.controls.cases import control_case, recorded_set_point
+from phid_ros.controls.fit import ControlFit
+from phid_ros.controls.identify import identify_controls
 from phid_ros.controls.models import MODELS, ControlInputs
 from phid_ros.ident.terminal import with_channels
 

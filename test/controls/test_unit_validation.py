@@ -339,7 +339,7 @@ def test_a_dual_input_stabiliser_is_played_from_the_recorded_speed_and_power(noi
     without the speed plays the recorded output instead, and says why."""
     from dataclasses import replace
 
-    from phid_ros.controls.identify import control_case
+    from phid_ros.controls.cases import control_case
     from phid_ros.controls.models import MODELS
     from phid_ros.controls.unit_validation import Control, _with_stabiliser
 
@@ -379,7 +379,7 @@ def test_a_stabiliser_the_test_sheet_says_was_on_is_played_without_its_output_re
     response, and said; the same scenario not said to be one plays none, and says why."""
     from dataclasses import replace
 
-    from phid_ros.controls.identify import control_case
+    from phid_ros.controls.cases import control_case
     from phid_ros.controls.models import MODELS
     from phid_ros.controls.unit_validation import Control, _with_stabiliser
 

@@ -139,7 +139,8 @@ def test_steps_s_sexs_and_tgov1_are_identified_from_the_recordings(machine, tmp_
     +0.9 %, E_MAX +1.9 %, 1/R +0.6 %, TE -1 %, TB +1 %, T1 +0.0 %, T2 -0.5 %, T3 -0.1 %. (Judged on
     its fit with the faults, SEXS lost to IEEET1, which has no ceiling to fit.)"""
     pytest.importorskip("stepspy")
-    from phid_ros.controls.identify import ControlFit, identify_controls
+    from phid_ros.controls.fit import ControlFit
+    from phid_ros.controls.identify import identify_controls
     from test.steps_plant import MACHINES, write_set
 
     manifest = write_set(tmp_path, MACHINES[machine], [with_duration(s, 12.0) for s in paper_catalogue()], seed=0)
@@ -168,7 +169,8 @@ def test_steps_s_ieeet1_and_ieeeg1_are_identified_from_the_recordings(tmp_path):
     T_4 -1.1 %, K_1 -0.5 %, T_5 -0.4 %; unrestricted, IEEET1 named with EXST1 and ESST5B listed
     as fitting as well, IEEEG1 named alone."""
     pytest.importorskip("stepspy")
-    from phid_ros.controls.identify import ControlFit, identify_controls
+    from phid_ros.controls.fit import ControlFit
+    from phid_ros.controls.identify import identify_controls
     from test.steps_plant import MACHINES, write_set
 
     manifest = write_set(

@@ -403,7 +403,9 @@ def test_the_controller_s_own_channels_give_the_stabiliser_and_an_exciter_on_the
     from the no-load plateaus) with its ceiling reached; a stabiliser constant given as determined
     agrees with the other event's alone (today every constant is flagged: the two events do not
     pin the stabiliser's lags, nor the exciter's constants)."""
-    from phid_ros.controls.identify import ControlFit, identify_controls, on_machine_field_base
+    from phid_ros.controls.fit import ControlFit
+    from phid_ros.controls.identify import identify_controls
+    from phid_ros.ident.field_base import on_machine_field_base
 
     online = (
         (DAY / "map_online.yaml")
@@ -654,7 +656,7 @@ def test_the_monitor_recalibrates_the_day_as_identify_does(sheet_day: Path) -> N
     ``held`` and ``saturation`` parameters say; every declared stream's health OK (the pauses
     between the test files are the recorder's, not losses)."""
     from phid_ros.api import cut_unit, identify_unit, load_recording
-    from phid_ros.controls.identify import ControlFit
+    from phid_ros.controls.fit import ControlFit
     from phid_ros.io.recording import not_recorded
     from phid_ros.stream.params import held_constraints
     from phid_ros.stream.pipeline import MonitorPipeline, PipelineSettings

@@ -152,7 +152,7 @@ def _sent(types: dict, w: EventWindow) -> object:
 def test_each_recalibration_publishes_its_control_systems_beside_the_machine(types: dict) -> None:
     """The exciter fitted at a recalibration goes out on control_parameters: the model named, its
     constants with what the recordings determined (a ceiling reached), or why none is named."""
-    from phid_ros.controls.identify import ControlFit
+    from phid_ros.controls.fit import ControlFit
 
     fit = ControlFit(
         "SEXS",
