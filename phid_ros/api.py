@@ -632,28 +632,17 @@ def replay_to_bag(
     stream time advances. ``rate``: paced at this multiple of real time (None: as fast as it goes)."""
     import itertools
 
-    from phid_ros.ident.pipeline import IdentifyOptions
     from phid_ros.io.bags.recordings import open_message_writer
     from phid_ros.io.files.outputs import atomic_output
     from phid_ros.io.overview import Overview
     from phid_ros.io.parts import recording_parts
-    from phid_ros.io.recording import not_recorded
     from phid_ros.stream.output_bag import OutputCollector
-    from phid_ros.stream.pipeline import MonitorPipeline, PipelineSettings
     from phid_ros.stream.replay import replay
 
     parts = recording_parts(bag)
     part_iter = iter(parts)
     first = next(part_iter)
-    # the grid at the PT/CT rate, as phid identify aligns the recording (a node: its sample_rate_hz)
-    settings = PipelineSettings(
-        period_ns=first.streams["pt_ct"].period_ns if "pt_ct" in first.streams else PipelineSettings.period_ns,
-        store_path=str(store) if store else ":memory:",
-        unit=unit or parts.metadata.get("unit", ""),
-        not_recorded=not_recorded(parts.metadata),
-        identify=IdentifyOptions(baseline=False, **({"constraints": constraints} if constraints is not None else {})),
-    )
-    pipeline = MonitorPipeline(settings)
+    pipeline = _replay_pipeline(first, parts.metadata, store=store, unit=unit, constraints=constraints)
     if record:  # read before the replay: a record it cannot read is said now, not at the first event
         pipeline.record_check = record_check(record)
     stored_before = len(pipeline.store)
@@ -692,6 +681,25 @@ def replay_to_bag(
     wall = time.perf_counter() - t0
     pipeline.close()
     return ReplayRun(pipeline, outputs, collector, overview, start_ns, list(parts.warnings), wall, stored_before)
+
+
+def _replay_pipeline(
+    first: Any, metadata: Mapping[str, Any], *, store: str | Path | None, unit: str, constraints: Any
+) -> Any:
+    """The nodes' pipeline for a replay whose first part is ``first``: the grid at the PT/CT rate,
+    as phid identify aligns the recording (a node: its sample_rate_hz)."""
+    from phid_ros.ident.pipeline import IdentifyOptions
+    from phid_ros.io.recording import not_recorded
+    from phid_ros.stream.pipeline import MonitorPipeline, PipelineSettings
+
+    settings = PipelineSettings(
+        period_ns=first.streams["pt_ct"].period_ns if "pt_ct" in first.streams else PipelineSettings.period_ns,
+        store_path=str(store) if store else ":memory:",
+        unit=unit or metadata.get("unit", ""),
+        not_recorded=not_recorded(metadata),
+        identify=IdentifyOptions(baseline=False, **({"constraints": constraints} if constraints is not None else {})),
+    )
+    return MonitorPipeline(settings)
 
 
 @dataclass

@@ -40,8 +40,32 @@ def print_summary(
 ) -> None:
     """What a replay found, in the same words on every run of the same bag (no wall times);
     ``start``: the recording's first stamp, times are shown from it."""
-    from phid_ros.cli.tables import CONCISE_LEGEND, Col, estimate_text, fmt, print_table
-    from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, SYMBOLS
+    _print_events(console, start, pipeline, outputs)
+    _print_parameters(console, start, pipeline, outputs)
+    if fitted := next((r for r in reversed(outputs.recalibrations) if r.controls), None):
+        from phid_ros.cli.identify import print_controls
+
+        console.print(f"fitted beside the machine at {(fitted.stream_time_ns - start) / NS:.1f} s:", highlight=False)
+        print_controls(console, fitted.controls)
+    if pipeline.recalibrator.last_good is not None and outputs.energy:
+        from phid_ros.cli.tables import fmt
+
+        e = outputs.energy[-1]
+        n_energy = collector.counts.get(BAG_TOPICS["hamiltonian"][0], 0)
+        console.print(
+            f"Hamiltonian at the end: {e.value[-1]:.5f} pu·s (MJ per MVA of rating): kinetic {fmt(e.kinetic[-1], 3)}, "
+            f"magnetic d {e.magnetic_d[-1]:.4f}, q {e.magnetic_q[-1]:.4f} pu·s; "
+            f"{n_energy} samples published at {pipeline.settings.hamiltonian_rate_hz:g} Hz",
+            highlight=False,
+        )
+    if pipeline.record_check is not None:
+        print_record_verdicts(console, start, pipeline.record_check, pipeline.record_check.verdicts)
+    _print_health(console, pipeline)
+
+
+def _print_events(console: Console, start: int, pipeline: MonitorPipeline, outputs: Outputs) -> None:
+    """The events found, the measurements lost and each recalibration."""
+    from phid_ros.cli.tables import Col, print_table
     from phid_ros.stream.detector import lost_measurement_text, severity_text, window_status
 
     usable = {w.event.event_id: window_status(w) for w in outputs.windows}
@@ -70,6 +94,14 @@ def print_summary(
         console.print(lost_measurement_text(lost, back, start, ended=True), highlight=False)
     for r in outputs.recalibrations:
         console.print(recalibration_text(r, start), highlight=False, markup=False)
+
+
+def _print_parameters(console: Console, start: int, pipeline: MonitorPipeline, outputs: Outputs) -> None:
+    """The parameters in force at the end: the last full set, else the last partial one, else why none."""
+    from phid_ros.cli.tables import CONCISE_LEGEND, Col, estimate_text, print_table
+    from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, SYMBOLS
+
+    cols = [Col("param", "left"), Col("unit", "left"), Col("value(std)")]
     last = next((r for r in reversed(outputs.recalibrations) if r.accepted and r.result is not None), None)
     if last is not None and last.result is not None:
         est = last.result.estimates
@@ -81,13 +113,8 @@ def print_summary(
             ]
             for n in PARAMETER_NAMES
         ]
-        print_table(
-            console,
-            f"parameters in force at the end (recalibration at {(last.stream_time_ns - start) / NS:.1f} s)",
-            [Col("param", "left"), Col("unit", "left"), Col("value(std)")],
-            prows,
-            CONCISE_LEGEND,
-        )
+        title = f"parameters in force at the end (recalibration at {(last.stream_time_ns - start) / NS:.1f} s)"
+        print_table(console, title, cols, prows, CONCISE_LEGEND)
     elif partial := next((r for r in reversed(outputs.recalibrations) if r.determined), None):
         est = partial.determined
         held = partial.result.constraints.fixed if partial.result else {}
@@ -98,14 +125,11 @@ def print_summary(
             return f"{held[n]:g} held" if n in held else "withheld"
 
         prows = [[SYMBOLS[n], SPECS_BY_NAME[n].unit, shown(n)] for n in PARAMETER_NAMES]
-        print_table(
-            console,
+        title = (
             f"no full set in force at the end; the partial set published at "
-            f"{(partial.stream_time_ns - start) / NS:.1f} s",
-            [Col("param", "left"), Col("unit", "left"), Col("value(std)")],
-            prows,
-            CONCISE_LEGEND,
+            f"{(partial.stream_time_ns - start) / NS:.1f} s"
         )
+        print_table(console, title, cols, prows, CONCISE_LEGEND)
     elif pipeline.parameters is None:
         why = (
             f"{len(outputs.recalibrations)} recalibration(s), none with a complete set: their reasons above"
@@ -113,22 +137,11 @@ def print_summary(
             else "not enough events for a recalibration"
         )
         console.print(f"parameters in force at the end: none ({why})", highlight=False)
-    if fitted := next((r for r in reversed(outputs.recalibrations) if r.controls), None):
-        from phid_ros.cli.identify import print_controls
 
-        console.print(f"fitted beside the machine at {(fitted.stream_time_ns - start) / NS:.1f} s:", highlight=False)
-        print_controls(console, fitted.controls)
-    if pipeline.recalibrator.last_good is not None and outputs.energy:
-        e = outputs.energy[-1]
-        n_energy = collector.counts.get(BAG_TOPICS["hamiltonian"][0], 0)
-        console.print(
-            f"Hamiltonian at the end: {e.value[-1]:.5f} pu·s (MJ per MVA of rating): kinetic {fmt(e.kinetic[-1], 3)}, "
-            f"magnetic d {e.magnetic_d[-1]:.4f}, q {e.magnetic_q[-1]:.4f} pu·s; "
-            f"{n_energy} samples published at {pipeline.settings.hamiltonian_rate_hz:g} Hz",
-            highlight=False,
-        )
-    if pipeline.record_check is not None:
-        print_record_verdicts(console, start, pipeline.record_check, pipeline.record_check.verdicts)
+
+def _print_health(console: Console, pipeline: MonitorPipeline) -> None:
+    from phid_ros.cli.tables import Col, print_table
+
     hrows = []
     for name, h in pipeline.health.items():
         level, msg = pipeline.status(name)
@@ -172,14 +185,10 @@ def replay_command(args: Any, console: Any) -> int:
     from phid_ros.cli.common import warn
     from phid_ros.cli.progress import ProgressLine
     from phid_ros.ident.constraints import parse_constraints
-    from phid_ros.io.files.outputs import partial_path, refuse_inputs
+    from phid_ros.io.files.outputs import partial_path
 
     out_path = Path(args.out)
-    refuse_inputs([out_path, args.store, args.report], [args.bag])
-    refuse_inputs([out_path], [args.store])
-    if args.record:
-        refuse_inputs([out_path, args.store, args.report], [args.record])
-    check_output(out_path, args.force)
+    _refuse_outputs(args, out_path)
     constraints = parse_constraints(args.fix, saturation=args.saturation)  # a typo said before the reading
     now = ReplayProgress(0.0, 0.0, 0, "")
     live: list[MonitorPipeline] = []  # the pipeline, once made: what its recalibration does, read as it goes
@@ -236,11 +245,7 @@ def replay_command(args: Any, console: Any) -> int:
     span = (end - start) / NS
     print_summary(console, run.start_ns, run.pipeline, run.outputs, run.collector)
     if args.report:
-        from phid_ros.cli.monitor_report import write_replay_report
-
-        with ProgressLine(f"writing {args.report}"):
-            write_replay_report(args.report, run.overview, run.outputs, run.collector.health_log, source=str(args.bag))
-        console.print(f"wrote {args.report}", highlight=False)
+        _write_report(args, console, run)
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     # the one line that differs between two replays of the same bag: it is measured, not replayed
     console.print(
@@ -250,3 +255,24 @@ def replay_command(args: Any, console: Any) -> int:
         highlight=False,
     )
     return 0
+
+
+def _write_report(args: Any, console: Any, run: Any) -> None:
+    from phid_ros.cli.monitor_report import write_replay_report
+    from phid_ros.cli.progress import ProgressLine
+
+    with ProgressLine(f"writing {args.report}"):
+        write_replay_report(args.report, run.overview, run.outputs, run.collector.health_log, source=str(args.bag))
+    console.print(f"wrote {args.report}", highlight=False)
+
+
+def _refuse_outputs(args: Any, out_path: Path) -> None:
+    """No output may be an input, the store not the output bag, and the output bag not another
+    program's file."""
+    from phid_ros.io.files.outputs import refuse_inputs
+
+    refuse_inputs([out_path, args.store, args.report], [args.bag])
+    refuse_inputs([out_path], [args.store])
+    if args.record:
+        refuse_inputs([out_path, args.store, args.report], [args.record])
+    check_output(out_path, args.force)

@@ -31,6 +31,37 @@ def _channels(before: Score, after: Score) -> dict[str, Any]:
 def to_json(
     d: Diagnosis, truth: GeneratorParameters | None = None, truth_effects: list | None = None
 ) -> dict[str, Any]:
+    """The diagnosis as ``phid diagnose`` writes it; with the truth, the errors against it."""
+    doc: dict[str, Any] = {
+        "effects": _effects(d),
+        "rmse_before": d.before.overall,
+        "rmse_after": d.after.overall,
+        "rmse_definition": RMSE_DEFINITION,
+        "channels": _channels(d.before, d.after),
+        "parameters": d.final.model.base,
+        "uncertainty": d.uncertainty,
+        "identifiable": d.identifiable,
+        "held": d.held,
+        "parameters_identified": d.identified,
+        "parameters_identified_at_bound": list(d.identified_at_bound),
+        "parameters_base_refit": d.base_fit.model.base,
+        "fit": {"chi2_before": d.base_fit.chi2, "chi2_after": d.final.chi2, "samples": d.final.n},
+        "rounds": _rounds(d),
+        "fit_scenarios": [w.name for w in d.fit_windows],
+        "heldout_scenarios": [w.name for w in d.heldout_windows],
+        "noise_sigma": d.sigma,
+        "problems": d.problems,
+        "seconds": d.seconds,
+    }
+    if truth is not None:
+        doc |= _against_truth(d, truth)
+    if truth_effects is not None:
+        doc["truth_effects"] = truth_effects
+    return doc
+
+
+def _effects(d: Diagnosis) -> list[dict[str, Any]]:
+    """Each named effect as it was accepted: its values, stds, presence and the gap it closed."""
     effects = []
     prev = d.before
     stds = d.final.effect_std or [{} for _ in d.final.model.effects]
@@ -52,62 +83,48 @@ def to_json(
             }
         )
         prev = sc
-    doc: dict[str, Any] = {
-        "effects": effects,
-        "rmse_before": d.before.overall,
-        "rmse_after": d.after.overall,
-        "rmse_definition": RMSE_DEFINITION,
-        "channels": _channels(d.before, d.after),
-        "parameters": d.final.model.base,
-        "uncertainty": d.uncertainty,
-        "identifiable": d.identifiable,
-        "held": d.held,
-        "parameters_identified": d.identified,
-        "parameters_identified_at_bound": list(d.identified_at_bound),
-        "parameters_base_refit": d.base_fit.model.base,
-        "fit": {"chi2_before": d.base_fit.chi2, "chi2_after": d.final.chi2, "samples": d.final.n},
-        "rounds": [
-            {
-                "named": r.chosen,
-                "trials": [
-                    {
-                        "candidate": t.candidate,
-                        "settings": t.settings,
-                        "parameters": t.fit.model.effect_values().get(t.candidate) if t.fit else None,
-                        "screened_chi2": t.screened_chi2,
-                        "chi2": t.fit.chi2 if t.fit else None,
-                        "delta_bic": None if math.isnan(t.delta_bic) else t.delta_bic,
-                        "heldout_rmse": t.heldout.overall if t.heldout else None,
-                        "heldout_gain": None if math.isnan(t.heldout_gain) else t.heldout_gain,
-                        "presence_sigma": t.presence,
-                        "accepted": t.accepted,
-                    }
-                    for t in r.trials
-                ],
-            }
-            for r in d.rounds
-        ],
-        "fit_scenarios": [w.name for w in d.fit_windows],
-        "heldout_scenarios": [w.name for w in d.heldout_windows],
-        "noise_sigma": d.sigma,
-        "problems": d.problems,
-        "seconds": d.seconds,
+    return effects
+
+
+def _rounds(d: Diagnosis) -> list[dict[str, Any]]:
+    """Each round's trials: every candidate tried, its fit and its verdict."""
+    return [
+        {
+            "named": r.chosen,
+            "trials": [
+                {
+                    "candidate": t.candidate,
+                    "settings": t.settings,
+                    "parameters": t.fit.model.effect_values().get(t.candidate) if t.fit else None,
+                    "screened_chi2": t.screened_chi2,
+                    "chi2": t.fit.chi2 if t.fit else None,
+                    "delta_bic": None if math.isnan(t.delta_bic) else t.delta_bic,
+                    "heldout_rmse": t.heldout.overall if t.heldout else None,
+                    "heldout_gain": None if math.isnan(t.heldout_gain) else t.heldout_gain,
+                    "presence_sigma": t.presence,
+                    "accepted": t.accepted,
+                }
+                for t in r.trials
+            ],
+        }
+        for r in d.rounds
+    ]
+
+
+def _against_truth(d: Diagnosis, truth: GeneratorParameters) -> dict[str, Any]:
+    """The truth, and each parameter set's errors against it (per cent)."""
+    doc: dict[str, Any] = {"truth": truth.as_dict()}
+    doc["errors_pct"] = {
+        "identified": parameter_errors(d.identified, truth),
+        "base_refit": parameter_errors(d.base_fit.model.base, truth),
+        "after": parameter_errors(d.final.model.base, truth),
     }
-    if truth is not None:
-        doc["truth"] = truth.as_dict()
-        doc["errors_pct"] = {
-            "identified": parameter_errors(d.identified, truth),
-            "base_refit": parameter_errors(d.base_fit.model.base, truth),
-            "after": parameter_errors(d.final.model.base, truth),
-        }
-        doc["mean_abs_error_pct"] = {k: _mean_abs(e) for k, e in doc["errors_pct"].items()}
-        # D is a few per cent of this class of plant's damping and output error places it within
-        # about +-15 % whatever the model: the mean without it shows what the other seven did
-        doc["mean_abs_error_pct_without_D"] = {
-            k: _mean_abs({n: v for n, v in e.items() if n != "D"}) for k, e in doc["errors_pct"].items()
-        }
-    if truth_effects is not None:
-        doc["truth_effects"] = truth_effects
+    doc["mean_abs_error_pct"] = {k: _mean_abs(e) for k, e in doc["errors_pct"].items()}
+    # D is a few per cent of this class of plant's damping and output error places it within
+    # about +-15 % whatever the model: the mean without it shows what the other seven did
+    doc["mean_abs_error_pct_without_D"] = {
+        k: _mean_abs({n: v for n, v in e.items() if n != "D"}) for k, e in doc["errors_pct"].items()
+    }
     return doc
 
 

@@ -353,6 +353,51 @@ def _refine(x: Array, k: int, span: int) -> int:
     return j
 
 
+def _absent_channels(name: str, frame: Frame) -> frozenset[str]:
+    """The channels not recorded (NaN throughout) in a window long enough to identify from;
+    refused where a channel is partly NaN or one every identification needs is absent."""
+    n, dt = len(frame), frame.period_ns / NS
+    if n < int(2.0 / dt):
+        raise ScenarioError(f"scenario {name}: window of {n * dt:.2f} s is too short (needs >= 2 s)")
+    bad = ~np.isfinite(frame.values)
+    none = bad.all(axis=0)
+    if (bad.any(axis=0) & ~none).any():
+        i = int(np.flatnonzero(bad.any(axis=0) & ~none)[0])
+        rows = np.flatnonzero(bad[:, i])
+        raise ScenarioError(
+            f"scenario {name}: channel {CHANNELS[i]} has {rows.size} NaN/Inf sample(s), "
+            f"first at t = {rows[0] * dt:.3f} s"
+        )
+    absent = frozenset(CHANNELS[i] for i in np.flatnonzero(none))
+    missing = [c for c in ("v_t", "p_e", "q_e") if c in absent]
+    if missing:
+        raise ScenarioError(f"scenario {name}: no data on {', '.join(missing)}: every identification needs them")
+    return absent
+
+
+def _labelled_step(
+    name: str, sig: Mapping[str, Array], dt: float, kind: str, thresholds: StepThresholds, notes: list[str]
+) -> int | None:
+    """Where a step the input labels ``kind`` is: as classified where the signals say the same
+    kind, located however small where they show no step (a staged test's under the thresholds);
+    None where they say another kind (the caller classifies and says so). Appends the reason."""
+    try:
+        found, k_ev, _k_cl, reason = classify(sig, dt, thresholds=thresholds)
+    except ScenarioError:
+        found = ""
+    if found == kind:
+        notes.append(f"classified as {found}: {reason}")
+        return k_ev
+    if found:
+        return None
+    try:
+        k_event, reason = locate_labelled_step(sig, dt, kind)
+    except ScenarioError as exc:
+        raise ScenarioError(f"scenario {name}: {exc}") from None
+    notes.append(reason)
+    return k_event
+
+
 def make_scenario(
     name: str,
     frame: Frame,
@@ -375,38 +420,12 @@ def make_scenario(
     unlabelled window must show a step above ``thresholds`` to count as a disturbance.
     """
     n, dt = len(frame), frame.period_ns / NS
-    if n < int(2.0 / dt):
-        raise ScenarioError(f"scenario {name}: window of {n * dt:.2f} s is too short (needs >= 2 s)")
-    bad = ~np.isfinite(frame.values)
-    none = bad.all(axis=0)
-    if (bad.any(axis=0) & ~none).any():
-        i = int(np.flatnonzero(bad.any(axis=0) & ~none)[0])
-        rows = np.flatnonzero(bad[:, i])
-        raise ScenarioError(
-            f"scenario {name}: channel {CHANNELS[i]} has {rows.size} NaN/Inf sample(s), "
-            f"first at t = {rows[0] * dt:.3f} s"
-        )
-    absent = frozenset(CHANNELS[i] for i in np.flatnonzero(none))
-    missing = [c for c in ("v_t", "p_e", "q_e") if c in absent]
-    if missing:
-        raise ScenarioError(f"scenario {name}: no data on {', '.join(missing)}: every identification needs them")
+    absent = _absent_channels(name, frame)
     sig = frame.columns()
     notes: list[str] = [f"not recorded: {', '.join(c for c in CHANNELS if c in absent)}"] if absent else []
     label_kept = ""
     if kind in STEP_SIGNAL and (k_event is None or k_event <= 0):
-        try:
-            found, k_ev, k_cl, reason = classify(sig, dt, thresholds=thresholds)
-        except ScenarioError:
-            found = ""
-        if found == kind:
-            k_event = k_ev
-            notes.append(f"classified as {found}: {reason}")
-        elif not found:  # a staged test's step under the thresholds: the label says it is there
-            try:
-                k_event, reason = locate_labelled_step(sig, dt, kind)
-            except ScenarioError as exc:
-                raise ScenarioError(f"scenario {name}: {exc}") from None
-            notes.append(reason)
+        k_event = _labelled_step(name, sig, dt, kind, thresholds, notes)
     if kind == "unknown" or k_event is None or k_event <= 0:
         try:
             found, k_ev, k_cl, reason = classify(sig, dt, thresholds=thresholds)

@@ -368,6 +368,38 @@ def each_once(tables: Sequence[ScenarioTable]) -> None:
         seen[key] = tab
 
 
+def _streams(
+    tables: list[ScenarioTable],
+    t_all: NDArray[np.int64],
+    period_ns: int,
+    c_parts: dict[str, list[NDArray[np.float64]]],
+) -> dict[str, StreamSamples]:
+    """The recording's streams on one clock: one scenario's columns become the streams' own (no
+    copy: a 2 h recording's are 0.6 GB), and the streams share the clock, read-only."""
+    t_all.flags.writeable = False
+    streams = {
+        spec.name: StreamSamples(
+            t_all,
+            period_ns,
+            {c: c_parts[c][0] if len(tables) == 1 else np.concatenate(c_parts[c]) for c in spec.channels},
+        )
+        for spec in STREAMS
+    }
+    # a recorder's own channels (the field current, the regulator's and the stabiliser's outputs):
+    # a stream of their own on the same clock, NaN in a file that did not keep one
+    for spec in RECORDER_STREAMS:
+        if any(c in tab.columns for tab in tables for c in spec.channels):
+            streams[spec.name] = StreamSamples(
+                t_all,
+                period_ns,
+                {
+                    c: np.concatenate([tab.columns.get(c, np.full(len(tab.t), np.nan)) for tab in tables])
+                    for c in spec.channels
+                },
+            )
+    return streams
+
+
 def recording_from_tables(
     tables: list[ScenarioTable],
     f_nominal_hz: float,
@@ -421,30 +453,7 @@ def recording_from_tables(
         )
         cursor = int(stamps[-1]) + int(GAP_BETWEEN_SCENARIOS_S * NS)
     assert period_ns is not None
-    # one scenario's columns become the streams' own (no copy: a 2 h recording's are 0.6 GB), and
-    # the streams share one clock, read-only
-    t_all = np.concatenate(t_parts)
-    t_all.flags.writeable = False
-    streams = {
-        spec.name: StreamSamples(
-            t_all,
-            period_ns,
-            {c: c_parts[c][0] if len(tables) == 1 else np.concatenate(c_parts[c]) for c in spec.channels},
-        )
-        for spec in STREAMS
-    }
-    # a recorder's own channels (the field current, the regulator's and the stabiliser's outputs):
-    # a stream of their own on the same clock, NaN in a file that did not keep one
-    for spec in RECORDER_STREAMS:
-        if any(c in tab.columns for tab in tables for c in spec.channels):
-            streams[spec.name] = StreamSamples(
-                t_all,
-                period_ns,
-                {
-                    c: np.concatenate([tab.columns.get(c, np.full(len(tab.t), np.nan)) for tab in tables])
-                    for c in spec.channels
-                },
-            )
+    streams = _streams(tables, np.concatenate(t_parts), period_ns, c_parts)
     metadata = {"f_nominal_hz": str(float(f_nominal_hz)), "source": source}
     if base_mva is not None:
         metadata["base_mva"] = str(base_mva)

@@ -117,26 +117,7 @@ def identification_channels(
         else:  # no voltage, no current (a build-up's first samples from standstill)
             i = np.conj(np.divide(value("p_e") + 1j * value("q_e"), v, out=np.zeros_like(v), where=v != 0))
         del frame
-        theta_t = np.angle(v)  # unwrapped over the whole recording below
-        if cmap.has("load_angle"):
-            delta = theta_t + value("load_angle")
-        elif cmap.has("delta"):
-            delta = value("delta") - 2 * np.pi * (f_sys - f0) * t_block
-        else:
-            delta = None
-        block = {"v_t": np.abs(v), "theta_t": theta_t}
-        if delta is not None:
-            block["delta"] = delta
-        if cmap.has("omega"):
-            block["omega"] = _speed(cmap, value("omega"), f_sys)
-        block.update({q: value(q) for q in ("v_f", "p_m", *RECORDER_CHANNELS, *pulses) if cmap.has(q)})
-        if cmap.has("p_e", "q_e"):
-            block["p_e"], block["q_e"] = value("p_e"), value("q_e")
-        else:
-            power = v * np.conj(i)
-            block["p_e"], block["q_e"] = power.real, power.imag
-        if delta is not None:
-            block["i_d"], block["i_q"] = terminal_to_dq(np.abs(i), delta, np.angle(i))
+        block = _block_channels(cmap, v, i, value, t_block, f_sys, pulses)
         if cmap.has("i_t") and not cmap.has("phi_i") and cmap.has("p_e", "q_e"):
             currents.append((np.abs(i), value("i_t")))
         for c, x in block.items():
@@ -150,6 +131,34 @@ def identification_channels(
 
 
 V_T_IMPLAUSIBLE = 1.45  # pu: no machine holds its terminals there; sqrt(3) = 1.73 is a phase-for-line mistake
+
+
+def _block_channels(
+    cmap: ChannelMap, v: Any, i: Any, value: Callable[[str], Array], t_block: Array, f_sys: float, pulses: list[str]
+) -> dict[str, Array]:
+    """One block's channels from its terminal voltage and current phasors (on the system's
+    frequency) and its other recorded values."""
+    theta_t = np.angle(v)  # unwrapped over the whole recording by the caller
+    if cmap.has("load_angle"):
+        delta = theta_t + value("load_angle")
+    elif cmap.has("delta"):
+        delta = value("delta") - 2 * np.pi * (f_sys - cmap.f_nominal_hz) * t_block
+    else:
+        delta = None
+    block = {"v_t": np.abs(v), "theta_t": theta_t}
+    if delta is not None:
+        block["delta"] = delta
+    if cmap.has("omega"):
+        block["omega"] = _speed(cmap, value("omega"), f_sys)
+    block.update({q: value(q) for q in ("v_f", "p_m", *RECORDER_CHANNELS, *pulses) if cmap.has(q)})
+    if cmap.has("p_e", "q_e"):
+        block["p_e"], block["q_e"] = value("p_e"), value("q_e")
+    else:
+        power = v * np.conj(i)
+        block["p_e"], block["q_e"] = power.real, power.imag
+    if delta is not None:
+        block["i_d"], block["i_q"] = terminal_to_dq(np.abs(i), delta, np.angle(i))
+    return block
 
 
 def _check_terminal_voltage(cmap: ChannelMap, v_t: Array, source: str) -> None:
