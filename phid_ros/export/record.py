@@ -207,21 +207,7 @@ def build_record(
     neither a diagnosis nor a held curve gives them, and its control models of a kind identify
     named none of. What the recordings determined replaces it."""
     model = model.upper()
-    if model not in MODELS:
-        raise ExportError(f"model must be one of {MODELS}, got {model!r}")
-    if not mva > 0:
-        raise ExportError(f"the machine base must be positive, got {mva} MVA")
-    if not MACHINE_ID.fullmatch(machine_id):
-        # written between quotes into every record: a newline or a quote would end it early or
-        # inject another (PSS/E and PSLF name a machine at its bus with one or two characters)
-        raise ExportError(f"--id {machine_id!r}: a machine id is one or two letters or digits (PSS/E's, PSLF's)")
-    params = result.get("parameters")
-    flags = result.get("identifiable")
-    if not isinstance(params, Mapping) or not isinstance(flags, Mapping):
-        raise ExportError(
-            f"{source}: not an identification result "
-            "(it needs 'parameters' and 'identifiable', as phid identify --json writes)"
-        )
+    params = _checked_request(result, source, model, mva, machine_id)
     result = _with_withheld(result)
     effects = _effects(diagnosis, diagnosis_source)
     _same_recording(result, source, diagnosis, diagnosis_source)
@@ -258,14 +244,7 @@ def build_record(
         values["ra"], sources["ra"] = 0.0, Source("default", Origin.DEFAULT)
     if model == "GENSAL":
         _to_gensal(values, sources, warnings)
-    # a field taken from an effect parameter the diagnosis did not determine is flagged as a base
-    # parameter is: on ANDES's GENROU with close q-axis time constants T''_q0 moved by 20 % between
-    # fits the held-out data could not tell apart
-    undetermined = _undetermined_effect_parameters(diagnosis)
-    for f, src in sources.items():
-        if src.effect is not None and src.effect in undetermined:
-            flagged.append(f"{f} ({' '.join(src.effect)})")
-            sources[f] = src.flag()
+    flagged += _flag_undetermined_effects(sources, diagnosis)
     if flagged and not allow_flagged:
         where = f"{source} and {diagnosis_source}" if diagnosis is not None else source
         raise ExportError(
@@ -292,17 +271,60 @@ def build_record(
     rec.controls = build_control_records(result, source, allow_flagged=allow_flagged)
     if existing is not None:
         _keep_existing_controls(rec, existing)
+    _warn_damping_and_defaults(rec)
+    _check(rec)
+    return rec
+
+
+def _checked_request(
+    result: Mapping[str, Any], source: str, model: str, mva: float, machine_id: str
+) -> Mapping[str, Any]:
+    """The result's parameters, once the model, the base and the machine id asked for are ones a
+    record can carry and ``result`` is an identification result."""
+    if model not in MODELS:
+        raise ExportError(f"model must be one of {MODELS}, got {model!r}")
+    if not mva > 0:
+        raise ExportError(f"the machine base must be positive, got {mva} MVA")
+    if not MACHINE_ID.fullmatch(machine_id):
+        # written between quotes into every record: a newline or a quote would end it early or
+        # inject another (PSS/E and PSLF name a machine at its bus with one or two characters)
+        raise ExportError(f"--id {machine_id!r}: a machine id is one or two letters or digits (PSS/E's, PSLF's)")
+    params = result.get("parameters")
+    flags = result.get("identifiable")
+    if not isinstance(params, Mapping) or not isinstance(flags, Mapping):
+        raise ExportError(
+            f"{source}: not an identification result "
+            "(it needs 'parameters' and 'identifiable', as phid identify --json writes)"
+        )
+    return params
+
+
+def _flag_undetermined_effects(sources: dict[str, Source], diagnosis: Mapping[str, Any] | None) -> list[str]:
+    """The fields taken from an effect parameter the diagnosis did not determine, flagged as a base
+    parameter is (on ANDES's GENROU with close q-axis time constants T''_q0 moved by 20 % between
+    fits the held-out data could not tell apart); their names, for the record's flagged list."""
+    undetermined = _undetermined_effect_parameters(diagnosis)
+    flagged = []
+    for f, src in sources.items():
+        if src.effect is not None and src.effect in undetermined:
+            flagged.append(f"{f} ({' '.join(src.effect)})")
+            sources[f] = src.flag()
+    return flagged
+
+
+def _warn_damping_and_defaults(rec: MachineRecord) -> None:
+    """Said in the record's warnings: a D below what PSS/E's torque form adds by itself, and the
+    stated defaults it carries."""
     if rec.p_m0 is not None and rec.values["D"] < rec.p_m0:
-        warnings.append(
+        rec.warnings.append(
             f"D = {rec.values['D']:.3g} is below P_m0 = {rec.p_m0:.3g}, the damping PSS/E's torque form adds by "
             f"itself: a PSS/E record's D = 0 damps {rec.p_m0 - rec.values['D']:.3g} pu more than identified"
         )
     if rec.defaults:
-        warnings.append(
-            "stated defaults (not identified) in the record: " + ", ".join(f"{f}={values[f]:g}" for f in rec.defaults)
+        rec.warnings.append(
+            "stated defaults (not identified) in the record: "
+            + ", ".join(f"{f}={rec.values[f]:g}" for f in rec.defaults)
         )
-    _check(rec)
-    return rec
 
 
 def _keep_existing_controls(rec: MachineRecord, existing: Unit) -> None:

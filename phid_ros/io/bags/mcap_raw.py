@@ -23,10 +23,13 @@ import struct
 from collections import deque
 from collections.abc import Iterator
 from pathlib import Path
-from typing import TypeVar, Union
+from typing import TYPE_CHECKING, Any, TypeVar, Union
 
 import numpy as np
 from numpy.typing import NDArray
+
+if TYPE_CHECKING:
+    from concurrent.futures import Future
 
 Buffer = Union[bytes, mmap.mmap]  # a file's bytes, read or mapped
 
@@ -290,26 +293,46 @@ def _walk_mapped(data: Buffer, status: WalkStatus | None, counted: list[int] | N
     st.size = len(data)
     if data[: len(MAGIC)] != MAGIC:
         raise McapFormatError("not an MCAP file (bad magic)")
-    released = [0]
+    try:
+        if len(data) > len(MAGIC):
+            # a file cut at a record boundary ends cleanly; one cut inside a record is damaged at its
+            # tail only: read the whole records before it and let the caller warn
+            yield from _tolerant(_MappedWalk(data, st, counted).walk(len(MAGIC), len(data)), st)
+    except (struct.error, UnicodeDecodeError) as exc:
+        raise McapFormatError(f"damaged record: {exc}") from exc
+    except McapFormatError:
+        raise
+    except Exception as exc:  # decompressors raise their own error types on damaged chunks
+        raise McapFormatError(f"damaged chunk: {type(exc).__name__}: {exc}") from exc
 
-    def release(upto: int) -> None:
-        if isinstance(data, mmap.mmap) and upto - released[0] >= RELEASE_BYTES:
+
+class _MappedWalk:
+    """One walk of a mapped file: the schemas and channels met so far, the messages counted (where
+    ``counted`` is given), the walked part given back to the system as it goes."""
+
+    def __init__(self, data: Buffer, st: WalkStatus, counted: list[int] | None) -> None:
+        self.data, self.st, self.counted = data, st, counted
+        self.released = 0
+        self.schemas: dict[int, str] = {}
+        self.channels: dict[int, tuple[str, int, str]] = {}
+
+    def release(self, upto: int) -> None:
+        data = self.data
+        if isinstance(data, mmap.mmap) and upto - self.released >= RELEASE_BYTES:
             end = upto - upto % mmap.PAGESIZE
-            data.madvise(mmap.MADV_DONTNEED, released[0], end - released[0])
-            released[0] = end
+            data.madvise(mmap.MADV_DONTNEED, self.released, end - self.released)
+            self.released = end
 
-    schemas: dict[int, str] = {}
-    channels: dict[int, tuple[str, int, str]] = {}
-
-    def split(raw: bytes) -> list:
+    def split(self, raw: bytes) -> list:
+        counted = self.counted
         if counted is None:
-            return [item[:4] for item in _chunk_records(raw, schemas, channels, 0, False)[0]]
-        items, n = _chunk_records(raw, schemas, channels, counted[0], True)
+            return [item[:4] for item in _chunk_records(raw, self.schemas, self.channels, 0, False)[0]]
+        items, n = _chunk_records(raw, self.schemas, self.channels, counted[0], True)
         counted[0] += n
-        st.messages += n
+        self.st.messages += n
         return items
 
-    def walk(buf: Buffer, pos: int, end: int) -> Iterator[object]:
+    def walk(self, pos: int, end: int) -> Iterator[object]:
         """The file's top-level records in order; a chunk's messages come from :func:`_chunk_records`.
 
         The next chunks are decompressed on two threads while this one's messages are walked
@@ -318,69 +341,67 @@ def _walk_mapped(data: Buffer, status: WalkStatus | None, counted: list[int] | N
         met while looking ahead is raised only when the walk reaches it, after every message
         before it, as a walk without lookahead would.
         """
-        from concurrent.futures import Future, ThreadPoolExecutor
+        from concurrent.futures import ThreadPoolExecutor
 
-        records = _top_records(buf, pos, end)
-        ahead: deque[tuple[int, int, int, Future[bytes] | None] | BaseException] = deque()
-        pool = ThreadPoolExecutor(2, thread_name_prefix="mcap-chunks")
-        in_flight = 0  # chunks in ``ahead``: between two lie their message indexes, a record a channel
-
-        def fill() -> None:
-            nonlocal in_flight
-            while in_flight < LOOKAHEAD and not (ahead and isinstance(ahead[-1], BaseException)):
-                try:
-                    op, body, nxt = next(records)
-                    job = None
-                    if op == OP_CHUNK:
-                        kind, packed, usize = _chunk_body(buf, body, nxt)
-                        job = pool.submit(_decompress, kind, packed, usize)
-                        in_flight += 1
-                except StopIteration:
-                    return
-                except Exception as exc:  # noqa: BLE001 (raised in order, below)
-                    ahead.append(exc)
-                    return
-                ahead.append((op, body, nxt, job))
-
+        buf, st = self.data, self.st
+        ahead = _Lookahead(buf, _top_records(buf, pos, end), ThreadPoolExecutor(2, thread_name_prefix="mcap-chunks"))
         try:
-            fill()
-            while ahead:
-                entry = ahead.popleft()
+            ahead.fill()
+            while ahead.entries:
+                entry = ahead.entries.popleft()
                 if isinstance(entry, BaseException):
                     raise entry
                 op, body, nxt, job = entry
                 if job is not None:
-                    in_flight -= 1
+                    ahead.in_flight -= 1
                     raw = job.result()
-                    fill()  # the next chunk decompresses while this one is walked
+                    ahead.fill()  # the next chunk decompresses while this one is walked
                     if len(raw) != _U64.unpack_from(buf, body + 16)[0]:
                         raise McapFormatError("chunk decompressed to the wrong size")
-                    yield from split(raw)
+                    yield from self.split(raw)
                 elif op == OP_MESSAGE:
-                    yield from split(buf[body - 9 : nxt])  # a message outside any chunk
+                    yield from self.split(buf[body - 9 : nxt])  # a message outside any chunk
                 elif op in (OP_SCHEMA, OP_CHANNEL):
-                    _register(op, buf, body, schemas, channels)
+                    _register(op, buf, body, self.schemas, self.channels)
                 elif op == OP_DATA_END:
                     st.complete = True
                     st.read_to = nxt
                     return
                 st.read_to = nxt
-                release(body - 9)  # this record's bytes are copied out (a chunk's when it was looked ahead at)
-                fill()
+                self.release(body - 9)  # this record's bytes are copied out (a chunk's when it was looked ahead at)
+                ahead.fill()
         finally:
-            for entry in ahead:
-                if not isinstance(entry, BaseException) and entry[3] is not None:
-                    entry[3].cancel()
-            pool.shutdown(wait=True)
+            ahead.close()
 
-    try:
-        if len(data) > len(MAGIC):
-            # a file cut at a record boundary ends cleanly; one cut inside a record is damaged at its
-            # tail only: read the whole records before it and let the caller warn
-            yield from _tolerant(walk(data, len(MAGIC), len(data)), st)
-    except (struct.error, UnicodeDecodeError) as exc:
-        raise McapFormatError(f"damaged record: {exc}") from exc
-    except McapFormatError:
-        raise
-    except Exception as exc:  # decompressors raise their own error types on damaged chunks
-        raise McapFormatError(f"damaged chunk: {type(exc).__name__}: {exc}") from exc
+
+class _Lookahead:
+    """The top-level records read ahead of the walk, each chunk's decompression submitted to the
+    pool as it is met, up to ``LOOKAHEAD`` chunks; an error met ahead is queued in its place."""
+
+    def __init__(self, buf: Buffer, records: Iterator[tuple[int, int, int]], pool: Any) -> None:
+        self.buf, self.records, self.pool = buf, records, pool
+        self.entries: deque[tuple[int, int, int, Future[bytes] | None] | BaseException] = deque()
+        self.in_flight = 0  # chunks in ``entries``: between two lie their message indexes, a record a channel
+
+    def fill(self) -> None:
+        entries = self.entries
+        while self.in_flight < LOOKAHEAD and not (entries and isinstance(entries[-1], BaseException)):
+            try:
+                op, body, nxt = next(self.records)
+                job = None
+                if op == OP_CHUNK:
+                    kind, packed, usize = _chunk_body(self.buf, body, nxt)
+                    job = self.pool.submit(_decompress, kind, packed, usize)
+                    self.in_flight += 1
+            except StopIteration:
+                return
+            except Exception as exc:  # noqa: BLE001 (raised in order, by the walk)
+                entries.append(exc)
+                return
+            entries.append((op, body, nxt, job))
+
+    def close(self) -> None:
+        for entry in self.entries:
+            if not isinstance(entry, BaseException) and entry[3] is not None:
+                entry[3].cancel()
+        self.pool.shutdown(wait=True)

@@ -303,6 +303,30 @@ def read_pmu_csv(
         wanted = sorted({c.name for c in cmap.channels.values() if c.name in columns})
         clock, values = _read_columns(p, fh, delimiter, euro, header, time_col, date_col, wanted)
     t, start_ns = clock.seconds()
+    period, grid, polled = _report_grid(p, t, notes)
+
+    def recorded(name: str, rows: slice) -> np.ndarray:
+        col = values[name]
+        if col.bad is not None:
+            line, text, what = col.bad
+            raise PmuImportError(f"{p}: line {line}, column {name!r}: {text!r} {what}")
+        if len(col.parts) > 1:
+            col.parts = [np.concatenate(col.parts)]  # the chunks let go: a day's column is held once, not twice
+        x = col.parts[0]
+        return interpolant(t, x)(grid[rows]) if grid is not None else x[rows]
+
+    if polled:
+        notes.extend(_polled_channel_notes(p.name, t, cmap, values))
+    length = len(grid) if grid is not None else len(t)
+    t_out, channels = identification_channels(cmap, recorded, length, 1.0 / period, str(p))
+    return t[0] + t_out, channels, 1.0 / period, start_ns, cmap
+
+
+def _report_grid(p: Path, t: np.ndarray, notes: list[str]) -> tuple[float, np.ndarray | None, bool]:
+    """(the reporting period, the uniform grid the reports are interpolated onto or None where
+    they are on one already, whether the file is a polled log) from the reports' stamps ``t``;
+    refused where reports are missing (a polled log's rule: an interval beyond ``POLLED_GAP`` x
+    its median). What was done is added to ``notes``."""
     dt = np.diff(t)
     if np.any(dt <= 0):
         k = int(np.flatnonzero(dt <= 0)[0])
@@ -343,22 +367,7 @@ def read_pmu_csv(
                 f"{p.name}: report times jitter by up to {jitter * 1e3:.3f} ms around {period * 1e3:.3f} ms: "
                 f"resampled onto {1 / period:.4g} per s by linear interpolation"
             )
-
-    def recorded(name: str, rows: slice) -> np.ndarray:
-        col = values[name]
-        if col.bad is not None:
-            line, text, what = col.bad
-            raise PmuImportError(f"{p}: line {line}, column {name!r}: {text!r} {what}")
-        if len(col.parts) > 1:
-            col.parts = [np.concatenate(col.parts)]  # the chunks let go: a day's column is held once, not twice
-        x = col.parts[0]
-        return interpolant(t, x)(grid[rows]) if grid is not None else x[rows]
-
-    if polled:
-        notes.extend(_polled_channel_notes(p.name, t, cmap, values))
-    length = len(grid) if grid is not None else len(t)
-    t_out, channels = identification_channels(cmap, recorded, length, 1.0 / period, str(p))
-    return t[0] + t_out, channels, 1.0 / period, start_ns, cmap
+    return period, grid, polled
 
 
 def _polled_channel_notes(name: str, t: np.ndarray, cmap: ChannelMap, values: dict[str, _Column]) -> list[str]:
