@@ -310,6 +310,114 @@ def _band(channel: str, recorded: Array, pre: slice) -> float:
     return max(RESPONSE_FLOOR_PU, RESPONSE_SHARE * peak)
 
 
+def _controls_played(
+    s: ScenarioData, params: GeneratorParameters, controls: dict[str, Control]
+) -> tuple[ScenarioData, dict[str, Array], dict[str, str], list[str], set[str], _Closing | None]:
+    """The scenario as the unit sees it (its rotor angle reconstructed where not recorded), and
+    what the unit's controls put in: (it, the channels played in, who made each, notes, the
+    standards left unchecked, the exciter's loop to close or None)."""
+    mine: list[str] = []
+    unchecked: set[str] = set()
+    if "delta" in s.absent or "i_d" in s.absent:
+        s = with_rotor_angle(s, params.X_q, "the unit's X_q")
+        mine.append("rotor angle reconstructed from V_t, P, Q with the unit's X_q")
+    put: dict[str, Array] = {}
+    by: dict[str, str] = {}
+    closing: _Closing | None = None
+    for kind, channel in (("exciter", "v_f"), ("governor", "p_m")):
+        control = controls.get(kind)
+        level = _pre_event_level(s, channel, params)
+        if control is not None and kind == "exciter" and s.has("v_f") and (why := regulator_out_of_loop(s)):
+            mine.append(f"exciter {control.model.name} not played in: {why}; E_fd as recorded")
+            control = None
+        stabiliser = controls.get("stabiliser")
+        response = _control_output(s, kind, control, level, mine, stabiliser) if control is not None else None
+        if control is not None and response is not None:
+            put[channel], by[channel] = level + response[0], control.model.name
+            if kind == "exciter":
+                closing = _Closing(control, stabiliser, level, response[1])
+            if kind == "exciter" and recorded_set_point(s) is not None:
+                mine.append("exciter reference: the recorded set-point v_ref, as it moved")
+            elif response[1]:
+                said = s.reference_step is not None and s.kind in KINDS[kind].stepped
+                how = "the test sheet's" if said else f"sized on the recorded {channel}"
+                mine.append(f"{kind} reference step {response[1]:+.4g} ({how})")
+        elif control is not None:
+            mine.append(f"{kind} {control.model.name} not played in: the recording lacks {KINDS[kind].needs[0]}")
+        given = kind == "exciter" and recorded_set_point(s) is not None
+        if control is not None and s.kind in KINDS[kind].stepped and not s.has(channel) and not given:
+            # a reference step of a size neither the recording nor the scenario gives: the unit
+            # is not played through this test, and none of its channels says anything of the model
+            unchecked.update(STANDARD_OF.values())
+            mine.append(
+                f"not checked: the {kind}'s reference step is sized on the recorded {channel}, which the "
+                "recording lacks"
+            )
+        if channel not in put:
+            if not s.has(channel):
+                put[channel] = np.full(s.n, level)
+                mine.append(f"{channel} not recorded: held at its pre-event value {level:.4g} pu")
+            by.setdefault(channel, "recorded")
+    if "omega" in s.absent:
+        put["omega"] = np.ones(s.n)
+    if "omega" in s.absent:
+        put["omega"] = np.ones(s.n)
+    return s, put, by, mine, unchecked, closing
+
+
+def _checked(
+    s: ScenarioData,
+    p: ScenarioData,
+    traj: _Played,
+    by: dict[str, str],
+    mine: list[str],
+    unchecked: set[str],
+    loop_run: BehindReactance | None,
+    unit: tuple[dict[str, float], Sequence[tuple[type[PlantEffect], Mapping[str, Any]]], float],
+) -> ScenarioCheck:
+    """One scenario's checks: the recorded ``s`` against the unit's play-in (``p`` with the
+    controls' outputs, ``traj`` the machine's P and Q, ``loop_run`` its V_t with the exciter's
+    loop closed); ``unit``: (the base parameters, the effects simulated, the nominal frequency)."""
+    base, kept, f_nominal_hz = unit
+    idx = np.arange(0, s.n, play_in_stride(s.dt))
+    pre = slice(0, max(1, int(np.searchsorted(idx, s.k_event))))
+    skip = switching_spans(s, idx, f_nominal_hz)
+    simulated = {"p_e": traj.p_e[:, 0], "q_e": traj.q_e[:, 0], "v_f": p["v_f"][idx], "p_m": p["p_m"][idx]}
+    no_load = at_no_load(s)
+    if loop_run is not None:
+        simulated["v_t"] = np.interp(idx, loop_run.idx, loop_run.v_t)
+    elif no_load:
+        oc_idx, v_open = open_circuit_voltage(p, base, kept, f_nominal_hz, STEP_SECONDS)
+        simulated["v_t"] = np.interp(idx, oc_idx, v_open)
+    if no_load:
+        mine.append("no load: the machine's V_t simulated on open circuit (no P, Q to check)")
+    if not (np.isfinite(simulated["p_e"]).all() and np.isfinite(simulated["q_e"]).all()):
+        mine.append("the machine's play-in diverged (not a number): every check of it fails")
+    recorded: dict[str, Array] = {}
+    checks: list[ChannelCheck] = []
+    for channel, (standard, _label, _fixed) in CHANNELS.items():
+        if not s.has(channel) or standard in unchecked:
+            continue
+        if channel in AT_NO_LOAD and "v_t" not in simulated:
+            continue  # V_t is checked where the machine makes it: on open circuit, or with the loop closed
+        if channel in ("p_e", "q_e") and no_load:
+            continue  # no P, Q on open circuit
+        if channel in ("v_f", "p_m") and by.get(channel) == "recorded":
+            continue  # played in, not simulated: nothing to check
+        full = np.asarray(p[channel], float) if channel in ("v_f", "p_m") else None
+        if full is not None and channel == "v_f" and loop_run is not None:
+            full = _from_recorded_rest(full, np.asarray(s[channel], float), s.pre_slice(), mine)
+        sim_at = simulated[channel] if full is None else None
+        check, rec_at, sim_at = channel_check(
+            channel, np.asarray(s[channel], float), s.dt, idx, pre, full, sim_at, skip
+        )
+        check.simulated_by = by.get(channel, "machine")
+        recorded[channel], simulated[channel] = rec_at, sim_at
+        checks.append(check)
+    t = np.asarray(idx * s.dt, float)
+    return ScenarioCheck(s.name, s.kind, t, recorded, simulated, checks, mine, dict(by), loop_run is not None)
+
+
 def validate_unit(
     scenarios: Sequence[ScenarioData],
     params: GeneratorParameters,
@@ -332,50 +440,7 @@ def validate_unit(
     seen: list[ScenarioData] = []  # each scenario as the unit sees it (its rotor angle reconstructed)
     closings: list[_Closing | None] = []
     for s in scenarios:
-        mine: list[str] = []
-        unchecked: set[str] = set()
-        if "delta" in s.absent or "i_d" in s.absent:
-            s = with_rotor_angle(s, params.X_q, "the unit's X_q")
-            mine.append("rotor angle reconstructed from V_t, P, Q with the unit's X_q")
-        put: dict[str, Array] = {}
-        by: dict[str, str] = {}
-        closing: _Closing | None = None
-        for kind, channel in (("exciter", "v_f"), ("governor", "p_m")):
-            control = controls.get(kind)
-            level = _pre_event_level(s, channel, params)
-            if control is not None and kind == "exciter" and s.has("v_f") and (why := regulator_out_of_loop(s)):
-                mine.append(f"exciter {control.model.name} not played in: {why}; E_fd as recorded")
-                control = None
-            stabiliser = controls.get("stabiliser")
-            response = _control_output(s, kind, control, level, mine, stabiliser) if control is not None else None
-            if control is not None and response is not None:
-                put[channel], by[channel] = level + response[0], control.model.name
-                if kind == "exciter":
-                    closing = _Closing(control, stabiliser, level, response[1])
-                if kind == "exciter" and recorded_set_point(s) is not None:
-                    mine.append("exciter reference: the recorded set-point v_ref, as it moved")
-                elif response[1]:
-                    said = s.reference_step is not None and s.kind in KINDS[kind].stepped
-                    how = "the test sheet's" if said else f"sized on the recorded {channel}"
-                    mine.append(f"{kind} reference step {response[1]:+.4g} ({how})")
-            elif control is not None:
-                mine.append(f"{kind} {control.model.name} not played in: the recording lacks {KINDS[kind].needs[0]}")
-            given = kind == "exciter" and recorded_set_point(s) is not None
-            if control is not None and s.kind in KINDS[kind].stepped and not s.has(channel) and not given:
-                # a reference step of a size neither the recording nor the scenario gives: the unit
-                # is not played through this test, and none of its channels says anything of the model
-                unchecked.update(STANDARD_OF.values())
-                mine.append(
-                    f"not checked: the {kind}'s reference step is sized on the recorded {channel}, which the "
-                    "recording lacks"
-                )
-            if channel not in put:
-                if not s.has(channel):
-                    put[channel] = np.full(s.n, level)
-                    mine.append(f"{channel} not recorded: held at its pre-event value {level:.4g} pu")
-                by.setdefault(channel, "recorded")
-        if "omega" in s.absent:
-            put["omega"] = np.ones(s.n)
+        s, put, by, mine, unchecked, closing = _controls_played(s, params, controls)
         played.append(with_channels(s, put, "the unit's control outputs played in") if put else s)
         made.append(by)
         per_notes.append(mine)
@@ -399,43 +464,7 @@ def validate_unit(
     for s, p, traj, by, mine, unchecked, loop_run in zip(
         scenarios, played, trajectories, made, per_notes, skipped, closed_v
     ):
-        idx = np.arange(0, s.n, play_in_stride(s.dt))
-        pre = slice(0, max(1, int(np.searchsorted(idx, s.k_event))))
-        skip = switching_spans(s, idx, f_nominal_hz)
-        simulated = {"p_e": traj.p_e[:, 0], "q_e": traj.q_e[:, 0], "v_f": p["v_f"][idx], "p_m": p["p_m"][idx]}
-        no_load = at_no_load(s)
-        if loop_run is not None:
-            simulated["v_t"] = np.interp(idx, loop_run.idx, loop_run.v_t)
-        elif no_load:
-            oc_idx, v_open = open_circuit_voltage(p, base, kept, f_nominal_hz, STEP_SECONDS)
-            simulated["v_t"] = np.interp(idx, oc_idx, v_open)
-        if no_load:
-            mine.append("no load: the machine's V_t simulated on open circuit (no P, Q to check)")
-        if not (np.isfinite(simulated["p_e"]).all() and np.isfinite(simulated["q_e"]).all()):
-            mine.append("the machine's play-in diverged (not a number): every check of it fails")
-        recorded: dict[str, Array] = {}
-        checks: list[ChannelCheck] = []
-        for channel, (standard, _label, _fixed) in CHANNELS.items():
-            if not s.has(channel) or standard in unchecked:
-                continue
-            if channel in AT_NO_LOAD and "v_t" not in simulated:
-                continue  # V_t is checked where the machine makes it: on open circuit, or with the loop closed
-            if channel in ("p_e", "q_e") and no_load:
-                continue  # no P, Q on open circuit
-            if channel in ("v_f", "p_m") and by.get(channel) == "recorded":
-                continue  # played in, not simulated: nothing to check
-            full = np.asarray(p[channel], float) if channel in ("v_f", "p_m") else None
-            if full is not None and channel == "v_f" and loop_run is not None:
-                full = _from_recorded_rest(full, np.asarray(s[channel], float), s.pre_slice(), mine)
-            sim_at = simulated[channel] if full is None else None
-            check, rec_at, sim_at = channel_check(
-                channel, np.asarray(s[channel], float), s.dt, idx, pre, full, sim_at, skip
-            )
-            check.simulated_by = by.get(channel, "machine")
-            recorded[channel], simulated[channel] = rec_at, sim_at
-            checks.append(check)
-        t = np.asarray(idx * s.dt, float)
-        out.append(ScenarioCheck(s.name, s.kind, t, recorded, simulated, checks, mine, dict(by), loop_run is not None))
+        out.append(_checked(s, p, traj, by, mine, unchecked, loop_run, (base, kept, f_nominal_hz)))
     if not any(sc.checks for sc in out):
         notes.append("no channel to check: the recordings carry none of P, Q, E_fd, P_m")
     return UnitValidation(describe, out, notes)
