@@ -474,16 +474,8 @@ def _column_step(
         xall[i, c] = x[i] + h6 * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i])
 
 
-def _compiled_step(sources: str) -> Any:
-    """The compiled RK4 play-in, keyed in numba's cache to ``sources`` as well as to this file.
-
-    Why: the step compiles equations written in other files, and numba's cache looks only at
-    the file of the function it caches; an edited equation would be served from the old code.
-    A closure's variables are part of numba's cache key, so the step closes over the digest
-    of those files' text. One signature each (inputs read-only, any layout: the fit's residual
-    matrix is C or Fortran order), so a first diagnosis compiles each once.
-    """
-    from numba import types
+def _outputs_kernel(sources: str) -> Any:
+    """The play-in's step loop (to be compiled), closed over ``sources`` (see _compiled_step)."""
 
     def rk4_outputs(
         x0: Array,
@@ -513,6 +505,12 @@ def _compiled_step(sources: str) -> Any:
                 for q in range(6):
                     out[q, k, c] = res[q]
         return out
+
+    return rk4_outputs
+
+
+def _residuals_kernel(sources: str) -> Any:
+    """The fit's residual loop (to be compiled), closed over ``sources`` (see _compiled_step)."""
 
     def rk4_residuals(
         x0: Array,
@@ -559,12 +557,26 @@ def _compiled_step(sources: str) -> Any:
                 for q in range(6):
                     out[row + q * n, i] = (res[order[q]] - meas[k, msource[q, c]]) / sigma[q]
 
+    return rk4_residuals
+
+
+def _compiled_step(sources: str) -> Any:
+    """The compiled RK4 play-in, keyed in numba's cache to ``sources`` as well as to this file.
+
+    Why: the step compiles equations written in other files, and numba's cache looks only at
+    the file of the function it caches; an edited equation would be served from the old code.
+    A closure's variables are part of numba's cache key, so the step closes over the digest
+    of those files' text. One signature each (inputs read-only, any layout: the fit's residual
+    matrix is C or Fortran order), so a first diagnosis compiles each once.
+    """
+    from numba import types
+
     scalars = (types.float64, types.int64, types.float64)  # ws, n_steps, h
     common = (f64(2, True), *(f64(2, True),) * 4, i64(2, True), f64(2, True), i64(1, True), *scalars)
     layout = (f64(2, True), i64(2, True), i64(1, True), f64(1, True), i64(1, True), i64(1, True))
     return (
-        compile_once(rk4_outputs, *common),
-        compile_once(rk4_residuals, *common, *layout, types.int64, types.int64, f64(2)),
+        compile_once(_outputs_kernel(sources), *common),
+        compile_once(_residuals_kernel(sources), *common, *layout, types.int64, types.int64, f64(2)),
     )
 
 
