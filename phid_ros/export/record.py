@@ -19,7 +19,7 @@ import os
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NoReturn
 
 from phid_ros.controls.models import MODELS as CONTROL_MODELS
 from phid_ros.errors import PhidError
@@ -212,9 +212,7 @@ def build_record(
     effects = _effects(diagnosis, diagnosis_source)
     _same_recording(result, source, diagnosis, diagnosis_source)
     held = (result.get("constraints") or {}).get("fixed") or {}
-    point = result.get("operating_point") or {}
-    p_m0 = point.get("p_m_pu") if isinstance(point, Mapping) else None
-    p_m0 = float(p_m0) if isinstance(p_m0, (int, float)) and math.isfinite(p_m0) else None
+    p_m0 = _p_m0(result)
     kept: list[str] = []
     if existing is not None:  # a value the recordings did not give at all (null) is the record's
         before = existing.parameters(p_m0 or 0.0)
@@ -226,32 +224,19 @@ def build_record(
     flagged = [n for n in PARAMETER_NAMES if not chosen[n][2]]
     _physical(chosen, source if diagnosis is None else f"{source} and {diagnosis_source}")
     f_nominal = float(result.get("f_nominal_hz", 50.0))
-    values: dict[str, float] = {}
-    sources: dict[str, Source] = {}
-    for name, f in BASE_FIELDS.items():
-        values[f], origin, _ = chosen[name]
-        sources[f] = origin.flag() if name in flagged else origin
+    values, sources = _base_fields(chosen, flagged)
     warnings: list[str] = []
     _fill_subtransient(values, sources, effects.get("subtransient_dynamics"), warnings)
     held_curve = (result.get("constraints") or {}).get("saturation")
     _fill_saturation(values, sources, effects.get("magnetic_saturation"), warnings, model, held_curve)
     if existing is not None:
         kept += _keep_existing_effects(values, sources, existing, effects, held_curve)
-    ra = effects.get("stator_resistance")
-    if ra:
-        values["ra"], sources["ra"] = float(ra["r_a"]), Source.of_effect("stator_resistance", "r_a")
-    else:
-        values["ra"], sources["ra"] = 0.0, Source("default", Origin.DEFAULT)
+    values["ra"], sources["ra"] = _stator_resistance(effects)
     if model == "GENSAL":
         _to_gensal(values, sources, warnings)
     flagged += _flag_undetermined_effects(sources, diagnosis)
     if flagged and not allow_flagged:
-        where = f"{source} and {diagnosis_source}" if diagnosis is not None else source
-        raise ExportError(
-            f"{where}: {', '.join(flagged)} not identified; refusing to export a planning model with "
-            f"{'it' if len(flagged) == 1 else 'them'} "
-            "(--allow-flagged writes them anyway, marked in the record's comment)"
-        )
+        _refuse_flagged(flagged, f"{source} and {diagnosis_source}" if diagnosis is not None else source)
     rec = MachineRecord(
         model,
         values,
@@ -274,6 +259,40 @@ def build_record(
     _warn_damping_and_defaults(rec)
     _check(rec)
     return rec
+
+
+def _p_m0(result: Mapping[str, Any]) -> float | None:
+    """The operating point's P_m the result gives, or None."""
+    point = result.get("operating_point") or {}
+    p_m0 = point.get("p_m_pu") if isinstance(point, Mapping) else None
+    return float(p_m0) if isinstance(p_m0, (int, float)) and math.isfinite(p_m0) else None
+
+
+def _refuse_flagged(flagged: list[str], where: str) -> NoReturn:
+    raise ExportError(
+        f"{where}: {', '.join(flagged)} not identified; refusing to export a planning model with "
+        f"{'it' if len(flagged) == 1 else 'them'} "
+        "(--allow-flagged writes them anyway, marked in the record's comment)"
+    )
+
+
+def _base_fields(chosen: Mapping[str, Any], flagged: list[str]) -> tuple[dict[str, float], dict[str, Source]]:
+    """The record's fields of the base parameters chosen, each with its source (flagged where
+    the parameter is)."""
+    values: dict[str, float] = {}
+    sources: dict[str, Source] = {}
+    for name, f in BASE_FIELDS.items():
+        values[f], origin, _ = chosen[name]
+        sources[f] = origin.flag() if name in flagged else origin
+    return values, sources
+
+
+def _stator_resistance(effects: Mapping[str, Any]) -> tuple[float, Source]:
+    """R_a from the diagnosis's stator-resistance effect, else 0 as a stated default."""
+    ra = effects.get("stator_resistance")
+    if ra:
+        return float(ra["r_a"]), Source.of_effect("stator_resistance", "r_a")
+    return 0.0, Source("default", Origin.DEFAULT)
 
 
 def _checked_request(

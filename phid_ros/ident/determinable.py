@@ -188,25 +188,47 @@ def identify_by_channels(
     res: IdentificationResult, ident: list[ScenarioData], opt: IdentifyOptions, say: Say
 ) -> dict[str, str]:
     """Run the plan on scenarios that lack channels; returns parameter -> how it was determined."""
-    held = opt.constraints.fixed
-    chosen = {p.parameter: p for p in plan(ident, held)}
-    how: dict[str, str] = {}
+    run = _ChannelRun(res, ident, opt, say)
+    run.swing()
+    on_line = run.reactances()
+    known = run.known_reactances()  # as the steady states gave them, before the d axis's checks
+    run.d_axis(on_line, known)
+    run.q_axis(known)
+    run.not_determined_said()
+    return run.how
 
-    def route_of(*names: str) -> Route | None:
-        routes = {chosen[n].route for n in names if chosen[n].route is not None}
+
+class _ChannelRun:
+    """One run of the plan: the result written as each route runs, and how each parameter was
+    determined. The steps run in the plan's order: H and D; X_d and X_q; the d axis's transient
+    (T'_d0 from the no-load tests once, whichever step asks first); the q axis's."""
+
+    def __init__(self, res: IdentificationResult, ident: list[ScenarioData], opt: IdentifyOptions, say: Say) -> None:
+        self.res, self.ident, self.opt, self.say = res, ident, opt, say
+        self.held = opt.constraints.fixed
+        self.chosen = {p.parameter: p for p in plan(ident, self.held)}
+        self.how: dict[str, str] = {}
+        self.no_load_done = False
+        self.x_q_for_angle: float | None = self.held.get("X_q")
+
+    def route_of(self, *names: str) -> Route | None:
+        routes = {self.chosen[n].route for n in names if self.chosen[n].route is not None}
         return routes.pop() if len(routes) == 1 else None
 
-    def put(estimates: Mapping[str, Estimate], route: Route) -> None:
+    def put(self, estimates: Mapping[str, Estimate], route: Route) -> None:
         for n, e in estimates.items():
-            if n in route.parameters and n not in held:
-                res.estimates[n] = e
-                how[n] = route.how
+            if n in route.parameters and n not in self.held:
+                self.res.estimates[n] = e
+                self.how[n] = route.how
 
-    # -- H and D -------------------------------------------------------------------------------
-    r = route_of("H", "D")
-    if r is not None:
-        say(f"H, D: {r.how}")
-        scs = r.scenarios(ident)
+    def swing(self) -> None:
+        """H and D by stage 1, on the rotor speed as recorded or as reconstructed."""
+        res, held, opt = self.res, self.held, self.opt
+        r = self.route_of("H", "D")
+        if r is None:
+            return
+        self.say(f"H, D: {r.how}")
+        scs = r.scenarios(self.ident)
         if r.key == "swing_reconstructed":
             q = _held_q_transient(held)
             scs = [
@@ -221,21 +243,20 @@ def identify_by_channels(
         try:
             out = stage1.swing_regression(scs, opt.stage1_cutoff_hz, opt.constraints)
             res.stage1 = out
-            put({"H": out.H, "D": out.D}, r)
+            self.put({"H": out.H, "D": out.D}, r)
         except StageError as exc:
             res.problems.append(f"stage 1 (H, D) did not run: {exc}")
-    no_load_done = False
 
-    def t_d0_at_no_load() -> None:
+    def t_d0_at_no_load(self) -> None:
         """T'_d0 from the no-load tests, once: V_t's route, then the field circuit's where the field
         current is recorded (taken where identified, or where neither is)."""
-        nonlocal no_load_done
-        if no_load_done or "T_d0_prime" in held:
+        if self.no_load_done or "T_d0_prime" in self.held:
             return
-        no_load_done = True
+        self.no_load_done = True
+        res, ident = self.res, self.ident
         oc = ROUTES_BY_KEY["open_circuit"]
         if oc.scenarios(ident):
-            say(f"T'_d0: {oc.how}")
+            self.say(f"T'_d0: {oc.how}")
             try:
                 o = open_circuit.open_circuit(oc.scenarios(ident))
                 res.problems.extend(o.problems)
@@ -255,90 +276,110 @@ def identify_by_channels(
                 if (better and o.T_d0_prime.identifiable) or (
                     not o.T_d0_prime.identifiable and (current is None or not current.identifiable)
                 ):
-                    put({"T_d0_prime": o.T_d0_prime}, oc)  # withheld, with why: the user sees the route's figures
+                    self.put({"T_d0_prime": o.T_d0_prime}, oc)  # withheld, with why: the user sees the route's figures
             except StageError as exc:
                 res.problems.append(f"open circuit (T'_d0) did not run: {exc}")
         fc = ROUTES_BY_KEY["field_circuit"]
         if fc.scenarios(ident):
-            say(f"T'_d0: {fc.how}")
-            _field_circuit(res, fc, fc.scenarios(ident), opt, put)
+            self.say(f"T'_d0: {fc.how}")
+            _field_circuit(res, fc, fc.scenarios(ident), self.opt, self.put)
 
-    # -- X_d, X_q ------------------------------------------------------------------------------
-    r = chosen["X_d"].route
-    x_q_for_angle: float | None = held.get("X_q")
-    on_line = (
-        r is not None
-        and r.key == "field_circuit_online"
-        and _field_circuit_online(res, r, ident, opt, put, say, t_d0_at_no_load)
-    )
-    if r is not None and r.key == "field_circuit_online":
-        # done; or, without a no-load test to give the field current's base, E_fd's steady states
-        r = None if on_line else ROUTES_BY_KEY["steady_terminal"]
-    if r is not None and r.key in ("steady_states", "steady_states_paper"):
-        say(f"X_d, X_q: {r.how}")
+    def reactances(self) -> bool:
+        """X_d and X_q (or X_d alone) by the first route the plan allows; whether the field circuit
+        on line ran (then X'_d is its, and T'_d0 the no-load tests')."""
+        res, ident = self.res, self.ident
+        r = self.chosen["X_d"].route
+        on_line = (
+            r is not None
+            and r.key == "field_circuit_online"
+            and _field_circuit_online(res, r, ident, self.opt, self.put, self.say, self.t_d0_at_no_load)
+        )
+        if r is not None and r.key == "field_circuit_online":
+            # done; or, without a no-load test to give the field current's base, E_fd's steady states
+            r = None if on_line else ROUTES_BY_KEY["steady_terminal"]
+        if r is not None and r.key in ("steady_states", "steady_states_paper"):
+            self.say(f"X_d, X_q: {r.how}")
+            try:
+                out2 = stage2.identify_reactances(r.scenarios(ident), use_field_voltage=r.key == "steady_states")
+                res.stage2 = out2
+                self.put({"X_d": out2.X_d, "X_q": out2.X_q}, r)
+                res.problems.extend(f"stage 2: {p}" for p in out2.problems)
+            except StageError as exc:
+                res.problems.append(f"stage 2 (X_d, X_q) did not run: {exc}")
+        elif r is not None:
+            self.steady_terminal(r)
+        return on_line
+
+    def steady_terminal(self, r: Route) -> None:
+        """X_d from the steady states of V_t, P, Q and E_fd; X_q, which they hardly depend on,
+        withheld (the value they put it at reconstructs the rotor angle)."""
+        res, held = self.res, self.held
+        self.say(f"X_d: {r.how}")
         try:
-            out2 = stage2.identify_reactances(r.scenarios(ident), use_field_voltage=r.key == "steady_states")
-            res.stage2 = out2
-            put({"X_d": out2.X_d, "X_q": out2.X_q}, r)
-            res.problems.extend(f"stage 2: {p}" for p in out2.problems)
-        except StageError as exc:
-            res.problems.append(f"stage 2 (X_d, X_q) did not run: {exc}")
-    elif r is not None:
-        say(f"X_d: {r.how}")
-        try:
-            st = terminal.steady_reactances(r.scenarios(ident), held.get("X_q"))
-            put({"X_d": st.X_d}, r)
-            res.route_details["steady_terminal"] = {
-                "X_q_used": st.X_q.value,
-                "rms_pu": st.rms_pu,
-                "steady_points": [pt.__dict__ for pt in st.points],
-            }
-            if "X_q" not in held:
-                x_q_for_angle = st.X_q.value
-                res.estimates["X_q"] = Estimate(
-                    math.nan,
-                    math.nan,
-                    identifiable=False,
-                    note=(
-                        f"X_q: not identifiable from V_t, P, Q, E_fd (the steady states hardly depend on it; they "
-                        f"put it at {st.X_q.value:.3g} pu, which the rotor angle's reconstruction used): hold a "
-                        "datasheet value (--fix X_q=...) or record the rotor angle"
-                    ),
-                )
+            st = terminal.steady_reactances(r.scenarios(self.ident), held.get("X_q"))
         except StageError as exc:
             res.problems.append(f"X_d did not run: {exc}")
-    # -- the d axis's transient ----------------------------------------------------------------
-    known = {n: e.value for n, e in res.estimates.items() if n in ("X_d", "X_q") and math.isfinite(e.value)}
-    known.update({n: v for n, v in held.items() if n in ("X_d", "X_q")})
-    # with the field circuit on line, X'_d is its and T'_d0 the no-load tests'
-    r = None if on_line else route_of("X_d_prime", "T_d0_prime") or chosen["T_d0_prime"].route
-    if r is not None and r.key == "d_axis" and "X_d" in known:
-        say(f"X'_d, T'_d0: {r.how}")
-        _one_axis(res, r, r.scenarios(ident), True, known["X_d"], opt, put)
-    elif r is not None and r.key == "d_axis_terminal" and "X_d" in known and x_q_for_angle is not None:
-        say(f"X'_d, T'_d0: {r.how}")
-        _d_axis_terminal(res, r, r.scenarios(ident), known["X_d"], x_q_for_angle, opt, put)
-    t_d0_at_no_load()
-    oc = ROUTES_BY_KEY["open_circuit"]
-    gain = res.route_details.get("open_circuit", {}).get("field_gain")
-    off = field_base_off(gain) if gain is not None else None
-    if off is not None:
-        for name in ("X_d", "X_d_prime", "T_d0_prime"):
-            e = res.estimates.get(name)
-            # the no-load V_t route says it itself; the field circuit's routes read E_fd on the base
-            # the field current gives
-            if e is not None and how.get(name) not in FIELD_CURRENT_HOWS | {oc.how}:
-                e.disqualify(off)
-    # -- the q axis's transient ----------------------------------------------------------------
-    r = route_of("X_q_prime", "T_q0_prime")
-    if r is not None and "X_q" in known:
-        say(f"X'_q, T'_q0: {r.how}")
-        _one_axis(res, r, r.scenarios(ident), False, known["X_q"], opt, put)
-    for p in plan(ident, held):
-        if p.parameter not in res.estimates and p.parameter not in held:
-            needs = p.needs or f"what {p.route.how if p.route else 'its route'} needs, which did not run"
-            res.estimates[p.parameter] = not_determined(p.parameter, needs)
-    return how
+            return
+        self.put({"X_d": st.X_d}, r)
+        res.route_details["steady_terminal"] = {
+            "X_q_used": st.X_q.value,
+            "rms_pu": st.rms_pu,
+            "steady_points": [pt.__dict__ for pt in st.points],
+        }
+        if "X_q" not in held:
+            self.x_q_for_angle = st.X_q.value
+            res.estimates["X_q"] = Estimate(
+                math.nan,
+                math.nan,
+                identifiable=False,
+                note=(
+                    f"X_q: not identifiable from V_t, P, Q, E_fd (the steady states hardly depend on it; they "
+                    f"put it at {st.X_q.value:.3g} pu, which the rotor angle's reconstruction used): hold a "
+                    "datasheet value (--fix X_q=...) or record the rotor angle"
+                ),
+            )
+
+    def known_reactances(self) -> dict[str, float]:
+        known = {n: e.value for n, e in self.res.estimates.items() if n in ("X_d", "X_q") and math.isfinite(e.value)}
+        known.update({n: v for n, v in self.held.items() if n in ("X_d", "X_q")})
+        return known
+
+    def d_axis(self, on_line: bool, known: Mapping[str, float]) -> None:
+        """X'_d and T'_d0 by stage 3's d axis (on the recorded or reconstructed rotor angle), T'_d0
+        from the no-load tests; what E_fd's level carries withheld where it is off the machine's base."""
+        res, ident, opt = self.res, self.ident, self.opt
+        # with the field circuit on line, X'_d is its and T'_d0 the no-load tests'
+        r = None if on_line else self.route_of("X_d_prime", "T_d0_prime") or self.chosen["T_d0_prime"].route
+        if r is not None and r.key == "d_axis" and "X_d" in known:
+            self.say(f"X'_d, T'_d0: {r.how}")
+            _one_axis(res, r, r.scenarios(ident), True, known["X_d"], opt, self.put)
+        elif r is not None and r.key == "d_axis_terminal" and "X_d" in known and self.x_q_for_angle is not None:
+            self.say(f"X'_d, T'_d0: {r.how}")
+            _d_axis_terminal(res, r, r.scenarios(ident), known["X_d"], self.x_q_for_angle, opt, self.put)
+        self.t_d0_at_no_load()
+        oc = ROUTES_BY_KEY["open_circuit"]
+        gain = res.route_details.get("open_circuit", {}).get("field_gain")
+        off = field_base_off(gain) if gain is not None else None
+        if off is not None:
+            for name in ("X_d", "X_d_prime", "T_d0_prime"):
+                e = res.estimates.get(name)
+                # the no-load V_t route says it itself; the field circuit's routes read E_fd on the base
+                # the field current gives
+                if e is not None and self.how.get(name) not in FIELD_CURRENT_HOWS | {oc.how}:
+                    e.disqualify(off)
+
+    def q_axis(self, known: Mapping[str, float]) -> None:
+        r = self.route_of("X_q_prime", "T_q0_prime")
+        if r is not None and "X_q" in known:
+            self.say(f"X'_q, T'_q0: {r.how}")
+            _one_axis(self.res, r, r.scenarios(self.ident), False, known["X_q"], self.opt, self.put)
+
+    def not_determined_said(self) -> None:
+        """Every parameter no route gave, said with what would determine it."""
+        for p in plan(self.ident, self.held):
+            if p.parameter not in self.res.estimates and p.parameter not in self.held:
+                needs = p.needs or f"what {p.route.how if p.route else 'its route'} needs, which did not run"
+                self.res.estimates[p.parameter] = not_determined(p.parameter, needs)
 
 
 # V_t per unit of E_fd at a no-load plateau is 1 on the air-gap line and 1/(1 + S) above it (S(1.0)
