@@ -494,6 +494,22 @@ def _moving_step(x: Array, span: int) -> Array:
     return out
 
 
+RUN_SPLIT_SHARE = 0.2  # a run of step candidates is cut where the step falls below this share of its peak
+
+
+def run_peaks(d: Array, run: Array, span: int) -> list[int]:
+    """The events in one run of samples whose moving step ``d`` passes its threshold: the run cut
+    where ``d`` falls below RUN_SPLIT_SHARE of the run's peak, one event at each part's peak. A
+    field forced through a build-up from standstill stays just above the threshold for seconds:
+    taken whole, the run's peak was the forcing's end (U_f from 205 V back to 63 V at Zakucac, 9 s
+    after the field went on), and the build-up's window began there. Parts of one disturbance are
+    joined again as its own transient (:func:`phid_ros.ident.file_events.events_of_file`)."""
+    level = RUN_SPLIT_SHARE * float(np.max(d[run]))
+    strong = run[d[run] >= level]
+    parts = np.split(strong, np.flatnonzero(np.diff(strong) > span) + 1)
+    return [int(p[np.argmax(d[p])]) for p in parts]
+
+
 def find_events(
     signals: Mapping[str, Array],
     dt: float,
@@ -541,10 +557,9 @@ def find_events(
         cand = np.flatnonzero(d >= thr)
         if cand.size == 0:
             continue
-        # one event per run of candidate samples: its peak
+        # one event per run of candidate samples: its peak, a run cut where the step falls away
         groups = np.split(cand, np.flatnonzero(np.diff(cand) > span) + 1)
-        for g in groups:
-            k_peak = int(g[np.argmax(d[g])])
+        for k_peak in (k for g in groups for k in run_peaks(d, g, span)):
             if not busy(k_peak):
                 events.append((kind, _refine(np.asarray(x, float), k_peak, span), None))
     events.sort(key=lambda e: e[1])

@@ -55,3 +55,24 @@ def test_voltage_components_use_the_internal_angle(clean_scenarios):
     sc = clean_scenarios[0]
     ang = sc["delta"] - sc["theta_t"]
     assert np.allclose(sc.v_d, sc["v_t"] * np.sin(ang)) and np.allclose(sc.v_q, sc["v_t"] * np.cos(ang))
+
+
+def test_a_field_forced_for_seconds_is_found_where_the_forcing_began():
+    # a build-up from standstill as Zakucac's recorder saw it (96 ms): U_f on for 0.5 pu, then
+    # ramping to 3 pu while the voltage rises, dropping back to 1 pu at the top;
+    # the moving step stays above the field-step threshold throughout. Taken as one run, the
+    # event was the drop 9 s later and the build-up's window began at its top
+    dt = 0.096
+    t = np.arange(0.0, 30.0, dt)
+    on, top = 5.0, 14.0
+    v_f = np.where(t < on, -0.02, 0.5 + 2.5 * np.clip((t - on) / (top - on), 0.0, 1.0))
+    v_f = np.where(t >= top, 1.0, v_f)
+    v_t = np.clip((t - on) / (top - on), 0.0, 1.0)
+    zero = np.zeros_like(t)
+    signals = {"v_t": v_t, "v_f": v_f, "p_m": zero, "p_e": zero, "q_e": zero, "omega": np.ones_like(t)}
+    events = find_events(signals, dt)
+    assert events[0][0] == "field_step"
+    assert abs(events[0][1] * dt - on) <= 2 * dt
+    # the same at twice the field's scale (a map with the controller's own base): the same event
+    doubled = find_events({**signals, "v_f": 2.0 * v_f}, dt)
+    assert abs(doubled[0][1] * dt - on) <= 2 * dt
