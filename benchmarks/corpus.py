@@ -473,17 +473,13 @@ def itaipu(work: Path) -> Figures:
 def andes_exst1(work: Path) -> Figures:
     """ANDES's GENROU (H 6.5 s, near fourth order) with EXST1 reaching its input limit in the
     faults, and TGOV1: the paper's catalogue simulated by ANDES (cached), identified."""
-    try:
-        import andes  # noqa: F401
-    except ImportError:
-        raise Skip("ANDES is not installed (pip install '.[test]')") from None
+    plant = _simulator(*SIMULATORS["andes"])
     from phid_ros.sim.scenarios import paper_catalogue, with_duration
-    from test.andes_plant import write_staged_unit
 
     folder = CACHE / "andes-exst1"
     manifest = folder / "tests" / "manifest.json"
     if not manifest.is_file():
-        write_staged_unit(folder, ANDES_EXST1_UNIT, [with_duration(s, 12.0) for s in paper_catalogue()])
+        plant.write_staged_unit(folder, ANDES_EXST1_UNIT, [with_duration(s, 12.0) for s in paper_catalogue()])
     doc = identify_json(work, manifest)
     truth = {"H": 6.5, "X_d": 2.54, "X_q": 2.41, "X_d_prime": 0.5, "T_d0_prime": 1.437}
     out = errors_against(doc, truth, tuple(truth))
@@ -500,26 +496,49 @@ ANDES_EXST1_UNIT = """1 'GENROU' 1  1.437 0.03 0.1351 0.03 6.5 2.0
 """
 
 
-def andes_diagnosis(machine: str) -> Callable[[Path], Figures]:
-    """ANDES's GENROU with one hidden effect each (test/andes_plant.py's machines, the paper's
-    catalogue at 12 s, the simulator's sensor noise, seed 0: the slow study's sets, cached),
-    diagnosed as a user runs it: the effects named, the gap closed, what is not determined and
-    the base parameters against the machine's."""
+def _simulator(module: str, package: str, how: str) -> Any:
+    """The plant module of an independent simulator's sets (``test/andes_plant.py``,
+    ``test/steps_plant.py``), the set skipped, said, where the simulator is not installed."""
+    import importlib
+
+    try:
+        importlib.import_module(package)
+    except ImportError:
+        raise Skip(f"{package} is not installed ({how})") from None
+    return importlib.import_module(module)
+
+
+SIMULATORS = {  # the plant module, the package, how to get it
+    "andes": ("test.andes_plant", "andes", "pip install '.[test]'"),
+    "steps": ("test.steps_plant", "stepspy", "built from source: benchmarks/steps_build.sh"),
+}
+
+
+def _catalogue_set(simulator: str, machine: str) -> Path:
+    """The paper's catalogue at 12 s simulated on ``machine`` with the simulator's sensor noise,
+    seed 0 (the slow studies' sets), cached: its manifest."""
+    from phid_ros.sim.scenarios import paper_catalogue, with_duration
+
+    plant = _simulator(*SIMULATORS[simulator])
+    folder = CACHE / f"{simulator}-{machine}"
+    manifest = folder / "manifest.json"
+    if not manifest.is_file():
+        plant.write_set(folder, plant.MACHINES[machine], [with_duration(s, 12.0) for s in paper_catalogue()], seed=0)
+    return manifest
+
+
+def simulator_diagnosis(simulator: str, machine: str) -> Callable[[Path], Figures]:
+    """An independent simulator's machine with its hidden effects (ANDES's GENROU with one each,
+    test/andes_plant.py; STEPS's GENSAL with and without saturation, test/steps_plant.py), the
+    paper's catalogue at 12 s, the simulator's sensor noise, seed 0 (the slow studies' sets,
+    cached), diagnosed as a user runs it: the effects named, the gap closed, what is not
+    determined and the base parameters against the machine's."""
 
     def run(work: Path) -> Figures:
-        try:
-            import andes  # noqa: F401
-        except ImportError:
-            raise Skip("ANDES is not installed (pip install '.[test]')") from None
-        from phid_ros.sim.scenarios import paper_catalogue, with_duration
-        from test.andes_plant import MACHINES, TRUTH, write_set
-
-        folder = CACHE / f"andes-{machine}"
-        manifest = folder / "manifest.json"
-        if not manifest.is_file():
-            write_set(folder, MACHINES[machine], [with_duration(s, 12.0) for s in paper_catalogue()], seed=0)
+        manifest = _catalogue_set(simulator, machine)
+        plant = _simulator(*SIMULATORS[simulator])
         truth = work / "truth.json"
-        truth.write_text(json.dumps({"parameters": TRUTH[machine]}))
+        truth.write_text(json.dumps({"parameters": plant.TRUTH[machine]}))
         out = work / "diag.json"
         phid("diagnose", manifest, "--json", out, "--truth", truth, "--workers", "2")
         doc = json.loads(out.read_text())
@@ -536,10 +555,32 @@ def andes_diagnosis(machine: str) -> Callable[[Path], Figures]:
             "D error %": figure(errors.get("D"), 2.0),
         }
 
+    run.__doc__ = simulator_diagnosis.__doc__
     return run
 
 
+def steps_controls(work: Path) -> Figures:
+    """STEPS's GENSAL with its own SEXS (K 100, T_E 0.05 s, E_MAX 5, reached in the faults) and
+    TGOV1 (R 0.05, T_1 0.5 s, T_2 2 s, T_3 6 s) in the loop: the paper's catalogue at 12 s
+    (cached), identified as a user runs it; the models named and their constants against STEPS's."""
+    doc = identify_json(work, _catalogue_set("steps", "gensal-controls"))
+    controls = doc.get("controls") or {}
+    out: Figures = {}
+    for kind, truth in (
+        ("exciter", {"K": 100.0, "TB": 5.0, "TE": 0.05, "EMAX": 5.0}),
+        ("governor", {"R": 0.05, "T1": 0.5, "T2": 2.0, "T3": 6.0}),
+    ):
+        fit = controls.get(kind) or {}
+        out[f"{kind} named"] = figure(fit.get("model") or "none", 0.0, "verdict")
+        for name, value in truth.items():
+            got = (fit.get("parameters") or {}).get(name)
+            ok = (fit.get("identifiable") or {}).get(name)
+            out[f"{kind} {name} error %"] = figure(100 * (got / value - 1) if got and ok else None, 0.5)
+    return out
+
+
 ANDES_DIAGNOSIS = ("genrou-4th", "genrou-sat", "genrou-sub-typical", "genrou-sub-fast", "genrou-sub", "genrou-sat-sub")
+STEPS_DIAGNOSIS = ("gensal", "gensal-sat")
 
 
 @dataclass(frozen=True)
@@ -566,7 +607,9 @@ SETS: dict[str, CorpusSet] = {
     "usn-lab-2kva": CorpusSet(usn_lab, True),
     "itaipu-event": CorpusSet(itaipu, True),
     "andes-exst1": CorpusSet(andes_exst1, False),
-    **{f"andes-diagnose-{m}": CorpusSet(andes_diagnosis(m), False) for m in ANDES_DIAGNOSIS},
+    **{f"andes-diagnose-{m}": CorpusSet(simulator_diagnosis("andes", m), False) for m in ANDES_DIAGNOSIS},
+    **{f"steps-diagnose-{m}": CorpusSet(simulator_diagnosis("steps", m), False) for m in STEPS_DIAGNOSIS},
+    "steps-controls": CorpusSet(steps_controls, False),
 }
 
 
