@@ -413,6 +413,53 @@ def zakucac_steps(work: Path) -> Figures:
     }
 
 
+def zakucac_curve(work: Path) -> Figures:
+    """Each sister's build-up and polled no-load steps read through a map with the controller's
+    field bases (SOURCE.md: U_f 74 V, I_f 725 A), identified together: T'_d0 as through the
+    calibrated map, and the open-circuit curve in the planning form through unit A's no-load
+    plateaus (its polled steps, lowered and raised); unit B's polled steps are on line (a line
+    charging), so B's own curve rests on its build-up alone, and A's curve is judged at B's plateau."""
+    plant = _real("zakucac-dev")
+    (work / "map.yaml").write_text(ZAKUCAC_ON_LINE + "  v_ref: {name: Ug_ref_pu, unit: pu}\n")
+    out: Figures = {}
+    curves = {}
+    for unit, build_up, steps in (
+        ("A", "cs_recex-zakuca1a-003", "watch_cs_watch-zakuca1a-00[678]"),
+        ("B", "cs_recex-zakuca1b-001", "watch_cs_watch-zakuca1b-0[01][123]"),
+    ):
+        bags = [
+            _imported(work, [plant / f"{build_up}.csv"], [work / "map.yaml"], f"{unit}_build_up.mcap"),
+            _imported(work, sorted(plant.glob(f"{steps}.csv")), [work / "map.yaml"], f"{unit}_steps.mcap"),
+        ]
+        doc = identify_json(work, *bags, "--exciter", "SEXS")
+        value = doc["parameters"]["T_d0_prime"] if doc["identifiable"]["T_d0_prime"] else None
+        out[f"unit {unit} T_d0_prime, the controller's bases (s)"] = figure(value, 0.01 * (value or 1.0))
+        curves[unit] = (doc.get("stages") or {}).get("field_circuit", {}).get("open_circuit_curve") or {}
+    a = curves["A"]
+    for name in ("S10", "S12"):
+        est = a.get(name) or {}
+        out[f"unit A {name}"] = figure(est.get("value") if est.get("identifiable") else None, 0.005)
+    out["unit A curve at its no-load plateaus, worst %"] = figure(_pct(a.get("worst_relative_error")), 0.2)
+    out["unit A plateaus"] = figure(len(a.get("points") or []), 0.0, "verdict")
+    out["unit A curve at unit B's plateaus, worst %"] = figure(_pct(_sister_miss(a, curves["B"])), 0.2)
+    return out
+
+
+def _pct(x: float | None) -> float | None:
+    return None if x is None else 100.0 * x
+
+
+def _sister_miss(curve: dict[str, Any], sister: dict[str, Any]) -> float | None:
+    """The largest relative error in I_f of one unit's curve at a sister's no-load plateaus (the
+    same field bases in both maps)."""
+    if not curve or not sister or curve["quadratic"]["A"] != curve["quadratic"]["A"]:
+        return None
+    from phid_ros.ident.open_circuit_curve import field_on_curve
+
+    a, b, c = curve["quadratic"]["A"], curve["quadratic"]["B"], curve["air_gap_line"]
+    return max(abs(float(field_on_curve(c, a, b, p["v_t"])) / p["i_f"] - 1) for p in sister["points"])
+
+
 ZAKUCAC_ON_LINE = """machine: {mva: 160, kv: 16, f_nominal_hz: 50}
 time: time
 channels:
@@ -604,6 +651,7 @@ SETS: dict[str, CorpusSet] = {
     "mostar-recipe": CorpusSet(mostar_recipe, False),
     "zakucac-dev": CorpusSet(zakucac, True),
     "zakucac-steps": CorpusSet(zakucac_steps, False),
+    "zakucac-curve": CorpusSet(zakucac_curve, False),
     "usn-lab-2kva": CorpusSet(usn_lab, True),
     "itaipu-event": CorpusSet(itaipu, True),
     "andes-exst1": CorpusSet(andes_exst1, False),

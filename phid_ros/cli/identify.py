@@ -210,6 +210,28 @@ def compare_sisters(here: str, doc: dict[str, Any], sisters: list[tuple[str, dic
     return {"compared_with": [p for p, _ in sisters], "sigmas": SISTER_SIGMAS, "apart": apart}
 
 
+def open_circuit_curve_text(curve: dict[str, Any]) -> str:
+    """The open-circuit curve the no-load plateaus gave (``ident.open_circuit_curve``), in one line."""
+
+    def said(name: str, e: dict[str, Any]) -> str:
+        if e["identifiable"]:
+            return f"{name} {e['value']:.4f} ± {e['std']:.4f}"
+        value = e["value"]
+        return f"{name} not measured" + (f" (the form puts it at {value:.3g})" if value == value else "")
+
+    head = f"open-circuit curve from the no-load plateaus ({'; '.join(curve['notes'])})"
+    if curve["quadratic"]["A"] != curve["quadratic"]["A"]:  # NaN: no curve fitted
+        return f"{head}: the plateaus lie up to {100 * curve['worst_relative_error']:.1f} % off the air-gap line"
+    by = curve.get("worst_relative_error_by_branch") or {}
+    branches = ", ".join(f"{b} {100 * w:.1f} %" for b, w in by.items())
+    return (
+        f"{head}: "
+        f"{said('S(1.0)', curve['S10'])}, {said('S(1.2)', curve['S12'])}; within "
+        f"{100 * curve['worst_relative_error']:.1f} % of the plateaus' field current"
+        + (f" ({branches})" if branches else "")
+    )
+
+
 def identify_command(args: Any, console: Console) -> int:
     from phid_ros.io.files.outputs import refuse_inputs
 
@@ -266,6 +288,8 @@ def identify_command(args: Any, console: Console) -> int:
     print_parameters(console, res, truth)
     print_validation(console, res)
     print_controls(console, controls)
+    if curve := res.route_details.get("field_circuit", {}).get("open_circuit_curve"):
+        console.print(open_circuit_curve_text(curve), highlight=False, markup=False)
     if res.determined_by:
         print_day(console, res, controls)
     if found.no_load is not None:

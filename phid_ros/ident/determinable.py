@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from phid_ros.errors import StageError
-from phid_ros.ident import field_circuit, open_circuit, stage1, stage2, stage3, terminal
+from phid_ros.ident import field_circuit, open_circuit, open_circuit_curve, stage1, stage2, stage3, terminal
 from phid_ros.ident.results import Estimate
 from phid_ros.ident.scenario import ScenarioData, file_of
 from phid_ros.model.parameters import PARAMETER_NAMES
@@ -446,9 +446,19 @@ def _field_circuit(
             "T_d0_prime_unsaturated_std": f.leakage.unsaturated_std,
             "shows": f.leakage.shows,
         }
+    curve = open_circuit_curve.open_circuit_curve(f.base, scs, _air_gap_rel_std(f))
+    if curve is not None:
+        res.route_details["field_circuit"]["open_circuit_curve"] = curve.as_dict()
     current = res.estimates.get("T_d0_prime")
     if f.T_d0_prime.identifiable or current is None or not current.identifiable:
         put({"T_d0_prime": f.T_d0_prime}, route)
+
+
+def _air_gap_rel_std(f: field_circuit.FieldCircuitResult) -> float:
+    """The air-gap line's relative std where build-ups from standstill gave it (their root mean
+    square), NaN otherwise."""
+    lines = [line.rel_std for line in f.build_ups]
+    return float(np.sqrt(np.mean(np.square(lines)))) if lines else math.nan
 
 
 def impossible_field(route_details: Mapping[str, Any]) -> str:

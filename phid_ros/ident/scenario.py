@@ -497,7 +497,7 @@ def _moving_step(x: Array, span: int) -> Array:
 RUN_SPLIT_SHARE = 0.2  # a run of step candidates is cut where the step falls below this share of its peak
 
 
-def run_peaks(d: Array, run: Array, span: int) -> list[int]:
+def run_peaks(d: Array, run: np.ndarray, span: int) -> list[int]:
     """The events in one run of samples whose moving step ``d`` passes its threshold: the run cut
     where ``d`` falls below RUN_SPLIT_SHARE of the run's peak, one event at each part's peak. A
     field forced through a build-up from standstill stays just above the threshold for seconds:
