@@ -81,14 +81,47 @@ def load_recording(path: str | Path) -> Recording:
 
     p = Path(path)
     if p.suffix == ".json":
-        rec, notes = import_csv_set(p)
-        rec.warnings.extend(notes)
+        rec = import_csv_set(p)
     else:
         rec = read_recording(p)
     problems = clock_problems(rec)
     if problems:
         raise PhidError(f"{path}: {problems[0]}")
     return rec
+
+
+IMPORT_KINDS = ("csv", "comtrade", "pmu")  # a CSV scenario set's manifest, COMTRADE records, PMU and trend-log CSVs
+
+
+def import_recordings(
+    paths: Sequence[str | Path], maps: Sequence[str | Path] = (), *, kind: str, strict: bool = False
+) -> Recording:
+    """Field recordings -> one scenario set, the one face of every importer (``phid import-csv``,
+    ``import-comtrade``, ``import-pmu``): the recording, what the reading noticed and did (a
+    resampled clock, a field base calibrated, ignored columns) in its ``warnings``. ``kind``: one
+    of IMPORT_KINDS; ``csv`` reads one manifest (``paths[0]``, no map; ``strict`` refuses extra
+    columns), the others the files through the channel ``maps``."""
+    if kind not in IMPORT_KINDS:
+        raise PhidError(f"import kind {kind!r}: one of {', '.join(IMPORT_KINDS)}")
+    if kind == "csv":
+        from phid_ros.io.csvset.csv_import import import_csv_set
+
+        if len(paths) != 1 or maps:
+            raise PhidError("a CSV scenario set is one manifest.json, read without a channel map")
+        return import_csv_set(paths[0], strict=strict)
+    from phid_ros.io.field.channel_map import load_channel_map
+
+    dup = sorted({str(m) for m in maps if [str(x) for x in maps].count(str(m)) > 1})
+    if dup:
+        raise PhidError(f"--map {dup[0]} given twice")
+    loaded = [load_channel_map(m) for m in maps]
+    if kind == "comtrade":
+        from phid_ros.io.field.comtrade_import import import_comtrade
+
+        return import_comtrade(list(paths), loaded)
+    from phid_ros.io.field.pmu_csv import import_pmu_csv
+
+    return import_pmu_csv(list(paths), loaded)
 
 
 def identify_recording(

@@ -67,9 +67,9 @@ class RecordingParts:
         elif p.suffix == ".json":  # a CSV scenario set (its manifest): small, read whole as one part
             from phid_ros.io.csvset.csv_import import import_csv_set
 
-            self._whole, notes = import_csv_set(p)
+            self._whole = import_csv_set(p)
             self.metadata = dict(self._whole.metadata)
-            self.warnings += notes
+            self.warnings += self._whole.warnings
             return
         elif is_mcap_file(p):
             from phid_ros.io.bags.mcap_file import file_metadata

@@ -37,7 +37,7 @@ def csv_set(tmp_path_factory):
 
 
 def cut(manifest, **thresholds: float):
-    rec, _ = import_csv_set(manifest)
+    rec = import_csv_set(manifest)
     return scenarios_from_recording(rec, str(manifest), StepThresholds(**thresholds))
 
 

@@ -306,10 +306,9 @@ def _manifest_entry(entry: Any, k: int, manifest: Path) -> tuple[Path, str, str,
     return manifest.parent / name, kind, role, damping, None if event is None else float(event), regulator
 
 
-def import_csv_set(
-    manifest_path: str | Path, *, strict: bool = False, start_ns: int = DEFAULT_START_NS
-) -> tuple[Recording, list[str]]:
-    """Manifest -> one continuous recording; returns it with warnings (ignored columns)."""
+def import_csv_set(manifest_path: str | Path, *, strict: bool = False, start_ns: int = DEFAULT_START_NS) -> Recording:
+    """Manifest -> one continuous recording, what the reading noticed (ignored columns) in its
+    ``warnings``, as every importer returns it (:func:`phid_ros.api.import_recordings`)."""
     manifest = Path(manifest_path)
     try:
         meta = read_json(manifest)
@@ -345,7 +344,8 @@ def import_csv_set(
         if isinstance(window, bool) or not isinstance(window, (int, float)) or not 0 <= window < 1:
             raise CsvImportError(f"{manifest}: {MEASUREMENT_WINDOW_KEY} must be seconds in [0, 1), got {window!r}")
         rec.metadata[MEASUREMENT_WINDOW_KEY] = repr(float(window))
-    return rec, warnings
+    rec.warnings.extend(warnings)
+    return rec
 
 
 def each_once(tables: Sequence[ScenarioTable]) -> None:

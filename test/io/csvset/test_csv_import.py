@@ -49,7 +49,8 @@ def write_set(folder: Path, runs, *, gz: bool = False, extra: dict | None = None
 @pytest.mark.parametrize("gz", [False, True])
 def test_import_keeps_every_value_and_places_scenarios_in_order(tmp_path, short_runs, gz):
     manifest = write_set(tmp_path, short_runs, gz=gz, extra={"id_ref": 0.0})
-    rec, warnings = import_csv_set(manifest)
+    rec = import_csv_set(manifest)
+    warnings = rec.warnings
     assert len(warnings) == 3 and "ignored extra column(s) ['id_ref']" in warnings[0]
     n = short_runs[0].n_analysis
     for c, values in short_runs[0].measured.items():
@@ -283,7 +284,7 @@ def test_a_manifest_s_regulator_is_checked(tmp_path) -> None:
     for regulator in ("manual", "avr+pss"):  # a manual test; the AVR with its stabiliser on
         entry = {"file": "a.csv", "kind": "field_step", "regulator": regulator}
         manifest.write_text(json.dumps({"scenarios": [entry]}))
-        rec, _ = import_csv_set(manifest)
+        rec = import_csv_set(manifest)
         assert rec.scenarios[0].regulator == regulator
     # through a bag and back: the marker's description carries it
     from phid_ros.io.bags.recordings import read_recording, write_recording

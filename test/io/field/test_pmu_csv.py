@@ -345,7 +345,7 @@ def test_a_controllers_own_signals_travel_to_the_scenarios_and_an_on_line_test_i
     from phid_ros.io.csvset.csv_export import write_csv_set
     from phid_ros.io.csvset.csv_import import import_csv_set
 
-    back, _ = import_csv_set(write_csv_set(tmp_path / "set", rec))
+    back = import_csv_set(write_csv_set(tmp_path / "set", rec))
     mine, theirs = rec.streams["field_controller"].channels, back.streams["field_controller"].channels
     for c in ("i_fd", "v_r", "v_s"):
         assert np.allclose(theirs[c], mine[c], rtol=1e-8, atol=1e-15, equal_nan=True)
