@@ -20,7 +20,7 @@ from typing import TextIO
 import numpy as np
 
 from phid_ros.errors import PhidError
-from phid_ros.io.csvset.csv_import import decimal_comma_fields, is_number, read_header_line
+from phid_ros.io.csvset.csv_import import ScenarioTable, decimal_comma_fields, is_number, read_header_line
 from phid_ros.io.field.channel_map import (
     PULSES,
     WAVEFORMS,
@@ -252,7 +252,23 @@ def _read_columns(
     return clock, out
 
 
-def read_pmu_csv(
+def read_pmu_csv(path: str | Path, cmaps: ChannelMap | Sequence[ChannelMap]) -> ScenarioTable:
+    """One export -> one scenario table (per unit, t from its first report), as every reader of a
+    field recording gives it (:func:`phid_ros.io.field.comtrade_import.read_comtrade`): what was
+    done to the reports in its ``notes``, the columns the map names for nothing in its
+    ``not_imported``, when the first report was taken (UTC ns) in its ``start_ns`` where the file
+    says; of several maps of one unit, through the one it fits (:func:`choose_map`)."""
+    notes: list[str] = []
+    skipped: list[str] = []
+    t, channels, _, start_ns, cmap = _read_reports(path, cmaps, notes, skipped)
+    table = scenario_table(Path(path), cmap, t - t[0], channels)
+    table.notes[:0] = notes
+    table.not_imported = skipped
+    table.start_ns = start_ns
+    return table
+
+
+def _read_reports(
     path: str | Path,
     cmaps: ChannelMap | Sequence[ChannelMap],
     notes: list[str] | None = None,
@@ -411,16 +427,7 @@ def import_pmu_csv(paths: Sequence[str | Path], cmaps: ChannelMap | Sequence[Cha
     if not paths:
         raise PmuImportError("no PMU exports given")
     maps = [cmaps] if isinstance(cmaps, ChannelMap) else list(cmaps)
-    tables = []
-    for path in paths:
-        notes: list[str] = []
-        skipped: list[str] = []
-        t, channels, _, start_ns, cmap = read_pmu_csv(path, maps, notes, skipped)
-        table = scenario_table(Path(path), cmap, t - t[0], channels)
-        table.notes[:0] = notes
-        table.not_imported = skipped
-        table.start_ns = start_ns
-        tables.append(table)
+    tables = [read_pmu_csv(path, maps) for path in paths]
     head = maps[0]
     window = head.phasor_window_cycles / head.f_nominal_hz
     return field_recording(tables, maps, f"import-pmu {', '.join(m.path for m in maps)}", window)
