@@ -25,7 +25,9 @@ extras = {
 extras["all"] = sorted({r for k in ("jit", "fleet", "field") for r in extras[k]})
 # andes: the independent simulator the exported planning records are checked in
 # the checkers pinned to a minor version: a newer one may judge the same code differently
-extras["test"] = sorted({*extras["all"], *extras["docs"], "pytest>=7.4", "andes>=1.9", "ruff~=0.17.6", "mypy~=2.4.1"})
+extras["test"] = sorted(
+    {*extras["all"], *extras["docs"], "pytest>=7.4", "pytest-xdist>=3.5", "andes>=1.9", "ruff~=0.17.6", "mypy~=2.4.1"}
+)
 
 
 def data(folder: str, pattern: str = "*") -> list[str]:
