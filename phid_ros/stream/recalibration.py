@@ -88,6 +88,11 @@ class RecalibrationOutcome:
     # as phid identify fits them beside the machine; empty when the deployment does not ask for them
     controls: dict[str, ControlFit | str] = field(default_factory=dict)
     failed: bool = False  # the run raised (its status says what): no result at all
+    # what ``said`` tells a reader, kept as facts beside the published ``status``: why the set was
+    # not adopted (before any published prefix), the parameters adopted but flagged, the windows skipped
+    why: str = ""
+    flagged: list[str] = field(default_factory=list)
+    skipped: list[str] = field(default_factory=list)
 
     @property
     def level(self) -> Level:
@@ -99,19 +104,16 @@ class RecalibrationOutcome:
         """(outcome, why) in the words of what happened to the set in force, for a reader: the first
         run on too few events read as a failure ("rejected: ... did not run") when the pipeline was
         waiting for more; ``status`` keeps the published wording."""
+        skipped = "; skipped: " + "; ".join(self.skipped) if self.skipped else ""
         if self.accepted:
-            flagged = self.status.removeprefix("ok").removeprefix("; poorly identified: ")
-            names = ", ".join(SYMBOLS.get(n, n) for n in flagged.split(", ")) if flagged else ""
-            return "adopted", f"withheld as poorly identified: {names}" if names else ""
-        why = self.status.removeprefix(KEPT_LAST_GOOD)
+            names = ", ".join(SYMBOLS.get(n, n) for n in self.flagged)
+            return "adopted", (f"withheld as poorly identified: {names}" if names else "") + skipped
         if self.parameters is None and self.determined:
             names = ", ".join(SYMBOLS.get(n, n) for n in self.determined)
-            return f"partial set published: {names}", in_symbols(self.status.removeprefix(PARTIAL))
+            return f"partial set published: {names}", in_symbols(self.why) + skipped
         if self.parameters is None:
-            if why.startswith(INCOMPLETE):
-                why = why.removeprefix(INCOMPLETE).removesuffix(")")
-            return "no set yet (the events so far do not determine every parameter)", why
-        return "not adopted, the set in force kept", why
+            return "no set yet (the events so far do not determine every parameter)", self.why + skipped
+        return "not adopted, the set in force kept", self.why + skipped
 
 
 def determined_only(result: IdentificationResult) -> dict[str, Estimate]:
@@ -304,16 +306,19 @@ class Recalibrator:
             outcome.controls = controls
             if skipped:
                 outcome.status += "; skipped: " + "; ".join(skipped)
+                outcome.skipped = list(skipped)
         except Exception as exc:  # a failed run must never take the worker (or the node) down
+            failure = f"recalibration failed: {type(exc).__name__}: {exc}"
             outcome = RecalibrationOutcome(
                 False,
-                f"recalibration failed: {type(exc).__name__}: {exc}",
+                failure,
                 self.last_good,
                 None,
                 ids,
                 stream_time_ns,
                 time.perf_counter() - t0,
                 failed=True,
+                why=failure,
             )
         self.activity = ""
         with self._lock:
@@ -380,21 +385,23 @@ class Recalibrator:
             if determined:
                 held = result.constraints.fixed
                 withheld = ", ".join(n for n in result.parameters if n not in determined and n not in held)
-                status = f"{PARTIAL}withheld {withheld}: {WITHHELD_WHY}"
+                why = f"withheld {withheld}: {WITHHELD_WHY}"
                 if held:  # the user's datasheet values: neither determined here nor withheld
-                    status += "; held: " + ", ".join(f"{n} = {v:g}" for n, v in held.items())
+                    why += "; held: " + ", ".join(f"{n} = {v:g}" for n, v in held.items())
+                status = f"{PARTIAL}{why}"
             else:
                 status = f"{KEPT_LAST_GOOD}{INCOMPLETE}{why})"
-            return RecalibrationOutcome(False, status, self.last_good, result, ids, now, seconds, determined)
+            return RecalibrationOutcome(False, status, self.last_good, result, ids, now, seconds, determined, why=why)
         if self.last_good is not None:
             jumps = self._jumps(model, result)
             if jumps:
                 text = ", ".join(f"{n} {100 * j:+.0f} %" for n, j in jumps.items())
+                why = f"implausible jump ({text})"
                 return RecalibrationOutcome(
-                    False, f"{KEPT_LAST_GOOD}implausible jump ({text})", self.last_good, result, ids, now, seconds
+                    False, f"{KEPT_LAST_GOOD}{why}", self.last_good, result, ids, now, seconds, why=why
                 )
         self.last_good = model
         self.last_result = result
         flagged = [n for n, e in result.estimates.items() if not e.identifiable]
         status = "ok" if not flagged else f"ok; poorly identified: {', '.join(flagged)}"
-        return RecalibrationOutcome(True, status, model, result, ids, now, seconds)
+        return RecalibrationOutcome(True, status, model, result, ids, now, seconds, flagged=flagged)

@@ -129,16 +129,24 @@ def test_a_recalibration_is_said_as_what_happened_to_the_set_in_force() -> None:
     from phid_ros.model.parameters import TABLE1
     from phid_ros.stream.recalibration import RecalibrationOutcome
 
-    def outcome(accepted: bool, status: str, in_force) -> str:
-        return recalibration_text(RecalibrationOutcome(accepted, status, in_force, None, ["a"], 31 * 10**9, 0.1), 10**9)
+    def outcome(accepted: bool, status: str, in_force, **facts) -> str:
+        made = RecalibrationOutcome(accepted, status, in_force, None, ["a"], 31 * 10**9, 0.1, **facts)
+        return recalibration_text(made, 10**9)
 
-    waiting = outcome(False, "kept last good set: incomplete result (stage 1 (H, D) did not run: too few)", None)
+    why = "stage 1 (H, D) did not run: too few"
+    waiting = outcome(False, f"kept last good set: incomplete result ({why})", None, why=why)
     said = (
         "recalibration at 30.0 s with 1 event(s): no set yet (the events so far do not determine every parameter): "
         "stage 1 (H, D) did not run"
     )
     assert waiting == said + ": too few"
-    adopted = outcome(True, "ok; poorly identified: D, X_q_prime", TABLE1)
+    adopted = outcome(True, "ok; poorly identified: D, X_q_prime", TABLE1, flagged=["D", "X_q_prime"])
     assert adopted.endswith("adopted (withheld as poorly identified: D, X'_q)")
-    kept = outcome(False, "kept last good set: implausible jump (X_d +40 %)", TABLE1)
+    jump = "implausible jump (X_d +40 %)"
+    kept = outcome(False, f"kept last good set: {jump}", TABLE1, why=jump)
     assert kept.endswith("not adopted, the set in force kept (implausible jump (X_d +40 %))")
+    # a window skipped beside an adopted set: said after the flagged names, not read as one of them
+    skipped = outcome(
+        True, "ok; poorly identified: D; skipped: w1: too short", TABLE1, flagged=["D"], skipped=["w1: too short"]
+    )
+    assert skipped.endswith("adopted (withheld as poorly identified: D; skipped: w1: too short)")

@@ -102,8 +102,9 @@ def test_before_any_set_a_partial_run_publishes_what_it_determined_and_only_that
     from phid_ros.ident.results import Estimate
 
     determined = {"X_d": Estimate(2.54, 0.006), "T_d0_prime": Estimate(1.44, 0.005)}
-    status = "partial set: withheld H, D, X_q, X_d_prime, X_q_prime, T_q0_prime: not determined ..."
-    partial = RecalibrationOutcome(False, status, None, None, ["e1"], T0, 0.1, determined)
+    why = "withheld H, D, X_q, X_d_prime, X_q_prime, T_q0_prime: not determined ..."
+    status = f"partial set: {why}"
+    partial = RecalibrationOutcome(False, status, None, None, ["e1"], T0, 0.1, determined, why=why)
     [msg] = [p.message for p in emit(types, Outputs(recalibrations=[partial]))]
     assert list(msg.names) == ["X_d", "T_d0_prime"]
     assert list(msg.values) == [2.54, 1.44] and list(msg.std_dev) == [0.006, 0.005]
