@@ -136,7 +136,7 @@ def _add_simulate(sub: Subparsers) -> None:
         "--effect",
         action="append",
         metavar="NAME[=k=v,...]",
-        help=f"switch on a plant effect, repeatable; NAME is one of: {', '.join(_effect_names())}",
+        help=f"switch on a plant effect, repeatable; NAME is one of: {', '.join(effect_names())}",
     )
     p.add_argument("--force", action="store_true", help="replace existing outputs (the bag and its .truth.json)")
     p.add_argument(
@@ -522,7 +522,13 @@ def build_parser() -> Parser:
     return parser
 
 
-def _effect_names() -> list[str]:
-    from phid_ros.sim.effects import REGISTRY
+def effect_names() -> list[str]:
+    """The plant effects' names, read from the effects package's modules without importing them
+    (each effect is named after its module: ``test/sim/test_effects.py`` holds it): importing them
+    imports numba, over a second that ``phid --help`` would pay."""
+    import importlib.util
+    import pkgutil
 
-    return sorted(REGISTRY)
+    spec = importlib.util.find_spec("phid_ros.sim.effects")
+    assert spec is not None and spec.submodule_search_locations is not None
+    return sorted(m.name for m in pkgutil.iter_modules(spec.submodule_search_locations) if m.name != "base")

@@ -27,7 +27,7 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
-from phid_ros.jit import maybe_jit
+from phid_ros.jit import jit_on_first_call
 from phid_ros.model.bounds import Bounded
 from phid_ros.numerics import first_order_coefficients, first_order_response
 
@@ -185,7 +185,7 @@ def _nonwindup_lag_steps(u: Array, a: float, b0: float, b1: float, lo: Array, hi
 
 
 # compiled where numba is (a limited exciter's fit plays this loop at every evaluation of every case)
-_nonwindup_lag_loop = maybe_jit(_nonwindup_lag_steps)
+_nonwindup_lag_loop = jit_on_first_call(_nonwindup_lag_steps)
 
 
 def nonwindup_lead_lag(u: Array, t_lead: float, t_lag: float, dt: float, lo: float, hi: float, x0: float) -> Array:
@@ -226,7 +226,7 @@ def _nonwindup_lead_lag_steps(
 
 # compiled where numba is: ST5B's fit plays this loop at every evaluation of every case (a
 # commissioning day's exciter search spent 87 of its 290 s in it as Python)
-_nonwindup_lead_lag_loop = maybe_jit(_nonwindup_lead_lag_steps)
+_nonwindup_lead_lag_loop = jit_on_first_call(_nonwindup_lead_lag_steps)
 
 
 def lead_lag(u: Array, t_lead: float, t_lag: float, dt: float) -> Array:
@@ -626,7 +626,7 @@ def _exst1_steps(
     return out
 
 
-_exst1_loop = maybe_jit(_exst1_steps)
+_exst1_loop = jit_on_first_call(_exst1_steps)
 
 
 @register

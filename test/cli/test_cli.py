@@ -132,3 +132,19 @@ def test_simulate_starts_the_recording_where_start_says(tmp_path, capsys):
     assert stop.value.code == 2
     err = capsys.readouterr().err
     assert "'yesterday' is not an ISO 8601 date-time" in err and not (tmp_path / "x.mcap").exists()
+
+
+def test_the_help_compiles_nothing_and_imports_no_numba() -> None:
+    """``phid --help`` and a command's help import neither numba nor scipy (over a second of a
+    start-up that compiles nothing); the control models' loops compile on their first call."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys\nfrom phid_ros.cli.main import main\n"
+        "for args in (['--help'], ['identify', '--help'], ['simulate', '--help']):\n"
+        "    try:\n        main(args)\n    except SystemExit:\n        pass\n"
+        "print(sorted(m for m in ('numba', 'scipy') if m in sys.modules))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip().splitlines()[-1] == "[]"

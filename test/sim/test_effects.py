@@ -25,6 +25,11 @@ def test_registry_and_the_simulate_syntax():
         "subtransient_dynamics",
         "shaft_torsion",
     }
+    # each effect is named after its module: the command line lists them from the modules' names
+    from phid_ros.cli.parser import effect_names
+
+    assert effect_names() == sorted(REGISTRY)
+    assert all(cls.__module__ == f"phid_ros.sim.effects.{name}" for name, cls in REGISTRY.items())
     e = parse_effect("magnetic_saturation=s10=0.1,s12=0.4")
     assert isinstance(e, MagneticSaturation) and e["s10"] == 0.1 and e["s12"] == 0.4
     assert parse_effect("stator_resistance")["r_a"] == 0.005  # default
