@@ -439,6 +439,7 @@ def zakucac_curve(work: Path) -> Figures:
     for name in ("S10", "S12"):
         est = a.get(name) or {}
         out[f"unit A {name}"] = figure(est.get("value") if est.get("identifiable") else None, 0.005)
+        out[f"unit A {name} std"] = figure(est.get("std") if est.get("identifiable") else None, 0.002)
     out["unit A curve at its no-load plateaus, worst %"] = figure(_pct(a.get("worst_relative_error")), 0.2)
     out["unit A plateaus"] = figure(len(a.get("points") or []), 0.0, "verdict")
     out["unit A curve at unit B's plateaus, worst %"] = figure(_pct(_sister_miss(a, curves["B"])), 0.2)
