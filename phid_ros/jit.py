@@ -53,7 +53,7 @@ class _OnFirstCall:
     """A loop compiled the first time it is called (from Python, never from compiled code)."""
 
     def __init__(self, f: Any) -> None:
-        self.f = f
+        self.f = self.py_func = f  # py_func: the Python loop, under numba's dispatcher's name for it
         self.compiled: Any = None
         self.lock = threading.Lock()  # the recalibration's worker and the main thread may both call first
         self.__doc__, self.__name__ = f.__doc__, f.__name__
