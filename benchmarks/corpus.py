@@ -418,7 +418,8 @@ def zakucac_curve(work: Path) -> Figures:
     field bases (SOURCE.md: U_f 74 V, I_f 725 A), identified together: T'_d0 as through the
     calibrated map, and the open-circuit curve in the planning form through unit A's no-load
     plateaus (its polled steps, lowered and raised); unit B's polled steps are on line (a line
-    charging), so B's own curve rests on its build-up alone, and A's curve is judged at B's plateau."""
+    charging), so B's own curve rests on its build-up alone, and A's curve is judged at B's plateau.
+    The field winding's resistance from each test file's plateaus, in ohms through the map's bases."""
     plant = _real("zakucac-dev")
     (work / "map.yaml").write_text(ZAKUCAC_ON_LINE + "  v_ref: {name: Ug_ref_pu, unit: pu}\n")
     out: Figures = {}
@@ -435,6 +436,13 @@ def zakucac_curve(work: Path) -> Figures:
         value = doc["parameters"]["T_d0_prime"] if doc["identifiable"]["T_d0_prime"] else None
         out[f"unit {unit} T_d0_prime, the controller's bases (s)"] = figure(value, 0.01 * (value or 1.0))
         curves[unit] = (doc.get("stages") or {}).get("field_circuit", {}).get("open_circuit_curve") or {}
+        # SOURCE.md: U_f ~74-76 V at I_f ~782 A after the build-up, "so R_f ~0.093-0.097"
+        r_f = (doc.get("stages") or {}).get("field_resistance") or {}
+        in_ohms = r_f.get("unit") == "ohm"
+        out[f"unit {unit} R_f from the plateaus (ohm)"] = figure(r_f.get("value") if in_ohms else None, 0.0005)
+        out[f"unit {unit} R_f files' range (ohm)"] = figure(
+            "-".join(f"{x:.4f}" for x in r_f["range"]) if in_ohms else "none", 0.0, "verdict"
+        )
     a = curves["A"]
     for name in ("S10", "S12"):
         est = a.get(name) or {}

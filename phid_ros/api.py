@@ -288,6 +288,9 @@ def identify_unit(
         t0 = time.perf_counter()
         no_load, _why = no_load_playback(on_base, res.estimates, options.constraints, controls, options.f_nominal_hz)
         res.timing["no_load_playback"] = round(time.perf_counter() - t0, 6)
+    resistance = field_resistance_of(unit)
+    if resistance is not None:
+        res.route_details["field_resistance"] = resistance
     doc = res.to_json(truth)
     doc["controls"] = controls_json(controls)
     if no_load is not None:
@@ -297,6 +300,31 @@ def identify_unit(
     if unit.recording.metadata.get("base_mva") is not None:
         doc["base_mva"] = float(unit.recording.metadata["base_mva"])
     return UnitIdentification(scenarios, res, controls, doc, no_load)
+
+
+def field_resistance_of(unit: UnitCut) -> dict[str, Any] | None:
+    """The field winding's resistance at each test file's plateaus (``ident.field_circuit.field_resistance``),
+    in ohms where every recording that gives one states its field bases in V and A, else in the
+    recorder's per unit (then from recordings without bases only: two recordings' per units are
+    not one unit unless their bases say so); None where no plateau has U_f and I_f."""
+    from phid_ros.ident.field_circuit import FieldResistance, field_resistance
+    from phid_ros.io.recording import field_bases
+
+    parts = []
+    for c in unit.cuts:
+        bases = field_bases(c.recording.metadata)
+        got = field_resistance(c.scenarios, bases.ohms_per_unit if bases else None)
+        if got is not None:
+            parts.append(got)
+    in_ohms = [p for p in parts if p.ohms_per_unit is not None]
+    use = in_ohms or parts
+    if not use:
+        return None
+    merged = FieldResistance({f: r for p in use for f, r in p.values.items()}, 1.0 if in_ohms else None)
+    out = merged.as_dict()
+    if len(use) < len(parts):
+        out["left_out"] = sorted(f for p in parts if p.ohms_per_unit is None for f in p.per_file)
+    return out
 
 
 @dataclass

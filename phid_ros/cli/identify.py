@@ -232,6 +232,17 @@ def open_circuit_curve_text(curve: dict[str, Any]) -> str:
     )
 
 
+def field_resistance_text(r: dict[str, Any]) -> str:
+    """The field winding's resistance from the plateaus (``api.field_resistance_of``), in one line."""
+    files = len(r["files"])
+    lo, hi = r["range"]
+    spread = f", files {lo:#.4g}-{hi:#.4g} (the winding's temperature)" if files > 1 else ""
+    unit = " Ω" if r["unit"] == "ohm" else " (U_f per I_f as recorded: the recordings state no field bases in V and A)"
+    left = f"; left out, without field bases: {', '.join(r['left_out'])}" if r.get("left_out") else ""
+    said = f"{r['value']:#.4g}{unit} over {files} test file(s)"
+    return f"field winding's resistance at the plateaus: {said}{spread}{left}"
+
+
 def identify_command(args: Any, console: Console) -> int:
     from phid_ros.io.files.outputs import refuse_inputs
 
@@ -290,6 +301,8 @@ def identify_command(args: Any, console: Console) -> int:
     print_controls(console, controls)
     if curve := res.route_details.get("field_circuit", {}).get("open_circuit_curve"):
         console.print(open_circuit_curve_text(curve), highlight=False, markup=False)
+    if resistance := res.route_details.get("field_resistance"):
+        console.print(field_resistance_text(resistance), highlight=False, markup=False)
     if res.determined_by:
         print_day(console, res, controls)
     if found.no_load is not None:

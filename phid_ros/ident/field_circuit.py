@@ -27,6 +27,7 @@ from __future__ import annotations
 import math
 from collections.abc import Collection, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from scipy.integrate import cumulative_trapezoid
@@ -490,6 +491,55 @@ def _steady_parts(s: ScenarioData) -> list[slice]:
     return [p for p in (slice(0, k0), s.steady_slice()) if p.stop - p.start >= 10]
 
 
+def current_per_field_voltage(scenarios: Sequence[ScenarioData]) -> dict[str, float]:
+    """Each test file's recorded I_f per U_f at its plateaus (before and after each event, on line
+    or at no load; a de-excited one left out), by least squares through the origin: the inverse
+    of its field winding's resistance at that test's temperature, in the recorder's units."""
+    means: dict[str, list[tuple[float, float]]] = {}
+    for s in scenarios:
+        if not s.has("v_f", "i_fd"):
+            continue
+        for part in _steady_parts(s):
+            _, u, i = _plateau(s, part)
+            if abs(u) > FIELD_FLOOR:
+                means.setdefault(file_of(s), []).append((u, i))
+    return {f: float(sum(u * i for u, i in pts) / sum(u * u for u, _ in pts)) for f, pts in means.items()}
+
+
+@dataclass(frozen=True)
+class FieldResistance:
+    """The field winding's resistance from the plateaus, test file by test file (U_f per I_f as
+    recorded, times ``ohms_per_unit`` where the recording's field bases are in V and A: then in
+    ohms). The files' spread is the winding's temperature, not noise: a test after hours on line
+    reads more than one after a standstill."""
+
+    per_file: dict[str, float]
+    ohms_per_unit: float | None = None  # the bases' V per A; None: in the recorder's per unit
+
+    @property
+    def values(self) -> dict[str, float]:
+        k = 1.0 if self.ohms_per_unit is None else self.ohms_per_unit
+        return {f: k * r for f, r in self.per_file.items()}
+
+    def as_dict(self) -> dict[str, Any]:
+        v = np.array(list(self.values.values()))
+        return {
+            "unit": "ohm" if self.ohms_per_unit is not None else "U_f per I_f as recorded",
+            "value": float(np.mean(v)),
+            "std": float(np.std(v, ddof=1) / math.sqrt(len(v))) if len(v) > 1 else math.nan,
+            "range": [float(v.min()), float(v.max())],
+            "files": self.values,
+        }
+
+
+def field_resistance(scenarios: Sequence[ScenarioData], ohms_per_unit: float | None = None) -> FieldResistance | None:
+    """The field winding's resistance at each test file's plateaus, or None where no file has a
+    plateau with both U_f and I_f recorded."""
+    per_volt = current_per_field_voltage(scenarios)
+    per_file = {f: 1.0 / k for f, k in per_volt.items() if k > 0}
+    return FieldResistance(per_file, ohms_per_unit) if per_file else None
+
+
 def machine_field(scenarios: Sequence[ScenarioData], saturation: tuple[float, float] | None) -> MachineField | None:
     """E_fd's base per test file from the recorded field current, or None where a scenario with
     E_fd lacks I_fd or no no-load plateau is there. ``saturation``: the machine's S(1.0), S(1.2)
@@ -504,13 +554,7 @@ def machine_field(scenarios: Sequence[ScenarioData], saturation: tuple[float, fl
         return None
     traversed = [(line.c, line.scenario) for line in build_up_lines(field_events(scenarios)).values()]
     base = field_current_base([p[0] for p in plateaus], [p[2] for p in plateaus], saturation, traversed)
-    means: dict[str, list[tuple[float, float]]] = {}
-    for s in with_field:
-        for part in _steady_parts(s):
-            _, u, i = _plateau(s, part)
-            if abs(u) > FIELD_FLOOR:
-                means.setdefault(file_of(s), []).append((u, i))
-    resistance = {f: float(sum(u * i for u, i in pts) / sum(u * u for u, _ in pts)) for f, pts in means.items()}
+    resistance = current_per_field_voltage(with_field)
     scale = {f: base.scale * k for f, k in resistance.items()}
     ks = np.array(list(resistance.values()))
     note = (

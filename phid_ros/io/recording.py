@@ -94,6 +94,47 @@ def not_recorded(metadata: Mapping[str, str]) -> frozenset[str]:
     return frozenset(c for c in metadata.get(NOT_RECORDED_KEY, "").split(",") if c)
 
 
+# what 1 pu of the recorded field quantities is in the recorder's units (a map's ``base``, or the
+# import's no-load calibration): the field winding's resistance is then said in ohms
+FIELD_BASES_KEY = "field_bases"
+
+
+@dataclass(frozen=True)
+class FieldBases:
+    """Volts per pu of the recorded E_fd and amperes per pu of the recorded I_fd (None: recorded in
+    per unit, or not recorded), as a recording's metadata carries them (``v_f=74 V;i_fd=725 A``)."""
+
+    volts: float | None = None
+    amperes: float | None = None
+
+    def text(self) -> str:
+        parts = [f"v_f={self.volts!r} V"] if self.volts is not None else []
+        return ";".join([*parts, *([f"i_fd={self.amperes!r} A"] if self.amperes is not None else [])])
+
+    @property
+    def ohms_per_unit(self) -> float | None:
+        """Ohms per unit of the recorded U_f per I_f, where both are recorded in volts and amperes."""
+        return None if self.volts is None or self.amperes is None else self.volts / self.amperes
+
+
+def field_bases(metadata: Mapping[str, str]) -> FieldBases | None:
+    """The recording's field bases, or None where its metadata holds none (or holds them unreadably:
+    a figure in ohms is then not said, never said wrong)."""
+    text = metadata.get(FIELD_BASES_KEY)
+    if not text:
+        return None
+    got: dict[str, float] = {}
+    for part in text.split(";"):
+        m = re.fullmatch(r"(v_f|i_fd)=([0-9.eE+-]+) (V|A)", part.strip())
+        if m is None or (m[1] == "v_f") != (m[3] == "V"):
+            return None
+        value = float(m[2])
+        if not (math.isfinite(value) and value > 0):
+            return None
+        got[m[1]] = value
+    return FieldBases(got.get("v_f"), got.get("i_fd"))
+
+
 # a field import's columns no channel map named (a regulator's output, a status word), comma-separated:
 # recorded, left behind by the import, and said so
 NOT_IMPORTED_KEY = "not_imported"

@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import json
+import re
 
 import pytest
 
 from phid_ros.cli.main import main
 from phid_ros.model.parameters import TABLE1
 from phid_ros.stream.levels import Level
-from test.io.field.field_sets import FIELD_BASE_V, trend_log_set
+from test.io.field.field_sets import FIELD_BASE_A, FIELD_BASE_V, trend_log_set
 
 
 @pytest.fixture(scope="module")
@@ -46,6 +47,13 @@ def test_import_info_identify_export(folder, capsys) -> None:
         assert doc["identifiable"][name] is True
     assert doc["parameters"]["X_d"] == pytest.approx(TABLE1.X_d, rel=0.01)
     assert doc["parameters"]["X_d_prime"] == pytest.approx(TABLE1.X_d_prime, rel=0.03)
+    # the field winding's resistance from the plateaus, in ohms through the calibrated bases: the
+    # look-alike's U_f per I_f at every steady state is its bases' ratio
+    r_f = doc["stages"]["field_resistance"]
+    assert r_f["unit"] == "ohm" and len(r_f["files"]) == 7
+    assert r_f["value"] == pytest.approx(FIELD_BASE_V / FIELD_BASE_A, rel=0.005)
+    said = re.search(r"field winding's resistance at the plateaus: ([0-9.]+) Ω over 7 test file", out)
+    assert said and float(said[1]) == pytest.approx(FIELD_BASE_V / FIELD_BASE_A, rel=0.005)
     # a planning record needs all eight: refused, naming the first that is missing and the way on
     assert main(["export", str(result), "--format", "psse-dyr", "--out", str(d / "unit.dyr")]) == 2
     err = capsys.readouterr().err
@@ -134,7 +142,12 @@ def test_a_csv_set_import_reads_back_and_never_replaces_a_recorders_file(folder,
     assert main(["import-pmu", *map(str, paths), "--map", str(cmap), "--out", str(manifest)]) == 0
     out = d / "from_csv.json"
     assert main(["identify", str(manifest), "--fix", f"X_q={TABLE1.X_q}", "--json", str(out)]) == 0
-    assert json.loads(out.read_text())["parameters"]["T_d0_prime"] == pytest.approx(TABLE1.T_d0_prime, rel=0.01)
+    doc = json.loads(out.read_text())
+    assert doc["parameters"]["T_d0_prime"] == pytest.approx(TABLE1.T_d0_prime, rel=0.01)
+    # the field bases travel in the manifest: the resistance is still said in ohms
+    assert json.loads(manifest.read_text())["field_bases"].startswith("v_f=123.")
+    r_f = doc["stages"]["field_resistance"]
+    assert r_f["unit"] == "ohm" and r_f["value"] == pytest.approx(FIELD_BASE_V / FIELD_BASE_A, rel=0.005)
 
 
 def test_recordings_on_different_bases_are_refused_by_name(folder, trend_bag, capsys) -> None:
@@ -297,3 +310,53 @@ def test_the_identify_report_of_a_recorder_s_day_draws_what_was_recorded(folder,
     labels = {ax.get_ylabel() for ax in scenario_figure.axes if ax.get_ylabel()}
     assert labels == {"V_t (pu)", "P_e (pu)", "Q_e (pu)"}
     assert "not recorded, not drawn: Δω, I_d, I_q" in scenario_figure._suptitle.get_text()
+
+
+def test_the_field_resistance_follows_each_file_and_says_its_unit(folder, tmp_path) -> None:
+    """R_f from the plateaus, file by file: a winding 8 % warmer in one test (its U_f read 8 % up
+    for the same I_f) reads 8 % more there and nowhere else; recorded through a map that states
+    other bases (the controller's), the figure in ohms is the same; with the field in per unit it
+    is said in the recorder's per unit."""
+    from phid_ros.api import cut_unit, field_resistance_of, import_recordings
+    from phid_ros.io.bags.recordings import write_recording
+
+    d, paths, cmap, _ = folder
+    warm = tmp_path / "step_1.csv"
+    lines = paths[2].read_text().splitlines()
+    head = lines[0].split(";")
+    k = head.index("UF")
+
+    def warmer(row: str) -> str:
+        cells = row.split(";")
+        cells[k] = f"{1.08 * float(cells[k].replace(',', '.')):.6f}".replace(".", ",")
+        return ";".join(cells)
+
+    warm.write_text("\n".join([lines[0], *map(warmer, lines[1:])]) + "\n")
+    files = [*paths[:2], warm, *paths[3:]]
+    other = tmp_path / "controller.yaml"
+    other.write_text(
+        cmap.read_text()
+        .replace("{name: UF, unit: V}", "{name: UF, unit: V, base: 74}")
+        .replace("{name: IF, unit: A}", "{name: IF, unit: A, base: 725}")
+    )
+    ohms = FIELD_BASE_V / FIELD_BASE_A
+    for m in (cmap, other):
+        bag = write_recording(tmp_path / f"{m.stem}.mcap", import_recordings(files, [m], kind="pmu"))
+        r_f = field_resistance_of(cut_unit([bag]))
+        assert r_f is not None and r_f["unit"] == "ohm"
+        by_file = {name.rsplit("/", 1)[-1]: v for name, v in r_f["files"].items()}
+        assert by_file["step_1"] == pytest.approx(1.08 * ohms, rel=0.003), m.name
+        assert all(v == pytest.approx(ohms, rel=0.003) for f, v in by_file.items() if f != "step_1"), m.name
+        assert r_f["range"] == pytest.approx([min(by_file.values()), max(by_file.values())])
+    # the field in per unit: no bases, the figure is the recorder's own ratio (1 on the air-gap line)
+    pu = tmp_path / "pu.yaml"
+    pu.write_text(
+        cmap.read_text()
+        .replace("{name: UF, unit: V}", "{name: UF, unit: V, base: 123.4}")
+        .replace("{name: IF, unit: A}", "{name: IF, unit: A, base: 1876}")
+    )
+    rec = import_recordings(files, [pu], kind="pmu")
+    del rec.metadata["field_bases"]
+    r_f = field_resistance_of(cut_unit([write_recording(tmp_path / "pu.mcap", rec)]))
+    assert r_f is not None and r_f["unit"] == "U_f per I_f as recorded"
+    assert sorted(r_f["files"].values())[0] == pytest.approx(1.0, rel=0.003)

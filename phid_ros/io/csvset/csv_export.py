@@ -16,7 +16,7 @@ import numpy as np
 from phid_ros.errors import PhidError
 from phid_ros.io.csvset.csv_import import CSV_COLUMNS
 from phid_ros.io.files.outputs import atomic_output, write_text
-from phid_ros.io.recording import MEASUREMENT_WINDOW_KEY, Recording
+from phid_ros.io.recording import FIELD_BASES_KEY, MEASUREMENT_WINDOW_KEY, Recording
 from phid_ros.io.topics import ALL_STREAMS_BY_NAME, STREAMS
 from phid_ros.model.channels import CHANNELS
 from phid_ros.model.conventions import NS
@@ -69,6 +69,8 @@ def write_csv_set(folder: str | Path, rec: Recording) -> Path:
         manifest["base_mva"] = float(rec.metadata["base_mva"])
     if MEASUREMENT_WINDOW_KEY in rec.metadata:
         manifest[MEASUREMENT_WINDOW_KEY] = float(rec.metadata[MEASUREMENT_WINDOW_KEY])
+    if FIELD_BASES_KEY in rec.metadata:
+        manifest[FIELD_BASES_KEY] = rec.metadata[FIELD_BASES_KEY]
     return write_text(out / MANIFEST, json.dumps(manifest, indent=2) + "\n")
 
 

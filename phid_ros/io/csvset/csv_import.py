@@ -28,12 +28,14 @@ from numpy.typing import NDArray
 from phid_ros.errors import CsvImportError
 from phid_ros.io.files.results import read_json
 from phid_ros.io.recording import (
+    FIELD_BASES_KEY,
     MEASUREMENT_WINDOW_KEY,
     NOT_RECORDED_KEY,
     REGULATORS,
     Recording,
     ScenarioInfo,
     StreamSamples,
+    field_bases,
 )
 from phid_ros.io.topics import RECORDER_CHANNELS, RECORDER_STREAMS, STREAMS
 from phid_ros.model.channels import CHANNELS, SAME_PERIOD, unit_problem
@@ -344,6 +346,13 @@ def import_csv_set(manifest_path: str | Path, *, strict: bool = False, start_ns:
         if isinstance(window, bool) or not isinstance(window, (int, float)) or not 0 <= window < 1:
             raise CsvImportError(f"{manifest}: {MEASUREMENT_WINDOW_KEY} must be seconds in [0, 1), got {window!r}")
         rec.metadata[MEASUREMENT_WINDOW_KEY] = repr(float(window))
+    bases = meta.get(FIELD_BASES_KEY)
+    if bases is not None:
+        if not isinstance(bases, str) or field_bases({FIELD_BASES_KEY: bases}) is None:
+            raise CsvImportError(
+                f"{manifest}: {FIELD_BASES_KEY} must read like 'v_f=74 V;i_fd=725 A' (positive numbers), got {bases!r}"
+            )
+        rec.metadata[FIELD_BASES_KEY] = bases
     rec.warnings.extend(warnings)
     return rec
 

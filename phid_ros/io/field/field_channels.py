@@ -48,7 +48,14 @@ from phid_ros.io.field.phasors import (
     sequence_problem,
     system_frequency,
 )
-from phid_ros.io.recording import MEASUREMENT_WINDOW_KEY, NOT_IMPORTED_KEY, REGULATORS, Recording
+from phid_ros.io.recording import (
+    FIELD_BASES_KEY,
+    MEASUREMENT_WINDOW_KEY,
+    NOT_IMPORTED_KEY,
+    REGULATORS,
+    FieldBases,
+    Recording,
+)
 from phid_ros.io.topics import RECORDER_CHANNELS
 from phid_ros.model.channels import NO_LOAD_CURRENT, current_of
 from phid_ros.model.conventions import terminal_to_dq
@@ -367,7 +374,7 @@ def field_recording(
         raise ChannelMapError(f"recordings with the same name {dup}: scenario names must differ")
     _scenarios_name_recordings(tables, cmaps)
     each_once(tables)
-    field_notes = calibrate_field(tables, cmaps)
+    field_notes, bases = calibrate_field(tables, cmaps)
     starts = [t.start_ns for t in tables if t.start_ns is not None]
     # the recording begins when its first file says it did (the import's own date before)
     kwargs = {"start_ns": min(starts)} if starts else {}
@@ -380,6 +387,8 @@ def field_recording(
         rec.metadata[NOT_IMPORTED_KEY] = ",".join(dict.fromkeys(c for t in tables for c in t.not_imported))
     if window_s > 0:
         rec.metadata[MEASUREMENT_WINDOW_KEY] = repr(window_s)
+    if bases.text():
+        rec.metadata[FIELD_BASES_KEY] = bases.text()
     return rec
 
 
@@ -452,19 +461,24 @@ def no_load_points(tables: list[ScenarioTable], quantity: str) -> list[tuple[flo
     return out
 
 
-def calibrate_field(tables: list[ScenarioTable], cmaps: Sequence[ChannelMap]) -> list[str]:
+def calibrate_field(tables: list[ScenarioTable], cmaps: Sequence[ChannelMap]) -> tuple[list[str], FieldBases]:
     """Field quantities recorded in V or A without a stated base get it from the set's no-load tests.
 
     At no load in steady state the fourth-order model has V_t = E'_q = E_fd (and = I_fd, both in
     IEEE 115's air-gap-line per unit), so the slope of the recorded field quantity against V_t
     through the origin is its base. A saturated no-load point (above rated voltage) gives a base
-    too high; the note says how far the points scatter about the line. Returns the notes.
+    too high; the note says how far the points scatter about the line. Returns the notes, and what
+    1 pu of each field quantity recorded in V or A is (the map's base or this calibration's).
     """
     notes = []
+    bases: dict[str, float] = {}
     for q in FIELD_QUANTITIES:
         cmap = next((m for m in cmaps if q in m.channels), cmaps[0])
         spec = cmap.channels.get(q)
-        if spec is None or spec.unit == "pu" or spec.base is not None:
+        if spec is None or spec.unit == "pu":
+            continue
+        if spec.base is not None:
+            bases[q] = spec.base
             continue
         pts = no_load_points(tables, q)
         if not pts:
@@ -475,6 +489,7 @@ def calibrate_field(tables: list[ScenarioTable], cmaps: Sequence[ChannelMap]) ->
             )
         raw, v_t = np.array([p[0] for p in pts]), np.array([p[1] for p in pts])
         base = float(raw @ v_t / (v_t @ v_t))
+        bases[q] = base
         scatter = float(np.max(np.abs(raw / (base * v_t) - 1.0)))
         for tab in tables:
             if q in tab.columns:
@@ -485,4 +500,4 @@ def calibrate_field(tables: list[ScenarioTable], cmaps: Sequence[ChannelMap]) ->
             f"{len(pts)} no-load steady state(s) of {', '.join(recordings)} (V_t = {q} at no load; "
             f"V_t {v_t.min():.3f}-{v_t.max():.3f} pu, points within {100 * scatter:.2f} % of the line)"
         )
-    return notes
+    return notes, FieldBases(bases.get("v_f"), bases.get("i_fd"))

@@ -291,3 +291,21 @@ def test_a_manifest_s_regulator_is_checked(tmp_path) -> None:
 
     write_recording(tmp_path / "a.mcap", rec)
     assert read_recording(tmp_path / "a.mcap").scenarios[0].regulator == "avr+pss"
+
+
+def test_the_field_bases_travel_in_the_manifest_and_a_bad_one_is_named(tmp_path, short_runs):
+    from phid_ros.io.recording import FIELD_BASES_KEY, FieldBases, field_bases
+
+    manifest = write_set(tmp_path, short_runs[:1])
+    meta = json.loads(manifest.read_text())
+    meta[FIELD_BASES_KEY] = FieldBases(74.0, 725.0).text()
+    manifest.write_text(json.dumps(meta))
+    rec = import_csv_set(manifest)
+    got = field_bases(rec.metadata)
+    assert got == FieldBases(74.0, 725.0) and got.ohms_per_unit == pytest.approx(74 / 725)
+    assert field_bases({FIELD_BASES_KEY: "v_f=74.0 V"}) == FieldBases(74.0, None)
+    for bad in ("v_f=74 A", "i_fd=-3 A", "v_f=74 V;base=3", 12):
+        meta[FIELD_BASES_KEY] = bad
+        manifest.write_text(json.dumps(meta))
+        with pytest.raises(CsvImportError, match=r"manifest\.json: field_bases must read like 'v_f=74 V;i_fd=725 A'"):
+            import_csv_set(manifest)
