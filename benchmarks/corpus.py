@@ -328,6 +328,7 @@ def mostar_recipe(work: Path) -> Figures:
     (docs/examples/mostar): import, identify, export onto the published record, validate both,
     and the monitor with phid's record on file."""
     day = _real("mostar-dev")
+    t0 = time.perf_counter()
     bag = _imported(work, sorted(day.glob("*.csv")), [EXAMPLE / "map_noload.yaml", EXAMPLE / "map_online.yaml"])
     out = _mostar_identified(work, bag)
     base: list[str | Path] = [
@@ -343,6 +344,10 @@ def mostar_recipe(work: Path) -> Figures:
     for name, dyr in (("phid's record", work / "unit.dyr"), ("published record", EXAMPLE / "published.dyr")):
         phid("validate", dyr, bag, "--json", work / "v.json")
         out.update({f"{name}: {k}": v for k, v in verdicts(json.loads((work / "v.json").read_text())).items()})
+    # issue 69's goal, 30 s on two cores: the day imported, identified, exported and validated
+    # (both records), in this process (no start-up), before the monitor's replay below
+    day_s = round(time.perf_counter() - t0, 1)
+    out["day imported, identified, exported, validated (s)"] = figure(day_s, TIME_TOLERANCE, "time")
     text = phid(
         "replay",
         bag,
