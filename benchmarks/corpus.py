@@ -533,20 +533,39 @@ def itaipu(work: Path) -> Figures:
 
 def andes_exst1(work: Path) -> Figures:
     """ANDES's GENROU (H 6.5 s, near fourth order) with EXST1 reaching its input limit in the
-    faults, and TGOV1: the paper's catalogue simulated by ANDES (cached), identified."""
+    faults, and TGOV1: the paper's catalogue simulated by ANDES (cached), identified. Its EXST1
+    and TGOV1 constants are our models' own defaults (EXST1's fit starting there from nowhere
+    else starts at the truth): ``andes-exst1-other`` holds others."""
+    return _andes_unit(work, "andes-exst1", ANDES_EXST1_UNIT, ANDES_EXST1_TRUTH)
+
+
+def andes_exst1_other(work: Path) -> Figures:
+    """ANDES's GENROU with other constants (H 4.2 s, T'_d0 5 s, X'_q above X'_d), an EXST1 and a
+    TGOV1 none of whose constants is one of our models' defaults (EXST1's input limit +-0.15, its
+    lead-lag 2 s / 15 s, K_A 120; TGOV1's droop 0.04): the paper's catalogue, identified; the
+    controls' constants against ANDES's where the model named is the one simulated."""
+    return _andes_unit(work, "andes-exst1-other", ANDES_EXST1_OTHER_UNIT, ANDES_EXST1_OTHER_TRUTH)
+
+
+def _andes_unit(work: Path, name: str, unit: str, truth: dict[str, dict[str, float]]) -> Figures:
     plant = _simulator(*SIMULATORS["andes"])
     from phid_ros.sim.scenarios import paper_catalogue, with_duration
 
-    folder = CACHE / "andes-exst1"
+    folder = CACHE / name
     manifest = folder / "tests" / "manifest.json"
     if not manifest.is_file():
-        plant.write_staged_unit(folder, ANDES_EXST1_UNIT, [with_duration(s, 12.0) for s in paper_catalogue()])
+        plant.write_staged_unit(folder, unit, [with_duration(s, 12.0) for s in paper_catalogue()])
     doc = identify_json(work, manifest)
-    truth = {"H": 6.5, "X_d": 2.54, "X_q": 2.41, "X_d_prime": 0.5, "T_d0_prime": 1.437}
-    out = errors_against(doc, truth, tuple(truth))
+    machine = truth["machine"]
+    out = errors_against(doc, machine, tuple(machine))
     out["D (pu)"] = figure(doc["parameters"]["D"] if doc["identifiable"]["D"] else None, 0.05)
-    exciter = (doc.get("controls") or {}).get("exciter") or {}
-    out["exciter named"] = figure(exciter.get("model") or "none", 0.0, "verdict")
+    for kind, simulated in (("exciter", "EXST1"), ("governor", "TGOV1")):
+        found = (doc.get("controls") or {}).get(kind) or {}
+        out[f"{kind} named"] = figure(found.get("model") or "none", 0.0, "verdict")
+        for constant, true in truth.get(kind, {}).items():
+            value = (found.get("parameters") or {}).get(constant)
+            ok = found.get("model") == simulated and (found.get("identifiable") or {}).get(constant)
+            out[f"{kind} {constant} error"] = figure((value - true) / true if ok and value is not None else None)
     return out
 
 
@@ -555,6 +574,20 @@ ANDES_EXST1_UNIT = """1 'GENROU' 1  1.437 0.03 0.1351 0.03 6.5 2.0
 1 'EXST1' 1 0.02 0.1 -0.1 1.0 10.0 200.0 0.02 10.0 -10.0 0.0 0.0 1.0 /
 1 'TGOV1' 1 0.05 0.5 1.0 0.0 2.0 6.0 0.0 /
 """
+ANDES_EXST1_TRUTH = {"machine": {"H": 6.5, "X_d": 2.54, "X_q": 2.41, "X_d_prime": 0.5, "T_d0_prime": 1.437}}
+
+# PSS/E's card orders (GENROU: T'd0 T''d0 T'q0 T''q0 H D / Xd Xq X'd X'q X''d Xl S(1.0) S(1.2);
+# EXST1: TR VIMAX VIMIN TC TB KA TA VRMAX VRMIN KC KF TF; TGOV1: R T1 VMAX VMIN T2 T3 Dt)
+ANDES_EXST1_OTHER_UNIT = """1 'GENROU' 1  5.0 0.04 0.8 0.05 4.2 1.0
+   1.8 1.7 0.4 0.6 0.3 0.15 0.0 0.0 /
+1 'EXST1' 1 0.01 0.15 -0.15 2.0 15.0 120.0 0.05 8.0 -6.0 0.0 0.0 1.0 /
+1 'TGOV1' 1 0.04 0.3 1.0 0.0 1.5 5.0 0.0 /
+"""
+ANDES_EXST1_OTHER_TRUTH = {
+    "machine": {"H": 4.2, "X_d": 1.8, "X_q": 1.7, "X_d_prime": 0.4, "T_d0_prime": 5.0},
+    "exciter": {"KA": 120.0, "TC": 2.0, "TB": 15.0, "VIMAX": 0.15},
+    "governor": {"R": 0.04, "T1": 0.3, "T2": 1.5, "T3": 5.0},
+}
 
 
 def _simulator(module: str, package: str, how: str) -> Any:
@@ -673,6 +706,7 @@ SETS: dict[str, CorpusSet] = {
     "usn-lab-2kva": CorpusSet(usn_lab, True),
     "itaipu-event": CorpusSet(itaipu, True),
     "andes-exst1": CorpusSet(andes_exst1, False),
+    "andes-exst1-other": CorpusSet(andes_exst1_other, False),
     **{f"andes-diagnose-{m}": CorpusSet(simulator_diagnosis("andes", m), False) for m in ANDES_DIAGNOSIS},
     **{f"steps-diagnose-{m}": CorpusSet(simulator_diagnosis("steps", m), False) for m in STEPS_DIAGNOSIS},
     "steps-controls": CorpusSet(steps_controls, False),
