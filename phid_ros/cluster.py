@@ -209,6 +209,27 @@ def tune_malloc() -> bool:
     return all([bool(mallopt(key, value)) for key, value in settings])
 
 
+# the BLAS libraries' thread counts, for a library loaded after one_blas_thread is entered
+BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+def one_blas_thread() -> AbstractContextManager[Any]:
+    """One BLAS thread for the work inside (every command, node and diagnosis runs in it).
+
+    phid's matrices are small (a stage's normal equations, a control fit's Jacobian of a few
+    hundred rows): a second BLAS thread costs more to wake than it saves, and OpenBLAS's idle
+    threads spin, so beside any other busy thread (a second job, a second process) they take
+    its core. The Mostar day's replay: 33 s with numpy's two threads on two cores, 17.7 s with
+    one; two replays at once, 71.6 s against 17.5 s. OpenBLAS also rounds differently with
+    another thread count, so with one the digits do not depend on the machine's cores.
+    """
+    for name in BLAS_THREAD_VARIABLES:
+        os.environ[name] = "1"
+    from threadpoolctl import threadpool_limits
+
+    return threadpool_limits(limits=1, user_api="blas")
+
+
 class Jobs(AbstractContextManager["Jobs"]):
     """Independent calls of one function, on a Dask cluster when that pays and is possible.
 
@@ -235,15 +256,13 @@ class Jobs(AbstractContextManager["Jobs"]):
         if self.workers == 1 or len(calls) <= 1:
             return [fn(*args) for args in calls]
         if self.threads and not self.scheduler and not in_worker():
-            from threadpoolctl import threadpool_limits
-
             n = min(len(calls), self.workers if self.workers > 0 else default_workers())
             # one BLAS thread per job thread: OpenBLAS's own threads on top oversubscribed the
             # cores and spin while they wait (bags/saturation, 2 workers: 25.3 s, 45.9 s of CPU;
             # with this 18.3 s, 30.4 s of CPU)
             pool = ThreadPoolExecutor(n, "phid-jobs")
             try:
-                with threadpool_limits(limits=1, user_api="blas"):
+                with one_blas_thread():
                     return list(pool.map(lambda args: _as_job(fn, args), calls))
             finally:
                 # on an error or Ctrl-C the jobs not yet started are dropped, not run to the end first

@@ -15,6 +15,16 @@ from phid_ros.sim.scenarios import Scenario, paper_catalogue
 collect_ignore = ["rclpy_double"]
 
 
+@pytest.fixture(scope="session", autouse=True)
+def one_blas_thread():
+    """The tests run as the commands do, with one BLAS thread (``phid_ros.cluster.one_blas_thread``):
+    the same digits, and two test workers on two cores do not spin on each other's cores."""
+    from phid_ros.cluster import one_blas_thread
+
+    with one_blas_thread():
+        yield
+
+
 def short(name: str, duration: float = 4.0) -> Scenario:
     from dataclasses import replace
 

@@ -12,7 +12,7 @@ from collections.abc import Sequence
 
 from phid_ros.cli.parser import EXIT_USER_ERROR, build_parser
 from phid_ros.cli.tables import make_console
-from phid_ros.cluster import tune_malloc
+from phid_ros.cluster import one_blas_thread, tune_malloc
 from phid_ros.errors import PhidError
 from phid_ros.io.files.outputs import CANNOT_WRITE
 
@@ -27,7 +27,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.commands[args.command].error(f"unrecognized arguments: {' '.join(extra)}")
     console = make_console(wide=args.wide)
     try:
-        return int(args.func(args, console))
+        with one_blas_thread():
+            return int(args.func(args, console))
     except PhidError as exc:
         print(f"phid: error: {exc}", file=sys.stderr)
         return EXIT_USER_ERROR

@@ -35,7 +35,7 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from phid_ros import jit
-from phid_ros.cluster import Jobs
+from phid_ros.cluster import Jobs, one_blas_thread
 from phid_ros.diagnose.candidates import library
 from phid_ros.diagnose.determinability import determined
 from phid_ros.diagnose.fit import FitResult, ModelSpec, fit
@@ -130,9 +130,7 @@ def diagnose(
     oversubscribe them), and OpenBLAS rounds differently with other thread counts, so a
     diagnosis in this process gives the same digits with any number of workers.
     """
-    from threadpoolctl import threadpool_limits
-
-    with threadpool_limits(limits=1, user_api="blas"):
+    with one_blas_thread():
         return _diagnose(scenarios, identified, options, progress)
 
 

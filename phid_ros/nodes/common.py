@@ -28,7 +28,7 @@ from rclpy.qos import (
     qos_profile_sensor_data,
 )
 
-from phid_ros.cluster import tune_malloc
+from phid_ros.cluster import one_blas_thread, tune_malloc
 from phid_ros.io.topics import OUTPUT_TOPICS, RECORDER_STREAMS, STREAMS
 from phid_ros.stream.params import Tunable, apply, validate
 
@@ -327,6 +327,11 @@ def subscribe_sensors(node: MonitorNode) -> None:
 def spin_until_shutdown(make_node: Any, args: list[str] | None) -> None:
     """The node skeleton of ros2/demos: init, spin, and a clean exit on Ctrl-C or external shutdown."""
     tune_malloc()  # as the CLI: the recalibration's arrays would fault their pages in at every run
+    with one_blas_thread():  # as the CLI: the recalibration's small fits, beside the ingest's threads
+        _spin(make_node, args)
+
+
+def _spin(make_node: Any, args: list[str] | None) -> None:
     rclpy.init(args=args)
     node = make_node()
     stopped = False
