@@ -195,6 +195,8 @@ def replay_command(args: Any, console: Any) -> int:
 
     def started(pipeline: MonitorPipeline) -> None:
         live.append(pipeline)
+        # a recalibration's steps shown when they begin, not at the next poll
+        pipeline.recalibrator.on_activity = lambda: progress.update(doing())
         if len(pipeline.store):
             # a kept store is the deployment's memory: its events take part in every recalibration,
             # so a replay into it differs from one into an empty store, and says so

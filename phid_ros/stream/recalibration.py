@@ -18,6 +18,7 @@ import math
 import re
 import threading
 import time
+from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 
@@ -209,8 +210,16 @@ class Recalibrator:
     # governor's fit on the catalogue's windows takes 14 s of a 17 s replay and the issue's users
     # ask for the exciter and the stabiliser)
     controls: tuple[str, ...] = ("exciter", "stabiliser")
-    # what the running recalibration is doing, for a progress line ("" while none runs)
+    # what the running recalibration is doing, for a progress line ("" while none runs), and who is
+    # told when it changes (from the worker's thread): a run shorter than a progress line's poll
+    # would otherwise never be shown, depending on the machine's speed
     activity: str = ""
+    on_activity: Callable[[], None] | None = field(default=None, repr=False, compare=False)
+
+    def _doing(self, activity: str) -> None:
+        self.activity = activity
+        if self.on_activity is not None:
+            self.on_activity()
 
     def request(self, stream_time_ns: int, *, force: bool = False) -> str:
         """Ask for a run; returns what happened (started, coalesced, or why not)."""
@@ -296,11 +305,11 @@ class Recalibrator:
                     scenarios.append(made)
             # the next run's windows are among these and newer ones: the cache holds one run's
             self._scenarios = {k: self._scenarios[k] for k in map(_window_key, windows)}
-            self.activity = f"recalibrating on {len(scenarios)} event window(s): the machine"
+            self._doing(f"recalibrating on {len(scenarios)} event window(s): the machine")
             result = identify(scenarios, self.options)
             if self.controls:
                 fitting = " and the ".join(self.controls)
-                self.activity = f"recalibrating on {len(scenarios)} event window(s): the {fitting}"
+                self._doing(f"recalibrating on {len(scenarios)} event window(s): the {fitting}")
             controls = self._controls(scenarios, result) if self.controls else {}
             outcome = self._judge(result, ids, stream_time_ns, time.perf_counter() - t0)
             outcome.controls = controls
@@ -320,7 +329,7 @@ class Recalibrator:
                 failed=True,
                 why=failure,
             )
-        self.activity = ""
+        self._doing("")
         with self._lock:
             self.runs += 1
             self._done.append(outcome)
