@@ -26,6 +26,7 @@ from phid_ros.errors import PhidError
 
 if TYPE_CHECKING:  # imported where used: reading a recording does not need the identification
     from phid_ros.ident.pipeline import IdentificationResult, IdentifyOptions
+    from phid_ros.ident.route_figures import FieldResistanceFigures
     from phid_ros.ident.scenario import ScenarioData, StepThresholds
     from phid_ros.io.recording import Recording
     from phid_ros.model.parameters import GeneratorParameters
@@ -302,12 +303,13 @@ def identify_unit(
     return UnitIdentification(scenarios, res, controls, doc, no_load)
 
 
-def field_resistance_of(unit: UnitCut) -> dict[str, Any] | None:
+def field_resistance_of(unit: UnitCut) -> FieldResistanceFigures | None:
     """The field winding's resistance at each test file's plateaus (``ident.field_circuit.field_resistance``),
     in ohms where every recording that gives one states its field bases in V and A, else in the
     recorder's per unit (then from recordings without bases only: two recordings' per units are
     not one unit unless their bases say so); None where no plateau has U_f and I_f."""
     from phid_ros.ident.field_circuit import FieldResistance, field_resistance
+    from phid_ros.ident.route_figures import FieldResistanceFigures
     from phid_ros.io.recording import field_bases
 
     parts = []
@@ -321,10 +323,8 @@ def field_resistance_of(unit: UnitCut) -> dict[str, Any] | None:
     if not use:
         return None
     merged = FieldResistance({f: r for p in use for f, r in p.values.items()}, 1.0 if in_ohms else None)
-    out = merged.as_dict()
-    if len(use) < len(parts):
-        out["left_out"] = sorted(f for p in parts if p.ohms_per_unit is None for f in p.per_file)
-    return out
+    left_out = sorted(f for p in parts if p.ohms_per_unit is None for f in p.per_file) if len(use) < len(parts) else []
+    return FieldResistanceFigures(merged, left_out)
 
 
 @dataclass

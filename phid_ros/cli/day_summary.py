@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from phid_ros.controls.cases import recorded_set_point, regulator_out_of_loop, switched_on
 from phid_ros.controls.fit import ControlFit
 from phid_ros.ident.pipeline import IdentificationResult
+from phid_ros.ident.route_figures import FieldCircuitFigures, FieldCircuitOnlineFigures
 from phid_ros.ident.scenario import ScenarioData, file_of
 from phid_ros.ident.terminal import at_no_load
 
@@ -48,9 +49,9 @@ def _event_time(s: ScenarioData) -> float:
 
 def day_summary(res: IdentificationResult, controls: Mapping[str, ControlFit | str] | None = None) -> list[TestRow]:
     """A row for each scenario identify was given, in their order."""
-    stages = res.route_details
-    t_d0 = {e["scenario"]: e["T_d0_prime"] for e in stages.get("field_circuit", {}).get("events", [])}
-    on_line = {e["scenario"]: e for e in stages.get("field_circuit_online", {}).get("events", [])}
+    no_load, online = res.route_details.get("field_circuit"), res.route_details.get("field_circuit_online")
+    t_d0 = no_load.t_d0_by_scenario() if isinstance(no_load, FieldCircuitFigures) else {}
+    on_line = online.by_scenario() if isinstance(online, FieldCircuitOnlineFigures) else {}
     exciter = (controls or {}).get("exciter")
     references = exciter.references if isinstance(exciter, ControlFit) else {}
     checked = {m.scenario: m for m in res.validation.scenarios} if res.validation else {}

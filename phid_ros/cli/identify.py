@@ -17,6 +17,7 @@ from phid_ros.controls.fit import ControlFit
 from phid_ros.controls.models import KINDS_IN_ORDER, MODELS
 from phid_ros.ident.constraints import parse_constraints
 from phid_ros.ident.pipeline import IdentificationResult, IdentifyOptions
+from phid_ros.ident.route_figures import FieldCircuitFigures
 from phid_ros.io.files.results import write_json
 from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, SYMBOLS, GeneratorParameters
 
@@ -299,10 +300,11 @@ def identify_command(args: Any, console: Console) -> int:
     print_parameters(console, res, truth)
     print_validation(console, res)
     print_controls(console, controls)
-    if curve := res.route_details.get("field_circuit", {}).get("open_circuit_curve"):
-        console.print(open_circuit_curve_text(curve), highlight=False, markup=False)
+    no_load = res.route_details.get("field_circuit")
+    if isinstance(no_load, FieldCircuitFigures) and no_load.curve is not None:
+        console.print(open_circuit_curve_text(no_load.curve.as_dict()), highlight=False, markup=False)
     if resistance := res.route_details.get("field_resistance"):
-        console.print(field_resistance_text(resistance), highlight=False, markup=False)
+        console.print(field_resistance_text(resistance.as_dict()), highlight=False, markup=False)
     if res.determined_by:
         print_day(console, res, controls)
     if found.no_load is not None:

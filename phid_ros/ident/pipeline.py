@@ -11,16 +11,23 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
-from typing import Any
-
-import numpy as np
+from dataclasses import replace
+from typing import ClassVar
 
 from phid_ros.errors import StageError
-from phid_ros.ident import consistency, determinable, stage1, stage2, stage3, validation
-from phid_ros.ident.constraints import NONE, Constraints, at_user_bound, held
+from phid_ros.ident import consistency, determinable, validation
+from phid_ros.ident.constraints import Constraints, at_user_bound, held
+from phid_ros.ident.identification import (
+    OPERATING_CHANNELS,
+    IdentificationResult,
+    IdentifyOptions,
+    Say,
+    operating_point,
+)
 from phid_ros.ident.results import Estimate
-from phid_ros.ident.scenario import DEFAULT_THRESHOLDS, ScenarioData, StepThresholds, file_of
+from phid_ros.ident.route_figures import QAxisSearchFigures
+from phid_ros.ident.routes import Route, RouteOutput, RouteRun, run_plan
+from phid_ros.ident.scenario import ScenarioData, file_of
 from phid_ros.ident.stages import (
     DifferentialDamping,
     Ieee115CurveFits,
@@ -28,192 +35,10 @@ from phid_ros.ident.stages import (
     SwingRegression,
     stage3_methods,
 )
-from phid_ros.ident.validation import ValidationResult
-from phid_ros.model.conventions import DEFAULT_F_NOMINAL_HZ
-from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, GeneratorParameters, validation_problems
+from phid_ros.model.parameters import PARAMETER_NAMES, SPECS_BY_NAME, GeneratorParameters
 
-
-@dataclass
-class IdentifyOptions:
-    method: str = "fast"
-    stage1_cutoff_hz: float = stage1.DEFAULT_CUTOFF_HZ
-    prefilter_hz: float | None = stage3.DEFAULT_PREFILTER_HZ
-    refine_synchronous: bool = False
-    use_prior: bool = False  # paper: IEEE 115 estimates as prior with lambda 0.2
-    baseline: bool = True
-    validate: bool = True
-    f_nominal_hz: float = DEFAULT_F_NOMINAL_HZ
-    seed: int = 0
-    paper_maxiter: int = 300
-    # the smallest unlabelled steps taken as disturbances when windows are cut (labelled ones count at any size)
-    step_thresholds: StepThresholds = DEFAULT_THRESHOLDS
-    constraints: Constraints = NONE  # --fix, --bounds, --start: held values, bounds, starting values
-
-
-@dataclass
-class IdentificationResult:
-    estimates: dict[str, Estimate]
-    method: str
-    scenarios: list[ScenarioData]
-    baseline: dict[str, Estimate] = field(default_factory=dict)
-    stage1_paper: stage1.Stage1Result | None = None
-    stage1: stage1.Stage1Result | None = None
-    stage2: stage2.Stage2Result | None = None
-    stage3: stage3.Stage3Result | None = None
-    validation: ValidationResult | None = None
-    validation_truth: ValidationResult | None = None
-    problems: list[str] = field(default_factory=list)
-    timing: dict[str, float] = field(default_factory=dict)
-    constraints: Constraints = NONE
-    # with channels missing: parameter -> the route that determined it (ident/determinable.py)
-    determined_by: dict[str, str] = field(default_factory=dict)
-    route_details: dict[str, Any] = field(default_factory=dict)  # those routes' own figures (JSON "stages")
-    # of ``problems``, the scenarios whose label the signals dispute (kept): a diagnosis and a fleet's
-    # row say them where the scenarios are cut, not again as the identification's
-    label_disputes: list[str] = field(default_factory=list)
-
-    def light(self) -> IdentificationResult:
-        """The estimates and what was said of them, without the scenarios' samples and the stages'
-        arrays (a long replay keeps one of these per recalibration)."""
-        return IdentificationResult(
-            self.estimates,
-            self.method,
-            [],
-            problems=list(self.problems),
-            constraints=self.constraints,
-            label_disputes=list(self.label_disputes),
-            determined_by=dict(self.determined_by),
-        )
-
-    @property
-    def parameters(self) -> dict[str, float]:
-        return {n: self.estimates[n].value if n in self.estimates else math.nan for n in PARAMETER_NAMES}
-
-    def published(self) -> tuple[str, ...]:
-        """The parameters identified: those the JSON, the topic and the record give as numbers."""
-        e = self.estimates
-        return tuple(n for n in PARAMETER_NAMES if n in e and e[n].identifiable and math.isfinite(e[n].value))
-
-    def at_bound(self) -> tuple[str, ...]:
-        """Parameters left at a search bound of their stage: their values carry no information."""
-        return tuple(n for n in PARAMETER_NAMES if n in self.estimates and self.estimates[n].at_bound)
-
-    def stage1_held(self) -> tuple[str, ...]:
-        """What a diagnosis holds at this result: D, when stage 1 identified it (see
-        ``DiagnoseOptions.held``)."""
-        d = self.estimates.get("D")
-        return ("D",) if d is not None and d.identifiable and math.isfinite(d.value) else ()
-
-    def complete(self) -> GeneratorParameters | None:
-        """The identified set as a model, if all eight exist and are physically valid."""
-        p = self.parameters
-        if any(not math.isfinite(v) for v in p.values()) or validation_problems(p):
-            return None
-        return GeneratorParameters(**p)
-
-    def to_json(self, truth: GeneratorParameters | None = None) -> dict[str, Any]:
-        p = self.parameters
-        published = self.published()
-        doc: dict[str, Any] = {
-            # a withheld value is null here (the contract), and kept apart with its reason: a
-            # reader that takes ``parameters`` never takes a number the data did not give
-            "parameters": {n: p[n] if n in published else None for n in PARAMETER_NAMES},
-            "uncertainty": {n: self.estimates[n].std if n in published else None for n in PARAMETER_NAMES},
-            "identifiable": {n: n in published for n in PARAMETER_NAMES},
-            "withheld": {
-                n: {"value": e.value, "std": e.std, "bound": e.bound or None, "why": e.note}
-                for n, e in self.estimates.items()
-                if n not in published and math.isfinite(e.value)
-            },
-            "drivers": {n: self.estimates[n].drivers if n in self.estimates else [] for n in PARAMETER_NAMES},
-            "method": self.method,
-            "events": [
-                {
-                    "name": s.name,
-                    "kind": s.kind,
-                    "role": s.role,
-                    "generator_damping": s.generator_damping,
-                    "event_time_s": s.k_event * s.dt,
-                    "clearing_time_s": None if s.k_clear is None else s.k_clear * s.dt,
-                    "start_ns": s.start_ns,
-                    "notes": s.notes,
-                }
-                for s in self.scenarios
-            ],
-            "validation": self.validation.as_dict() if self.validation else None,
-            "baseline_ieee115": {n: e.value for n, e in self.baseline.items()},
-            "stages": self._stage_details(),
-            "problems": self.problems,
-            "timing_s": self.timing,
-        }
-        if self.constraints:
-            doc["constraints"] = self.constraints.as_dict()
-        point = operating_point(self.scenarios)
-        if point:
-            doc["operating_point"] = point
-        if self.determined_by:
-            doc["determined_by"] = self.determined_by
-        if self.stage1_paper is not None:
-            doc["stage1_differential_damping"] = {
-                "H": self.stage1_paper.H.value,
-                "D": self.stage1_paper.D.value,
-                "pairs": self.stage1_paper.details.get("pairs", []),
-            }
-        if truth is not None:
-            t = truth.as_dict()
-            doc["truth"] = t
-            doc["errors_pct"] = {
-                n: 100.0 * (p[n] / t[n] - 1.0) if n in published and t[n] else None for n in PARAMETER_NAMES
-            }
-            for n, w in doc["withheld"].items():  # how far the value withheld was (a simulated set's study)
-                w["error_pct"] = 100.0 * (w["value"] / t[n] - 1.0) if t[n] else None
-            doc["baseline_errors_pct"] = {
-                n: 100.0 * (e.value / t[n] - 1.0) for n, e in self.baseline.items() if math.isfinite(e.value) and t[n]
-            }
-            if self.validation_truth is not None:
-                doc["validation_vs_measurement"] = self.validation_truth.as_dict()
-        return doc
-
-    def _stage_details(self) -> dict[str, Any]:
-        out: dict[str, Any] = dict(self.route_details)
-        if self.stage1:
-            out["stage1"] = {"method": self.stage1.method, **self.stage1.details}
-        if self.stage2:
-            out["stage2"] = {
-                "method_d": self.stage2.method_d,
-                "method_q": self.stage2.method_q,
-                "r2_d": self.stage2.r2_d,
-                "r2_q": self.stage2.r2_q,
-                "steady_points": [pt.__dict__ for pt in self.stage2.points],
-            }
-        if self.stage3:
-            out["stage3"] = {
-                "method": self.stage3.method,
-                "objective": self.stage3.objective,
-                "evaluations": self.stage3.evaluations,
-                "seconds": self.stage3.seconds,
-                "X_d_used": self.stage3.X_d,
-                "X_q_used": self.stage3.X_q,
-            }
-        return out
-
-
-OPERATING_CHANNELS = {"p_m": "p_m_pu", "p_e": "p_e_pu", "q_e": "q_e_pu", "v_t": "v_t_pu"}
-
-
-def operating_point(scenarios: Sequence[ScenarioData]) -> dict[str, float]:
-    """The mean pre-event P_m, P_e, Q_e, V_t of the identification scenarios (machine base): where
-    the identified model was linearised. A planning model whose swing equation divides P_m by the
-    speed (PSS/E's) needs it to carry D over (:mod:`phid_ros.export.record`); without a P_m channel
-    P_m is P_e before the event (R_a = 0)."""
-    ident = [s for s in scenarios if s.role == "identify"]
-    out: dict[str, float] = {}
-    for c, key in OPERATING_CHANNELS.items():
-        have = [s for s in ident if s.has(c)] or ([s for s in ident if s.has("p_e")] if c == "p_m" else [])
-        values = [float(np.nanmean(s[c if s.has(c) else "p_e"][s.pre_slice()])) for s in have]
-        if values and all(math.isfinite(v) for v in values):
-            out[key] = float(np.mean(values))
-    return out
+# what the rest of phid imports from here: the identification's options and result
+__all__ = ["OPERATING_CHANNELS", "IdentificationResult", "IdentifyOptions", "identify", "operating_point", "prepare"]
 
 
 def _apply_constraints(res: IdentificationResult, c: Constraints) -> None:
@@ -239,9 +64,6 @@ def _apply_constraints(res: IdentificationResult, c: Constraints) -> None:
 
 def _timed(timing: dict[str, float], key: str, t0: float) -> None:
     timing[key] = round(time.perf_counter() - t0, 6)
-
-
-Say = Callable[[str], None]
 
 
 def prepare() -> None:
@@ -318,10 +140,7 @@ def identify(
     findings = consistency.check(scs, opt.f_nominal_hz)
     consistency.raise_errors(findings)  # a unit or sign mistake: nothing identified from it is true
     if determinable.full_channels(ident):
-        for key, step in STEPS:
-            t0 = time.perf_counter()
-            step(res, ident, opt, say)
-            _timed(res.timing, key, t0)
+        run_plan(PAPER_STEPS, RouteRun(res, ident, opt, say, {}))
     else:  # a recorder's channel set: what it determines, the rest named as not identifiable
         t0 = time.perf_counter()
         res.determined_by = determinable.identify_by_channels(res, ident, opt, say)
@@ -391,9 +210,9 @@ def _with_q_axis_of(res: IdentificationResult, opt: IdentifyOptions) -> Identify
     T'_q0, or at rest (X'_q = X_q: the static reconstruction)."""
     chosen = res.route_details.get("q_axis_search")
     x_q = opt.constraints.fixed.get("X_q")
-    if not isinstance(chosen, dict) or x_q is None:
+    if not isinstance(chosen, QAxisSearchFigures) or x_q is None:
         return opt
-    q = (chosen["X_q_prime"], chosen["T_q0_prime"]) if chosen["X_q_prime"] is not None else (x_q, 1.0)
+    q = chosen.q_transient or (x_q, 1.0)
     fixed = {**opt.constraints.fixed, "X_q_prime": float(q[0]), "T_q0_prime": float(q[1])}
     return replace(opt, constraints=replace(opt.constraints, fixed=fixed))
 
@@ -464,13 +283,36 @@ def _stage3(res: IdentificationResult, ident: list[ScenarioData], opt: IdentifyO
         res.problems.append(f"stage 3 (X'_d, X'_q, T'_d0, T'_q0) did not run: {exc}")
 
 
-# the steps in order, each timed under its key (the JSON's timing_s)
-STEPS: tuple[tuple[str, Callable[[IdentificationResult, list[ScenarioData], IdentifyOptions, Say], None]], ...] = (
-    ("stage1", _stage1),
-    ("stage2", _stage2),
-    ("ieee115", _baseline),
-    ("stage3", _stage3),
-)
+class PaperStep(Route):
+    """A stage of the paper's on the full channel set as a step of the plan: it writes the result
+    itself (held values are applied after the plan, not filtered out of its fit)."""
+
+    how = ""
+    step: ClassVar[Callable[[IdentificationResult, list[ScenarioData], IdentifyOptions, Say], None]]
+
+    def run(self, run: RouteRun) -> RouteOutput:
+        type(self).step(run.res, run.ident, run.opt, run.say)
+        return RouteOutput()
+
+
+class Stage1(PaperStep):
+    key, parameters, step = "stage1", ("H", "D"), _stage1
+
+
+class Stage2(PaperStep):
+    key, parameters, step = "stage2", ("X_d", "X_q"), _stage2
+
+
+class Baseline(PaperStep):
+    key, parameters, step = "ieee115", (), _baseline
+
+
+class Stage3(PaperStep):
+    key, parameters, step = "stage3", ("X_d_prime", "X_q_prime", "T_d0_prime", "T_q0_prime"), _stage3
+
+
+# the paper's plan (Algorithm 1), each step timed under its key (the JSON's timing_s)
+PAPER_STEPS: tuple[Route, ...] = (Stage1(), Stage2(), Baseline(), Stage3())
 
 
 def _validate(

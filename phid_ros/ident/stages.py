@@ -27,7 +27,7 @@ from phid_ros.ident.results import Estimate
 from phid_ros.ident.scenario import ScenarioData
 
 if TYPE_CHECKING:
-    from phid_ros.ident.pipeline import IdentifyOptions
+    from phid_ros.ident.identification import IdentifyOptions
 
 TRANSIENT = stage3.TRANSIENT_NAMES
 

@@ -342,7 +342,8 @@ def test_the_field_resistance_follows_each_file_and_says_its_unit(folder, tmp_pa
     ohms = FIELD_BASE_V / FIELD_BASE_A
     for m in (cmap, other):
         bag = write_recording(tmp_path / f"{m.stem}.mcap", import_recordings(files, [m], kind="pmu"))
-        r_f = field_resistance_of(cut_unit([bag]))
+        found = field_resistance_of(cut_unit([bag]))
+        r_f = found.as_dict() if found is not None else None
         assert r_f is not None and r_f["unit"] == "ohm"
         by_file = {name.rsplit("/", 1)[-1]: v for name, v in r_f["files"].items()}
         assert by_file["step_1"] == pytest.approx(1.08 * ohms, rel=0.003), m.name
@@ -357,6 +358,7 @@ def test_the_field_resistance_follows_each_file_and_says_its_unit(folder, tmp_pa
     )
     rec = import_recordings(files, [pu], kind="pmu")
     del rec.metadata["field_bases"]
-    r_f = field_resistance_of(cut_unit([write_recording(tmp_path / "pu.mcap", rec)]))
+    found = field_resistance_of(cut_unit([write_recording(tmp_path / "pu.mcap", rec)]))
+    r_f = found.as_dict() if found is not None else None
     assert r_f is not None and r_f["unit"] == "U_f per I_f as recorded"
     assert sorted(r_f["files"].values())[0] == pytest.approx(1.0, rel=0.003)

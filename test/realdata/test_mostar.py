@@ -165,13 +165,13 @@ def test_t_d0_from_the_field_circuit_with_the_datasheet_s_curve(day: Path, tmp_p
     assert x_dp.identifiable and 0.28 < x_dp.value < 0.33 and x_dp.std < 0.1 * x_dp.value
     assert "referred to each file's field resistance" in x_dp.note
     assert x_dp.value * t_d0.value == pytest.approx(0.371 * 3.77, rel=0.05)
-    assert [e["scenario"] for e in res.route_details["field_circuit_online"]["events"]] == [
+    assert [e["scenario"] for e in res.route_details["field_circuit_online"].events] == [
         "AVR_MR_PSS_ON@43.7s",
         "AVR_MR_PSS_ON@53.9s",
         "RR_MR_Step10@138.0s",
         "RR_MR_Step10@143.7s",
     ]
-    fc = res.route_details["field_circuit"]
+    fc = res.route_details["field_circuit"].as_dict()
     assert [e["scenario"] for e in fc["events"]] == [
         "AVR_PH_Step10@13.3s",
         "AVR_PH_Step10@19.6s",
