@@ -264,6 +264,12 @@ class ControlModel(ABC):
     # rectifier loading K_C): fitted beside a ceiling the recordings reached
     loading: ClassVar[str | None] = None
     simulated_limits_how: ClassVar[str] = ""
+    # the planning tools' own forms of the model, where phid writes them: PSLF's record is PSS/E's
+    # constants after ``mwcap=`` and this many zeros (None: its layout not known, not written);
+    # ANDES's model of the same name (its constants under ``andes_names`` where they differ)
+    pslf_trailing_zeros: ClassVar[int | None] = None
+    in_andes: ClassVar[bool] = False
+    andes_names: ClassVar[Mapping[str, str]] = {}
 
     @classmethod
     def fitted(cls) -> tuple[ControlParameter, ...]:
@@ -391,6 +397,8 @@ class SEXS(ControlModel):
     name = "SEXS"
     kind = "exciter"
     description = "simplified excitation system (PSS/E SEXS)"
+    in_andes = True
+    andes_names = {"TA/TB": "TATB"}
     parameters = (
         ControlParameter("TA/TB", "", 0.1, 0.01, 1.0, "lead-lag ratio T_A/T_B"),
         ControlParameter("TB", "s", 10.0, 0.1, 30.0, "lag time constant T_B"),
@@ -434,6 +442,8 @@ class TGOV1(ControlModel):
     name = "TGOV1"
     kind = "governor"
     description = "steam turbine-governor (PSS/E TGOV1)"
+    in_andes = True
+    pslf_trailing_zeros = 0
     parameters = (
         ControlParameter("R", "pu", 0.05, 0.01, 0.5, "permanent droop"),
         ControlParameter("T1", "s", 0.5, 0.02, 5.0, "governor (valve) time constant"),
@@ -458,6 +468,7 @@ class EXST1(ControlModel):
     name = "EXST1"
     kind = "exciter"
     description = "static excitation system, IEEE ST1A-like (PSS/E EXST1)"
+    in_andes = True
     parameters = (
         TRANSDUCER,
         ControlParameter("VIMAX", "pu", 0.2, 0.0, 1.0, "maximum error signal", limit=True),
@@ -637,6 +648,8 @@ class IEEET1(ControlModel):
     name = "IEEET1"
     kind = "exciter"
     description = "DC commutator exciter, IEEE type 1 (PSS/E IEEET1)"
+    in_andes = True
+    andes_names = {"SWITCH": "Switch"}
     parameters = (
         TRANSDUCER,
         ControlParameter("KA", "pu", 50.0, 5.0, 1000.0, "regulator gain"),
@@ -656,6 +669,14 @@ class IEEET1(ControlModel):
         ControlParameter("E2", "pu", 0.0, 0.0, 0.0, "second saturation point", limit=True),
         ControlParameter("SE2", "", 0.0, 0.0, 0.0, "saturation at E2", limit=True),
     )
+
+    @classmethod
+    def record_problem(cls, values: Mapping[str, float]) -> str | None:
+        if values["KE"] == 0.0:
+            # PSS/E computes K_E at initialisation where the record gives 0; simulated as 0 the
+            # exciter would be an integrator: a wrong model, not a validation
+            return "KE = 0 (PSS/E computes it at initialisation so V_R starts at 0): give the unit's K_E"
+        return super().record_problem(values)
 
     @classmethod
     def response(cls, values: Mapping[str, float], x: ControlInputs, reference: float) -> Array:
@@ -762,6 +783,8 @@ class IEEEG1(ControlModel):
     icons = (("JBUS", 0), ("M", 0))  # the low-pressure shaft's machine: none (a tandem compound)
     icons_simulated = ("JBUS", "M")
     description = "IEEE type 1 steam turbine-governor, one reheat stage (PSS/E IEEEG1)"
+    in_andes = True
+    pslf_trailing_zeros = 15  # its deadbands and valve table, unused
     parameters = (
         ControlParameter("K", "pu", 20.0, 2.0, 100.0, "governor gain (1/droop)"),
         ControlParameter("T1", "s", 0.0, 0.0, 0.0, "governor lag (held out of a fit)", held=True),
@@ -854,6 +877,8 @@ class HYGOV(ControlModel):
     name = "HYGOV"
     kind = "governor"
     description = "hydro turbine-governor (PSS/E HYGOV), linearised at the operating point"
+    in_andes = True
+    andes_names = {"TW": "Tw", "Dturb": "Dt"}
     parameters = (
         ControlParameter("R", "pu", 0.05, 0.01, 0.2, "permanent droop"),
         ControlParameter("r", "pu", 0.5, 0.05, 2.0, "temporary droop"),
@@ -906,6 +931,7 @@ class IEEEST(ControlModel):
     icons_simulated = ("MODE",)
     description = "IEEE stabiliser on the electrical power (PSS/E IEEEST, input code 3)"
     outside_path = ("VCU", "VCL")
+    in_andes = True
     parameters = (
         *(
             ControlParameter(

@@ -248,13 +248,6 @@ def read_unit(path: str | Path, bus: int | None = None, machine_id: str | None =
         if model.kind in unit.controls:
             raise DyrError(f"{p}:{r.line}: a second {model.kind} ({r.model}) on bus {m.bus} id '{m.machine_id}'")
         values = dict(zip(names, r.constants[skip:]))
-        if r.model == "IEEET1" and values["KE"] == 0.0:
-            # PSS/E computes K_E at initialisation where the record gives 0; simulated as 0 the
-            # exciter would be an integrator: a wrong model, not a validation
-            raise DyrError(
-                f"{p}:{r.line}: IEEET1 KE = 0 (PSS/E computes it at initialisation so V_R starts at 0): "
-                "give the unit's K_E"
-            )
         problem = model.record_problem(values)
         if problem is not None:
             raise DyrError(f"{p}:{r.line}: {r.model} {problem}")

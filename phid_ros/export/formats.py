@@ -49,10 +49,10 @@ PSLF_FIXED = {"rcomp": 0.0, "xcomp": 0.0, "accel": 0.0}
 # github.com/thadhaines/PSLTDSim: ``tgov1 ... : #1 mwcap=800.0 0.05 0.4 1.0 0.0 3.0 10.0 0.0``;
 # ``ieeeg1 ... : #9 mwcap=1000.0`` K T1 T2 T3 UO UC PMAX PMIN T4 K1 K2 T5 K3 K4 T6 K5 K6 T7 K7 K8,
 # then fifteen zeros: its deadbands and valve table, unused). Only the models whose PSLF layout
-# such files show are written, with the count of trailing zeros PSLF takes; the others are left
+# such files show are written (each model says so: ``pslf_trailing_zeros``); the others are left
 # out of a .dyd and said so: a PSLF keyword or position guessed is a wrong number in a planner's
 # file. mwcap is written as the machine's MVA base, so the per-unit constants keep their base.
-PSLF_CONTROLS = {"TGOV1": 0, "IEEEG1": 15}
+PSLF_CONTROLS = {n: m.pslf_trailing_zeros for n, m in MODELS.items() if m.pslf_trailing_zeros is not None}
 
 ANDES_NAMES = {
     "Td10": "Td10",
@@ -71,9 +71,8 @@ ANDES_NAMES = {
 }
 
 
-# ANDES's names where they are not PSS/E's (its SEXS, TGOV1, EXST1, IEEET1, IEEEG1, HYGOV)
-ANDES_CONTROL_NAMES = {"TA/TB": "TATB", "SWITCH": "Switch", "TW": "Tw", "Dturb": "Dt"}
-ANDES_CONTROL_MODELS = ("SEXS", "TGOV1", "EXST1", "IEEET1", "IEEEG1", "HYGOV", "IEEEST")
+# the control models ANDES has (each model says so, and its constants' names where they are not PSS/E's)
+ANDES_CONTROL_MODELS = tuple(n for n, m in MODELS.items() if m.in_andes)
 
 
 def _num(v: float) -> str:
@@ -161,7 +160,8 @@ def andes_json(rec: MachineRecord) -> str:
         ctl["name"] = f"{c.model}_{rec.bus}_{rec.machine_id}" + (
             f" NOT IDENTIFIED: {', '.join(c.flagged)}" if c.flagged else ""
         )
-        ctl.update({ANDES_CONTROL_NAMES.get(k, k): v for k, v in c.values.items()})
+        names = MODELS[c.model].andes_names
+        ctl.update({names.get(k, k): v for k, v in c.values.items()})
         if c.kind == "governor":
             ctl["Tn"] = rec.mva  # R and the valve limits on the machine's base
         doc[c.model] = [ctl]
