@@ -231,7 +231,7 @@ def test_a_non_windup_lead_lag_leaves_its_limit_where_the_input_allows_and_goes_
 def test_the_compiled_non_windup_lead_lag_is_the_python_loop_bit_for_bit() -> None:
     """The loop compiled (numba) gives the numbers of the same loop run as Python, limits hit
     both ways, a lead above and below its lag (1 - r of either sign)."""
-    from phid_ros.controls.models import _nonwindup_lead_lag_loop
+    from phid_ros.controls.models.blocks import _nonwindup_lead_lag_loop
 
     python_loop = getattr(_nonwindup_lead_lag_loop, "py_func", None)
     if python_loop is None:
