@@ -362,6 +362,11 @@ class RecordOnFile:
         phid's less P_m0: its swing equation divides P_m by the speed)."""
         return self.unit.parameters(p_m0)
 
+    def fourth_order(self, p_m0: float) -> GeneratorParameters:
+        """The fourth-order machine that plays the record's slow part at ``p_m0``: what phid's
+        identification of the machine the record writes finds, so the two compare."""
+        return self.unit.fourth_order(p_m0)
+
     def on_machine_base(self, scenarios: list[ScenarioData]) -> tuple[list[ScenarioData], list[str]]:
         """The recorded E_fd on the record's machine base where the no-load tests show another."""
         from phid_ros.controls.unit_validation import field_on_machine_base
@@ -410,7 +415,7 @@ def record_check(dyr: str | Path, bus: int | None = None, machine_id: str | None
         return record.play(scenarios, f_nominal_hz, open_loop=chosen.open_loop)
 
     describe = f"{record.describe} ({record.unit.source})"
-    return RecordCheck(describe, play, scenario_from_window, record.parameters, chosen, record.on_machine_base)
+    return RecordCheck(describe, play, scenario_from_window, record.fourth_order, chosen, record.on_machine_base)
 
 
 def operating_p_m0(scenarios: Sequence[ScenarioData]) -> float:

@@ -161,7 +161,7 @@ def start_from_dyr(args: Any) -> dict[str, dict[str, float]]:
 
     unit = read_unit(args.start_from)
     given = {item.partition("=")[0] for item in (*args.start, *args.fix)}
-    machine = unit.parameters(p_m0=0.0)
+    machine = unit.fourth_order(p_m0=0.0)  # the searches are the fourth-order model's
     for name in ("H", "X_d", "X_q", "X_d_prime", "X_q_prime", "T_d0_prime", "T_q0_prime"):
         if name not in given:  # D leaves out: the .dyr's is PSS/E's form, and stage 1 takes no start
             args.start.append(f"{name}={getattr(machine, name)!r}")

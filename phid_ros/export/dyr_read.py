@@ -10,15 +10,16 @@ constants as they are; GENSAL's q axis, which has no transient circuit, by its d
 X'', T'_q0 = T''_q0: the inverse of what ``phid export`` does to a salient pole). PSS/E's swing
 equation divides P_m by the speed, so the record's D is phid's D less P_m0
 (:meth:`phid_ros.export.record.MachineRecord.torque_form_damping`): :meth:`Unit.parameters` adds
-the recording's P_m0 back. The subtransient and saturation constants are kept and reported; the
-fourth-order play-in does not simulate them.
+the recording's P_m0 back. The dampers and the saturation are played as the simulator's effects
+(:meth:`Unit.effects`); :meth:`Unit.fourth_order` is the fourth-order machine that plays the
+record's slow part, the one an identification of it finds.
 """
 
 from __future__ import annotations
 
 import re
 import shlex
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +29,7 @@ from numpy.typing import NDArray
 from phid_ros.controls.models import MODELS as CONTROL_MODELS
 from phid_ros.errors import ParameterError, PhidError
 from phid_ros.export.psse import PSSE_ORDER
+from phid_ros.model.damper_equivalent import DamperedAxis
 from phid_ros.model.parameters import GeneratorParameters
 from phid_ros.sim.effects import PlantEffect
 from phid_ros.sim.effects.magnetic_saturation import MagneticSaturation, no_load_field
@@ -92,6 +94,25 @@ class Unit:
             )
         except ParameterError as exc:  # the file and the record, not only the values
             raise DyrError(f"{self.source}: {self.machine} at bus {self.bus} id '{self.machine_id}': {exc}") from None
+
+    def fourth_order(self, p_m0: float) -> GeneratorParameters:
+        """The fourth-order model that plays the record's slow part (its X', T'_0 seen through the
+        dampers, :mod:`phid_ros.model.damper_equivalent`): what an identification of the machine the
+        record writes would find, so the two compare (``parameters`` gives the constants as written,
+        which the play-in takes with :meth:`effects`)."""
+        written = self.parameters(p_m0)
+        if not self._dampers():
+            return written
+        c, out = self.constants, {}
+        axes = [("d", "X_d", "X_d_prime", "T_d0_prime", "Td20")]
+        if self.machine == "GENROU":  # GENSAL's q axis is its damper already
+            axes.append(("q", "X_q", "X_q_prime", "T_q0_prime", "Tq20"))
+        for _, x, x_t, t_0, t_0pp in axes:
+            one = DamperedAxis(
+                getattr(written, x), getattr(written, x_t), c["Xd2"], c["Xl"], getattr(written, t_0), c[t_0pp]
+            )
+            out[x_t], out[t_0] = one.fourth_order()
+        return replace(written, **out)
 
     def effects(self) -> list[tuple[type[PlantEffect], dict[str, Any]]]:
         """The record's machine beyond the fourth-order model, as the simulator's effects, so a

@@ -145,7 +145,9 @@ class RecordCheck:
     ``to_scenario`` makes a window the scenario ``phid validate`` would cut; ``on_base`` puts
     the recorded E_fd on the record's machine base as validate does, from every no-load test
     among the scenarios (``RecordOnFile.on_machine_base``); ``parameters_at`` is the record's
-    machine at an operating point P_m0.
+    machine at an operating point P_m0 as the fourth-order model that plays it
+    (``RecordOnFile.fourth_order``: its X', T'_0 seen through its dampers), the model the
+    identified parameters it is compared with belong to.
 
     The field's base comes from the no-load tests seen so far: an event played before one was
     seen (an on-line test first in the day) is played again when the base it gives changes, and

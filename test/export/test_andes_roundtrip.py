@@ -87,16 +87,19 @@ def test_genrou_record_reproduces_the_fourth_order_model(tmp_path: Path, fmt: st
 
 
 def test_table1_machine_torque_step_within_a_tenth_of_a_degree(tmp_path: Path) -> None:
-    # X'_q = 0.814 > X'_d = 0.5: GENROU's q-axis damper (default T''_q0 = 0.03 s) stays; measured 0.045 deg
+    # X'_q = 0.814 > X'_d = 0.5: GENROU's q-axis damper (default T''_q0 = 0.02 s) stays, the q axis
+    # written through it; measured 0.005 deg (0.045 before, the fourth-order X'_q, T'_q0 written as they are)
     rms_delta, _ = compare(tmp_path, TABLE1, "psse-dyr", TORQUE_STEP)
-    assert rms_delta < 0.1, rms_delta
+    assert rms_delta < 0.02, rms_delta
 
 
-def test_table1_machine_fault_difference_is_the_q_axis_damper(tmp_path: Path) -> None:
-    # during a terminal fault the q-axis damper GENROU cannot leave out shows: measured 0.32 deg RMS
-    # (README); bounded here so a change in the record's defaults is noticed
+def test_table1_machine_fault_is_played_through_the_q_axis_damper(tmp_path: Path) -> None:
+    # during a terminal fault the q-axis damper GENROU cannot leave out shows, small once the q axis
+    # is written as the classical constants that play the identified X'_q, T'_q0 through it
+    # (phid_ros.model.damper_equivalent): measured 0.042 deg RMS, where writing the fourth-order
+    # values as GENROU's gave 0.32 deg
     rms_delta, _ = compare(tmp_path, TABLE1, "psse-dyr", FAULT)
-    assert 0.1 < rms_delta < 1.0, rms_delta
+    assert rms_delta < 0.1, rms_delta
 
 
 def unit_record(params: GeneratorParameters, controls: dict) -> MachineRecord:

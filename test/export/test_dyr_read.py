@@ -9,7 +9,7 @@ import pytest
 
 from phid_ros.export.dyr_read import DyrError, read_records, read_unit
 from phid_ros.export.formats import psse_dyr
-from phid_ros.export.record import build_record
+from phid_ros.export.record import DEFAULT_TQ20_S, build_record
 from phid_ros.model.parameters import PARAMETER_NAMES, TABLE1
 from test.export.test_andes_roundtrip import CONTROLS
 
@@ -34,15 +34,21 @@ def test_an_exported_unit_reads_back_as_the_same_machine_exciter_and_governor(tm
     unit = read_unit(path)
     assert (unit.bus, unit.machine_id, unit.machine) == (7, "G1", "GENROU")
     assert unit.constants["D"] == pytest.approx(0.4 - P_M0 if 0.4 > P_M0 else 0.0)
-    params = unit.parameters(p_m0=P_M0)
+    # the record's machine seen as fourth order is the identified one (the .dyr's six digits)
+    params = unit.fourth_order(p_m0=P_M0)
     for name in PARAMETER_NAMES:
         if name != "D":
-            assert getattr(params, name) == pytest.approx(getattr(TABLE1, name), rel=1e-6), name
+            assert getattr(params, name) == pytest.approx(getattr(TABLE1, name), rel=5e-6), name
+    # as written, its q axis carries GENROU's classical constants, which its damper loads
+    written = unit.parameters(p_m0=P_M0)
+    assert written.X_q_prime == pytest.approx(1.0747, abs=1e-4)
+    assert written.T_q0_prime == pytest.approx(0.1140, abs=1e-4)
+    assert (written.X_d_prime, written.T_d0_prime) == (TABLE1.X_d_prime, TABLE1.T_d0_prime)  # the d damper is inert
     assert {k: c.model for k, c in unit.controls.items()} == {"exciter": "SEXS", "governor": "TGOV1"}
     assert unit.controls["exciter"].values["K"] == 100.0 and unit.controls["governor"].values["T3"] == 6.0
     # the q-axis damper (X'' = X'_d < X'_q) is played as written, by the simulator's own effect
     [(damper, values)] = unit.effects()
-    assert damper.name == "subtransient_dynamics" and values["x_qpp"] == 0.5 and values["t_q0pp"] == 0.03
+    assert damper.name == "subtransient_dynamics" and values["x_qpp"] == 0.5 and values["t_q0pp"] == DEFAULT_TQ20_S
     said = unit.not_simulated()
     # every record constant the small-signal play-in leaves out is said, with its value
     # (SEXS's E_MIN, E_MAX are played, as PSS/E's SEXS limits E_fd: said as how, not left out)

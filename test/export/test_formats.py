@@ -70,7 +70,8 @@ def test_psse_dyr_parses_by_its_rules(model: str) -> None:
     rec = record(model)
     [(bus, name, ident, values, comment)] = read_dyr(psse_dyr(rec))
     assert (bus, name, ident) == (1001, model, "G2")
-    assert values == pytest.approx([rec.values[f] for f in PSSE_ORDER[model]], rel=1e-6)
+    # six significant digits: the record's classical X'_q (1.0747322...) is written 1.07473
+    assert values == pytest.approx([rec.values[f] for f in PSSE_ORDER[model]], rel=5e-6)
     assert len(values) == (14 if model == "GENROU" else 12)
     assert values[: 4 if model == "GENROU" else 3][0] == pytest.approx(1.437)  # T'do first
     assert "NOT IDENTIFIED: D" in comment and "247.5 MVA base" in comment
@@ -84,7 +85,7 @@ def test_pslf_dyd_parses_by_its_rules(model: str) -> None:
     [(name, bus, _, kv, ident, mva, params)] = read_dyd(text)
     assert (name, bus, kv, ident, mva) == (model.lower(), 1001, 20.0, "G2", 247.5)
     for f in rec.fields:
-        assert params[PSLF_NAMES[f]] == pytest.approx(rec.values[f], rel=1e-6)
+        assert params[PSLF_NAMES[f]] == pytest.approx(rec.values[f], rel=5e-6)
     assert ("lpq" in params) == (model == "GENROU") and params["accel"] == 0.0
 
 
@@ -92,7 +93,10 @@ def test_andes_json_carries_andes_names_and_machine_base() -> None:
     rec = record()
     [row] = json.loads(andes_json(rec))["GENROU"]
     assert row["M"] == pytest.approx(2 * 3.48) and row["Sn"] == 247.5 and row["fn"] == 60.0
-    assert (row["xd1"], row["xq1"], row["xd2"], row["xq2"], row["Tq10"]) == (0.5, 0.814, 0.5, 0.5, 0.1351)
+    v = rec.values  # the q axis as GENROU's classical constants (test_record), as the .dyr has it
+    assert (row["xd1"], row["xq1"], row["xd2"], row["xq2"], row["Tq10"]) == pytest.approx(
+        (0.5, v["Xq1"], 0.5, 0.5, v["Tq10"]), rel=5e-6
+    )
     assert row["name"].endswith("NOT IDENTIFIED: D")
 
 
@@ -106,7 +110,7 @@ def test_psse_dyr_is_read_by_andes(tmp_path) -> None:
     path.write_text(psse_dyr(rec))
     frame = _read_dyr_dict(str(path))["GENROU"]
     assert frame.shape == (1, 16) and andes is not None
-    assert list(frame.iloc[0, 2:]) == pytest.approx([rec.values[f] for f in PSSE_ORDER["GENROU"]], rel=1e-6)
+    assert list(frame.iloc[0, 2:]) == pytest.approx([rec.values[f] for f in PSSE_ORDER["GENROU"]], rel=5e-6)
 
 
 def test_pss_e_gets_damping_in_its_torque_form_andes_and_pslf_as_identified():

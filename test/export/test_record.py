@@ -6,7 +6,8 @@ import math
 
 import pytest
 
-from phid_ros.export.record import DEFAULT_TD20_S, ExportError, build_record
+from phid_ros.export.record import DEFAULT_TD20_S, ExportError, MachineRecord, build_record
+from phid_ros.model.damper_equivalent import DamperedAxis
 from phid_ros.model.parameters import PARAMETER_NAMES, TABLE1
 
 
@@ -19,6 +20,12 @@ def result(**flags: bool) -> dict:
     }
 
 
+def q_axis_plays(rec: MachineRecord) -> tuple[float, float]:
+    """The fourth-order (X'_q, T'_q0) the record's q axis plays through its damper."""
+    v = rec.values
+    return DamperedAxis(v["Xq"], v["Xq1"], v["Xd2"], v["Xl"], v["Tq10"], v["Tq20"]).fourth_order()
+
+
 def diagnosis(*effects: tuple[str, dict], **base: float) -> dict:
     return {
         "effects": [{"name": n, "parameters": p} for n, p in effects],
@@ -29,9 +36,15 @@ def diagnosis(*effects: tuple[str, dict], **base: float) -> dict:
 def test_identified_fields_and_stated_defaults() -> None:
     rec = build_record(result(), source="r.json", mva=1000.0)
     v = rec.values
-    assert (v["H"], v["Xd"], v["Xq1"], v["Tq10"]) == (3.48, 2.54, 0.814, 0.1351)
-    # without a diagnosed damper, X'' = min(X'_d, X'_q): the d-axis damper is inert
+    assert (v["H"], v["Xd"], v["Xd1"], v["Td10"]) == (3.48, 2.54, 0.5, 1.437)
+    # without a diagnosed damper, X'' = min(X'_d, X'_q): the d-axis damper is inert, and the q
+    # axis is written as the classical constants that play the identified X'_q, T'_q0 through it
     assert v["Xd2"] == 0.5 and v["Td20"] == DEFAULT_TD20_S and v["Xl"] == 0.15
+    assert q_axis_plays(rec) == pytest.approx((0.814, 0.1351), rel=1e-9)
+    assert v["Xq1"] == pytest.approx(1.0747, abs=1e-4) and v["Tq10"] == pytest.approx(0.1140, abs=1e-4)
+    said = "identified (X_q_prime); 1.075 is the classical constant that plays 0.814 through the damper"
+    assert rec.sources["Xq1"] == said
+    assert any("the q axis written as X'_q = 1.075" in w for w in rec.warnings)
     assert rec.defaults == ["Td20", "Tq20", "Xd2", "Xl", "S10", "S12", "ra"]
     assert rec.sources["H"] == "identified (H)"
     assert any("stated defaults" in w and "Xl=0.15" in w for w in rec.warnings)
@@ -58,6 +71,8 @@ def test_diagnosed_effects_fill_subtransient_saturation_and_ra() -> None:
     v = rec.values
     assert (v["Xd2"], v["Td20"], v["Tq20"], v["S10"], v["S12"], v["ra"]) == (0.25, 0.035, 0.06, 0.07, 0.45, 0.004)
     assert v["H"] == 3.5 and rec.sources["H"] == "diagnosis refit (H)"
+    # the refit with the damper model found GENROU's own constants: written as they are
+    assert (v["Xq1"], v["Tq10"]) == (0.814, 0.1351) and rec.sources["Xq1"] == "diagnosis refit (X_q_prime)"
     assert v["Xl"] == pytest.approx(0.15)
     assert rec.defaults == ["Xl"]
     assert any("X''_q = 0.3" in w for w in rec.warnings)  # one X'' in GENROU: the difference is said
@@ -101,7 +116,7 @@ def test_what_the_diagnosis_did_not_determine_comes_from_the_identification_or_i
     rec = build_record(result(), source="r.json", mva=1000.0, diagnosis=diag, diagnosis_source="d.json")
     assert rec.values["H"] == 3.5 and rec.sources["H"] == "diagnosis refit (H)"
     assert rec.values["D"] == 0.4 and "the diagnosis's refit did not determine it" in rec.sources["D"]
-    assert rec.values["Xq1"] == 0.814 and not rec.flagged
+    assert q_axis_plays(rec)[0] == pytest.approx(0.814, rel=1e-9) and not rec.flagged
     # not determined by either: refused, named, unless allowed (then marked)
     with pytest.raises(ExportError, match=r"r\.json and d\.json: X_q_prime not identified; refusing"):
         build_record(result(X_q_prime=False), source="r.json", mva=1000.0, diagnosis=diag, diagnosis_source="d.json")
@@ -110,8 +125,9 @@ def test_what_the_diagnosis_did_not_determine_comes_from_the_identification_or_i
         allow_flagged=True,
     )  # fmt: skip
     # the refit's value, marked: it belongs with the damper and saturation values the refit named
-    assert rec.flagged == ["X_q_prime"] and rec.values["Xq1"] == 0.95
-    assert rec.sources["Xq1"] == "diagnosis refit (X_q_prime) NOT IDENTIFIED"
+    assert rec.flagged == ["X_q_prime"] and q_axis_plays(rec)[0] == pytest.approx(0.95, rel=1e-9)
+    assert rec.sources["Xq1"].startswith("diagnosis refit (X_q_prime); ")
+    assert rec.sources["Xq1"].endswith("through the damper NOT IDENTIFIED") and rec.sources["Xq1"].flagged
     # D held at stage 1's value in the diagnosis is the identification's, and says so
     diag["held"] = ["D"]
     rec = build_record(result(), source="r.json", mva=1000.0, diagnosis=diag, diagnosis_source="d.json")
@@ -119,7 +135,7 @@ def test_what_the_diagnosis_did_not_determine_comes_from_the_identification_or_i
     # a parameter the identification left at a bound but the diagnosis determined is taken, identified
     diag["identifiable"]["T_q0_prime"] = True
     rec = build_record(result(T_q0_prime=False), source="r.json", mva=1000.0, diagnosis=diag, diagnosis_source="d.json")
-    assert "T_q0_prime" not in rec.flagged and rec.sources["Tq10"] == "diagnosis refit (T_q0_prime)"
+    assert "T_q0_prime" not in rec.flagged and rec.sources["Tq10"].startswith("diagnosis refit (T_q0_prime); ")
 
 
 def test_a_field_from_an_effect_parameter_the_diagnosis_did_not_determine_is_flagged() -> None:
@@ -250,4 +266,5 @@ def test_a_withheld_value_is_written_only_flagged() -> None:
     with pytest.raises(ExportError, match=r"r\.json: T_q0_prime not identified; refusing"):
         build_record(doc, source="r.json", mva=1000.0)
     rec = build_record(doc, source="r.json", mva=1000.0, allow_flagged=True)
-    assert rec.flagged == ["T_q0_prime"] and rec.values["Tq10"] == doc["withheld"]["T_q0_prime"]["value"]
+    assert rec.flagged == ["T_q0_prime"]
+    assert q_axis_plays(rec)[1] == pytest.approx(doc["withheld"]["T_q0_prime"]["value"], rel=1e-9)
