@@ -248,6 +248,34 @@ def _axis_system(
     return y, cols, nuisance
 
 
+def _projected_lstsq(y: Array, cols: list[Array], nuisance: Array) -> tuple[Array, Array, list[Array]]:
+    """The shared columns' coefficients, the residual and the projected columns of
+    ``y ~ cols + nuisance``: each scenario's own nuisance columns (initial fluxes, switching
+    jumps; ``nuisance`` is (m, p, n)) projected out first (Frisch-Waugh), one small
+    normal-equation solve per scenario."""
+    gram = np.einsum("mpn,mqn->mpq", nuisance, nuisance)
+    empty = np.einsum("mpp->mp", gram) <= 1e-300
+    gram[empty, :] = 0.0
+    idx = np.nonzero(empty)
+    gram[idx[0], idx[1], idx[1]] = 1.0  # unused slots: identity, coefficient 0
+
+    def project(v: Array) -> Array:
+        coef = np.linalg.solve(gram, np.einsum("mpn,mn->mp", nuisance, v)[..., None])[..., 0]
+        return v - np.einsum("mp,mpn->mn", coef, nuisance)
+
+    yt = project(y)
+    ct = [project(c) for c in cols]
+    if not ct:
+        return np.zeros(0), yt, ct
+    a_mat = np.array([[np.sum(ci * cj) for cj in ct] for ci in ct])
+    b_vec = np.array([np.sum(ci * yt) for ci in ct])
+    coef = np.linalg.solve(a_mat, b_vec)
+    fitted = coef[0] * ct[0]
+    for c, k in zip(ct[1:], coef[1:]):
+        fitted += c * k
+    return coef, yt - fitted, ct
+
+
 def solve_axis(
     ax: AxisData,
     tau: float,
@@ -263,31 +291,7 @@ def solve_axis(
         yk = yk - x_prime * ck[0]
         ck = ck[1:]
     mask = ax.mask_kept
-    # Frisch-Waugh: project each scenario's own nuisance columns (initial flux, switching
-    # jumps) out of y and the shared columns, one small normal-equation solve per scenario
-    gram = np.einsum("mpn,mqn->mpq", nk, nk)
-    empty = np.einsum("mpp->mp", gram) <= 1e-300
-    gram[empty, :] = 0.0
-    idx = np.nonzero(empty)
-    gram[idx[0], idx[1], idx[1]] = 1.0  # unused slots: identity, coefficient 0
-
-    def project(v: Array) -> Array:
-        coef = np.linalg.solve(gram, np.einsum("mpn,mn->mp", nk, v)[..., None])[..., 0]
-        return v - np.einsum("mp,mpn->mn", coef, nk)
-
-    yt = project(yk)
-    ct = [project(c) for c in ck]
-    if ct:
-        a_mat = np.array([[np.sum(ci * cj) for cj in ct] for ci in ct])
-        b_vec = np.array([np.sum(ci * yt) for ci in ct])
-        coef = np.linalg.solve(a_mat, b_vec)
-        fitted = coef[0] * ct[0]
-        for c, k in zip(ct[1:], coef[1:]):
-            fitted += c * k
-        r = yt - fitted
-    else:
-        coef = np.zeros(0)
-        r = yt
+    coef, r, ct = _projected_lstsq(yk, ck, nk)
     sse = float(np.sum(r * r))
     xp = float(coef[0]) if x_prime is None else float(x_prime)
     if x_sync is None:
@@ -620,12 +624,90 @@ def _axis_estimates(
     tau_est.std_random = STD_CALIBRATION * math.sqrt(max(cov[1, 1], 0.0))
     if att > MAX_ATTENUATION_TAU:
         tau_est.disqualify(f"{names[1]}: the axis is dominated by sensor noise here; not trusted")
+    if not d_axis and not sync_free and not {names[0], names[1]} & set(held_names):
+        _second_circuit_check(ax, fit, data.dt, xp_est, tau_est)
     sync_est = None
     if sync_free:
         sd_s = STD_CALIBRATION * math.sqrt(max(cov[2, 2], 0.0))
         sync_est = flag(Estimate(fit.x_sync, sd_s, note="refined in stage 3 (stage 2 could not run)"), names[2])
         sync_est.std_random = sd_s
     return xp_est, tau_est, sync_est
+
+
+SECOND_CIRCUIT_SCREEN = 0.5  # the fast circuit's time constants screened: up to this share of the slow one's
+SECOND_CIRCUIT_SHARE = 0.25  # a second circuit that leaves at most this share of the residual ...
+SECOND_CIRCUIT_MOVE = 0.02  # ... and moves the dominant circuit by more than this (and 2 std) ...
+SECOND_CIRCUIT_SIGMAS = 2.0  # ... says the one-circuit X', T' are not the machine's slow circuit
+
+
+@dataclass
+class SecondCircuit:
+    """The q axis fitted with two rotor circuits, X(s) = X'' + r_1/(1 + s tau_1) + r_2/(1 + s tau_2)
+    with X fixed: the slow (dominant) circuit as a fourth-order axis (X - r_1, tau_1), the fast
+    one's tau_2, and the residual it leaves as a share of the one-circuit fit's."""
+
+    x_prime: float  # X - r_1: the fourth-order X' of the slow circuit
+    tau: float
+    tau_fast: float
+    x_pp: float
+    sse_share: float
+
+
+def _two_circuit_sse(ax: AxisData, tau: float, tau_fast: float, x_sync: float, dt: float) -> tuple[float, Array]:
+    """The q axis's residual with two circuits: V_d ~ X L_2[I] + X'' (I - L_2[I]) + r_1 (L_1 - L_2)[I]
+    and both circuits' free fluxes and jumps; (SSE, coefficients (X'', r_1))."""
+    y, [prime_fast], nuisance_fast = _axis_system(ax, tau_fast, x_sync, dt, False)
+    _, [prime_slow], nuisance_slow = _axis_system(ax, tau, x_sync, dt, False)
+    coef, r, _ = _projected_lstsq(
+        y, [prime_fast, prime_fast - prime_slow], np.concatenate([nuisance_fast, nuisance_slow], axis=1)
+    )
+    return float(np.sum(r * r)), coef
+
+
+def second_circuit(ax: AxisData, fit: AxisFit, dt: float) -> SecondCircuit:
+    """The q axis refitted with a second rotor circuit (a damper, or a solid rotor's second path)
+    beside the one-circuit ``fit``: the fast time constant screened with the slow one held, then
+    both refined (Nelder-Mead in log tau). ANDES's GENROU with X'' = 0.3 under X'_q = 0.6
+    (T'' = 0.05 s, T'_q0 = 0.8 s): the one circuit settles between the two, 16 % under the slow
+    circuit's X'_q, at a fit no worse than its std says."""
+    x_sync = fit.x_sync
+    fast = np.geomspace(max(4 * dt * (ax.keep.step or 1), T_Q0_BOUNDS[0] / 2), SECOND_CIRCUIT_SCREEN * fit.tau, 6)
+    screened = [_two_circuit_sse(ax, fit.tau, t, x_sync, dt)[0] for t in fast]
+    start = np.log([fit.tau, fast[int(np.argmin(screened))]])
+
+    def f(z: Array) -> float:
+        slow, quick = np.exp(z)
+        if not quick < SECOND_CIRCUIT_SCREEN * slow:
+            return math.inf
+        return _two_circuit_sse(ax, float(slow), float(quick), x_sync, dt)[0]
+
+    best = minimize(f, start, method="Nelder-Mead", options={"maxfev": 80, "xatol": 1e-3, "fatol": 0.0})
+    slow, quick = (float(t) for t in np.exp(best.x))
+    sse, (x_pp, r_1) = _two_circuit_sse(ax, slow, quick, x_sync, dt)
+    share = sse / fit.sse if fit.sse > 0 else 1.0
+    return SecondCircuit(float(x_sync - r_1), slow, quick, float(x_pp), share)
+
+
+def _second_circuit_check(ax: AxisData, fit: AxisFit, dt: float, x_prime: Estimate, tau: Estimate) -> None:
+    """X'_q and T'_q0 withheld where a second q-axis circuit explains most of what the one
+    circuit leaves and moves the dominant circuit by more than its std allows: the one-circuit
+    values are then a compromise between two circuits, not the machine's slow one."""
+    if not (x_prime.identifiable and tau.identifiable) or not fit.sse > 0:
+        return
+    two = second_circuit(ax, fit, dt)
+
+    def moved(one: Estimate, other: float) -> bool:
+        step = abs(other - one.value)
+        return step > SECOND_CIRCUIT_MOVE * abs(one.value) and step > SECOND_CIRCUIT_SIGMAS * one.std
+
+    if two.sse_share < SECOND_CIRCUIT_SHARE and (moved(x_prime, two.x_prime) or moved(tau, two.tau)):
+        note = (
+            f"a second q-axis circuit (T'' = {two.tau_fast:.3g} s, X'' = {two.x_pp:.3g}) leaves "
+            f"{100 * two.sse_share:.0f} % of the one-circuit residual and puts the slow circuit at "
+            f"X'_q = {two.x_prime:.4g}, T'_q0 = {two.tau:.4g} s: the one-circuit values lie between two circuits"
+        )
+        for est, name in ((x_prime, "X_q_prime"), (tau, "T_q0_prime")):
+            est.disqualify(f"{name}: {note}")
 
 
 def one_axis(
