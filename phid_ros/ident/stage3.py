@@ -624,8 +624,8 @@ def _axis_estimates(
     tau_est.std_random = STD_CALIBRATION * math.sqrt(max(cov[1, 1], 0.0))
     if att > MAX_ATTENUATION_TAU:
         tau_est.disqualify(f"{names[1]}: the axis is dominated by sensor noise here; not trusted")
-    if not d_axis and not sync_free and not {names[0], names[1]} & set(held_names):
-        _second_circuit_check(ax, fit, data.dt, xp_est, tau_est)
+    if not sync_free and not {names[0], names[1]} & set(held_names):
+        _second_circuit_check(ax, fit, data.dt, d_axis, xp_est, tau_est)
     sync_est = None
     if sync_free:
         sd_s = STD_CALIBRATION * math.sqrt(max(cov[2, 2], 0.0))
@@ -653,60 +653,76 @@ class SecondCircuit:
     sse_share: float
 
 
-def _two_circuit_sse(ax: AxisData, tau: float, tau_fast: float, x_sync: float, dt: float) -> tuple[float, Array]:
-    """The q axis's residual with two circuits: V_d ~ X L_2[I] + X'' (I - L_2[I]) + r_1 (L_1 - L_2)[I]
-    and both circuits' free fluxes and jumps; (SSE, coefficients (X'', r_1))."""
-    y, [prime_fast], nuisance_fast = _axis_system(ax, tau_fast, x_sync, dt, False)
-    _, [prime_slow], nuisance_slow = _axis_system(ax, tau, x_sync, dt, False)
-    coef, r, _ = _projected_lstsq(
-        y, [prime_fast, prime_fast - prime_slow], np.concatenate([nuisance_fast, nuisance_slow], axis=1)
-    )
+def _two_circuit_sse(
+    ax: AxisData, tau: float, tau_fast: float, x_sync: float, dt: float, d_axis: bool
+) -> tuple[float, Array]:
+    """One axis's residual with two circuits, X(s) = X'' + r_1/(1 + s tau_1) + r_2/(1 + s tau_2)
+    with X = X'' + r_1 + r_2 held: V ~ X L_2[I] + X'' (I - L_2[I]) + r_1 (L_1 - L_2)[I] and both
+    circuits' free fluxes and jumps; on the d axis the field voltage reaches the flux through
+    both poles too, L_2[V_f] + g_1 (L_1 - L_2)[V_f] (GENROU's damper puts a zero between them,
+    so g_1 is free). (SSE, coefficients (X'', r_1[, g_1]))."""
+    y, [prime_fast], nuisance_fast = _axis_system(ax, tau_fast, x_sync, dt, d_axis)
+    _, [prime_slow], nuisance_slow = _axis_system(ax, tau, x_sync, dt, d_axis)
+    cols = [prime_fast, prime_fast - prime_slow]
+    if d_axis:
+        assert ax.drive is not None
+        step = ax.keep.step or 1
+        drive = first_order_response_kept(ax.drive, tau, dt, step) - first_order_response_kept(
+            ax.drive, tau_fast, dt, step
+        )
+        np.copyto(drive, 0.0, where=ax.off_kept)
+        cols.append(drive)
+    coef, r, _ = _projected_lstsq(y, cols, np.concatenate([nuisance_fast, nuisance_slow], axis=1))
     return float(np.sum(r * r)), coef
 
 
-def second_circuit(ax: AxisData, fit: AxisFit, dt: float) -> SecondCircuit:
-    """The q axis refitted with a second rotor circuit (a damper, or a solid rotor's second path)
+def second_circuit(ax: AxisData, fit: AxisFit, dt: float, d_axis: bool = False) -> SecondCircuit:
+    """One axis refitted with a second rotor circuit (a damper, or a solid rotor's second path)
     beside the one-circuit ``fit``: the fast time constant screened with the slow one held, then
     both refined (Nelder-Mead in log tau). ANDES's GENROU with X'' = 0.3 under X'_q = 0.6
     (T'' = 0.05 s, T'_q0 = 0.8 s): the one circuit settles between the two, 16 % under the slow
     circuit's X'_q, at a fit no worse than its std says."""
     x_sync = fit.x_sync
     fast = np.geomspace(max(4 * dt * (ax.keep.step or 1), T_Q0_BOUNDS[0] / 2), SECOND_CIRCUIT_SCREEN * fit.tau, 6)
-    screened = [_two_circuit_sse(ax, fit.tau, t, x_sync, dt)[0] for t in fast]
+    screened = [_two_circuit_sse(ax, fit.tau, t, x_sync, dt, d_axis)[0] for t in fast]
     start = np.log([fit.tau, fast[int(np.argmin(screened))]])
 
     def f(z: Array) -> float:
         slow, quick = np.exp(z)
         if not quick < SECOND_CIRCUIT_SCREEN * slow:
             return math.inf
-        return _two_circuit_sse(ax, float(slow), float(quick), x_sync, dt)[0]
+        return _two_circuit_sse(ax, float(slow), float(quick), x_sync, dt, d_axis)[0]
 
     best = minimize(f, start, method="Nelder-Mead", options={"maxfev": 80, "xatol": 1e-3, "fatol": 0.0})
     slow, quick = (float(t) for t in np.exp(best.x))
-    sse, (x_pp, r_1) = _two_circuit_sse(ax, slow, quick, x_sync, dt)
+    sse, coef = _two_circuit_sse(ax, slow, quick, x_sync, dt, d_axis)
+    x_pp, r_1 = float(coef[0]), float(coef[1])
     share = sse / fit.sse if fit.sse > 0 else 1.0
     return SecondCircuit(float(x_sync - r_1), slow, quick, float(x_pp), share)
 
 
-def _second_circuit_check(ax: AxisData, fit: AxisFit, dt: float, x_prime: Estimate, tau: Estimate) -> None:
-    """X'_q and T'_q0 withheld where a second q-axis circuit explains most of what the one
-    circuit leaves and moves the dominant circuit by more than its std allows: the one-circuit
-    values are then a compromise between two circuits, not the machine's slow one."""
+def _second_circuit_check(
+    ax: AxisData, fit: AxisFit, dt: float, d_axis: bool, x_prime: Estimate, tau: Estimate
+) -> None:
+    """X' and T'_0 of one axis withheld where a second circuit on it explains most of what the
+    one circuit leaves and moves the dominant circuit by more than its std allows: the
+    one-circuit values are then a compromise between two circuits, not the machine's slow one."""
     if not (x_prime.identifiable and tau.identifiable) or not fit.sse > 0:
         return
-    two = second_circuit(ax, fit, dt)
+    two = second_circuit(ax, fit, dt, d_axis)
 
     def moved(one: Estimate, other: float) -> bool:
         step = abs(other - one.value)
         return step > SECOND_CIRCUIT_MOVE * abs(one.value) and step > SECOND_CIRCUIT_SIGMAS * one.std
 
     if two.sse_share < SECOND_CIRCUIT_SHARE and (moved(x_prime, two.x_prime) or moved(tau, two.tau)):
+        axis, names = ("d", ("X_d_prime", "T_d0_prime")) if d_axis else ("q", ("X_q_prime", "T_q0_prime"))
         note = (
-            f"a second q-axis circuit (T'' = {two.tau_fast:.3g} s, X'' = {two.x_pp:.3g}) leaves "
+            f"a second {axis}-axis circuit (T'' = {two.tau_fast:.3g} s, X'' = {two.x_pp:.3g}) leaves "
             f"{100 * two.sse_share:.0f} % of the one-circuit residual and puts the slow circuit at "
-            f"X'_q = {two.x_prime:.4g}, T'_q0 = {two.tau:.4g} s: the one-circuit values lie between two circuits"
+            f"X'_{axis} = {two.x_prime:.4g}, T'_{axis}0 = {two.tau:.4g} s: the one-circuit values lie between two circuits"
         )
-        for est, name in ((x_prime, "X_q_prime"), (tau, "T_q0_prime")):
+        for est, name in zip((x_prime, tau), names):
             est.disqualify(f"{name}: {note}")
 
 
