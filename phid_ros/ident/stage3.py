@@ -638,6 +638,7 @@ SECOND_CIRCUIT_SCREEN = 0.5  # the fast circuit's time constants screened: up to
 SECOND_CIRCUIT_SHARE = 0.25  # a second circuit that leaves at most this share of the residual ...
 SECOND_CIRCUIT_MOVE = 0.02  # ... and moves the dominant circuit by more than this (and 2 std) ...
 SECOND_CIRCUIT_SIGMAS = 2.0  # ... says the one-circuit X', T' are not the machine's slow circuit
+SECOND_CIRCUIT_DRIVE = 0.2  # d axis: the field voltage's share through the slow pole within 1 +- this
 
 
 @dataclass
@@ -651,6 +652,18 @@ class SecondCircuit:
     tau_fast: float
     x_pp: float
     sse_share: float
+    drive_share: float = 1.0  # d axis: the field voltage's share through the slow pole (g_1)
+
+    def physical(self, x_sync: float, bounds: tuple[float, float]) -> bool:
+        """A machine's two circuits: X'' < X' < X, the slow pole inside the axis's search bounds,
+        and (d axis) most of the field voltage through the slow pole (GENROU's g_1 is 1 + a few
+        per cent). Without this a very slow "circuit" with g_1 free stands in for an error in the
+        field voltage's gain (ANDES's EXST1 sets: T'_d0 3238 s, leaving 0 % of the residual)."""
+        return (
+            self.x_pp < self.x_prime < x_sync
+            and bounds[0] < self.tau < bounds[1]
+            and abs(self.drive_share - 1.0) < SECOND_CIRCUIT_DRIVE
+        )
 
 
 def _two_circuit_sse(
@@ -698,7 +711,8 @@ def second_circuit(ax: AxisData, fit: AxisFit, dt: float, d_axis: bool = False) 
     sse, coef = _two_circuit_sse(ax, slow, quick, x_sync, dt, d_axis)
     x_pp, r_1 = float(coef[0]), float(coef[1])
     share = sse / fit.sse if fit.sse > 0 else 1.0
-    return SecondCircuit(float(x_sync - r_1), slow, quick, float(x_pp), share)
+    g_1 = float(coef[2]) if d_axis else 1.0
+    return SecondCircuit(float(x_sync - r_1), slow, quick, float(x_pp), share, g_1)
 
 
 def _second_circuit_check(
@@ -715,7 +729,12 @@ def _second_circuit_check(
         step = abs(other - one.value)
         return step > SECOND_CIRCUIT_MOVE * abs(one.value) and step > SECOND_CIRCUIT_SIGMAS * one.std
 
-    if two.sse_share < SECOND_CIRCUIT_SHARE and (moved(x_prime, two.x_prime) or moved(tau, two.tau)):
+    bounds = T_D0_BOUNDS if d_axis else T_Q0_BOUNDS
+    if (
+        two.physical(fit.x_sync, bounds)
+        and two.sse_share < SECOND_CIRCUIT_SHARE
+        and (moved(x_prime, two.x_prime) or moved(tau, two.tau))
+    ):
         axis, names = ("d", ("X_d_prime", "T_d0_prime")) if d_axis else ("q", ("X_q_prime", "T_q0_prime"))
         note = (
             f"a second {axis}-axis circuit (T'' = {two.tau_fast:.3g} s, X'' = {two.x_pp:.3g}) leaves "
