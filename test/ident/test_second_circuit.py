@@ -71,3 +71,13 @@ def test_a_fourth_order_machine_keeps_its_values(noisy_scenarios) -> None:
     assert stage3.second_circuit(data.q, fit, data.dt).sse_share > 0.9
     fit = stage3.solve_axis(data.d, r.T_d0_prime.value, data.dt, True, TABLE1.X_d)
     assert stage3.second_circuit(data.d, fit, data.dt, d_axis=True).sse_share > 0.9
+
+
+def test_a_second_circuit_that_is_no_machines_is_not_judged() -> None:
+    bounds = stage3.T_D0_BOUNDS
+    machine = stage3.SecondCircuit(0.456, 1.54, 0.028, 0.299, 0.01, 1.026)
+    assert machine.physical(2.54, bounds)
+    # ANDES's EXST1 set: a 3238 s "circuit" with X' at X_d stood in for the field voltage's gain
+    assert not dataclasses.replace(machine, x_prime=2.572, tau=3238.0).physical(2.54, bounds)
+    assert not dataclasses.replace(machine, drive_share=0.6).physical(2.54, bounds)
+    assert not dataclasses.replace(machine, x_pp=0.5).physical(2.54, bounds)  # X'' above X'
