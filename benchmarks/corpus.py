@@ -329,6 +329,8 @@ def _mostar_identified(work: Path, bag: Path) -> Figures:
     for n in ("X_d", "X_d_prime", "T_d0_prime"):
         value = doc["parameters"][n] if doc["identifiable"][n] else None
         out[n] = figure(value, 0.005 * (value or 1.0))
+        std = doc["uncertainty"][n] if value is not None else None
+        out[f"{n} std"] = figure(std, 0.1 * (std or 1.0))
     exciter = (doc.get("controls") or {}).get("exciter") or {}
     out["exciter named"] = figure(exciter.get("model") or "none", 0.0, "verdict")
     return out
@@ -845,7 +847,11 @@ def main() -> int:
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--update", action="store_true", help=f"write the table run to {TABLE.relative_to(ROOT)}")
     ap.add_argument("--check", action="store_true", help="exit 1 where a figure (not a time) moved")
-    ap.add_argument("--docs", action="store_true", help="write docs/figures.md's corpus part from the committed table")
+    ap.add_argument(
+        "--docs",
+        action="store_true",
+        help="write docs/figures.md's corpus part and every figure the pages quote from the committed table",
+    )
     ap.add_argument("--one", help=argparse.SUPPRESS)
     ap.add_argument("--to", help=argparse.SUPPRESS)
     args = ap.parse_args()
@@ -853,8 +859,15 @@ def main() -> int:
         run_one(args.one, Path(args.to))
         return 0
     if args.docs:
-        write_docs(json.loads(TABLE.read_text()))
-        print(f"wrote the corpus part of {DOCS.relative_to(ROOT)} from {TABLE.relative_to(ROOT)}")
+        import corpus_quotes
+
+        table = json.loads(TABLE.read_text())
+        write_docs(table)
+        changed = corpus_quotes.write_all(table)
+        print(
+            f"wrote the corpus part of {DOCS.relative_to(ROOT)} and the {corpus_quotes.count()} figures the pages "
+            f"quote from {TABLE.relative_to(ROOT)} ({len(changed)} page(s) changed)"
+        )
         return 0
     names = args.only.split(",") if args.only else [n for n, s in SETS.items() if args.subset == "all" or s.ci]
     unknown = [n for n in names if n not in SETS]
