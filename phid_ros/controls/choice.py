@@ -19,7 +19,7 @@ SIMPLEST_WITHIN = 1.05  # a model with more constants is chosen only where it er
 NAMED_BELOW = 0.75  # a model is named when its held-out error is below this share of "no control action"
 
 
-def _holding(model: type[ControlModel], name: str) -> type[ControlModel]:
+def _holding(model: ControlModel, name: str) -> ControlModel:
     """``model`` with constant ``name`` held where its term vanishes, and the constants of that
     term (a rate feedback's T_F with its K_F) held with it: moot."""
 
@@ -28,12 +28,12 @@ def _holding(model: type[ControlModel], name: str) -> type[ControlModel]:
             return replace(p, default=p.absent, low=p.absent, high=p.absent, held=True)
         return replace(p, held=True) if p.within == name else p
 
-    return type(model.__name__, (model,), {"parameters": tuple(held(p) for p in model.parameters)})
+    return model.with_parameters(held(p) for p in model.parameters)
 
 
 def without_unseen_terms(
-    model: type[ControlModel], fitted: ControlFit, fit: Sequence[ControlCase], held: Sequence[ControlCase]
-) -> type[ControlModel]:
+    model: ControlModel, fitted: ControlFit, fit: Sequence[ControlCase], held: Sequence[ControlCase]
+) -> ControlModel:
     """The model with each term the recordings do not show held where it vanishes, one at a time
     while the fit's error rises by less than ``EQUAL_FIT``: a rate feedback of a static exciter
     that has none (EXST1 with K_F = 0) otherwise trades with its lead-lag, and neither is

@@ -85,7 +85,7 @@ class ControlFit:
 
 
 def fit_model(
-    model: type[ControlModel],
+    model: ControlModel,
     fit: Sequence[ControlCase],
     held: Sequence[ControlCase],
     earlier: Mapping[str, Mapping[str, float]] | None = None,
@@ -158,7 +158,7 @@ class _FitProblem:
 
     def __init__(
         self,
-        model: type[ControlModel],
+        model: ControlModel,
         fit: Sequence[ControlCase],
         limits: Limits,
         held_limits: dict[str, float],

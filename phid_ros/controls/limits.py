@@ -48,7 +48,7 @@ INPUT_LIMIT_GAIN = 0.2
 
 
 def reached_limits(
-    model: type[ControlModel], values: Mapping[str, float], cases: Sequence[ControlCase], noise: float
+    model: ControlModel, values: Mapping[str, float], cases: Sequence[ControlCase], noise: float
 ) -> Limits:
     """The output limits the recordings reached (see the module's note), each with where its fit
     starts and its range: the recorded extreme it sat at, in the limit's own terms.
@@ -122,9 +122,7 @@ def reached_limits(
     return out
 
 
-def limits_seen(
-    model: type[ControlModel], cases: Sequence[ControlCase], reached: Mapping[str, Any]
-) -> dict[str, float]:
+def limits_seen(model: ControlModel, cases: Sequence[ControlCase], reached: Mapping[str, Any]) -> dict[str, float]:
     """Each output limit not ``reached``: the outermost value the recorded output implies, in the
     limit's terms (a static exciter's E_fd of 4.8 at V_T 0.19 in a fault: V_RMAX at least 25). A
     record that writes a limit below it would cut what was recorded."""
@@ -144,7 +142,7 @@ def limits_seen(
     return out
 
 
-def wanted_input_limits(model: type[ControlModel], values: Mapping[str, float], cases: Sequence[ControlCase]) -> Limits:
+def wanted_input_limits(model: ControlModel, values: Mapping[str, float], cases: Sequence[ControlCase]) -> Limits:
     """Where a fit may put the model's input limits (its error's VIMIN, VIMAX): between the error at
     rest and the largest the small-signal model drives it to in the recordings, either way. No
     flat top shows an input limit (behind a lead-lag the output keeps moving), so these are
@@ -182,7 +180,7 @@ def wanted_input_limits(model: type[ControlModel], values: Mapping[str, float], 
 
 
 def _binding(
-    model: type[ControlModel], limited: ControlFit, cases: Sequence[ControlCase], noise: float
+    model: ControlModel, limited: ControlFit, cases: Sequence[ControlCase], noise: float
 ) -> tuple[list[Array], list[str]]:
     """The cases played through ``limited``'s limits, and the limits it freed that never bind
     there (moved out of reach, no case's output moves by more than the noise)."""
@@ -203,7 +201,7 @@ def _binding(
 
 
 def with_reached_limits(
-    model: type[ControlModel],
+    model: ControlModel,
     small_signal: ControlFit,
     fit: Sequence[ControlCase],
     faults: Sequence[ControlCase],
@@ -253,7 +251,7 @@ def with_reached_limits(
 
 
 def _with_input_limits(
-    model: type[ControlModel],
+    model: ControlModel,
     base: ControlFit,
     fit: Sequence[ControlCase],
     faults: Sequence[ControlCase],
@@ -283,7 +281,7 @@ def _with_input_limits(
 
 
 def _freed(
-    model: type[ControlModel],
+    model: ControlModel,
     start: ControlFit,
     trial: Limits,
     name: str,
@@ -316,7 +314,7 @@ def _freed(
 
 
 def on_step_tests(
-    model: type[ControlModel], limited: ControlFit, fit: Sequence[ControlCase], held: Sequence[ControlCase]
+    model: ControlModel, limited: ControlFit, fit: Sequence[ControlCase], held: Sequence[ControlCase]
 ) -> ControlFit:
     """A fit that found limits, its small-signal constants refitted on the step tests alone with
     the output limits held (the input limits free): how the named model's constants are given,
@@ -343,7 +341,7 @@ def with_limits_of(refit: ControlFit, limited: ControlFit) -> ControlFit:
 
 
 def refit_through_limits(
-    model: type[ControlModel],
+    model: ControlModel,
     f: ControlFit,
     fit: Sequence[ControlCase],
     held: Sequence[ControlCase],

@@ -31,7 +31,7 @@ def _references(cases: Sequence[ControlCase], predicted: Sequence[Array], unit: 
 
 
 def _sized(
-    model: type[ControlModel], values: dict[str, float], cases: Sequence[ControlCase]
+    model: ControlModel, values: dict[str, float], cases: Sequence[ControlCase]
 ) -> tuple[list[Array], list[Array], list[float]]:
     """Per case the small-signal response without a reference step, the response to a unit one
     (empty where the case has none) and the step's size by least squares (0 unstepped)."""
@@ -40,21 +40,19 @@ def _sized(
     return free, unit, _references(cases, free, unit)
 
 
-def simulate_references(
-    model: type[ControlModel], values: dict[str, float], cases: Sequence[ControlCase]
-) -> list[float]:
+def simulate_references(model: ControlModel, values: dict[str, float], cases: Sequence[ControlCase]) -> list[float]:
     """Each case's reference step as the small-signal model sizes it."""
     return _sized(model, values, cases)[2]
 
 
-def simulate_cases(model: type[ControlModel], values: dict[str, float], cases: Sequence[ControlCase]) -> list[Array]:
+def simulate_cases(model: ControlModel, values: dict[str, float], cases: Sequence[ControlCase]) -> list[Array]:
     """Each case's output with its reference step sized by least squares."""
     free, unit, refs = _sized(model, values, cases)
     return [f + r * u if c.stepped else f for c, f, u, r in zip(cases, free, unit, refs)]
 
 
 def limited_output(
-    model: type[ControlModel], values: Mapping[str, float], case: ControlCase, reference: float | None = None
+    model: ControlModel, values: Mapping[str, float], case: ControlCase, reference: float | None = None
 ) -> tuple[Array, float]:
     """The case's output deviation played through the model's limits, and its reference step:
     ``reference``, or for a stepped case without one the size a bounded search finds (the
@@ -85,7 +83,7 @@ def limited_output(
     return played(reference), reference
 
 
-def open_limits(model: type[ControlModel]) -> dict[str, float]:
+def open_limits(model: ControlModel) -> dict[str, float]:
     """The model's output and input limits out of reach: a limit the recordings did not reach
     does not act in a fit played through the others (its default would: SEXS's E_MAX 5)."""
     out: dict[str, float] = {}

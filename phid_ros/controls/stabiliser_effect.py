@@ -21,12 +21,19 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
 
-import numpy as np
-
 from phid_ros.controls.cases import KINDS, ControlCase, acted_unrecorded, control_case, rmse
 from phid_ros.controls.choice import NAMED_BELOW, judged, simplest_best
 from phid_ros.controls.fit import ControlFit, fit_model
-from phid_ros.controls.models import MODELS, ControlInputs, ControlModel, LimitsError, OperatingLevels, of_kind
+from phid_ros.controls.models import (
+    MODEL_DATA,
+    MODELS,
+    Array,
+    ControlInputs,
+    ControlModel,
+    LimitsError,
+    OperatingLevels,
+    of_kind,
+)
 from phid_ros.controls.play import limited_output, open_limits
 from phid_ros.ident.scenario import ScenarioData
 
@@ -38,32 +45,51 @@ def exciter_values(exciter: ControlFit) -> dict[str, float]:
     return model.completed({**model.defaults(), **open_limits(model), **given})
 
 
-def through_exciter(
-    stabiliser: type[ControlModel], exciter: type[ControlModel], held: Mapping[str, float]
-) -> type[ControlModel]:
-    """``stabiliser`` seen through ``exciter`` held at ``held``: its constants, E_fd its output."""
+class ThroughExciter(ControlModel):
+    """A stabiliser seen through an exciter held at its fitted constants: the stabiliser's
+    constants, data and checks, E_fd its output (the stabiliser's answer to P_e, and speed, added
+    to the exciter's V_S). The fit takes it as any model; only the output is the exciter's."""
 
-    class Through(stabiliser):  # type: ignore[valid-type,misc]
-        @classmethod
-        def _with_v_s(cls, values: Mapping[str, float], x: ControlInputs) -> ControlInputs:
-            own = super().response(values, x, 0.0)  # the stabiliser's answer to P_e (and speed)
-            return replace(x, v_s=own if x.v_s is None else x.v_s + own)
+    def __init__(self, stabiliser: ControlModel, exciter: ControlModel, held: Mapping[str, float]) -> None:
+        self.stabiliser, self.exciter, self.held = stabiliser, exciter, dict(held)
+        for name in MODEL_DATA:
+            setattr(self, name, getattr(stabiliser, name))
 
-        @classmethod
-        def response(cls, values: Mapping[str, float], x: ControlInputs, reference: float) -> np.ndarray:
-            return exciter.response(held, cls._with_v_s(values, x), reference)
+    def __repr__(self) -> str:
+        return f"ThroughExciter({self.stabiliser!r}, {self.exciter!r})"
 
-        @classmethod
-        def limited(
-            cls, values: Mapping[str, float], x: ControlInputs, reference: float, levels: OperatingLevels
-        ) -> np.ndarray | None:
-            return exciter.limited(held, cls._with_v_s(values, x), reference, levels)
+    def start(self, earlier: Mapping[str, Mapping[str, float]]) -> dict[str, float]:
+        return self.stabiliser.start(earlier)
 
-    Through.__name__ = Through.__qualname__ = f"{stabiliser.name}Through{exciter.name}"
-    return Through
+    def completed(self, values: Mapping[str, float]) -> dict[str, float]:
+        return self.stabiliser.completed(values)
+
+    def record_problem(self, values: Mapping[str, float]) -> str | None:
+        return self.stabiliser.record_problem(values)
+
+    def recorded(self, values: Mapping[str, float]) -> dict[str, float]:
+        return self.stabiliser.recorded(values)
+
+    def not_simulated(self, values: Mapping[str, float]) -> list[str]:
+        return self.stabiliser.not_simulated(values)
+
+    def limit_at(self, name: str, output: float, levels: OperatingLevels, k: int) -> float:
+        return self.stabiliser.limit_at(name, output, levels, k)
+
+    def _with_v_s(self, values: Mapping[str, float], x: ControlInputs) -> ControlInputs:
+        own = self.stabiliser.response(values, x, 0.0)
+        return replace(x, v_s=own if x.v_s is None else x.v_s + own)
+
+    def response(self, values: Mapping[str, float], x: ControlInputs, reference: float) -> Array:
+        return self.exciter.response(self.held, self._with_v_s(values, x), reference)
+
+    def limited(
+        self, values: Mapping[str, float], x: ControlInputs, reference: float, levels: OperatingLevels
+    ) -> Array | None:
+        return self.exciter.limited(self.held, self._with_v_s(values, x), reference, levels)
 
 
-def _exciter_alone(exciter: type[ControlModel], held: Mapping[str, float], cases: Sequence[ControlCase]) -> float:
+def _exciter_alone(exciter: ControlModel, held: Mapping[str, float], cases: Sequence[ControlCase]) -> float:
     """The exciter's own error on the cases (its limits, each stepped case's reference fitted): what
     a stabiliser must explain clearly more of to be named."""
     played = [limited_output(exciter, held, c)[0] for c in cases]
@@ -105,7 +131,7 @@ def stabiliser_from_effect(
 
 
 def _fitted_through(
-    model: type[ControlModel],
+    model: ControlModel,
     held: Mapping[str, float],
     fit: Sequence[ControlCase],
     check: Sequence[ControlCase],
@@ -126,7 +152,7 @@ def _fitted_through(
         return f"not identified: no stabiliser model among the candidates reads what {names} recorded"
     fits: list[ControlFit] = []
     for m in readable:
-        through = through_exciter(m, model, held)
+        through = ThroughExciter(m, model, held)
         f = fit_model(through, fit, check, checked=True, played_through_limits=True)
         f.model, f.kind = m.name, "stabiliser"
         # the stabiliser's output limits were never reached in a play-in that does not see them

@@ -202,7 +202,7 @@ def field_on_machine_base(
 class Control:
     """A control model with its constants, as the unit carries it."""
 
-    model: type[ControlModel]
+    model: ControlModel
     values: dict[str, float]
 
 

@@ -14,8 +14,8 @@ from phid_ros.controls.identify import controls_json, identify_controls
 from phid_ros.controls.models import MODELS, SEXS, TGOV1, ControlInputs, OperatingLevels
 from phid_ros.model.channels import Frame
 
-EXCITER = {**SEXS.defaults(), "TA/TB": 0.2, "TB": 5.0, "K": 100.0, "TE": 0.05}
-GOVERNOR = {**TGOV1.defaults(), "R": 0.05, "T1": 0.5, "T2": 2.0, "T3": 6.0, "Dt": 0.0}
+EXCITER = {**SEXS().defaults(), "TA/TB": 0.2, "TB": 5.0, "K": 100.0, "TE": 0.05}
+GOVERNOR = {**TGOV1().defaults(), "R": 0.05, "T1": 0.5, "T2": 2.0, "T3": 6.0, "Dt": 0.0}
 # each registered model's constants as switched in below (typical data: IEEE 421.5 and PSS/E's
 # examples), and the gains the test holds within 5 %
 TRUTH = {

@@ -27,22 +27,22 @@ def test_every_model_declares_its_constants_in_range_and_is_registered_by_kind()
 
 
 def test_sexs_settles_at_its_gain_and_starts_at_gain_times_ta_over_tb() -> None:
-    v = {**SEXS.defaults(), "K": 50.0, "TA/TB": 0.2, "TB": 2.0, "TE": 0.05}
-    e = SEXS.response(v, inputs(v_t=-0.01), 0.0)  # V_t 0.01 pu below the reference
+    v = {**SEXS().defaults(), "K": 50.0, "TA/TB": 0.2, "TB": 2.0, "TE": 0.05}
+    e = SEXS().response(v, inputs(v_t=-0.01), 0.0)  # V_t 0.01 pu below the reference
     assert e[999] == 0.0 and e[-1] == pytest.approx(0.5, rel=1e-3)  # K * 0.01 after 19 s = 9.5 T_B
     # the lead-lag's step (0.2 of it at once, the rest with T_B) through T_E: two lags in a chain
     t, tb, te = 0.3, 2.0, 0.05
     chain = 1 - (tb * np.exp(-t / tb) - te * np.exp(-t / te)) / (tb - te)
     assert e[1000 + 300] == pytest.approx(0.5 * (0.2 * (1 - np.exp(-t / te)) + 0.8 * chain), rel=1e-3)
     # a reference step of 0.01 is the same as V_t falling by 0.01
-    assert np.allclose(SEXS.response(v, inputs(), 0.01), e)
+    assert np.allclose(SEXS().response(v, inputs(), 0.01), e)
 
 
 def test_tgov1_answers_a_speed_rise_with_minus_one_over_r_and_a_reference_step_fully() -> None:
-    v = {**TGOV1.defaults(), "R": 0.05, "T1": 0.5, "T2": 1.0, "T3": 3.0, "Dt": 0.0}
-    p = TGOV1.response(v, inputs(n=40_000, speed=0.001), 0.0)
+    v = {**TGOV1().defaults(), "R": 0.05, "T1": 0.5, "T2": 1.0, "T3": 3.0, "Dt": 0.0}
+    p = TGOV1().response(v, inputs(n=40_000, speed=0.001), 0.0)
     assert p[-1] == pytest.approx(-0.02, rel=1e-3)  # -dw/R after 39 s
-    ref = TGOV1.response(v, inputs(n=40_000), 0.1)
+    ref = TGOV1().response(v, inputs(n=40_000), 0.1)
     assert ref[-1] == pytest.approx(0.1, rel=1e-3)
     # the valve (T1) then the turbine's lead-lag: T2/T3 of the valve at once, the rest through T3
     t, t1, t3 = 2.5, 0.5, 3.0
@@ -83,11 +83,11 @@ def test_ieeeg1_simulates_every_stage_a_record_gives() -> None:
     from phid_ros.controls.models import IEEEG1
     from phid_ros.controls.unit_validation import control_of
 
-    v = {**IEEEG1.defaults(), "K": 20.0, "T1": 0.2, "T2": 1.0, "T3": 0.1, "T4": 0.3, "T5": 5.0, "T6": 0.5, "T7": 2.0}
+    v = {**IEEEG1().defaults(), "K": 20.0, "T1": 0.2, "T2": 1.0, "T3": 0.1, "T4": 0.3, "T5": 5.0, "T6": 0.5, "T7": 2.0}
     v.update({"K1": 0.3, "K3": 0.4, "K5": 0.2, "K7": 0.1})
     assert control_of("IEEEG1", v).values["K3"] == 0.4  # as written, not 1 - K1
     x = inputs(n=30_000, speed=0.001)
-    p = IEEEG1.response(v, x, 0.0)
+    p = IEEEG1().response(v, x, 0.0)
     t = np.arange(len(x.speed)) * x.dt
     s = np.polynomial.Polynomial([0.0, 1.0])
     lag = {k: 1 + v[k] * s for k in ("T3", "T4", "T5", "T6", "T7")}
@@ -132,7 +132,7 @@ def _st5b(**over: float) -> dict[str, float]:
     from phid_ros.controls.models import ESST5B
 
     return {
-        **ESST5B.defaults(),
+        **ESST5B().defaults(),
         "TR": 0.01,
         "KR": 200.0,
         "T1": 0.005,
@@ -155,8 +155,8 @@ def test_esst5b_limited_is_the_small_signal_path_away_from_its_limits() -> None:
     x = ControlInputs(dt, 0.001 * np.sin(np.arange(n) * dt * 3), np.zeros(n), step)
     levels = OperatingLevels(np.ones(n), 1.2, 1.2)
     values = _st5b()
-    linear = ESST5B.response(values, x, 0.001)
-    limited = ESST5B.limited(values, x, 0.001, levels)
+    linear = ESST5B().response(values, x, 0.001)
+    limited = ESST5B().limited(values, x, 0.001, levels)
     assert limited is not None and np.max(np.abs(limited - linear)) < 1e-9
 
 
@@ -171,14 +171,14 @@ def test_esst5b_ceiling_follows_v_t_and_the_rectifier_loading_and_lets_go_at_onc
     v_t = 1.0 - 0.05 * ((t >= 0.8) & (t < 1.2))  # the terminal voltage sags while at the ceiling
     x = ControlInputs(dt, np.zeros(n), np.zeros(n), step)
     values = _st5b()
-    efd = 1.2 + ESST5B.limited(values, x, 0.05, OperatingLevels(v_t, 1.2, 1.2))
+    efd = 1.2 + ESST5B().limited(values, x, 0.05, OperatingLevels(v_t, 1.2, 1.2))
     ceiling = 3.0 * v_t - 0.2 * 1.2
     assert np.all(efd <= ceiling + 1e-12)
     on = (t > 0.6) & (t < 1.45) & ~((t >= 1.2) & (t < 1.25))  # but the T_1 lag rising after the sag
     assert np.allclose(efd[on], ceiling[on], atol=1e-4)  # K_R 200 x 0.05: held at the ceiling throughout
     assert efd[int(1.52 / dt)] < 0.5 * (efd[int(1.45 / dt)] + 1.2)  # down within 20 ms of the return
     with pytest.raises(LimitsError, match="V_R at rest 3.36"):
-        ESST5B.limited(values, x, 0.05, OperatingLevels(v_t, 2.8, 2.8))
+        ESST5B().limited(values, x, 0.05, OperatingLevels(v_t, 2.8, 2.8))
 
 
 def test_ieeest_is_its_block_diagram_on_the_electrical_power() -> None:
@@ -189,19 +189,19 @@ def test_ieeest_is_its_block_diagram_on_the_electrical_power() -> None:
 
     from phid_ros.controls.models import IEEEST
 
-    v = IEEEST.completed({**IEEEST.defaults(), "T1": 0.3, "T2": 0.1, "T3": 0.0, "T4": 0.02, "T6": 2.0, "KS": -0.5})
+    v = IEEEST().completed({**IEEEST().defaults(), "T1": 0.3, "T2": 0.1, "T3": 0.0, "T4": 0.02, "T6": 2.0, "KS": -0.5})
     assert (v["T1"], v["T2"], v["T3"], v["T4"], v["T5"]) == (0.0, 0.02, 0.3, 0.1, 2.0)
     dt, n = 0.001, 20000
     p_e = 0.1 * (np.arange(n) >= 1000)
     x = ControlInputs(dt, np.zeros(n), np.zeros(n), np.zeros(n), p_e=p_e)
-    y = IEEEST.response(v, x, 0.0)
+    y = IEEEST().response(v, x, 0.0)
     num = np.polymul(np.polymul([v["KS"] * v["T5"], 0.0], [v["T1"], 1.0]), [v["T3"], 1.0])
     den = np.polymul(np.polymul([v["T6"], 1.0], [v["T2"], 1.0]), [v["T4"], 1.0])
     _, ref, _ = lsim((num, den), p_e, np.arange(n) * dt)
     assert y[999] == 0.0 and np.max(np.abs(y - ref)) < 1e-3 * np.max(np.abs(ref))
     assert y[1050] < -0.05  # the lead: more than K_S x 0.1 at first, washed out after
     # without P_e recorded the model does not apply
-    assert np.isnan(IEEEST.response(v, ControlInputs(dt, np.zeros(10), np.zeros(10), np.zeros(10)), 0.0)).all()
+    assert np.isnan(IEEEST().response(v, ControlInputs(dt, np.zeros(10), np.zeros(10), np.zeros(10)), 0.0)).all()
 
 
 def test_a_non_windup_lead_lag_leaves_its_limit_where_the_input_allows_and_goes_no_further() -> None:
@@ -245,3 +245,48 @@ def test_the_compiled_non_windup_lead_lag_is_the_python_loop_bit_for_bit() -> No
         assert np.array_equal(_nonwindup_lead_lag_loop(*args), y)
         reached |= {float(v) for v in (y.max(), y.min()) if v in (1.5, -2.0)}
     assert reached == {1.5, -2.0}
+
+
+def test_a_model_with_a_constant_held_is_another_value_of_its_class_and_leaves_the_registry_alone() -> None:
+    from phid_ros.controls.choice import _holding
+
+    exst1 = MODELS["EXST1"]
+    held = _holding(exst1, "KF")
+    assert type(held) is type(exst1) and held is not exst1
+    kf, tf = (next(p for p in held.parameters if p.name == n) for n in ("KF", "TF"))
+    assert kf.held and kf.default == kf.low == kf.high == 0.0 and tf.held  # T_F is moot without K_F
+    assert not any(p.held for p in MODELS["EXST1"].parameters if p.name in ("KF", "TF"))
+    assert len(held.fitted()) == len(exst1.fitted()) - 2 and repr(held) == "EXST1(held=['KF', 'TF'])"
+    # the same equations: with K_F at 0 the held model and the free one answer alike
+    v = {**exst1.defaults(), "KF": 0.0}
+    x = inputs(v_t=-0.01)
+    assert np.array_equal(held.response(v, x, 0.0), exst1.response(v, x, 0.0))
+
+
+def test_a_stabiliser_through_an_exciter_answers_as_the_exciter_driven_by_its_output() -> None:
+    from phid_ros.controls.stabiliser_effect import ThroughExciter
+
+    sexs, pss = MODELS["SEXS"], MODELS["IEEEST"]
+    exciter = {**sexs.defaults(), "K": 50.0, "TA/TB": 0.2, "TB": 2.0, "TE": 0.05}
+    stabiliser = pss.completed({**pss.defaults(), "T1": 0.3, "T2": 0.1, "T4": 0.02, "KS": -0.5})
+    n, dt = 5000, 1e-3
+    step = (np.arange(n) >= 1000).astype(float)
+    x = ControlInputs(dt, np.zeros(n), np.zeros(n), np.zeros(n), p_e=0.05 * step)
+    through = ThroughExciter(pss, sexs, exciter)
+    assert through.name == "IEEEST" and through.kind == "stabiliser" and through.parameters == pss.parameters
+    v_s = pss.response(stabiliser, x, 0.0)
+    assert np.abs(v_s).max() > 1e-3  # the stabiliser answers the power step
+    expected = sexs.response(exciter, replace(x, v_s=v_s), 0.0)
+    assert np.array_equal(through.response(stabiliser, x, 0.0), expected)
+    assert through.start({}) == pss.start({}) and through.completed(stabiliser) == pss.completed(stabiliser)
+
+
+def test_a_nesting_model_starts_where_the_simpler_one_ended() -> None:
+    sexs = {**MODELS["SEXS"].defaults(), "K": 80.0, "TA/TB": 0.25, "TB": 4.0, "TE": 0.04}
+    exst1 = MODELS["EXST1"].start({"SEXS": sexs})
+    assert exst1["TC"] == pytest.approx(1.0) and exst1["TB"] == 4.0 and exst1["KA"] == 80.0 and exst1["TA"] == 0.04
+    esst5b = MODELS["ESST5B"].start({"SEXS": sexs})
+    assert esst5b["TC1"] == pytest.approx(1.0) and esst5b["KR"] == 80.0 and esst5b["T1"] == 0.04
+    assert MODELS["EXST1"].start({}) == MODELS["EXST1"].defaults()
+    pss2b = MODELS["PSS2B"].start({"PSS2A": {**MODELS["PSS2A"].defaults(), "KS1": 17.0}})
+    assert pss2b["KS1"] == 17.0 and pss2b["T10"] == pss2b["T11"] == 0.1

@@ -221,7 +221,7 @@ def test_a_stabiliser_goes_out_with_its_exciter_and_andes_plays_it_as_phid_does(
 
     params = TABLE1.replace(X_q_prime=TABLE1.X_d_prime)
     stabiliser = {"T1": 0.0, "T2": 0.02, "T3": 0.2, "T4": 0.04, "T6": 2.0, "KS": -0.2}
-    pss = IEEEST.completed({**IEEEST.defaults(), **stabiliser})
+    pss = IEEEST().completed({**IEEEST().defaults(), **stabiliser})
     controls = {
         "exciter": CONTROLS["exciter"],
         "stabiliser": {
@@ -248,7 +248,7 @@ def test_a_stabiliser_goes_out_with_its_exciter_and_andes_plays_it_as_phid_does(
     x = ControlInputs(
         0.01, np.zeros(len(a["t"])), np.zeros(len(a["t"])), np.zeros(len(a["t"])), p_e=a["p_e"] - a["p_e"][0]
     )
-    mine = IEEEST.response(pss, x, 0.0)
+    mine = IEEEST().response(pss, x, 0.0)
     err = float(np.max(np.abs(mine - vsout["andes"])))
     assert err < 0.01 * peak, err
 
@@ -288,8 +288,8 @@ def test_a_static_exciter_at_its_input_limit_goes_out_and_andes_plays_it_as_phid
     assert np.allclose(a["v_f"], b["v_f"], atol=1e-6)
     t, v_t = a["t"], a["v_t"]
     x = ControlInputs(0.002, v_t - v_t[0], np.zeros(len(t)), np.zeros(len(t)))
-    values = EXST1.completed({**EXST1.defaults(), **exciter})
-    mine = a["v_f"][0] + EXST1.limited(values, x, 0.0, OperatingLevels(v_t, float(a["v_f"][0]), float(a["v_f"][0])))
+    values = EXST1().completed({**EXST1().defaults(), **exciter})
+    mine = a["v_f"][0] + EXST1().limited(values, x, 0.0, OperatingLevels(v_t, float(a["v_f"][0]), float(a["v_f"][0])))
     swing = float(np.max(a["v_f"]) - a["v_f"][0])
     # the input limit bound: the uncapped error (1 - V_t ~ 0.7 pu in the fault) would have driven E_fd
     # far higher through K_A T_C/T_B = 20

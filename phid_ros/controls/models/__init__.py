@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from phid_ros.controls.models.base import (
     KINDS_IN_ORDER,
+    MODEL_DATA,
     MODELS,
     TRANSDUCER,
     ControlModel,
@@ -50,6 +51,7 @@ __all__ = [
     "IEEEST",
     "IEEET1",
     "KINDS_IN_ORDER",
+    "MODEL_DATA",
     "MODELS",
     "PSS2A",
     "PSS2B",

@@ -3,11 +3,12 @@ meaning), its limits, and the registry every model of a kind is a candidate from
 
 from __future__ import annotations
 
+import copy
 import math
 from abc import ABC, abstractmethod
-from collections.abc import Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import Self, TypeVar
 
 import numpy as np
 
@@ -60,153 +61,194 @@ class OperatingLevels:
 
 
 class ControlModel(ABC):
-    """A control system's small-signal path; subclass and :func:`register` to add one."""
+    """A control system's small-signal path; subclass and :func:`register` to add one.
 
-    name: ClassVar[str]
-    kind: ClassVar[str]  # "exciter" (output E_fd), "governor" (output P_m) or "stabiliser" (output V_S)
-    description: ClassVar[str]
-    parameters: ClassVar[tuple[ControlParameter, ...]]
+    A model is a value: :data:`MODELS` holds one instance of each registered class, and a model
+    with some constants held (a term the recordings do not show, held where it vanishes) is
+    another instance of the same class, :meth:`with_parameters`, as a plant effect's trial is
+    another instance of its effect. The constants' values travel beside it as a mapping by
+    PSS/E's names, the form a record and a fit carry them in."""
+
+    name: str
+    kind: str  # "exciter" (output E_fd), "governor" (output P_m) or "stabiliser" (output V_S)
+    description: str
+    parameters: tuple[ControlParameter, ...]
     # integers a .dyr record carries before the constants (PSS/E's ICONs), with the values phid writes
-    icons: ClassVar[tuple[tuple[str, int], ...]] = ()
+    icons: tuple[tuple[str, int], ...] = ()
     # the ICONs whose value the simulation depends on (an input's code, a filter's order): a
     # record that gives another is refused, not simulated as phid's
-    icons_simulated: ClassVar[tuple[str, ...]] = ()
+    icons_simulated: tuple[str, ...] = ()
     # channels a model reads beyond its kind's (a dual-input stabiliser's rotor speed)
-    needs: ClassVar[tuple[str, ...]] = ()
+    needs: tuple[str, ...] = ()
     # constants of branches the small-signal path does not pass through (said in a validation)
-    outside_path: ClassVar[tuple[str, ...]] = ()
+    outside_path: tuple[str, ...] = ()
     # limits :meth:`limited` simulates (said apart from the ones the play-in leaves out)
-    simulated_limits: ClassVar[tuple[str, ...]] = ()
+    simulated_limits: tuple[str, ...] = ()
     # (lower, upper): the limits that bound the output itself, which a recorded flat top pins
-    output_limits: ClassVar[tuple[str, str] | None] = None
+    output_limits: tuple[str, str] | None = None
     # (lower, upper): the limits on the regulator's input (its error), which no flat top shows:
     # found where the fit wants them (:func:`phid_ros.controls.limits.wanted_input_limits`)
-    input_limits: ClassVar[tuple[str, str] | None] = None
+    input_limits: tuple[str, str] | None = None
     # the constant that lowers the output's ceiling with the field current (a static exciter's
     # rectifier loading K_C): fitted beside a ceiling the recordings reached
-    loading: ClassVar[str | None] = None
-    simulated_limits_how: ClassVar[str] = ""
+    loading: str | None = None
+    simulated_limits_how: str = ""
     # the planning tools' own forms of the model, where phid writes them: PSLF's record is PSS/E's
     # constants after ``mwcap=`` and this many zeros (None: its layout not known, not written);
     # ANDES's model of the same name (its constants under ``andes_names`` where they differ)
-    pslf_trailing_zeros: ClassVar[int | None] = None
-    in_andes: ClassVar[bool] = False
-    andes_names: ClassVar[Mapping[str, str]] = {}
+    pslf_trailing_zeros: int | None = None
+    in_andes: bool = False
+    andes_names: Mapping[str, str] = {}
 
-    @classmethod
-    def fitted(cls) -> tuple[ControlParameter, ...]:
-        return tuple(p for p in cls.parameters if not p.limit and not p.held and p.high > p.low)
+    def with_parameters(self, parameters: Iterable[ControlParameter]) -> Self:
+        """This model with its parameters declared otherwise (held, or another search range)."""
+        other = copy.copy(self)
+        other.parameters = tuple(parameters)
+        return other
 
-    @classmethod
-    def start(cls, earlier: Mapping[str, Mapping[str, float]]) -> dict[str, float]:
+    def __repr__(self) -> str:
+        declared = {p.name for p in type(self).parameters if p.held}
+        held = [p.name for p in self.parameters if p.held and p.name not in declared]
+        return f"{type(self).__name__}()" if not held else f"{type(self).__name__}(held={held})"
+
+    def fitted(self) -> tuple[ControlParameter, ...]:
+        return tuple(p for p in self.parameters if not p.limit and not p.held and p.high > p.low)
+
+    def start(self, earlier: Mapping[str, Mapping[str, float]]) -> dict[str, float]:
         """Where the fit starts, given the fits of the models registered before it (by name): a
         model that nests a simpler one starts where that one ended, so it fits at least as well
         (a rate feedback's loop has local minima a start from the defaults falls into)."""
-        return cls.defaults()
+        return self.defaults()
 
-    @classmethod
-    def completed(cls, values: Mapping[str, float]) -> dict[str, float]:
+    def started_from(
+        self,
+        earlier: Mapping[str, Mapping[str, float]],
+        simpler: str,
+        nested: Callable[[Mapping[str, float]], Mapping[str, float]],
+    ) -> dict[str, float]:
+        """:meth:`start` for a model that nests ``simpler``: its defaults, with ``nested`` of the
+        simpler model's fit (the constants that play it) where that one was fitted."""
+        fit = earlier.get(simpler)
+        return {**self.defaults(), **nested(fit)} if fit else self.defaults()
+
+    def completed(self, values: Mapping[str, float]) -> dict[str, float]:
         """The constants that follow from the fitted ones (none unless a model says so)."""
         return dict(values)
 
-    @classmethod
-    def record_problem(cls, values: Mapping[str, float]) -> str | None:
+    def record_problem(self, values: Mapping[str, float]) -> str | None:
         """What makes a record's constants ones the simulation cannot take, or None: a constant
         not a number or a negative time constant (held ones too: the play-in runs a record as
         written, T_5 = -3 s included), and a limit pair whose lower bound lies above its upper (an
         IEEEST with LSMAX below LSMIN played to an E_fd error of 9e266 pu)."""
-        for q in cls.parameters:
+        for q in self.parameters:
             problem = q.record_problem(values[q.name])
             if problem is not None:
                 return f"{q.name} = {values[q.name]:g} {problem}"
-        for pair in (cls.output_limits, cls.input_limits):
+        for pair in (self.output_limits, self.input_limits):
             if pair is not None and values[pair[0]] > values[pair[1]]:
                 lo, hi = pair
                 return f"{lo} = {values[lo]:g} lies above {hi} = {values[hi]:g}: the lower limit is above the upper"
         return None
 
-    @classmethod
-    def recorded(cls, values: Mapping[str, float]) -> dict[str, float]:
+    def recorded(self, values: Mapping[str, float]) -> dict[str, float]:
         """A record's constants as the simulation takes them: as written (a model whose record
         can carry what phid does not simulate refuses it here, naming the constants)."""
         return dict(values)
 
-    @classmethod
-    def not_simulated(cls, values: Mapping[str, float]) -> list[str]:
+    def not_simulated(self, values: Mapping[str, float]) -> list[str]:
         """What a record of this model carries that the small-signal play-in leaves out, with the
         record's values: its limits (and the exciter saturation, the rectifier loading, which act
         only at large signals) and the branches outside its path."""
         out = []
-        limits = [p for p in cls.parameters if p.limit and p.name not in cls.simulated_limits]
-        if cls.simulated_limits and cls.simulated_limits_how:
-            out.append(f"{cls.name}: {cls.simulated_limits_how}")
+        limits = [p for p in self.parameters if p.limit and p.name not in self.simulated_limits]
+        if self.simulated_limits and self.simulated_limits_how:
+            out.append(f"{self.name}: {self.simulated_limits_how}")
         if limits:
             named = ", ".join(f"{p.name} = {values[p.name]:g}" for p in limits)
             out.append(
-                f"{cls.name} {named} (the play-in is small-signal: a recording that reaches them is not followed)"
+                f"{self.name} {named} (the play-in is small-signal: a recording that reaches them is not followed)"
             )
-        idle = [p for p in cls.parameters if p.name in cls.outside_path]
+        idle = [p for p in self.parameters if p.name in self.outside_path]
         if idle:
             named = ", ".join(f"{p.name} = {values[p.name]:g}" for p in idle)
-            out.append(f"{cls.name} {named} ({idle[0].meaning})")
+            out.append(f"{self.name} {named} ({idle[0].meaning})")
         return out
 
-    @classmethod
     def limited(
-        cls, values: Mapping[str, float], x: ControlInputs, reference: float, levels: OperatingLevels
+        self, values: Mapping[str, float], x: ControlInputs, reference: float, levels: OperatingLevels
     ) -> Array | None:
         """The output's deviation with the limits the model declares simulated, from the
         operating levels; None where the model has only its small-signal path."""
         return None
 
-    @classmethod
     def output_clipped(
-        cls, values: Mapping[str, float], x: ControlInputs, reference: float, levels: OperatingLevels
+        self, values: Mapping[str, float], x: ControlInputs, reference: float, levels: OperatingLevels
     ) -> Array:
         """The small-signal response held within the output limits (a stabiliser's V_S band)."""
-        assert cls.output_limits is not None
-        lower, upper = cls.output_limits
-        out = cls.response(values, x, reference) + levels.output0
+        assert self.output_limits is not None
+        lower, upper = self.output_limits
+        out = self.response(values, x, reference) + levels.output0
         return np.clip(out, values[lower], values[upper]) - levels.output0
 
-    @classmethod
     def input_signal(
-        cls, values: Mapping[str, float], x: ControlInputs, reference: float, levels: OperatingLevels
+        self, values: Mapping[str, float], x: ControlInputs, reference: float, levels: OperatingLevels
     ) -> Array | None:
         """The signal at the input limiter (absolute, pu) with that limiter open; None where the
         model declares no input limit."""
         return None
 
-    @classmethod
-    def limit_at(cls, name: str, output: float, levels: OperatingLevels, k: int) -> float:
+    def limit_at(self, name: str, output: float, levels: OperatingLevels, k: int) -> float:
         """The value of limit ``name`` that puts the output's bound at ``output`` at sample ``k``
         (a recorded flat top where the output sat on it): the output itself for a limit on the
         output, divided by V_T for a static exciter's ceiling (see ESST5B)."""
         return output
 
-    @classmethod
-    def defaults(cls) -> dict[str, float]:
-        return {p.name: p.default for p in cls.parameters}
+    def defaults(self) -> dict[str, float]:
+        return {p.name: p.default for p in self.parameters}
 
-    @classmethod
     @abstractmethod
-    def response(cls, values: Mapping[str, float], x: ControlInputs, reference: float) -> Array:
+    def response(self, values: Mapping[str, float], x: ControlInputs, reference: float) -> Array:
         """The output's deviation for the scenario's inputs; ``reference`` is the size of the
         reference step (V_ref for an exciter, P_ref in pu power for a governor)."""
 
 
-MODELS: dict[str, type[ControlModel]] = {}
+# a model's data as declared above (what a model seen through another, or a copy, carries over)
+MODEL_DATA = (
+    "name",
+    "kind",
+    "description",
+    "parameters",
+    "icons",
+    "icons_simulated",
+    "needs",
+    "outside_path",
+    "simulated_limits",
+    "output_limits",
+    "input_limits",
+    "loading",
+    "simulated_limits_how",
+    "pslf_trailing_zeros",
+    "in_andes",
+    "andes_names",
+)
+
+MODELS: dict[str, ControlModel] = {}  # one instance of each registered model, by PSS/E's name
 
 
 KINDS_IN_ORDER = ("exciter", "governor", "stabiliser")  # every kind a model is of, as the unit's records go
 
 
-def register(cls: type[ControlModel]) -> type[ControlModel]:
-    MODELS[cls.name] = cls
+_Model = TypeVar("_Model", bound=type[ControlModel])
+
+
+def register(cls: _Model) -> _Model:
+    """Class decorator: the model's instance joins :data:`MODELS` (registration order is the
+    choice's order among equals)."""
+    MODELS[cls.name] = cls()
     return cls
 
 
-def of_kind(kind: str) -> list[type[ControlModel]]:
+def of_kind(kind: str) -> list[ControlModel]:
     return [m for m in MODELS.values() if m.kind == kind]
 
 

@@ -55,6 +55,12 @@ def _ieeet1_transfer(
     return tuple(map(float, num)), tuple(map(float, den))
 
 
+def _sexs_as(sexs: Mapping[str, float], lead: str, lag: str, gain: str, field: str) -> dict[str, float]:
+    """A SEXS fit as the constants of a static exciter that nests it (EXST1, ESST5B): its lead-lag
+    T_A/T_B, T_B, gain K and field lag T_E under the larger model's names, a transducer of no lag."""
+    return {lead: sexs["TA/TB"] * sexs["TB"], lag: sexs["TB"], gain: sexs["K"], field: sexs["TE"], "TR": 1e-3}
+
+
 @register
 class SEXS(ControlModel):
     """Simplified excitation system: (V_ref - V_t) through (1 + sT_A)/(1 + sT_B), K/(1 + sT_E)."""
@@ -73,8 +79,7 @@ class SEXS(ControlModel):
         ControlParameter("EMAX", "pu", 5.0, 1.0, 20.0, "maximum field voltage", limit=True),
     )
 
-    @classmethod
-    def response(cls, values: Mapping[str, float], x: ControlInputs, reference: float) -> Array:
+    def response(self, values: Mapping[str, float], x: ControlInputs, reference: float) -> Array:
         tb = values["TB"]
         e = regulator_error(x, reference, x.v_t)
         return values["K"] * lag(lead_lag(e, values["TA/TB"] * tb, tb, x.dt), values["TE"], x.dt)
@@ -83,9 +88,8 @@ class SEXS(ControlModel):
     simulated_limits_how = "E_fd within EMIN..EMAX on a non-windup T_E lag (PSS/E SEXS)"
     output_limits = ("EMIN", "EMAX")
 
-    @classmethod
     def limited(
-        cls, values: Mapping[str, float], x: ControlInputs, reference: float, levels: OperatingLevels
+        self, values: Mapping[str, float], x: ControlInputs, reference: float, levels: OperatingLevels
     ) -> Array | None:
         v = values
         if not v["EMIN"] <= levels.output0 <= v["EMAX"]:
@@ -124,25 +128,11 @@ class EXST1(ControlModel):
         ControlParameter("TF", "s", 1.0, 0.05, 20.0, "rate feedback time constant", within="KF"),
     )
 
-    @classmethod
-    def start(cls, earlier: Mapping[str, Mapping[str, float]]) -> dict[str, float]:
-        sexs = earlier.get("SEXS")
-        if not sexs:
-            return cls.defaults()
+    def start(self, earlier: Mapping[str, Mapping[str, float]]) -> dict[str, float]:
         # SEXS is EXST1 without its transducer and rate feedback
-        lead = sexs["TA/TB"] * sexs["TB"]
-        return {
-            **cls.defaults(),
-            "TC": lead,
-            "TB": sexs["TB"],
-            "KA": sexs["K"],
-            "TA": sexs["TE"],
-            "TR": 1e-3,
-            "KF": 1e-3,
-        }
+        return self.started_from(earlier, "SEXS", lambda s: {**_sexs_as(s, "TC", "TB", "KA", "TA"), "KF": 1e-3})
 
-    @classmethod
-    def response(cls, values: Mapping[str, float], x: ControlInputs, reference: float) -> Array:
+    def response(self, values: Mapping[str, float], x: ControlInputs, reference: float) -> Array:
         v = values
         sensed = lag(x.v_t, v["TR"], x.dt)
         num, den = _exst1_transfer(v["TA"], v["TB"], v["TC"], v["TF"], v["KA"], v["KF"])
@@ -158,26 +148,22 @@ class EXST1(ControlModel):
         "its pre-event value"
     )
 
-    @classmethod
-    def limit_at(cls, name: str, output: float, levels: OperatingLevels, k: int) -> float:
+    def limit_at(self, name: str, output: float, levels: OperatingLevels, k: int) -> float:
         # E_fd's ceiling is V_T VRMAX - K_C I_FD (floor V_T VRMIN): with K_C not reached, V_T's share
         return output / float(levels.v_t[k]) if name in ("VRMAX", "VRMIN") else output
 
-    @classmethod
     def limited(
-        cls, values: Mapping[str, float], x: ControlInputs, reference: float, levels: OperatingLevels
+        self, values: Mapping[str, float], x: ControlInputs, reference: float, levels: OperatingLevels
     ) -> Array | None:
-        return cls._played(values, x, reference, levels, limited=True)[0] - levels.output0
+        return self._played(values, x, reference, levels, limited=True)[0] - levels.output0
 
-    @classmethod
     def input_signal(
-        cls, values: Mapping[str, float], x: ControlInputs, reference: float, levels: OperatingLevels
+        self, values: Mapping[str, float], x: ControlInputs, reference: float, levels: OperatingLevels
     ) -> Array | None:
-        return cls._played(values, x, reference, levels, limited=False)[1]
+        return self._played(values, x, reference, levels, limited=False)[1]
 
-    @classmethod
     def _played(
-        cls, values: Mapping[str, float], x: ControlInputs, reference: float, levels: OperatingLevels, *, limited: bool
+        self, values: Mapping[str, float], x: ControlInputs, reference: float, levels: OperatingLevels, *, limited: bool
     ) -> tuple[Array, Array]:
         """E_fd and the error at the input limiter, sample by sample (the rate feedback closes a
         loop around the limiter, so no filter chain gives it); ``limited`` False: every limit open."""
@@ -302,16 +288,14 @@ class IEEET1(ControlModel):
         ControlParameter("SE2", "", 0.0, 0.0, 0.0, "saturation at E2", limit=True),
     )
 
-    @classmethod
-    def record_problem(cls, values: Mapping[str, float]) -> str | None:
+    def record_problem(self, values: Mapping[str, float]) -> str | None:
         if values["KE"] == 0.0:
             # PSS/E computes K_E at initialisation where the record gives 0; simulated as 0 the
             # exciter would be an integrator: a wrong model, not a validation
             return "KE = 0 (PSS/E computes it at initialisation so V_R starts at 0): give the unit's K_E"
         return super().record_problem(values)
 
-    @classmethod
-    def response(cls, values: Mapping[str, float], x: ControlInputs, reference: float) -> Array:
+    def response(self, values: Mapping[str, float], x: ControlInputs, reference: float) -> Array:
         v = values
         sensed = lag(x.v_t, v["TR"], x.dt)
         num, den = _ieeet1_transfer(v["TA"], v["TE"], v["KE"], v["TF"], v["KA"], v["KF"])
@@ -350,24 +334,17 @@ class ESST5B(ControlModel):
         ),
     )
 
-    @classmethod
-    def start(cls, earlier: Mapping[str, Mapping[str, float]]) -> dict[str, float]:
-        sexs = earlier.get("SEXS")
-        if not sexs:
-            return cls.defaults()
+    def start(self, earlier: Mapping[str, Mapping[str, float]]) -> dict[str, float]:
         # SEXS is ESST5B with its second lead-lag a wire
-        lead = sexs["TA/TB"] * sexs["TB"]
-        return {**cls.defaults(), "TC1": lead, "TB1": sexs["TB"], "KR": sexs["K"], "T1": sexs["TE"], "TR": 1e-3}
+        return self.started_from(earlier, "SEXS", lambda s: _sexs_as(s, "TC1", "TB1", "KR", "T1"))
 
-    @classmethod
-    def response(cls, values: Mapping[str, float], x: ControlInputs, reference: float) -> Array:
+    def response(self, values: Mapping[str, float], x: ControlInputs, reference: float) -> Array:
         v = values
         e = regulator_error(x, reference, lag(x.v_t, v["TR"], x.dt))
         first = lead_lag(e, v["TC1"], v["TB1"], x.dt)
         return v["KR"] * lag(lead_lag(first, v["TC2"], v["TB2"], x.dt), v["T1"], x.dt)
 
-    @classmethod
-    def limit_at(cls, name: str, output: float, levels: OperatingLevels, k: int) -> float:
+    def limit_at(self, name: str, output: float, levels: OperatingLevels, k: int) -> float:
         # E_fd's bound is V_T VRMAX - K_C I_FD (V_T VRMIN): with K_C not reached, V_R's limit is E_fd / V_T
         return output / float(levels.v_t[k]) if name in ("VRMAX", "VRMIN") else output
 
@@ -379,9 +356,8 @@ class ESST5B(ControlModel):
         "non-windup T_1 lag, the first lead-lag non-windup (IEEE 421.5 ST5B); I_FD held at its pre-event value"
     )
 
-    @classmethod
     def limited(
-        cls, values: Mapping[str, float], x: ControlInputs, reference: float, levels: OperatingLevels
+        self, values: Mapping[str, float], x: ControlInputs, reference: float, levels: OperatingLevels
     ) -> Array | None:
         v = values
         loading = v["KC"] * levels.i_fd0

@@ -40,8 +40,7 @@ class TGOV1(ControlModel):
         ControlParameter("Dt", "pu", 0.0, 0.0, 5.0, "turbine damping", absent=0.0),
     )
 
-    @classmethod
-    def response(cls, values: Mapping[str, float], x: ControlInputs, reference: float) -> Array:
+    def response(self, values: Mapping[str, float], x: ControlInputs, reference: float) -> Array:
         valve = lag(reference * x.reference_step - x.speed / values["R"], values["T1"], x.dt)
         return lead_lag(valve, values["T2"], values["T3"], x.dt) - values["Dt"] * x.speed
 
@@ -85,31 +84,28 @@ class IEEEG1(ControlModel):
         ControlParameter("K8", "", 0.0, 0.0, 0.0, "(held out)", held=True),
     )
 
-    @classmethod
-    def start(cls, earlier: Mapping[str, Mapping[str, float]]) -> dict[str, float]:
-        tgov = earlier.get("TGOV1")
-        if not tgov:
-            return cls.defaults()
+    def start(self, earlier: Mapping[str, Mapping[str, float]]) -> dict[str, float]:
         # TGOV1 is IEEEG1 with a steam chest of no delay: valve lag T1, reheat lead-lag T2/T3
-        return {
-            **cls.defaults(),
-            "K": 1.0 / tgov["R"],
-            "T3": 0.05,
-            "T4": tgov["T1"],
-            "K1": min(max(tgov["T2"] / tgov["T3"], 0.05), 0.95),
-            "T5": tgov["T3"],
-        }
+        return self.started_from(
+            earlier,
+            "TGOV1",
+            lambda t: {
+                "K": 1.0 / t["R"],
+                "T3": 0.05,
+                "T4": t["T1"],
+                "K1": min(max(t["T2"] / t["T3"], 0.05), 0.95),
+                "T5": t["T3"],
+            },
+        )
 
-    @classmethod
-    def completed(cls, values: Mapping[str, float]) -> dict[str, float]:
+    def completed(self, values: Mapping[str, float]) -> dict[str, float]:
         # the servo's and the steam chest's lags are in series on one signal: in small signal
         # they commute, so the data give the pair, not which is which; the servo is given the
         # shorter (IEEE's typical data: servo 0.1-0.2 s, steam chest 0.2-0.4 s)
         servo, chest = sorted((values["T3"], values["T4"]))
         return {**values, "T3": servo, "T4": chest, "K3": 1.0 - values["K1"]}
 
-    @classmethod
-    def recorded(cls, values: Mapping[str, float]) -> dict[str, float]:
+    def recorded(self, values: Mapping[str, float]) -> dict[str, float]:
         # every stage a record gives is simulated; the shares of a second (low-pressure) shaft
         # drive another machine, which a single unit's validation does not have
         second = {k: values[k] for k in ("K2", "K4", "K6", "K8") if values[k] != 0.0}
@@ -126,8 +122,7 @@ class IEEEG1(ControlModel):
             raise ValueError(f"T2 = {values['T2']:g} s with T1 = 0: the governor's lead needs a lag")
         return dict(values)
 
-    @classmethod
-    def response(cls, values: Mapping[str, float], x: ControlInputs, reference: float) -> Array:
+    def response(self, values: Mapping[str, float], x: ControlInputs, reference: float) -> Array:
         v = values
         # the load reference in pu power: the valve moves by it in steady state; the speed through
         # the governor's K (1 + sT_2)/(1 + sT_1), the servo, then the steam chest, the reheater, the
@@ -173,8 +168,7 @@ class HYGOV(ControlModel):
         ControlParameter("qNL", "pu", 0.08, 0.0, 0.3, "no-load flow"),
     )
 
-    @classmethod
-    def response(cls, values: Mapping[str, float], x: ControlInputs, reference: float) -> Array:
+    def response(self, values: Mapping[str, float], x: ControlInputs, reference: float) -> Array:
         v = values
         if not np.isfinite(x.p_m0):
             return np.full(len(x.speed), np.nan)  # no operating point: the model does not apply

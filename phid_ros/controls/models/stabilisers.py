@@ -24,8 +24,20 @@ from phid_ros.controls.models.blocks import (
 )
 
 
+class Stabiliser(ControlModel):
+    """A stabiliser's limits as PSS/E simulates them: V_S, its small-signal path's output, held
+    within the output limits (no state limit inside the path)."""
+
+    kind = "stabiliser"
+
+    def limited(
+        self, values: Mapping[str, float], x: ControlInputs, reference: float, levels: OperatingLevels
+    ) -> Array | None:
+        return self.output_clipped(values, x, reference, levels)
+
+
 @register
-class IEEEST(ControlModel):
+class IEEEST(Stabiliser):
     """IEEE stabiliser (PSS/E IEEEST) on the electrical power (input code 3): P_e through the
     filter (1 + sA_5 + s^2 A_6)/((1 + sA_1 + s^2 A_2)(1 + sA_3 + s^2 A_4)), two lead-lags
     (1 + sT_1)/(1 + sT_2), (1 + sT_3)/(1 + sT_4), K_S and the washout sT_5/(1 + sT_6), its output
@@ -38,7 +50,6 @@ class IEEEST(ControlModel):
     T_5/T_6, which K_S carries, so T_5 = T_6; the output's enabling band VCU/VCL at 0 (not used)."""
 
     name = "IEEEST"
-    kind = "stabiliser"
     icons = (("MODE", 3), ("BUSR", 0))  # the input: the machine's electrical power; its own bus
     icons_simulated = ("MODE",)
     description = "IEEE stabiliser on the electrical power (PSS/E IEEEST, input code 3)"
@@ -67,12 +78,10 @@ class IEEEST(ControlModel):
     output_limits = ("LSMIN", "LSMAX")
     simulated_limits_how = "V_S within LSMIN..LSMAX (PSS/E IEEEST)"
 
-    @classmethod
-    def completed(cls, values: Mapping[str, float]) -> dict[str, float]:
+    def completed(self, values: Mapping[str, float]) -> dict[str, float]:
         return {**values, **lead_lags_in_order(values), "T5": values["T6"]}
 
-    @classmethod
-    def response(cls, values: Mapping[str, float], x: ControlInputs, reference: float) -> Array:
+    def response(self, values: Mapping[str, float], x: ControlInputs, reference: float) -> Array:
         v = values  # a record's as written (a fit's values come completed: T_5 = T_6)
         if x.p_e is None:
             return np.full(len(x.v_t), np.nan)  # no electrical power: the model does not apply
@@ -84,15 +93,9 @@ class IEEEST(ControlModel):
         # K_S sT_5/(1 + sT_6) = K_S (T_5/T_6) (1 - 1/(1 + sT_6))
         return v["KS"] * v["T5"] / v["T6"] * (led - lag(led, v["T6"], x.dt))
 
-    @classmethod
-    def limited(
-        cls, values: Mapping[str, float], x: ControlInputs, reference: float, levels: OperatingLevels
-    ) -> Array | None:
-        return cls.output_clipped(values, x, reference, levels)
-
 
 @register
-class PSS2A(ControlModel):
+class PSS2A(Stabiliser):
     """IEEE dual-input stabiliser (PSS/E PSS2A, IEEE 421.5 PSS2A) on the rotor speed (input code 1)
     and the electrical power (code 3): each input through two washouts, the speed then 1/(1 + sT_6),
     the power K_S2/(1 + sT_7) (the integral of accelerating power: K_S2 = T_7/(2H)); their sum, the
@@ -106,14 +109,13 @@ class PSS2A(ControlModel):
     T_W1, K_S2, T_9, K_S1 and the lead-lags. A record's constants are all simulated as written."""
 
     name = "PSS2A"
-    kind = "stabiliser"
     # PSS/E's ICONs: input 1 the rotor speed, input 2 the electrical power (both the machine's own
     # bus), then the ramp-tracking filter's orders
     icons = (("ICS1", 1), ("IB1", 0), ("ICS2", 3), ("IB2", 0), ("M", 5), ("N", 1))
     icons_simulated = ("ICS1", "ICS2", "M", "N")
     needs = ("omega",)
     description = "IEEE dual-input stabiliser on the speed and the electrical power (PSS/E PSS2A)"
-    parameters: ClassVar[tuple[ControlParameter, ...]] = (
+    parameters: tuple[ControlParameter, ...] = (
         ControlParameter("TW1", "s", 2.0, 0.5, 30.0, "washout time constant (the speed's first)"),
         ControlParameter("TW2", "s", 2.0, 2.0, 2.0, "the speed's second washout (T_W1 in a fit)", held=True),
         ControlParameter("T6", "s", 0.0, 0.0, 0.0, "the speed's lag (0 in a fit: a wire)", held=True),
@@ -137,8 +139,7 @@ class PSS2A(ControlModel):
     simulated_limits_how = "V_S within VSTMIN..VSTMAX (PSS/E PSS2A)"
     M, N = 5, 1  # the ramp-tracking filter's orders phid simulates (icons_simulated holds a record to them)
 
-    @classmethod
-    def completed(cls, values: Mapping[str, float]) -> dict[str, float]:
+    def completed(self, values: Mapping[str, float]) -> dict[str, float]:
         # a fit's structure (see the class); the lead-lags in one order
         tw = values["TW1"]
         return {
@@ -147,29 +148,22 @@ class PSS2A(ControlModel):
             "TW2": tw,
             "TW3": tw,
             "T7": tw,
-            "T8": cls.M * values["T9"],
+            "T8": self.M * values["T9"],
         }
 
-    @classmethod
-    def response(cls, values: Mapping[str, float], x: ControlInputs, reference: float) -> Array:
+    def response(self, values: Mapping[str, float], x: ControlInputs, reference: float) -> Array:
         v = values
         if x.p_e is None:
             return np.full(len(x.v_t), np.nan)  # no electrical power: the model does not apply
         speed = lag(washout(washout(x.speed, v["TW1"], x.dt), v["TW2"], x.dt), v["T6"], x.dt)
         power = v["KS2"] * lag(washout(washout(x.p_e, v["TW3"], x.dt), v["TW4"], x.dt), v["T7"], x.dt)
         tracked = speed + v["KS3"] * power
-        for _ in range(cls.N):
+        for _ in range(self.N):
             tracked = lead_lag(tracked, v["T8"], v["T9"], x.dt)
-            for _ in range(cls.M - 1):
+            for _ in range(self.M - 1):
                 tracked = lag(tracked, v["T9"], x.dt)
         u = tracked - power
         return v["KS1"] * lead_lag(lead_lag(u, v["T1"], v["T2"], x.dt), v["T3"], v["T4"], x.dt)
-
-    @classmethod
-    def limited(
-        cls, values: Mapping[str, float], x: ControlInputs, reference: float, levels: OperatingLevels
-    ) -> Array | None:
-        return cls.output_clipped(values, x, reference, levels)
 
 
 @register
@@ -192,7 +186,7 @@ class PSS2B(PSS2A):
 
     name = "PSS2B"
     description = "IEEE dual-input stabiliser with a third lead-lag (PSS/E PSS2B, IEEE 421.5-2005)"
-    parameters: ClassVar[tuple[ControlParameter, ...]] = (
+    parameters: tuple[ControlParameter, ...] = (
         *(p for p in PSS2A.parameters if not p.limit),
         ControlParameter("T10", "s", 0.1, 0.0, 5.0, "third lead time constant", absent=0.0),
         ControlParameter("T11", "s", 0.1, 0.002, 5.0, "third lag time constant"),
@@ -205,18 +199,15 @@ class PSS2B(PSS2A):
     simulated_limits_how = "V_S within VSTMIN..VSTMAX (PSS/E PSS2B)"
     LEAD_LAGS: ClassVar[tuple[tuple[str, str], ...]] = (("T1", "T2"), ("T3", "T4"), ("T10", "T11"))
 
-    @classmethod
-    def start(cls, earlier: Mapping[str, Mapping[str, float]]) -> dict[str, float]:
-        pss2a = earlier.get("PSS2A")
-        if not pss2a:
-            return cls.defaults()
+    def start(self, earlier: Mapping[str, Mapping[str, float]]) -> dict[str, float]:
         # PSS2A is PSS2B with its third lead-lag a wire
-        return {**cls.defaults(), **{k: v for k, v in pss2a.items() if k in cls.defaults()}, "T10": 0.1, "T11": 0.1}
+        own = self.defaults()
+        return self.started_from(
+            earlier, "PSS2A", lambda a: {**{k: v for k, v in a.items() if k in own}, "T10": 0.1, "T11": 0.1}
+        )
 
-    @classmethod
-    def completed(cls, values: Mapping[str, float]) -> dict[str, float]:
-        return {**super().completed(values), **lead_lags_in_order(values, cls.LEAD_LAGS)}
+    def completed(self, values: Mapping[str, float]) -> dict[str, float]:
+        return {**super().completed(values), **lead_lags_in_order(values, self.LEAD_LAGS)}
 
-    @classmethod
-    def response(cls, values: Mapping[str, float], x: ControlInputs, reference: float) -> Array:
+    def response(self, values: Mapping[str, float], x: ControlInputs, reference: float) -> Array:
         return lead_lag(super().response(values, x, reference), values["T10"], values["T11"], x.dt)

@@ -193,7 +193,7 @@ def _with_exciter(run: ScenarioRun, values: Mapping[str, float]) -> ScenarioRun:
     step = (np.arange(n) >= k).astype(float)
     reference = 0.2 * (run.scenario.magnitude - 1.0) if run.scenario.kind == "field_step" else 0.0
     inputs = ControlInputs(float(run.t[1] - run.t[0]), v_t, 0 * v_t, step)
-    e_fd = float(np.mean(run.truth["v_f"][:k])) + SEXS.response(values, inputs, reference)
+    e_fd = float(np.mean(run.truth["v_f"][:k])) + SEXS().response(values, inputs, reference)
     noise = run.measured["v_f"] - run.truth["v_f"]
     return replace(run, truth={**run.truth, "v_f": e_fd}, measured={**run.measured, "v_f": e_fd + noise})
 
