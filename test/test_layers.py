@@ -114,3 +114,18 @@ def test_no_module_imports_itself_round_a_circle():
             visit(v)
     new = [sorted(c) for c in circles if c not in KNOWN_CIRCLES]
     assert not new, f"modules importing each other: {new}"
+
+
+LONGEST_FUNCTION = 80  # lines, decorators left out: a longer one holds more than one job (issue 70)
+
+
+def test_no_function_is_longer_than_a_screenful():
+    long = [
+        f"{path.relative_to(ROOT.parent)}:{node.lineno} {node.name} ({node.end_lineno - node.lineno + 1} lines)"
+        for path in sorted(ROOT.rglob("*.py"))
+        for node in ast.walk(ast.parse(path.read_text(), str(path)))
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef)
+        and node.end_lineno is not None
+        and node.end_lineno - node.lineno + 1 > LONGEST_FUNCTION
+    ]
+    assert not long, long

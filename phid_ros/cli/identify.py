@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Mapping
 from typing import Any
 
 from rich.console import Console
 
-from phid_ros.api import cut_unit, identify_unit
+from phid_ros.api import UnitIdentification, cut_unit, identify_unit
 from phid_ros.cli.common import finish, load_truth, step_thresholds, warn
 from phid_ros.cli.day_summary import HEADERS, day_summary
 from phid_ros.cli.progress import ProgressLine
@@ -244,6 +245,41 @@ def field_resistance_text(r: dict[str, Any]) -> str:
     return f"field winding's resistance at the plateaus: {said}{spread}{left}"
 
 
+def print_identified(
+    console: Console, found: UnitIdentification, truth: GeneratorParameters | None, fixed: Mapping[str, float]
+) -> None:
+    """identify's text: what a recorder's channels determine, the parameters, the checks, the
+    controls, the no-load curve and R_f where found, and the paper's stage 1a beside."""
+    scenarios, res, controls = found.scenarios, found.result, found.controls
+    if res.determined_by:  # a recorder's channel set: say first what it determines and how
+        from phid_ros.cli.tables import print_determinable
+        from phid_ros.ident.determinable import plan
+
+        planned = plan(scenarios, fixed)
+        print_determinable(console, "what these channels determine", planned, res.determined_by)
+    print_parameters(console, res, truth)
+    print_validation(console, res)
+    print_controls(console, controls)
+    no_load = res.route_details.get("field_circuit")
+    if isinstance(no_load, FieldCircuitFigures) and no_load.curve is not None:
+        console.print(open_circuit_curve_text(no_load.curve.as_dict()), highlight=False, markup=False)
+    if resistance := res.route_details.get("field_resistance"):
+        console.print(field_resistance_text(resistance.as_dict()), highlight=False, markup=False)
+    if res.determined_by:
+        print_day(console, res, controls)
+    if found.no_load is not None:
+        from phid_ros.cli.validate import print_checks
+
+        print_checks(console, f"the no-load tests played with {found.no_load.unit}", found.no_load)
+    if res.stage1_paper is not None:
+        console.print(
+            f"for comparison, not in the result: the paper's differential damping (stage 1a) gives H = "
+            f"{res.stage1_paper.H.value:.4f} s, D = {res.stage1_paper.D.value:.4f} pu (the table's H, D "
+            "are stage 1's swing regression, the ones published)",
+            highlight=False,
+        )
+
+
 def identify_command(args: Any, console: Console) -> int:
     from phid_ros.io.files.outputs import refuse_inputs
 
@@ -291,33 +327,7 @@ def identify_command(args: Any, console: Console) -> int:
     if args.json:  # the JSON carries the final timing too
         doc["timing_s"] = res.timing
         write_json(args.json, doc)
-    if res.determined_by:  # a recorder's channel set: say first what it determines and how
-        from phid_ros.cli.tables import print_determinable
-        from phid_ros.ident.determinable import plan
-
-        planned = plan(scenarios, constraints.fixed)
-        print_determinable(console, "what these channels determine", planned, res.determined_by)
-    print_parameters(console, res, truth)
-    print_validation(console, res)
-    print_controls(console, controls)
-    no_load = res.route_details.get("field_circuit")
-    if isinstance(no_load, FieldCircuitFigures) and no_load.curve is not None:
-        console.print(open_circuit_curve_text(no_load.curve.as_dict()), highlight=False, markup=False)
-    if resistance := res.route_details.get("field_resistance"):
-        console.print(field_resistance_text(resistance.as_dict()), highlight=False, markup=False)
-    if res.determined_by:
-        print_day(console, res, controls)
-    if found.no_load is not None:
-        from phid_ros.cli.validate import print_checks
-
-        print_checks(console, f"the no-load tests played with {found.no_load.unit}", found.no_load)
-    if res.stage1_paper is not None:
-        console.print(
-            f"for comparison, not in the result: the paper's differential damping (stage 1a) gives H = "
-            f"{res.stage1_paper.H.value:.4f} s, D = {res.stage1_paper.D.value:.4f} pu (the table's H, D "
-            "are stage 1's swing regression, the ones published)",
-            highlight=False,
-        )
+    print_identified(console, found, truth, constraints.fixed)
 
     def report(out: Any) -> None:
         from phid_ros.cli.report import write_report
