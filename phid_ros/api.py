@@ -53,6 +53,10 @@ __all__ = [
     "ReplayProgress",
     "track_file",
     "TrackRun",
+    "simulate_to_file",
+    "simulate_ambient_to_file",
+    "Simulated",
+    "write_output",
 ]
 
 
@@ -826,3 +830,114 @@ def track_file(
     if out is not None and points:
         write_tracked(points, out)
     return TrackRun(points, overview, start, list(parts.warnings), wall)
+
+
+def write_output(out: str | Path, rec: Recording, block_size: int) -> None:
+    """A recording to a bag folder, a single .mcap, or a CSV set (``DIR/manifest.json``), whole or
+    not at all: what ``phid simulate`` and the imports write."""
+    from phid_ros.io.bags.recordings import write_recording
+    from phid_ros.io.files.outputs import atomic_output
+
+    out = Path(out)
+    if out.name == "manifest.json":
+        from phid_ros.io.csvset.csv_export import write_csv_set
+
+        write_csv_set(out.parent, rec)  # the manifest last: a killed run leaves no set that looks complete
+    else:
+        with atomic_output(out) as tmp:  # a kill leaves no half-written bag that looks complete
+            write_recording(tmp, rec, block_size=block_size)
+
+
+@dataclass(frozen=True)
+class Simulated:
+    """A simulated recording on file and its truth beside it (``phid simulate``'s two outputs)."""
+
+    out: Path
+    truth: Path
+    span_s: float  # the recording's length in log time
+
+
+def simulate_to_file(
+    scenarios: Sequence[Any],
+    config: Any,
+    out: str | Path,
+    *,
+    start_ns: int | None = None,
+    block_size: int = 100,
+    progress: Callable[[str], None] | None = None,
+) -> Simulated:
+    """The scenarios (:mod:`phid_ros.sim.scenarios`) simulated with ``config`` (a
+    :class:`~phid_ros.sim.runner.SimulationConfig`) and written to ``out`` with their truth."""
+    from phid_ros.io.files.results import truth_path_for, write_json
+    from phid_ros.model.conventions import NS
+    from phid_ros.sim.recording import DEFAULT_START_NS, recording_from_runs, truth_document
+    from phid_ros.sim.runner import simulate_scenarios
+
+    say = progress or (lambda _: None)
+    out = Path(out)
+    runs = simulate_scenarios(scenarios, config)
+    say(f"writing {out}")
+    rec = recording_from_runs(runs, config, start_ns=DEFAULT_START_NS if start_ns is None else start_ns)
+    write_output(out, rec, block_size)
+    truth = write_json(truth_path_for(out), truth_document(config, scenarios))
+    start, end = rec.span_ns()
+    return Simulated(out, Path(truth), (end - start) / NS)
+
+
+def simulate_ambient_to_file(
+    settings: Any,
+    config: Any,
+    out: str | Path,
+    *,
+    start_ns: int | None = None,
+    block_size: int = 100,
+    progress: Callable[[str], None] | None = None,
+) -> Simulated:
+    """A long ambient run (:class:`~phid_ros.sim.ambient.AmbientSettings`, its drifts) simulated and
+    written a chunk at a time (ten minutes of samples in memory, not the day), its truth beside it
+    with the drifting parameters once a second."""
+    import numpy as np
+
+    from phid_ros.io.bags.recordings import open_message_writer
+    from phid_ros.io.files.outputs import atomic_output
+    from phid_ros.io.files.results import truth_path_for, write_json
+    from phid_ros.io.recording import Recording, StreamSamples, iter_recording_messages
+    from phid_ros.io.topics import STREAMS
+    from phid_ros.model.conventions import NS
+    from phid_ros.sim.ambient import ambient_chunks
+    from phid_ros.sim.recording import DEFAULT_START_NS, recording_metadata, truth_document
+
+    say = progress or (lambda _: None)
+    out, start = Path(out), DEFAULT_START_NS if start_ns is None else start_ns
+    dt_ns = int(round(config.dt * NS))
+    every = int(round(1 / config.dt))
+    drifting: dict[str, list[float]] = {d.parameter: [] for d in settings.drifts}
+    # a chunk is a whole number of messages, so its messages follow the last chunk's in log time
+    with atomic_output(out) as tmp:
+        writer = open_message_writer(tmp, recording_metadata(config))
+        try:
+            for chunk in ambient_chunks(settings, config):
+                first = int(round(chunk.t[0] / config.dt))
+                t_ns = start + (first + np.arange(len(chunk.t), dtype=np.int64)) * dt_ns
+                streams = {
+                    s.name: StreamSamples(t_ns.copy(), dt_ns, {c: chunk.measured[c] for c in s.channels})
+                    for s in STREAMS
+                }
+                for item in iter_recording_messages(Recording(streams, []), block_size=block_size):
+                    writer.write(*item)
+                for name, v in chunk.parameters.items():  # once a second, from the run's start
+                    drifting[name] += v[(-first) % every :: every].tolist()
+                say(f"simulated and written {chunk.t[-1]:.0f} of {settings.duration_s:g} s")
+        except BaseException:
+            writer.abort()
+            raise
+        writer.close()
+    truth = truth_document(config, [])
+    truth["ambient"] = {
+        "duration_s": settings.duration_s,
+        "seed": settings.seed,
+        "drifts": [d.__dict__ for d in settings.drifts],
+    }
+    truth["drifting_parameters_every_s"] = drifting
+    path = write_json(truth_path_for(out), truth)
+    return Simulated(out, Path(path), float(settings.duration_s))

@@ -72,8 +72,7 @@ def test_track_file_tracks_what_phid_track_tracks(tmp_path: Path) -> None:
 def test_import_recordings_reads_what_the_import_commands_write(tmp_path: Path) -> None:
     """The library's import is the commands': the same recording, byte for byte once written, and
     the same warnings; a CSV set's manifest read through the same face."""
-    from phid_ros.api import import_recordings
-    from phid_ros.cli.common import write_output
+    from phid_ros.api import import_recordings, write_output
     from phid_ros.cli.main import main
     from phid_ros.io.recording import DEFAULT_BLOCK_SIZE
     from test.io.field.field_sets import build_up_log
@@ -95,3 +94,27 @@ def test_import_recordings_reads_what_the_import_commands_write(tmp_path: Path) 
     assert [s.name for s in back.scenarios] == [s.name for s in rec.scenarios]
     with pytest.raises(phid_ros.api.PhidError, match="one of csv, comtrade, pmu"):
         import_recordings([tmp_path / "A.csv"], kind="xls")
+
+
+def test_simulate_to_file_writes_what_phid_simulate_writes(tmp_path: Path) -> None:
+    """The library's simulation is the command's: the same bag and truth, byte for byte, for the
+    paper's scenarios and for an ambient run with a drift."""
+    from phid_ros.api import simulate_ambient_to_file, simulate_to_file
+    from phid_ros.cli.main import main
+    from phid_ros.sim.ambient import AmbientSettings, Drift
+    from phid_ros.sim.runner import SimulationConfig
+    from phid_ros.sim.scenarios import find_scenario, with_duration
+    from phid_ros.sim.sensors import SensorModel
+
+    assert main(["simulate", "--scenario", "S04", "--duration", "3", "--out", str(tmp_path / "cli.mcap")]) == 0
+    cfg = SimulationConfig(f_nominal_hz=50.0, sensors=SensorModel(seed=0))
+    done = simulate_to_file([with_duration(find_scenario("S04"), 3.0)], cfg, tmp_path / "api.mcap")
+    assert (tmp_path / "api.mcap").read_bytes() == (tmp_path / "cli.mcap").read_bytes()
+    assert done.truth.read_bytes() == (tmp_path / "cli.mcap.truth.json").read_bytes() and done.span_s > 3.0
+
+    drift = ["--drift", "T_d0_prime=0.1@10-50"]
+    assert main(["simulate", "--ambient", "60", *drift, "--out", str(tmp_path / "cli_a.mcap")]) == 0
+    settings = AmbientSettings(duration_s=60.0, drifts=(Drift("T_d0_prime", 10.0, 50.0, 0.1),), seed=0)
+    ambient = simulate_ambient_to_file(settings, cfg, tmp_path / "api_a.mcap")
+    assert (tmp_path / "api_a.mcap").read_bytes() == (tmp_path / "cli_a.mcap").read_bytes()
+    assert ambient.truth.read_bytes() == (tmp_path / "cli_a.mcap.truth.json").read_bytes()

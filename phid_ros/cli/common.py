@@ -38,20 +38,6 @@ def read_input(path: str | Path) -> tuple[Recording, str]:
     return rec, str(path)
 
 
-def write_output(out: Path, rec: Recording, block_size: int) -> None:
-    """A recording to a bag folder, a single .mcap, or a CSV set (``DIR/manifest.json``), whole or not at all."""
-    from phid_ros.io.bags.recordings import write_recording
-    from phid_ros.io.files.outputs import atomic_output
-
-    if out.name == "manifest.json":
-        from phid_ros.io.csvset.csv_export import write_csv_set
-
-        write_csv_set(out.parent, rec)  # the manifest last: a killed run leaves no set that looks complete
-    else:
-        with atomic_output(out) as tmp:  # a kill leaves no half-written bag that looks complete
-            write_recording(tmp, rec, block_size=block_size)
-
-
 def finish(
     console: Any,
     problems: Iterable[str],

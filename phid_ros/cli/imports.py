@@ -7,7 +7,8 @@ from pathlib import Path
 
 from rich.console import Console
 
-from phid_ros.cli.common import warn, write_output
+from phid_ros.api import write_output
+from phid_ros.cli.common import warn
 from phid_ros.cli.progress import ProgressLine
 from phid_ros.errors import PhidError
 from phid_ros.io.files.outputs import refuse_inputs

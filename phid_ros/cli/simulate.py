@@ -8,11 +8,9 @@ from pathlib import Path
 
 from rich.console import Console
 
-from phid_ros.cli.common import write_output
+from phid_ros.api import simulate_ambient_to_file, simulate_to_file
 from phid_ros.cli.progress import ProgressLine
 from phid_ros.errors import PhidError
-from phid_ros.io.files.outputs import atomic_output
-from phid_ros.model.conventions import NS
 
 
 def _parse_effects(items: Sequence[str]) -> tuple:
@@ -21,16 +19,8 @@ def _parse_effects(items: Sequence[str]) -> tuple:
     return tuple(parse_effect(item) for item in items)
 
 
-def _start(args: argparse.Namespace) -> int:
-    from phid_ros.sim.recording import DEFAULT_START_NS
-
-    return DEFAULT_START_NS if args.start is None else int(args.start)
-
-
 def simulate_command(args: argparse.Namespace, console: Console) -> int:
-    from phid_ros.io.files.results import truth_path_for, write_json
-    from phid_ros.sim.recording import recording_from_runs, truth_document
-    from phid_ros.sim.runner import SimulationConfig, simulate_scenarios
+    from phid_ros.sim.runner import SimulationConfig
     from phid_ros.sim.scenarios import find_scenario, paper_catalogue, validation_scenarios
     from phid_ros.sim.sensors import SensorModel
 
@@ -56,13 +46,10 @@ def simulate_command(args: argparse.Namespace, console: Console) -> int:
         f_nominal_hz=args.f_nominal, sensors=SensorModel(seed=args.seed, noiseless=args.noiseless), effects=effects
     )
     with ProgressLine(f"simulating {len(scenarios)} scenario(s)") as progress:
-        runs = simulate_scenarios(scenarios, cfg)
-        progress.update(f"writing {out}")
-        rec = recording_from_runs(runs, cfg, start_ns=_start(args))
-        write_output(out, rec, args.block_size)
-    truth = write_json(truth_path_for(out), truth_document(cfg, scenarios))
-    start, end = rec.span_ns()
-    console.print(f"wrote {out} ({len(scenarios)} scenarios, {(end - start) / NS:.1f} s of data) and {truth}")
+        done = simulate_to_file(
+            scenarios, cfg, out, start_ns=args.start, block_size=args.block_size, progress=progress.update
+        )
+    console.print(f"wrote {out} ({len(scenarios)} scenarios, {done.span_s:.1f} s of data) and {done.truth}")
     return 0
 
 
@@ -93,15 +80,7 @@ def _parse_drift(text: str) -> object:
 
 
 def _simulate_ambient(args: argparse.Namespace, console: Console) -> int:
-    import numpy as np
-
-    from phid_ros.io.bags.recordings import open_message_writer
-    from phid_ros.io.files.results import truth_path_for, write_json
-    from phid_ros.io.recording import Recording, StreamSamples, iter_recording_messages
-    from phid_ros.io.topics import STREAMS
-    from phid_ros.model.conventions import NS
-    from phid_ros.sim.ambient import AmbientSettings, ambient_chunks
-    from phid_ros.sim.recording import recording_metadata, truth_document
+    from phid_ros.sim.ambient import AmbientSettings
     from phid_ros.sim.runner import SimulationConfig
     from phid_ros.sim.sensors import SensorModel
 
@@ -109,33 +88,9 @@ def _simulate_ambient(args: argparse.Namespace, console: Console) -> int:
     drifts = tuple(_parse_drift(d) for d in (args.drift or []))
     settings = AmbientSettings(duration_s=args.ambient, drifts=drifts, seed=args.seed)  # type: ignore[arg-type]
     cfg = SimulationConfig(f_nominal_hz=args.f_nominal, sensors=SensorModel(seed=args.seed, noiseless=args.noiseless))
-    dt_ns = int(round(cfg.dt * NS))
-    every = int(round(1 / cfg.dt))
-    drifting: dict[str, list[float]] = {d.parameter: [] for d in settings.drifts}
-    # simulated and written a chunk at a time (ten minutes of samples in memory, not the day); a
-    # chunk is a whole number of messages, so its messages follow the last chunk's in log time
-    with ProgressLine(f"simulating {args.ambient:g} s of ambient operation") as progress, atomic_output(out) as tmp:
-        writer = open_message_writer(tmp, recording_metadata(cfg))
-        try:
-            for chunk in ambient_chunks(settings, cfg):
-                first = int(round(chunk.t[0] / cfg.dt))
-                t_ns = _start(args) + (first + np.arange(len(chunk.t), dtype=np.int64)) * dt_ns
-                streams = {
-                    s.name: StreamSamples(t_ns.copy(), dt_ns, {c: chunk.measured[c] for c in s.channels})
-                    for s in STREAMS
-                }
-                for item in iter_recording_messages(Recording(streams, []), block_size=args.block_size):
-                    writer.write(*item)
-                for name, v in chunk.parameters.items():  # once a second, from the run's start
-                    drifting[name] += v[(-first) % every :: every].tolist()
-                progress.update(f"simulated and written {chunk.t[-1]:.0f} of {args.ambient:g} s")
-        except BaseException:
-            writer.abort()
-            raise
-        writer.close()
-    truth = truth_document(cfg, [])
-    truth["ambient"] = {"duration_s": args.ambient, "seed": args.seed, "drifts": [d.__dict__ for d in drifts]}
-    truth["drifting_parameters_every_s"] = drifting
-    path = write_json(truth_path_for(out), truth)
-    console.print(f"wrote {out} ({args.ambient:g} s, {len(drifts)} drift(s)) and {path}")
+    with ProgressLine(f"simulating {args.ambient:g} s of ambient operation") as progress:
+        done = simulate_ambient_to_file(
+            settings, cfg, out, start_ns=args.start, block_size=args.block_size, progress=progress.update
+        )
+    console.print(f"wrote {out} ({args.ambient:g} s, {len(drifts)} drift(s)) and {done.truth}")
     return 0

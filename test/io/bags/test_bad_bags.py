@@ -196,8 +196,7 @@ def test_a_pmu_clock_an_hour_off_is_named_not_a_recording_without_events(tmp_pat
     before. The streams meet no other data; the reader names the offset instead."""
     import copy
 
-    from phid_ros.api import load_recording
-    from phid_ros.cli.common import write_output
+    from phid_ros.api import load_recording, write_output
     from phid_ros.errors import PhidError
     from phid_ros.model.conventions import NS
 

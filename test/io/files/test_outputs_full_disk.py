@@ -67,12 +67,12 @@ def test_phid_identify_onto_a_full_disk_is_one_line(tmp_path, monkeypatch, capsy
 
 def test_a_store_on_a_full_disk_is_one_line_and_keeps_what_it_had(tmp_path, monkeypatch, capsys):
     """The last resort: an OSError of that kind met anywhere is one line, not a traceback."""
-    from phid_ros.cli import simulate
+    import phid_ros.api
 
     def readonly(*a, **k):
         raise OSError(errno.EROFS, os.strerror(errno.EROFS), str(tmp_path / "set"))
 
-    monkeypatch.setattr(simulate, "write_output", readonly)
+    monkeypatch.setattr(phid_ros.api, "write_output", readonly)
     code = main(["simulate", "--scenario", "S04", "--duration", "3", "--out", str(tmp_path / "set.mcap")])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and err[-1] == f"phid: error: {tmp_path / 'set'}: Read-only file system"
