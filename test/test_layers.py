@@ -18,7 +18,7 @@ LAYERS = (
     {"controls"},
     {"stream", "export"},
     {"diagnose"},
-    {"api"},
+    {"api", "day_summary"},
     {"fleet", "nodes"},
     {"cli"},
     {"__main__"},

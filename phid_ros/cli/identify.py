@@ -11,11 +11,11 @@ from rich.console import Console
 
 from phid_ros.api import UnitIdentification, cut_unit, identify_unit
 from phid_ros.cli.common import finish, load_truth, step_thresholds, warn
-from phid_ros.cli.day_summary import HEADERS, day_summary
 from phid_ros.cli.progress import ProgressLine
 from phid_ros.cli.tables import NOT_IDENTIFIED, NOT_IDENTIFIED_MEANS, Col, fmt, pct, print_table, withheld_text
 from phid_ros.controls.fit import ControlFit
 from phid_ros.controls.models import KINDS_IN_ORDER, MODELS
+from phid_ros.day_summary import HEADERS, day_summary
 from phid_ros.ident.constraints import parse_constraints
 from phid_ros.ident.pipeline import IdentificationResult, IdentifyOptions
 from phid_ros.ident.route_figures import FieldCircuitFigures

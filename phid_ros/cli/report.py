@@ -10,11 +10,11 @@ from pathlib import Path
 import numpy as np
 
 from phid_ros.cli.common import figure_backend
-from phid_ros.cli.day_summary import HEADERS, day_summary
 from phid_ros.cli.html import STYLE, html_table, png_data_uri
 from phid_ros.cli.tables import pct, withheld_text
 from phid_ros.controls.fit import ControlFit
 from phid_ros.controls.unit_validation import UnitValidation
+from phid_ros.day_summary import HEADERS, day_summary
 from phid_ros.ident.pipeline import IdentificationResult
 from phid_ros.ident.results import Estimate
 from phid_ros.ident.scenario import KINDS as KIND_ORDER

@@ -6,8 +6,8 @@ from dataclasses import replace
 
 import pytest
 
-from phid_ros.cli.day_summary import day_summary
 from phid_ros.controls.fit import ControlFit
+from phid_ros.day_summary import day_summary
 from phid_ros.ident.constraints import Constraints
 from phid_ros.ident.pipeline import IdentifyOptions, identify
 from phid_ros.model.parameters import TABLE1
