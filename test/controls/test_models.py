@@ -290,3 +290,10 @@ def test_a_nesting_model_starts_where_the_simpler_one_ended() -> None:
     assert MODELS["EXST1"].start({}) == MODELS["EXST1"].defaults()
     pss2b = MODELS["PSS2B"].start({"PSS2A": {**MODELS["PSS2A"].defaults(), "KS1": 17.0}})
     assert pss2b["KS1"] == 17.0 and pss2b["T10"] == pss2b["T11"] == 0.1
+
+
+def test_every_datum_a_model_declares_is_one_a_model_seen_through_another_carries() -> None:
+    from phid_ros.controls.models import MODEL_DATA, ControlModel
+
+    declared = set(ControlModel.__annotations__)
+    assert declared == set(MODEL_DATA), declared ^ set(MODEL_DATA)
