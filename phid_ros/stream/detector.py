@@ -232,13 +232,15 @@ class Detector:
         # the batch detector reads V_t and P_m; P and Q say whether the breaker is open
         # (V_f too: an AVR reference step or a manual field step moves V_t by 1 % only)
         signals = {c: forward_filled(x[:, CHANNEL_INDEX[c]]) for c in ("v_t", "p_m", "p_e", "q_e", "v_f")}
-        no_load = at_no_load(signals)
+        no_load: bool | None = None  # read where a fault asks: a median over the span costs
         dt = self.period_ns / NS
         for kind, k, k_cl in find_events(signals, dt, thresholds=s.thresholds):
             if not start <= t[k] < end or self._measurement_lost(t, signals["v_t"], k):
                 continue
             if kind == "field_step" and not moves_terminal(signals, k, dt):
                 continue  # a static exciter's ripple: the field channel moved, the machine did not
+            if kind == "fault" and no_load is None:
+                no_load = at_no_load(signals)
             if no_load and kind == "fault":
                 if fell_at_once(signals["v_t"], k, dt):
                     self._lose_measurement(t, signals["v_t"], k)
