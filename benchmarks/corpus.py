@@ -99,17 +99,63 @@ def catalogue(work: Path) -> Figures:
     """The shipped catalogue bag (the paper's 15 + 3 scenarios, our simulator), identified."""
     doc = identify_json(work, ROOT / "bags" / "catalogue", "--truth", ROOT / "bags" / "catalogue.truth.json")
     truth = json.loads((ROOT / "bags" / "catalogue.truth.json").read_text())["parameters"]
-    return errors_against(doc, truth)
+    out = errors_against(doc, truth)
+    for name in ("X_d_prime", "X_q_prime", "T_d0_prime", "T_q0_prime"):  # the paper's stage 3 shares the rest
+        out[f"{name} IEEE 115 baseline error"] = figure(doc["baseline_errors_pct"][name] / 100, 0.02)
+    out["D, the paper's differential damping (pu)"] = figure(doc["stage1_differential_damping"]["D"], 0.01)
+    out.update(_validated(doc["validation"]["scenarios"], "against the reference"))
+    out.update(_validated(doc["validation_vs_measurement"]["scenarios"], "against the measurement"))
+    return out
+
+
+def _validated(scenarios: list[dict[str, Any]], against: str) -> Figures:
+    """identify's validation of the identified set on V1-V3: the worst scenario's errors and the MOD-026 checks."""
+    passed = sum(bool(s["mod026_pass"]) for s in scenarios)
+    return {
+        f"V1-V3 {against}: worst RMS delta (deg)": figure(max(s["rms_delta_deg"] for s in scenarios), 0.002),
+        f"V1-V3 {against}: worst max delta (deg)": figure(max(s["max_delta_deg"] for s in scenarios), 0.005),
+        f"V1-V3 {against}: worst RMS omega (%)": figure(max(s["rms_omega_pct"] for s in scenarios), 0.0002),
+        f"V1-V3 {against}: MOD-026 P/Q checks passed": figure(f"{passed} of {len(scenarios)}", 0.0, "verdict"),
+    }
 
 
 def saturation(work: Path) -> Figures:
     """The shipped saturated set: the diagnosis names its effect and closes the gap."""
     out = work / "diag.json"
-    phid("diagnose", ROOT / "bags" / "saturation", "--json", out, "--workers", "2")
+    truth = ROOT / "bags" / "saturation.truth.json"
+    phid("diagnose", ROOT / "bags" / "saturation", "--json", out, "--workers", "2", "--truth", truth)
     doc = json.loads(out.read_text())
     names = ",".join(sorted(e["name"] for e in doc["effects"])) or "none"
     ratio = doc["rmse_after"] / doc["rmse_before"] if doc["rmse_before"] else None
-    return {"effects named": figure(names, 0.0, "verdict"), "gap left (after/before)": figure(ratio, 0.02)}
+    figures = {"effects named": figure(names, 0.0, "verdict"), "gap left (after/before)": figure(ratio, 0.02)}
+    return figures | _diagnosis_detail(doc)
+
+
+def _diagnosis_detail(doc: dict[str, Any]) -> Figures:
+    """What docs/guide/diagnose.md shows of a diagnosis: each round-1 candidate's BIC and held-out
+    change, the named effect's parameters, the held-out error by channel and overall, and the base
+    parameters before and after against the truth."""
+    out: Figures = {}
+    for trial in doc["rounds"][0]["trials"]:
+        name = trial["candidate"]
+        out[f"round 1 {name}: delta BIC"] = figure(trial["delta_bic"], max(100.0, 0.02 * abs(trial["delta_bic"])))
+        out[f"round 1 {name}: held-out change"] = figure(-trial["heldout_gain"], 0.02)
+    out["rounds"] = figure(len(doc["rounds"]), 0.0, "verdict")
+    for effect in doc["effects"]:
+        for key, value in effect["parameters"].items():
+            if isinstance(value, (int, float)):
+                out[f"{effect['name']} {key}"] = figure(value, 0.02 * abs(value))
+    for channel, row in doc["channels"].items():
+        for key in ("rmse_before", "rmse_after", "unexplained_before", "unexplained_after"):
+            out[f"{channel} {key.replace('_', ' ')}"] = figure(row[key], max(0.05 * row[key], 1e-6))
+    out["held-out error before (noise sigma)"] = figure(doc["rmse_before"], 0.05 * doc["rmse_before"])
+    out["held-out error after (noise sigma)"] = figure(doc["rmse_after"], 0.05 * doc["rmse_after"])
+    at_bound = ",".join(sorted(doc["parameters_identified_at_bound"])) or "none"
+    out["three-stage: at its search bound"] = figure(at_bound, 0.0, "verdict")
+    for stage, label in (("identified", "three-stage"), ("after", "after")):
+        for name, pct in doc["errors_pct"][stage].items():
+            out[f"{name} error, {label}"] = figure(pct / 100, max(0.005, 0.05 * abs(pct) / 100))
+    return out
 
 
 def replay(work: Path) -> Figures:
@@ -690,10 +736,66 @@ def simulator_diagnosis(simulator: str, machine: str) -> Callable[[Path], Figure
             "not determined": figure(",".join(withheld) or "none", 0.0, "verdict"),
             "largest base error % (determined, D apart)": figure(worst, 0.2),
             "D error %": figure(errors.get("D"), 2.0),
+            "effects found": figure(_effects_found(doc), 0.0, "verdict"),
         }
 
     run.__doc__ = simulator_diagnosis.__doc__
     return run
+
+
+def _effects_found(doc: dict[str, Any]) -> str:
+    """The named effects with their fitted parameters, three figures each, "n.d." where the
+    diagnosis's profile left one not determined: "magnetic_saturation (s10 0.073, s12 0.453, genrou)"."""
+    parts = []
+    for effect in doc["effects"]:
+        known = effect.get("identifiable") or {}
+        items = []
+        for key, value in effect["parameters"].items():
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                items.append(str(value))
+            else:
+                items.append(f"{key} {value:.3g}" + ("" if known.get(key, True) else " n.d."))
+        parts.append(f"{effect['name']} ({', '.join(items)})")
+    return "; ".join(parts) or "none"
+
+
+def controls_switched_in(work: Path) -> Figures:
+    """Each registered exciter and governor switched into phid's catalogue (15 scenarios of 12 s,
+    sensor noise 0.005 pu on E_fd, 0.002 on P_m; typical constants, test/controls/test_identify.py),
+    fitted with its model named: every constant's error where it is determined, "withheld" where
+    the fit gives it as not determined (docs/guide/controls.md's table)."""
+    from dataclasses import replace
+
+    from phid_ros.controls.fit import ControlFit
+    from phid_ros.controls.identify import identify_controls
+    from phid_ros.sim.runner import SimulationConfig, simulate_scenarios
+    from phid_ros.sim.scenarios import paper_catalogue
+    from test.conftest import scenario_from_run
+    from test.controls.test_identify import PAIRS, TRUTH, switched_in
+
+    cat = [replace(s, duration=12.0 if s.role == "identify" else 10.0) for s in paper_catalogue()]
+    runs = simulate_scenarios(cat, SimulationConfig(restore_ramp=1.0, restore_hold=1.0))
+    noisy, clean = [scenario_from_run(r) for r in runs], [scenario_from_run(r, noisy=False) for r in runs]
+    out: Figures = {}
+    for exciter, governor in PAIRS:
+        recording = switched_in(noisy, clean, exciter=exciter, governor=governor)
+        found = identify_controls(recording, {"exciter": [exciter], "governor": [governor]})
+        for kind, name in (("exciter", exciter), ("governor", governor)):
+            got = found[kind]
+            fit = got if isinstance(got, ControlFit) else None  # else the reason none was fitted
+            out[f"{name} named"] = figure(fit.model if fit is not None and fit.named else "none", 0.0, "verdict")
+            for constant, truth in TRUTH[name].items():
+                value = fit.parameters.get(constant) if fit is not None else None
+                ok = fit is not None and fit.identifiable.get(constant, False)
+                if not truth:
+                    continue  # a term the truth has not (K_F 0, D_t 0)
+                error = 100.0 * (value / truth - 1.0) if ok and value is not None else None
+                out[f"{name} {constant} error %"] = figure(error, 0.5)  # None: not determined, or a limit
+            undetermined = sorted(c for c, ok in (fit.identifiable.items() if fit else ()) if not ok)
+            out[f"{name} not determined"] = figure(",".join(undetermined) or "none", 0.0, "verdict")
+    errors = [abs(f["value"]) for k, f in out.items() if k.endswith("error %") and f["value"] is not None]
+    out["worst determined constant, error %"] = figure(max(errors, default=None), 0.5)
+    return out
 
 
 def steps_controls(work: Path) -> Figures:
@@ -750,6 +852,7 @@ SETS: dict[str, CorpusSet] = {
     **{f"andes-diagnose-{m}": CorpusSet(simulator_diagnosis("andes", m), False) for m in ANDES_DIAGNOSIS},
     **{f"steps-diagnose-{m}": CorpusSet(simulator_diagnosis("steps", m), False) for m in STEPS_DIAGNOSIS},
     "steps-controls": CorpusSet(steps_controls, False),
+    "controls-switched-in": CorpusSet(controls_switched_in, False),
 }
 
 
