@@ -29,10 +29,10 @@ class QuoteError(ValueError):
 
 
 def documents() -> list[Path]:
-    """Every Markdown page that may quote the corpus: the README and docs/ (the changelog apart:
-    it is a dated log of what each release measured then)."""
+    """Every Markdown page that may quote the corpus: the README and docs/ (the changelog and the
+    measurement log apart: dated records of what was measured then)."""
     pages = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
-    return [p for p in pages if p.name != "changelog.md"]
+    return [p for p in pages if p.name not in ("changelog.md", "measurement-log.md")]
 
 
 def formatted(value: Any, fmt: str | None) -> str:
