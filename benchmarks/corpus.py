@@ -244,6 +244,17 @@ def verdicts(doc: dict[str, Any]) -> Figures:
     }
 
 
+def _check_errors(record: str, doc: dict[str, Any]) -> Figures:
+    """Each MOD-026/027 check's largest error and its band (pu), by scenario and channel."""
+    out: Figures = {}
+    for scenario in doc["validation"]["scenarios"]:
+        for c in scenario["checks"]:
+            key = f"{record}: {scenario['scenario']} {c['channel']}"
+            out[f"{key} error (pu)"] = figure(c.get("max_error"), 0.05 * (c.get("band") or 0.0))
+            out[f"{key} band (pu)"] = figure(c.get("band"), 0.01 * (c.get("band") or 0.0))
+    return out
+
+
 def _imported(work: Path, paths: list[Path], maps: list[Path], name: str = "set.mcap") -> Path:
     out = work / name
     phid("import-pmu", *paths, *[a for m in maps for a in ("--map", m)], "--out", out)
@@ -414,7 +425,9 @@ def mostar_recipe(work: Path) -> Figures:
     phid("export", work / "identify.json", *base, "--out", work / "unit.dyr")
     for name, dyr in (("phid's record", work / "unit.dyr"), ("published record", EXAMPLE / "published.dyr")):
         phid("validate", dyr, bag, "--json", work / "v.json")
-        out.update({f"{name}: {k}": v for k, v in verdicts(json.loads((work / "v.json").read_text())).items()})
+        checked = json.loads((work / "v.json").read_text())
+        out.update({f"{name}: {k}": v for k, v in verdicts(checked).items()})
+        out.update(_check_errors(name, checked))
     # issue 69's goal, 30 s on two cores: the day imported, identified, exported and validated
     # (both records), in this process (no start-up), before the monitor's replay below
     day_s = round(time.perf_counter() - t0, 1)
