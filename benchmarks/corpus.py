@@ -865,7 +865,7 @@ SETS: dict[str, CorpusSet] = {
     **{f"andes-diagnose-{m}": CorpusSet(simulator_diagnosis("andes", m), False) for m in ANDES_DIAGNOSIS},
     **{f"steps-diagnose-{m}": CorpusSet(simulator_diagnosis("steps", m), False) for m in STEPS_DIAGNOSIS},
     "steps-controls": CorpusSet(steps_controls, False),
-    "controls-switched-in": CorpusSet(controls_switched_in, False),
+    "controls-switched-in": CorpusSet(controls_switched_in, True),
 }
 
 
